@@ -1,0 +1,4 @@
+#include "client/commands.h"
+namespace orbatlas::cli {
+void register_eval_command(CLI::App&) {}  // placeholder: being written
+}  // namespace orbatlas::cli

@@ -1,0 +1,12 @@
+#pragma once
+// Each sub-command registers itself on the CLI11 app; its callback does the work
+// and throws orbatlas::Error on failure (main prints it and exits with 1).
+#include <CLI/CLI.hpp>
+
+namespace orbatlas::cli {
+
+void register_sim_command(CLI::App& app);
+void register_eval_command(CLI::App& app);
+void register_bench_command(CLI::App& app);
+
+}  // namespace orbatlas::cli

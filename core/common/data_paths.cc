@@ -1,0 +1,29 @@
+#include "core/common/data_paths.h"
+
+#include <cstdlib>
+
+namespace orbatlas {
+namespace {
+std::filesystem::path from_env_or(const char* var, const char* fallback) {
+  const char* v = std::getenv(var);
+  return (v != nullptr && *v != '\0') ? std::filesystem::path(v) : std::filesystem::path(fallback);
+}
+}  // namespace
+
+std::filesystem::path shipped_data_dir() { return from_env_or("ORBATLAS_DATA_DIR", ORBATLAS_DEFAULT_DATA_DIR); }
+
+std::filesystem::path shipped_config_dir() { return from_env_or("ORBATLAS_CONFIG_DIR", ORBATLAS_DEFAULT_CONFIG_DIR); }
+
+std::optional<std::filesystem::path> shared_euroc_dir() {
+  std::error_code ec;
+  if (const char* v = std::getenv("ORBATLAS_SHARED_EUROC"); v != nullptr && *v != '\0') {
+    if (std::filesystem::is_directory(v, ec)) return std::filesystem::path(v);
+    return std::nullopt;
+  }
+  // The source tree sits in <work>/<checkout>; shared/ is its sibling.
+  const auto candidate = std::filesystem::path(ORBATLAS_DEFAULT_DATA_DIR).parent_path().parent_path() / "shared" / "data" / "euroc";
+  if (std::filesystem::is_directory(candidate, ec)) return candidate;
+  return std::nullopt;
+}
+
+}  // namespace orbatlas

@@ -1,0 +1,17 @@
+#pragma once
+// Where the files shipped with orbatlas live (data/ and config/ of the source
+// tree by default). ORBATLAS_DATA_DIR / ORBATLAS_CONFIG_DIR override them, and
+// the real EuRoC extras (../shared/data/euroc) are found via ORBATLAS_SHARED_EUROC
+// or next to the source tree; they are optional.
+#include <filesystem>
+#include <optional>
+
+namespace orbatlas {
+
+std::filesystem::path shipped_data_dir();
+std::filesystem::path shipped_config_dir();
+
+// The optional folder of real EuRoC data (../shared/data/euroc); empty if absent.
+std::optional<std::filesystem::path> shared_euroc_dir();
+
+}  // namespace orbatlas

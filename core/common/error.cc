@@ -1,0 +1,7 @@
+#include "core/common/error.h"
+
+namespace orbatlas {
+
+void throw_error(const std::string& message) { throw Error(message); }
+
+}  // namespace orbatlas

@@ -1,0 +1,27 @@
+#pragma once
+// A trajectory: poses T_w_b at nanosecond timestamps, strictly increasing.
+#include <optional>
+#include <vector>
+
+#include "core/common/timestamp.h"
+#include "core/geometry/pose.h"
+
+namespace orbatlas {
+
+struct StampedPose {
+  TimestampNs t_ns = 0;
+  Pose3 pose;  // T_w_b
+};
+
+using Trajectory = std::vector<StampedPose>;
+
+// Pose at time t: the sample itself when one lies within exact_tol_ns, otherwise
+// interpolated between the two samples around t if they are at most max_gap_ns
+// apart. Empty when t is outside the trajectory or inside a larger gap.
+std::optional<Pose3> pose_at(const Trajectory& trajectory, TimestampNs t, TimestampNs max_gap_ns,
+                             TimestampNs exact_tol_ns = 1000);
+
+// Throws DataError unless timestamps strictly increase.
+void check_strictly_increasing(const Trajectory& trajectory, const char* what);
+
+}  // namespace orbatlas

@@ -1,0 +1,31 @@
+#pragma once
+#include <filesystem>
+
+#include "core/io/euroc_types.h"
+
+namespace orbatlas {
+
+struct EurocReadOptions {
+  bool require_cam1 = false;  // stereo use: a missing cam1 is an error
+  bool require_imu = false;   // inertial use: a missing imu0 is an error
+};
+
+// Reads an EuRoC ASL dataset. `dir` may be the dataset folder or its mav0/.
+// Errors (DataError, with file and line): missing mav0/cam0, unreadable or
+// malformed csv/yaml, duplicate or decreasing timestamps in a csv.
+// Documented skips (logged, and listed in EurocDataset::warnings): csv rows whose
+// image file does not exist. cam0/cam1 frames are not paired here.
+EurocDataset read_euroc_dataset(const std::filesystem::path& dir, const EurocReadOptions& options = {});
+
+// Pairs of cam0/cam1 frames with equal timestamps (|dt| <= tolerance).
+struct StereoFrame {
+  TimestampNs t_ns = 0;
+  std::filesystem::path left, right;
+};
+std::vector<StereoFrame> pair_stereo_frames(const EurocDataset& dataset, TimestampNs tolerance_ns = 1000);
+
+// The ground-truth trajectory of state_groundtruth_estimate0/data.csv, or of a
+// standalone ASL ground-truth csv file.
+std::vector<GroundTruthState> read_asl_ground_truth_csv(const std::filesystem::path& csv);
+
+}  // namespace orbatlas

@@ -1,0 +1,50 @@
+#pragma once
+// SLAM settings from an ORB-SLAM3 v1.0-style YAML file (cv::FileStorage), so that
+// users can bring their existing calibration. See docs/settings.md for every key.
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "core/camera/camera_calibration.h"
+#include "core/io/euroc_types.h"
+
+namespace orbatlas {
+
+enum class SensorType { kMonocular, kStereo, kMonocularInertial, kStereoInertial };
+
+struct OrbSettings {
+  int n_features = 1200;
+  double scale_factor = 1.2;
+  int n_levels = 8;
+  int ini_th_fast = 20;
+  int min_th_fast = 7;
+};
+
+struct SlamSettings {
+  SensorType sensor = SensorType::kStereo;
+  CameraCalibration camera0;                 // Camera1.* in the file; T_b_c from IMU.T_b_c1
+  std::optional<CameraCalibration> camera1;  // Camera2.*; T_b_c = T_b_c0 * Stereo.T_c1_c2
+  Pose3 T_c0_c1;                             // Stereo.T_c1_c2 (identity for mono)
+  double fps = 20.0;
+  bool rgb = true;
+  double stereo_th_depth = 60.0;  // close/far threshold in baselines
+  std::optional<ImuCalibration> imu;
+  OrbSettings orb;
+
+  bool is_stereo() const { return sensor == SensorType::kStereo || sensor == SensorType::kStereoInertial; }
+  bool is_inertial() const { return sensor == SensorType::kMonocularInertial || sensor == SensorType::kStereoInertial; }
+  // Throws Error when something needed for the sensor type is missing or invalid.
+  void check() const;
+};
+
+// The sensor type is not in ORB-SLAM3 files (it is chosen by the example
+// program): it comes from the key "Sensor.type" ("mono", "stereo",
+// "mono_inertial", "stereo_inertial") when present, else from `sensor_hint`,
+// else stereo when Camera2 / Stereo.* keys are present and mono otherwise,
+// inertial when IMU.* keys are present.
+SlamSettings read_settings(const std::filesystem::path& yaml, std::optional<SensorType> sensor_hint = {});
+
+const char* sensor_type_name(SensorType type);
+std::optional<SensorType> parse_sensor_type(const std::string& name);
+
+}  // namespace orbatlas

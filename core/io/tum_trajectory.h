@@ -1,0 +1,23 @@
+#pragma once
+// TUM trajectory files: one pose per line, "t tx ty tz qx qy qz qw", '#' comments.
+// Timestamps are read exactly to the nanosecond. Reading also accepts ORB-SLAM3's
+// output, whose first column is in nanoseconds ("1403636586363555584.000000"):
+// a timestamp column whose values exceed 1e12 is taken as nanoseconds.
+#include <filesystem>
+
+#include "core/geometry/trajectory.h"
+
+namespace orbatlas {
+
+// Throws DataError (file:line) on malformed lines, non-unit quaternions (|q| off by
+// more than 1e-3), or timestamps that are not strictly increasing.
+Trajectory read_tum_trajectory(const std::filesystem::path& path);
+
+// Writes seconds with 9 decimals (exact), positions and quaternions with 9 digits.
+void write_tum_trajectory(const std::filesystem::path& path, const Trajectory& trajectory);
+
+// Reads ground truth in any of the forms `orbatlas eval --gt` takes: a TUM file,
+// an ASL ground-truth csv, or a dataset folder (its state_groundtruth_estimate0).
+Trajectory read_any_ground_truth(const std::filesystem::path& path);
+
+}  // namespace orbatlas
