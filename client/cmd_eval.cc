@@ -1,4 +1,119 @@
+// `orbatlas eval`: ATE / RPE of an estimated trajectory against ground truth.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
 #include "client/commands.h"
+#include "core/common/error.h"
+#include "core/eval/evaluate.h"
+#include "core/eval/trajectory_plot.h"
+#include "core/io/tum_trajectory.h"
+
 namespace orbatlas::cli {
-void register_eval_command(CLI::App&) {}  // placeholder: being written
+namespace {
+
+struct EvalArgs {
+  std::string gt;
+  std::string est;
+  std::string align = "se3";
+  double max_gap_s = 0.1;
+  bool json = false;
+  std::string plot;
+};
+
+nlohmann::ordered_json to_json(const EvalResult& r) {
+  return {{"ate_rmse_m", r.ate.rmse},
+          {"ate_mean_m", r.ate.mean},
+          {"ate_median_m", r.ate.median},
+          {"ate_max_m", r.ate.max},
+          {"rpe_trans_m", r.rpe.trans_rmse_m},
+          {"rpe_rot_deg", r.rpe.rot_rmse_deg},
+          {"rpe_pairs", r.rpe.pairs},
+          {"scale", r.alignment.scale},
+          {"align", align_mode_name(r.align)},
+          {"matched", r.matched},
+          {"est_poses", r.est_poses},
+          {"gt_poses", r.gt_poses}};
+}
+
+void print_human(const EvalArgs& args, const EvalResult& r) {
+  char buf[512];
+  std::cout << "orbatlas eval: " << args.est << "\n  vs ground truth " << args.gt << "\n";
+  std::snprintf(buf, sizeof buf,
+                "  alignment      %s, scale %.6f\n"
+                "  matched poses  %zu of %zu estimated (ground truth: %zu poses)\n"
+                "  ATE [m]        rmse %.4f  mean %.4f  median %.4f  max %.4f\n"
+                "  RPE over 1 s   trans %.4f m  rot %.4f deg  (%zu pairs)\n",
+                align_mode_name(r.align), r.alignment.scale, r.matched, r.est_poses, r.gt_poses, r.ate.rmse,
+                r.ate.mean, r.ate.median, r.ate.max, r.rpe.trans_rmse_m, r.rpe.rot_rmse_deg, r.rpe.pairs);
+  std::cout << buf;
+}
+
+void write_plot(const EvalArgs& args, const Trajectory& est, const Trajectory& gt, const EvalResult& r) {
+  TrajectoryPlot plot;
+  // The ground truth over the estimate's time span (plus 1 s), the whole estimate aligned.
+  const TimestampNs from = est.front().t_ns - kNsPerSecond, to = est.back().t_ns + kNsPerSecond;
+  for (const StampedPose& s : gt)
+    if (s.t_ns >= from && s.t_ns <= to) plot.ground_truth.push_back(s.pose.t);
+  for (const StampedPose& s : est) plot.estimate.push_back(r.alignment.apply(s.pose.t));
+  plot.estimate_label = "estimate (" + std::string(align_mode_name(r.align)) + ")";
+  char title[256];
+  std::snprintf(title, sizeof title, "%s   ATE RMSE %.4f m (%s)   %zu poses",
+                std::filesystem::path(args.est).filename().string().c_str(), r.ate.rmse, align_mode_name(r.align),
+                r.matched);
+  plot.title = title;
+  write_trajectory_plot(args.plot, plot);
+}
+
+void run_eval(const EvalArgs& args) {
+  const Trajectory gt = read_any_ground_truth(args.gt);
+  const Trajectory est = read_tum_trajectory(args.est);
+  ORBATLAS_CHECK(!est.empty(), args.est << ": no poses");
+  ORBATLAS_CHECK(!gt.empty(), args.gt << ": no poses");
+
+  EvalOptions options;
+  const auto mode = parse_align_mode(args.align);
+  ORBATLAS_CHECK(mode.has_value(), "--align must be se3, sim3 or none, not '" << args.align << "'");
+  options.align = *mode;
+  options.association.max_gap_ns = s_to_ns(args.max_gap_s);
+  const EvalResult result = evaluate_trajectory(est, gt, options);
+
+  if (args.json) {
+    std::cout << to_json(result).dump(2) << "\n";
+  } else {
+    print_human(args, result);
+  }
+  if (!args.plot.empty()) {
+    write_plot(args, est, gt, result);
+    if (!args.json) std::cout << "  plot           " << args.plot << "\n";
+  }
+}
+
+}  // namespace
+
+void register_eval_command(CLI::App& app) {
+  auto args = std::make_shared<EvalArgs>();
+  CLI::App* cmd = app.add_subcommand("eval", "Evaluate an estimated trajectory against ground truth (ATE, RPE)");
+  cmd->add_option("--gt", args->gt,
+                  "Ground truth: TUM file, ASL state_groundtruth_estimate0 csv, or EuRoC dataset folder")
+      ->required();
+  cmd->add_option("--est", args->est, "Estimated trajectory, TUM format (seconds or ORB-SLAM3 nanoseconds)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--align", args->align, "Alignment before ATE: se3 (rigid), sim3 (with scale) or none")
+      ->check(CLI::IsMember({"se3", "sim3", "none"}))
+      ->capture_default_str();
+  cmd->add_option("--max-gap", args->max_gap_s,
+                  "Largest ground-truth gap [s] to interpolate across when associating")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_flag("--json", args->json, "Print the result as one JSON object");
+  cmd->add_option("--plot", args->plot, "Write a top-view (x-y) PNG of both trajectories");
+  cmd->callback([args] { run_eval(*args); });
+}
+
 }  // namespace orbatlas::cli

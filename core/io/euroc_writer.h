@@ -30,6 +30,11 @@ class EurocWriter {
  private:
   std::filesystem::path mav0_;
   std::vector<std::ofstream> camera_csv_;
+  std::ofstream imu_csv_;
+  std::ofstream ground_truth_csv_;
+  std::vector<TimestampNs> last_frame_t_;  // per camera; -1 before the first row
+  TimestampNs last_imu_t_ = -1;
+  TimestampNs last_ground_truth_t_ = -1;
 };
 
 }  // namespace orbatlas

@@ -1,1 +1,148 @@
-// placeholder: being written
+// TUM trajectory files (and ORB-SLAM3's ns variant), plus ground truth in any form.
+#include "core/io/tum_trajectory.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <string>
+#include <string_view>
+
+#include "core/common/error.h"
+#include "core/common/text_file.h"
+#include "core/io/euroc_reader.h"
+
+namespace orbatlas {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr std::uint64_t kNanosecondThreshold = 1'000'000'000'000ULL;  // 1e12: larger values are ns
+
+[[noreturn]] void fail_at(const fs::path& path, std::size_t line, const std::string& what) {
+  throw DataError(path.string() + ":" + std::to_string(line) + ": " + what);
+}
+
+bool all_digits(std::string_view s) {
+  for (const char c : s)
+    if (c < '0' || c > '9') return false;
+  return true;
+}
+
+// "1403636580.83856" (seconds, exact) or "1403636586363555584.000000" (ns: the
+// integer part exactly; a fraction rounds to the nearest ns).
+std::optional<TimestampNs> parse_tum_timestamp(std::string_view text) {
+  const std::size_t dot = text.find('.');
+  const std::string_view whole = text.substr(0, dot);
+  if (!whole.empty() && all_digits(whole)) {
+    std::uint64_t value = 0;
+    const auto [ptr, ec] = std::from_chars(whole.data(), whole.data() + whole.size(), value);
+    if (ec != std::errc() || ptr != whole.data() + whole.size()) return std::nullopt;  // overflow
+    if (value > kNanosecondThreshold) {
+      const std::string_view frac = dot == std::string_view::npos ? std::string_view() : text.substr(dot + 1);
+      if (!all_digits(frac)) return std::nullopt;
+      if (value > static_cast<std::uint64_t>(std::numeric_limits<TimestampNs>::max()) - 1) return std::nullopt;
+      return static_cast<TimestampNs>(value) + ((!frac.empty() && frac[0] >= '5') ? 1 : 0);
+    }
+  }
+  return parse_seconds_exact(text);
+}
+
+bool is_comment_or_blank(std::string_view text) {
+  const std::string_view t = trim(text);
+  return t.empty() || t.front() == '#';
+}
+
+// The first data line of a file, split on commas; empty when there is none.
+std::vector<std::string> first_csv_fields(const fs::path& path) {
+  const std::string content = read_text_file(path);
+  std::size_t pos = 0;
+  while (pos < content.size()) {
+    std::size_t end = content.find('\n', pos);
+    if (end == std::string::npos) end = content.size();
+    const std::string_view line(content.data() + pos, end - pos);
+    if (!is_comment_or_blank(line)) {
+      std::vector<std::string> out;
+      for (const auto f : split_fields(line, ",", false)) out.emplace_back(f);
+      return out;
+    }
+    pos = end + 1;
+  }
+  return {};
+}
+
+Trajectory from_ground_truth_states(const std::vector<GroundTruthState>& states) {
+  Trajectory trajectory;
+  trajectory.reserve(states.size());
+  for (const GroundTruthState& s : states) trajectory.push_back(StampedPose{s.t_ns, s.T_w_b});
+  return trajectory;
+}
+
+}  // namespace
+
+Trajectory read_tum_trajectory(const fs::path& path) {
+  Trajectory trajectory;
+  std::size_t previous_line = 0;
+  for_each_line(path, [&](const TextLine& line) {
+    if (is_comment_or_blank(line.text)) return;
+    const auto f = split_fields(line.text, " \t,", true);
+    if (f.size() != 8)
+      fail_at(path, line.number,
+              "expected 8 fields 't tx ty tz qx qy qz qw', found " + std::to_string(f.size()));
+    const auto t = parse_tum_timestamp(f[0]);
+    if (!t) fail_at(path, line.number, "bad timestamp '" + std::string(f[0]) + "'");
+    double v[7];
+    for (std::size_t i = 0; i < 7; ++i) {
+      v[i] = parse_double(f[i + 1], path, line.number);
+      if (!std::isfinite(v[i])) fail_at(path, line.number, "non-finite value '" + std::string(f[i + 1]) + "'");
+    }
+    const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);  // file order: qx qy qz qw
+    if (std::abs(q.norm() - 1.0) > 1e-3)
+      fail_at(path, line.number, "quaternion is not unit (|q| = " + std::to_string(q.norm()) + ")");
+    if (!trajectory.empty() && *t <= trajectory.back().t_ns)
+      fail_at(path, line.number,
+              "timestamp " + format_seconds_exact(*t) + " is not after " +
+                  format_seconds_exact(trajectory.back().t_ns) + " (line " + std::to_string(previous_line) + ")");
+    previous_line = line.number;
+    trajectory.push_back(StampedPose{*t, Pose3(q, Eigen::Vector3d(v[0], v[1], v[2]))});
+  });
+  return trajectory;
+}
+
+void write_tum_trajectory(const fs::path& path, const Trajectory& trajectory) {
+  check_strictly_increasing(trajectory, "write_tum_trajectory");
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw Error("cannot create " + path.string());
+  out << "# timestamp[s] tx ty tz qx qy qz qw\n";
+  char buf[256];
+  for (const StampedPose& s : trajectory) {
+    const Eigen::Vector3d& p = s.pose.t;
+    const Eigen::Quaterniond& q = s.pose.q;
+    std::snprintf(buf, sizeof buf, " %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", p.x(), p.y(), p.z(), q.x(), q.y(),
+                  q.z(), q.w());
+    out << format_seconds_exact(s.t_ns) << buf;
+  }
+  out.close();
+  if (!out) throw Error("cannot write " + path.string());
+}
+
+Trajectory read_any_ground_truth(const fs::path& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) {
+    // The dataset folder, its mav0/, or state_groundtruth_estimate0/ itself.
+    for (const fs::path& csv : {path / "mav0" / "state_groundtruth_estimate0" / "data.csv",
+                                path / "state_groundtruth_estimate0" / "data.csv"}) {
+      if (fs::is_regular_file(csv, ec)) return from_ground_truth_states(read_asl_ground_truth_csv(csv));
+    }
+    if (path.filename() == "state_groundtruth_estimate0" && fs::is_regular_file(path / "data.csv", ec))
+      return from_ground_truth_states(read_asl_ground_truth_csv(path / "data.csv"));
+    throw DataError(path.string() + ": folder has no mav0/state_groundtruth_estimate0/data.csv");
+  }
+  if (!fs::exists(path, ec)) throw DataError(path.string() + ": file not found");
+  // An ASL csv has 17 comma-separated columns; anything else is read as TUM.
+  if (first_csv_fields(path).size() == 17) return from_ground_truth_states(read_asl_ground_truth_csv(path));
+  return read_tum_trajectory(path);
+}
+
+}  // namespace orbatlas

@@ -1,0 +1,69 @@
+#include "core/sim/imu_synthesizer.h"
+
+#include <cmath>
+#include <random>
+
+#include "core/common/error.h"
+
+namespace orbatlas::sim {
+
+ImuSample ideal_imu_sample(const TrajectorySpline& trajectory, TimestampNs t, const Pose3& T_b_i) {
+  const SplineState s = trajectory.evaluate(t);
+  const Eigen::Matrix3d R_w_b = s.T_w_b.rotation();
+  const Eigen::Matrix3d R_b_i = T_b_i.rotation();
+  // Specific force of the body origin in the body frame.
+  Eigen::Vector3d f_b = R_w_b.transpose() * (s.a_w + Eigen::Vector3d(0.0, 0.0, kGravity));
+  // Lever arm of an IMU away from the body origin (zero for EuRoC: IMU = body).
+  // The angular acceleration term is neglected; T_b_i.t is centimetres at most.
+  const Eigen::Vector3d& r = T_b_i.t;
+  f_b += s.omega_b.cross(s.omega_b.cross(r));
+  ImuSample m;
+  m.t_ns = t;
+  m.gyro = R_b_i.transpose() * s.omega_b;
+  m.accel = R_b_i.transpose() * f_b;
+  return m;
+}
+
+SyntheticImu synthesize_imu(const TrajectorySpline& trajectory, TimestampNs first_ns, TimestampNs last_ns,
+                            const ImuSynthesisOptions& options) {
+  const ImuCalibration& cal = options.calibration;
+  ORBATLAS_CHECK(cal.rate_hz > 0.0, "IMU rate must be positive");
+  const TimestampNs period = s_to_ns(1.0 / cal.rate_hz);
+  const double dt = ns_to_s(period);
+  std::mt19937_64 rng(options.seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  auto gauss3 = [&](double sigma) { return Eigen::Vector3d(sigma * normal(rng), sigma * normal(rng), sigma * normal(rng)); };
+
+  Eigen::Vector3d bg = Eigen::Vector3d::Zero(), ba = Eigen::Vector3d::Zero();
+  if (options.add_noise) {
+    bg = gauss3(options.initial_gyro_bias_sigma);
+    ba = gauss3(options.initial_accel_bias_sigma);
+  }
+  const double gyro_white = cal.gyro_noise_density / std::sqrt(dt);
+  const double accel_white = cal.accel_noise_density / std::sqrt(dt);
+  const double gyro_walk = cal.gyro_random_walk * std::sqrt(dt);
+  const double accel_walk = cal.accel_random_walk * std::sqrt(dt);
+
+  SyntheticImu out;
+  for (TimestampNs t = std::max(first_ns, trajectory.start_ns()); t <= std::min(last_ns, trajectory.end_ns()); t += period) {
+    ImuSample m = ideal_imu_sample(trajectory, t, cal.T_b_i);
+    const SplineState s = trajectory.evaluate(t);
+    GroundTruthState gt;
+    gt.t_ns = t;
+    gt.T_w_b = s.T_w_b;
+    gt.v_w = s.v_w;
+    gt.gyro_bias = bg;
+    gt.accel_bias = ba;
+    out.states.push_back(gt);
+    if (options.add_noise) {
+      m.gyro += bg + gauss3(gyro_white);
+      m.accel += ba + gauss3(accel_white);
+      bg += gauss3(gyro_walk);
+      ba += gauss3(accel_walk);
+    }
+    out.samples.push_back(m);
+  }
+  return out;
+}
+
+}  // namespace orbatlas::sim

@@ -1,0 +1,183 @@
+#include "core/sim/sequence_simulator.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <mutex>
+#include <opencv2/imgcodecs.hpp>
+#include <thread>
+
+#include "core/camera/camera_factory.h"
+#include "core/common/data_paths.h"
+#include "core/common/error.h"
+#include "core/common/log.h"
+#include "core/common/progress.h"
+#include "core/common/text_file.h"
+#include "core/io/euroc_writer.h"
+#include "core/io/settings.h"
+#include "core/sim/euroc_sequences.h"
+#include "core/sim/imu_synthesizer.h"
+#include "core/sim/machine_hall.h"
+#include "core/sim/renderer.h"
+#include "core/sim/trajectory_spline.h"
+
+namespace orbatlas::sim {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::vector<ImuSample> load_real_mh05_imu(TimestampNs first, TimestampNs last) {
+  const auto path = shipped_data_dir() / "euroc" / "imu" / "MH_05_imu0.txt.gz";
+  std::vector<ImuSample> out;
+  for_each_line(path, [&](const TextLine& line) {
+    const auto text = trim(line.text);
+    if (text.empty() || text[0] == '#') return;
+    const auto f = split_fields(text, " ,\t", true);
+    if (f.size() != 7) throw DataError(path.string() + ":" + std::to_string(line.number) + ": expected 7 columns");
+    ImuSample s;
+    s.t_ns = parse_int64(f[0], path, line.number);
+    if (s.t_ns < first || s.t_ns > last) return;
+    s.gyro = {parse_double(f[1], path, line.number), parse_double(f[2], path, line.number), parse_double(f[3], path, line.number)};
+    s.accel = {parse_double(f[4], path, line.number), parse_double(f[5], path, line.number), parse_double(f[6], path, line.number)};
+    out.push_back(s);
+  });
+  return out;
+}
+
+std::uint64_t hash_name(const std::string& s) {
+  std::uint64_t h = 1469598103934665603ULL;
+  for (const char c : s) h = (h ^ static_cast<unsigned char>(c)) * 1099511628211ULL;
+  return h;
+}
+
+}  // namespace
+
+SimulationReport simulate_sequence(const SimulationOptions& options) {
+  SimulationReport report;
+  ORBATLAS_CHECK(!options.out_dir.empty(), "sim: no output folder given");
+  ORBATLAS_CHECK(options.start_s >= 0.0, "sim: --start must be >= 0");
+  ORBATLAS_CHECK(options.noise_sigma >= 0.0 && options.noise_sigma <= 50.0, "sim: --noise must be in [0, 50] grey levels");
+  const SequenceInfo sequence = find_sequence(options.sequence);
+  ORBATLAS_CHECK(options.imu == ImuSource::kSynthetic || sequence.name == "MH_05",
+                 "sim: --imu real is only available for MH_05 (the only real IMU shipped); use --imu synthetic");
+  const auto settings_path = options.settings.empty() ? shipped_config_dir() / "euroc" / "stereo_inertial.yaml" : options.settings;
+  const SlamSettings settings = read_settings(settings_path, SensorType::kStereoInertial);
+  ORBATLAS_CHECK(settings.camera1.has_value(), "sim: " << settings_path.string() << " describes no second camera");
+  const ImuCalibration imu_cal = settings.imu.value_or(ImuCalibration{});
+  const std::uint64_t sensor_seed = options.sensor_seed != 0 ? options.sensor_seed : hash_name(sequence.name);
+
+  // Trajectory and frame times.
+  const Trajectory gt = load_ground_truth(sequence);
+  const TrajectorySpline spline(gt);
+  const std::vector<TimestampNs> all_stamps = load_camera_timestamps(sequence);
+  ORBATLAS_CHECK(!all_stamps.empty(), "sim: no camera timestamps for " << sequence.name);
+  const TimestampNs t_begin = all_stamps.front() + s_to_ns(options.start_s);
+  const TimestampNs t_end = options.duration_s < 0 ? all_stamps.back() : t_begin + s_to_ns(options.duration_s);
+  std::vector<TimestampNs> stamps;
+  for (const TimestampNs t : all_stamps) {
+    if (t < t_begin || t > t_end) continue;
+    if (!spline.covers(t)) {
+      ++report.frames_outside_gt;
+      continue;
+    }
+    stamps.push_back(t);
+  }
+  if (report.frames_outside_gt > 0)
+    log_info("sim: skipped " + std::to_string(report.frames_outside_gt) + " camera timestamps outside the ground truth of " + sequence.name);
+  ORBATLAS_CHECK(!stamps.empty(), "sim: no camera frame of " << sequence.name << " in the requested time range");
+
+  // The world: the same hall for every Machine Hall sequence.
+  const auto world_start = Clock::now();
+  std::vector<Trajectory> keep_free = sequence.machine_hall ? load_machine_hall_trajectories() : std::vector<Trajectory>{gt};
+  MachineHallOptions hall_options;
+  hall_options.seed = options.scene_seed;
+  const World world = build_machine_hall(keep_free, hall_options);
+  report.world_build_s = std::chrono::duration<double>(Clock::now() - world_start).count();
+  log_info("sim: world with " + std::to_string(world.quads().size()) + " surfaces built in " +
+           std::to_string(report.world_build_s).substr(0, 4) + " s");
+
+  const std::vector<CameraCalibration> cams = {settings.camera0, *settings.camera1};
+  EurocWriter writer(options.out_dir, cams, imu_cal);
+
+  // IMU and ground truth: from 1 s before the first frame to just after the last.
+  const TimestampNs imu_first = std::max(spline.start_ns(), stamps.front() - kNsPerSecond);
+  const TimestampNs imu_last = std::min(spline.end_ns(), stamps.back() + kNsPerSecond / 10);
+  ImuSynthesisOptions imu_options;
+  imu_options.calibration = imu_cal;
+  imu_options.seed = sensor_seed;
+  // The grid runs through the first camera timestamp, like EuRoC's triggered cameras.
+  const TimestampNs period = s_to_ns(1.0 / imu_cal.rate_hz);
+  const TimestampNs grid_first = stamps.front() - ((stamps.front() - imu_first) / period) * period;
+  SyntheticImu imu = synthesize_imu(spline, grid_first, imu_last, imu_options);
+  if (options.imu == ImuSource::kReal) {
+    imu.samples = load_real_mh05_imu(imu_first, imu_last);
+    imu.states.clear();  // ground truth at the real IMU times; biases unknown (zero)
+    for (const ImuSample& s : imu.samples) {
+      if (!spline.covers(s.t_ns)) continue;
+      const SplineState st = spline.evaluate(s.t_ns);
+      GroundTruthState g;
+      g.t_ns = s.t_ns;
+      g.T_w_b = st.T_w_b;
+      g.v_w = st.v_w;
+      imu.states.push_back(g);
+    }
+  }
+  writer.write_imu(imu.samples);
+  writer.write_ground_truth(imu.states);
+  report.imu_samples = imu.samples.size();
+
+  // Images: workers take frames from a shared counter; each owns its renderers.
+  const int threads = options.threads > 0 ? options.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  std::vector<std::unique_ptr<Camera>> cameras;
+  for (const auto& c : cams) cameras.push_back(make_camera(c));
+  Progress progress("sim " + sequence.name, static_cast<std::int64_t>(stamps.size()), options.show_progress);
+  std::atomic<std::size_t> next{0};
+  std::atomic<std::int64_t> render_ns{0};
+  std::mutex error_mutex;
+  std::string first_error;
+  const auto render_start = Clock::now();
+  auto worker = [&]() {
+    try {
+      std::vector<std::unique_ptr<Renderer>> renderers;
+      RenderOptions ro;
+      ro.noise_sigma = options.noise_sigma;
+      for (const auto& cam : cameras) renderers.push_back(std::make_unique<Renderer>(world, *cam, ro));
+      cv::Mat image;
+      const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
+      for (std::size_t i = next++; i < stamps.size(); i = next++) {
+        const TimestampNs t = stamps[i];
+        const Pose3 T_w_b = spline.pose(t);
+        for (std::size_t c = 0; c < renderers.size(); ++c) {
+          const auto t0 = Clock::now();
+          renderers[c]->render(T_w_b * cams[c].T_b_c, image, sensor_seed ^ (static_cast<std::uint64_t>(t) * 2 + c));
+          render_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0).count();
+          const auto path = writer.image_path(static_cast<int>(c), t);
+          if (!cv::imwrite(path.string(), image, png_params)) throw Error("cannot write " + path.string());
+        }
+        progress.advance();
+        std::lock_guard lock(error_mutex);
+        if (!first_error.empty()) return;
+      }
+    } catch (const std::exception& e) {
+      std::lock_guard lock(error_mutex);
+      if (first_error.empty()) first_error = e.what();
+      next = stamps.size();
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int k = 0; k < threads; ++k) pool.emplace_back(worker);
+  for (auto& th : pool) th.join();
+  progress.finish();
+  if (!first_error.empty()) throw Error("sim: " + first_error);
+  for (const TimestampNs t : stamps)
+    for (int c = 0; c < static_cast<int>(cams.size()); ++c) writer.add_frame_row(c, t);
+  writer.close();
+
+  report.frames = stamps.size();
+  report.render_s = std::chrono::duration<double>(Clock::now() - render_start).count();
+  report.render_ms_per_image = static_cast<double>(render_ns.load()) * 1e-6 / static_cast<double>(2 * stamps.size());
+  return report;
+}
+
+}  // namespace orbatlas::sim

@@ -1,0 +1,41 @@
+#pragma once
+// `orbatlas sim`: renders an EuRoC ASL dataset (stereo images, IMU, ground truth,
+// sensor.yaml files) along a real EuRoC trajectory, at the real camera timestamps.
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+namespace orbatlas::sim {
+
+enum class ImuSource { kSynthetic, kReal };
+
+struct SimulationOptions {
+  std::string sequence = "MH_01";
+  std::filesystem::path out_dir;
+  double start_s = 0.0;      // skip this much of the sequence (from its first camera frame)
+  double duration_s = -1.0;  // render this long; negative: to the end
+  std::uint64_t scene_seed = 1;
+  ImuSource imu = ImuSource::kSynthetic;  // kReal: the real MH_05 IMU (MH_05 only)
+  double noise_sigma = 2.0;               // image noise, grey levels
+  std::uint64_t sensor_seed = 0;          // IMU and image noise; 0: derived from the sequence name
+  // Calibration of the rendered rig (ORB-SLAM3-style settings, stereo); empty:
+  // the shipped config/euroc/stereo_inertial.yaml (the real EuRoC calibration).
+  std::filesystem::path settings;
+  int threads = 0;  // 0: all cores
+  bool show_progress = true;
+};
+
+struct SimulationReport {
+  std::size_t frames = 0;             // stereo frames written
+  std::size_t frames_outside_gt = 0;  // camera timestamps the ground truth does not cover (skipped)
+  std::size_t imu_samples = 0;
+  double world_build_s = 0.0;
+  double render_s = 0.0;              // wall time of rendering and writing the images
+  double render_ms_per_image = 0.0;   // CPU time per image (rendering only), averaged
+};
+
+// Throws Error on bad options (unknown sequence, --imu real for a sequence other
+// than MH_05, an output folder that already holds a dataset, an empty time range).
+SimulationReport simulate_sequence(const SimulationOptions& options);
+
+}  // namespace orbatlas::sim
