@@ -153,7 +153,7 @@ TEST(Renderer, StereoDisparityMatchesKnownDepth) {
   const int dark = uniform_texture(world, 30);
   world.add_quad(facing_square(T_w_c0 * Eigen::Vector3d(0, 0, 30), 300.0, T_w_c0, dark));
   std::vector<Eigen::Vector3d> markers_c0 = {{-0.6, -0.3, 2.0}, {0.3, 0.2, 3.0}, {0.0, -0.2, 5.0}, {0.8, 0.4, 4.0}};
-  for (const auto& p : markers_c0) world.add_quad(facing_square(T_w_c0 * p, 0.016 * p.z(), T_w_c0, spot_texture(world, 0.016 * p.z())));
+  for (const auto& p : markers_c0) world.add_quad(facing_square(T_w_c0 * p, 0.032 * p.z(), T_w_c0, spot_texture(world, 0.032 * p.z())));
   sim::RenderOptions options;
   options.noise_sigma = 0.0;
   sim::Renderer r0(world, *cam0, options), r1(world, *cam1, options);
@@ -165,7 +165,7 @@ TEST(Renderer, StereoDisparityMatchesKnownDepth) {
     Eigen::Vector2d uv0, uv1;
     ASSERT_TRUE(cam0->project(p_c0, &uv0));
     ASSERT_TRUE(cam1->project(T_c1_c0 * p_c0, &uv1));
-    const Eigen::Vector2d m0 = bright_centroid(left, uv0, 12, 36), m1 = bright_centroid(right, uv1, 12, 36);
+    const Eigen::Vector2d m0 = bright_centroid(left, uv0, 20, 36), m1 = bright_centroid(right, uv1, 20, 36);
     std::vector<cv::Point2d> in0{{m0.x(), m0.y()}}, in1{{m1.x(), m1.y()}}, out0, out1;
     cv::undistortPoints(in0, out0, K0, D0, R0, P0);
     cv::undistortPoints(in1, out1, K1, D1, R1, P1);

