@@ -71,7 +71,7 @@ void write_plot(const EvalArgs& args, const Trajectory& est, const Trajectory& g
 
 void run_eval(const EvalArgs& args) {
   const Trajectory gt = read_any_ground_truth(args.gt);
-  const Trajectory est = read_tum_trajectory(args.est);
+  const Trajectory est = read_any_ground_truth(args.est);  // TUM usually; an ASL csv or dataset also works
   ORBATLAS_CHECK(!est.empty(), args.est << ": no poses");
   ORBATLAS_CHECK(!gt.empty(), args.gt << ": no poses");
 
@@ -101,9 +101,9 @@ void register_eval_command(CLI::App& app) {
   cmd->add_option("--gt", args->gt,
                   "Ground truth: TUM file, ASL state_groundtruth_estimate0 csv, or EuRoC dataset folder")
       ->required();
-  cmd->add_option("--est", args->est, "Estimated trajectory, TUM format (seconds or ORB-SLAM3 nanoseconds)")
+  cmd->add_option("--est", args->est, "Estimated trajectory: TUM (seconds or ORB-SLAM3 nanoseconds), or an ASL csv or dataset folder")
       ->required()
-      ->check(CLI::ExistingFile);
+      ->check(CLI::ExistingPath);
   cmd->add_option("--align", args->align, "Alignment before ATE: se3 (rigid), sim3 (with scale) or none")
       ->check(CLI::IsMember({"se3", "sim3", "none"}))
       ->capture_default_str();

@@ -1,1 +1,66 @@
-// placeholder: being written
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "core/common/error.h"
+#include "core/geometry/pose.h"
+#include "core/geometry/so3.h"
+#include "core/geometry/trajectory.h"
+
+namespace orbatlas {
+namespace {
+
+Pose3 random_pose(std::mt19937& rng) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  return Pose3(Eigen::Quaterniond(n(rng), n(rng), n(rng), n(rng)).normalized(), Eigen::Vector3d(n(rng), n(rng), n(rng)));
+}
+
+TEST(So3, ExpLogRoundTripIncludingSmallAndLargeAngles) {
+  std::mt19937 rng(1);
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (const double angle : {0.0, 1e-12, 1e-6, 0.3, 2.0, M_PI - 1e-6}) {
+    const Eigen::Vector3d axis = Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
+    const Eigen::Vector3d w = axis * angle;
+    EXPECT_LT((so3_log(so3_exp(w)) - w).norm(), 1e-9) << angle;
+    const Eigen::Quaterniond expected(Eigen::AngleAxisd(angle, axis));
+    EXPECT_LT(rotation_angle(expected.conjugate() * so3_exp(w)), 1e-9);
+  }
+}
+
+TEST(Pose3, ComposeInverseAndMatrixAgree) {
+  std::mt19937 rng(2);
+  for (int i = 0; i < 50; ++i) {
+    const Pose3 a = random_pose(rng), b = random_pose(rng);
+    const Eigen::Vector3d p(0.3, -1.0, 2.0);
+    EXPECT_LT(((a * b) * p - a * (b * p)).norm(), 1e-12);
+    EXPECT_LT((a.inverse() * (a * p) - p).norm(), 1e-12);
+    EXPECT_LT(((a * b).matrix() - a.matrix() * b.matrix()).norm(), 1e-12);
+    const Pose3 back = Pose3::from_matrix(a.matrix());
+    EXPECT_LT(translation_distance(a, back) + rotation_distance(a, back), 1e-12);
+  }
+}
+
+TEST(Pose3, InterpolationIsGeodesic) {
+  const Pose3 a(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 0));
+  const Pose3 b(Eigen::Quaterniond(Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitZ())), Eigen::Vector3d(2, 0, 0));
+  const Pose3 m = interpolate(a, b, 0.25);
+  EXPECT_NEAR(m.t.x(), 0.5, 1e-12);
+  EXPECT_NEAR(rotation_angle(m.q), 0.25, 1e-12);
+}
+
+TEST(Trajectory, PoseAtUsesExactSamplesInterpolatesAndRespectsGaps) {
+  Trajectory tr = {{1000, Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 0))},
+                   {2000, Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 0, 0))},
+                   {10000, Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(9, 0, 0))}};
+  EXPECT_NEAR(pose_at(tr, 1500, 5000, 10)->t.x(), 0.5, 1e-12);
+  EXPECT_NEAR(pose_at(tr, 2003, 5000, 10)->t.x(), 1.0, 1e-12) << "within exact tolerance";
+  EXPECT_FALSE(pose_at(tr, 5000, 5000, 10).has_value()) << "8000 ns gap is larger than 5000";
+  EXPECT_FALSE(pose_at(tr, 500, 5000, 10).has_value()) << "before the start";
+  EXPECT_FALSE(pose_at(tr, 20000, 5000, 10).has_value()) << "after the end";
+  check_strictly_increasing(tr, "test");
+  tr.push_back(tr.back());
+  EXPECT_THROW(check_strictly_increasing(tr, "test"), DataError);
+}
+
+}  // namespace
+}  // namespace orbatlas
