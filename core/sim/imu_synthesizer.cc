@@ -8,7 +8,10 @@
 namespace orbatlas::sim {
 
 ImuSample ideal_imu_sample(const TrajectorySpline& trajectory, TimestampNs t, const Pose3& T_b_i) {
-  const SplineState s = trajectory.evaluate(t);
+  return ideal_imu_from_state(trajectory.evaluate(t), t, T_b_i);
+}
+
+ImuSample ideal_imu_from_state(const SplineState& s, TimestampNs t, const Pose3& T_b_i) {
   const Eigen::Matrix3d R_w_b = s.T_w_b.rotation();
   const Eigen::Matrix3d R_b_i = T_b_i.rotation();
   // Specific force of the body origin in the body frame.
@@ -46,8 +49,8 @@ SyntheticImu synthesize_imu(const TrajectorySpline& trajectory, TimestampNs firs
 
   SyntheticImu out;
   for (TimestampNs t = std::max(first_ns, trajectory.start_ns()); t <= std::min(last_ns, trajectory.end_ns()); t += period) {
-    ImuSample m = ideal_imu_sample(trajectory, t, cal.T_b_i);
     const SplineState s = trajectory.evaluate(t);
+    ImuSample m = ideal_imu_from_state(s, t, cal.T_b_i);
     GroundTruthState gt;
     gt.t_ns = t;
     gt.T_w_b = s.T_w_b;

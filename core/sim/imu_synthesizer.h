@@ -32,5 +32,6 @@ SyntheticImu synthesize_imu(const TrajectorySpline& trajectory, TimestampNs firs
 
 // The ideal measurement (no noise, no bias) of an IMU at T_b_i on the body.
 ImuSample ideal_imu_sample(const TrajectorySpline& trajectory, TimestampNs t, const Pose3& T_b_i);
+ImuSample ideal_imu_from_state(const SplineState& state, TimestampNs t, const Pose3& T_b_i);
 
 }  // namespace orbatlas::sim

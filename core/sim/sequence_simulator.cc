@@ -87,6 +87,10 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
     log_info("sim: skipped " + std::to_string(report.frames_outside_gt) + " camera timestamps outside the ground truth of " + sequence.name);
   ORBATLAS_CHECK(!stamps.empty(), "sim: no camera frame of " << sequence.name << " in the requested time range");
 
+  // Created before the slow work so that an occupied output folder fails at once.
+  const std::vector<CameraCalibration> cams = {settings.camera0, *settings.camera1};
+  EurocWriter writer(options.out_dir, cams, imu_cal);
+
   // The world: the same hall for every Machine Hall sequence.
   const auto world_start = Clock::now();
   std::vector<Trajectory> keep_free = sequence.machine_hall ? load_machine_hall_trajectories() : std::vector<Trajectory>{gt};
@@ -97,8 +101,6 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   log_info("sim: world with " + std::to_string(world.quads().size()) + " surfaces built in " +
            std::to_string(report.world_build_s).substr(0, 4) + " s");
 
-  const std::vector<CameraCalibration> cams = {settings.camera0, *settings.camera1};
-  EurocWriter writer(options.out_dir, cams, imu_cal);
 
   // IMU and ground truth: from 1 s before the first frame to just after the last.
   const TimestampNs imu_first = std::max(spline.start_ns(), stamps.front() - kNsPerSecond);
