@@ -14,6 +14,7 @@ void register_sim_command(CLI::App& app) {
   cmd->add_option("--out", opts->out_dir, "Output folder (created; must not already hold a dataset)")->required();
   cmd->add_option("--start", opts->start_s, "Seconds to skip from the sequence's first frame")->capture_default_str();
   cmd->add_option("--duration", opts->duration_s, "Seconds to render (default: to the end)");
+  cmd->add_option("--every", opts->every, "Keep every n-th camera frame")->capture_default_str();
   cmd->add_option("--scene-seed", opts->scene_seed, "Seed of the hall (same seed, same hall)")->capture_default_str();
   cmd->add_option("--imu", *imu, "IMU source: synthetic, or real (the real MH_05 IMU)")
       ->check(CLI::IsMember({"synthetic", "real"}))

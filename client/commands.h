@@ -8,5 +8,6 @@ namespace orbatlas::cli {
 void register_sim_command(CLI::App& app);
 void register_eval_command(CLI::App& app);
 void register_bench_command(CLI::App& app);
+void register_vocab_command(CLI::App& app);
 
 }  // namespace orbatlas::cli

@@ -11,6 +11,7 @@ int main(int argc, char** argv) {
   orbatlas::cli::register_sim_command(app);
   orbatlas::cli::register_eval_command(app);
   orbatlas::cli::register_bench_command(app);
+  orbatlas::cli::register_vocab_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -36,3 +36,38 @@ inline CameraCalibration euroc_cam1() {
 }
 
 }  // namespace orbatlas::test
+
+namespace orbatlas::test {
+
+// The fisheye (Kannala-Brandt) stereo rig of ../shared/data/euroc/extra_images/stereo_frame.
+inline CameraCalibration fisheye_left() {
+  CameraCalibration c;
+  c.model = CameraModel::kKannalaBrandt;
+  c.fx = 366.163; c.fy = 365.631; c.cx = 380.573; c.cy = 225.950;
+  c.distortion = {-0.020476443, -0.007108226, 0.002180580, -0.001192386};
+  c.width = 752; c.height = 480; c.rate_hz = 25;
+  Eigen::Matrix4d m;
+  m << -0.002506617, -0.999975268, 0.006571120, -0.003087790,
+        0.999995111, -0.002494275, 0.001885736, 0.001692289,
+       -0.001869299, 0.006575815, 0.999976632, -0.000023275,
+        0, 0, 0, 1;
+  c.T_b_c = Pose3::from_matrix(m);
+  return c;
+}
+
+inline CameraCalibration fisheye_right() {
+  CameraCalibration c;
+  c.model = CameraModel::kKannalaBrandt;
+  c.fx = 367.032; c.fy = 366.632; c.cx = 379.304; c.cy = 236.659;
+  c.distortion = {-0.019659843, -0.005079736, -0.001357391, 0.000419038};
+  c.width = 752; c.height = 480; c.rate_hz = 25;
+  Eigen::Matrix4d m;
+  m << 0.000468892, -0.999992519, 0.003839613, -0.004419063,
+       0.999987552, 0.000487955, 0.004965573, 0.122004189,
+      -0.004967410, 0.003837237, 0.999980300, -0.000145419,
+       0, 0, 0, 1;
+  c.T_b_c = Pose3::from_matrix(m);
+  return c;
+}
+
+}  // namespace orbatlas::test

@@ -74,9 +74,12 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   ORBATLAS_CHECK(!all_stamps.empty(), "sim: no camera timestamps for " << sequence.name);
   const TimestampNs t_begin = all_stamps.front() + s_to_ns(options.start_s);
   const TimestampNs t_end = options.duration_s < 0 ? all_stamps.back() : t_begin + s_to_ns(options.duration_s);
+  ORBATLAS_CHECK(options.every >= 1, "sim: --every must be at least 1");
   std::vector<TimestampNs> stamps;
+  std::size_t in_range = 0;
   for (const TimestampNs t : all_stamps) {
     if (t < t_begin || t > t_end) continue;
+    if (in_range++ % static_cast<std::size_t>(options.every) != 0) continue;
     if (!spline.covers(t)) {
       ++report.frames_outside_gt;
       continue;

@@ -14,6 +14,7 @@ struct SimulationOptions {
   std::filesystem::path out_dir;
   double start_s = 0.0;      // skip this much of the sequence (from its first camera frame)
   double duration_s = -1.0;  // render this long; negative: to the end
+  int every = 1;             // keep every n-th camera frame (sparse datasets, e.g. vocabulary training)
   std::uint64_t scene_seed = 1;
   ImuSource imu = ImuSource::kSynthetic;  // kReal: the real MH_05 IMU (MH_05 only)
   double noise_sigma = 2.0;               // image noise, grey levels

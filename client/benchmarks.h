@@ -1,0 +1,29 @@
+#pragma once
+// Benchmarks behind `orbatlas bench`: each prints figures (text or one JSON object).
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace orbatlas::cli {
+
+struct RenderBenchOptions {
+  std::string sequence = "MH_01";
+  int frames = 200;
+  bool json = false;
+};
+void run_render_bench(const RenderBenchOptions& options);
+
+struct FeatureBenchOptions {
+  std::filesystem::path dataset;
+  std::filesystem::path config;      // default: config/euroc/stereo.yaml
+  std::filesystem::path vocabulary;  // default: the shipped vocabulary
+  int frames = 100;
+  int database_keyframes = 1000;
+  bool json = false;
+};
+void run_feature_bench(const FeatureBenchOptions& options);
+
+// p in [0, 1] of an unsorted sample (copied).
+double percentile(std::vector<double> values, double p);
+
+}  // namespace orbatlas::cli

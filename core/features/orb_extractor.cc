@@ -1,0 +1,514 @@
+// ORB extraction the ORB-SLAM way. Per level: FAST on a grid of ~35 px cells
+// (ini_th_fast, then min_th_fast where a cell gives nothing), a quadtree that keeps
+// the strongest corner of each node until the level's share of the features is
+// reached, orientation by intensity centroid, and rotated BRIEF from OpenCV on
+// the Gaussian-blurred level image. docs/features.md describes the design.
+#include "core/features/orb_extractor.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/common/error.h"
+
+namespace orbatlas {
+namespace {
+
+constexpr int kBorder = OrbExtractor::kPyramidBorder;
+constexpr int kFastRadius = 3;         // FAST's circle; cv::FAST detects nothing closer to a window's edge
+constexpr int kHalfPatch = 15;         // orientation patch radius (patch of 31 px)
+constexpr int kPatchSize = 2 * kHalfPatch + 1;
+
+// OpenCV's BORDER_REFLECT_101 for an index just outside [0, n).
+int reflect101(int i, int n) { return cv::borderInterpolate(i, n, cv::BORDER_REFLECT_101); }
+
+// Fills the kBorder pixels around the interior of `whole` by reflection, like
+// cv::copyMakeBorder(BORDER_REFLECT_101) but in place.
+void fill_border(cv::Mat& whole) {
+  const int w = whole.cols - 2 * kBorder, h = whole.rows - 2 * kBorder;
+  int left[kBorder], right[kBorder];
+  for (int k = 0; k < kBorder; ++k) {
+    left[k] = reflect101(-1 - k, w);
+    right[k] = reflect101(w + k, w);
+  }
+  for (int y = kBorder; y < kBorder + h; ++y) {
+    std::uint8_t* row = whole.ptr<std::uint8_t>(y) + kBorder;
+    for (int k = 0; k < kBorder; ++k) {
+      row[-1 - k] = row[left[k]];
+      row[w + k] = row[right[k]];
+    }
+  }
+  const auto cols = static_cast<std::size_t>(whole.cols);
+  for (int k = 0; k < kBorder; ++k) {
+    std::memcpy(whole.ptr(kBorder - 1 - k), whole.ptr(kBorder + reflect101(-1 - k, h)), cols);
+    std::memcpy(whole.ptr(kBorder + h + k), whole.ptr(kBorder + reflect101(h + k, h)), cols);
+  }
+}
+
+// ---- FAST-9 on the 16-pixel circle ----
+//
+// A pixel is a corner at threshold t when 9 contiguous pixels of the circle are
+// all brighter than centre + t, or all darker than centre - t. Its score (what
+// cv::FAST reports as the response) is the largest t at which it still is one:
+// the best over the 16 arcs of 9 of the arc's smallest difference, minus 1.
+
+// The Bresenham circle of radius 3, in order around the centre (dx, dy).
+constexpr int kCircle[16][2] = {{0, 3},  {1, 3},   {2, 2},   {3, 1},   {3, 0},  {3, -1}, {2, -2}, {1, -3},
+                                {0, -3}, {-1, -3}, {-2, -2}, {-3, -1}, {-3, 0}, {-3, 1}, {-2, 2}, {-1, 3}};
+
+std::uint8_t fast_score_scalar(const std::uint8_t* p, const std::ptrdiff_t* offsets) {
+  const int v = p[0];
+  int bright[16], dark[16];
+  for (int k = 0; k < 16; ++k) {
+    const int c = p[offsets[k]];
+    bright[k] = std::max(c - v, 0);
+    dark[k] = std::max(v - c, 0);
+  }
+  int best = 0;
+  for (int s = 0; s < 16; ++s) {
+    int b = 255, d = 255;
+    for (int j = 0; j < 9; ++j) {
+      b = std::min(b, bright[(s + j) & 15]);
+      d = std::min(d, dark[(s + j) & 15]);
+    }
+    best = std::max(best, std::max(b, d));
+  }
+  return static_cast<std::uint8_t>(std::max(best - 1, 0));
+}
+
+#if defined(__SSE2__)
+// Per lane: the best over the 16 arcs of 9 of the arc's minimum (saturated differences).
+inline __m128i best_arc(const __m128i x[16]) {
+  __m128i m2[16], m4[16];
+  for (int k = 0; k < 16; ++k) m2[k] = _mm_min_epu8(x[k], x[(k + 1) & 15]);
+  for (int k = 0; k < 16; ++k) m4[k] = _mm_min_epu8(m2[k], m2[(k + 2) & 15]);
+  __m128i best = _mm_setzero_si128();
+  for (int k = 0; k < 16; ++k)
+    best = _mm_max_epu8(best, _mm_min_epu8(_mm_min_epu8(m4[k], m4[(k + 4) & 15]), x[(k + 8) & 15]));
+  return best;
+}
+
+// Scores of the 16 pixels p[0..15]; all zero when none can be a corner at min_t.
+inline __m128i fast_scores16(const std::uint8_t* p, const std::ptrdiff_t* offsets, __m128i min_t) {
+  const auto load = [&](std::ptrdiff_t o) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(p + o)); };
+  const __m128i zero = _mm_setzero_si128();
+  const __m128i v = load(0);
+  // FAST's quick test: a corner has two neighbouring compass points of the
+  // circle (pixels 0, 4, 8, 12) both beyond the threshold in the same direction.
+  const __m128i hi = _mm_adds_epu8(v, min_t), lo = _mm_subs_epu8(v, min_t);
+  __m128i b[4], d[4];
+  for (int q = 0; q < 4; ++q) {
+    const __m128i c = load(offsets[4 * q]);
+    b[q] = _mm_subs_epu8(c, hi);
+    d[q] = _mm_subs_epu8(lo, c);
+  }
+  __m128i any = zero;
+  for (int q = 0; q < 4; ++q) {
+    any = _mm_max_epu8(any, _mm_min_epu8(b[q], b[(q + 1) & 3]));
+    any = _mm_max_epu8(any, _mm_min_epu8(d[q], d[(q + 1) & 3]));
+  }
+  if (_mm_movemask_epi8(_mm_cmpeq_epi8(any, zero)) == 0xffff) return zero;
+  __m128i x[16];
+  for (int k = 0; k < 16; ++k) x[k] = _mm_subs_epu8(load(offsets[k]), v);
+  const __m128i bright = best_arc(x);
+  for (int k = 0; k < 16; ++k) x[k] = _mm_subs_epu8(v, load(offsets[k]));
+  const __m128i dark = best_arc(x);
+  return _mm_subs_epu8(_mm_max_epu8(bright, dark), _mm_set1_epi8(1));
+}
+#endif
+
+// Scores of row[x_begin, x_end) into out[x_begin, x_end). Pixels that cannot be
+// corners at min_threshold may get 0 instead of their score.
+void fast_score_row(const std::uint8_t* row, const std::ptrdiff_t* offsets, int x_begin, int x_end,
+                    std::uint8_t* out, int min_threshold) {
+  int x = x_begin;
+#if defined(__SSE2__)
+  if (x_end - x_begin >= 16) {
+    const __m128i min_t = _mm_set1_epi8(static_cast<char>(min_threshold));
+    for (;; x += 16) {
+      if (x + 16 > x_end) x = x_end - 16;  // the last block overlaps the one before
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(out + x), fast_scores16(row + x, offsets, min_t));
+      if (x + 16 == x_end) return;
+    }
+  }
+#else
+  (void)min_threshold;
+#endif
+  for (; x < x_end; ++x) out[x] = fast_score_scalar(row + x, offsets);
+}
+
+// t[i] = s[i] if s[i] >= threshold else 0, for i in [0, w).
+void threshold_row(const std::uint8_t* s, std::uint8_t* t, int w, int threshold) {
+  int i = 0;
+#if defined(__SSE2__)
+  const __m128i th = _mm_set1_epi8(static_cast<char>(threshold));
+  for (; i + 16 <= w; i += 16) {
+    const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(s + i));
+    const __m128i keep = _mm_cmpeq_epi8(_mm_max_epu8(v, th), v);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(t + i), _mm_and_si128(v, keep));
+  }
+#endif
+  for (; i < w; ++i) t[i] = s[i] >= threshold ? s[i] : 0;
+}
+
+// Calls found(i, score) for each i in [1, w] where row[i] is above its 8
+// neighbours in row - stride, row and row + stride (strictly; zero is no corner).
+// Reads row[-stride, w + 17) and the same range of the rows around.
+template <typename Found>
+void local_maxima_row(const std::uint8_t* row, std::size_t stride, int w, Found&& found) {
+  const std::uint8_t* up = row - stride;
+  const std::uint8_t* down = row + stride;
+#if defined(__SSE2__)
+  const auto load = [](const std::uint8_t* p) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(p)); };
+  for (int i = 1; i <= w; i += 16) {
+    const __m128i c = load(row + i);
+    __m128i m = _mm_max_epu8(load(row + i - 1), load(row + i + 1));
+    m = _mm_max_epu8(m, _mm_max_epu8(load(up + i - 1), load(up + i)));
+    m = _mm_max_epu8(m, _mm_max_epu8(load(up + i + 1), load(down + i - 1)));
+    m = _mm_max_epu8(m, _mm_max_epu8(load(down + i), load(down + i + 1)));
+    // c > m, unsigned: c - m does not saturate to zero. Lanes past w hold zeros.
+    unsigned mask = ~static_cast<unsigned>(_mm_movemask_epi8(_mm_cmpeq_epi8(_mm_subs_epu8(c, m), _mm_setzero_si128()))) & 0xffffu;
+    while (mask != 0) {
+      const int bit = std::countr_zero(mask);
+      found(i + bit, row[i + bit]);
+      mask &= mask - 1;
+    }
+  }
+#else
+  for (int i = 1; i <= w; ++i) {
+    const std::uint8_t c = row[i];
+    if (c == 0) continue;
+    const bool peak = c > row[i - 1] && c > row[i + 1] && c > up[i - 1] && c > up[i] && c > up[i + 1] &&
+                      c > down[i - 1] && c > down[i] && c > down[i + 1];
+    if (peak) found(i, c);
+  }
+#endif
+}
+
+}  // namespace
+
+void OrbExtractorOptions::check() const {
+  ORBATLAS_CHECK(n_features >= 1, "ORB: n_features must be at least 1, got " << n_features);
+  ORBATLAS_CHECK(std::isfinite(scale_factor) && scale_factor > 1.0 && scale_factor <= 4.0,
+                 "ORB: scale_factor must be in (1, 4], got " << scale_factor);
+  ORBATLAS_CHECK(n_levels >= 1 && n_levels <= 32, "ORB: n_levels must be in [1, 32], got " << n_levels);
+  ORBATLAS_CHECK(ini_th_fast >= 1 && ini_th_fast <= 254, "ORB: ini_th_fast must be in [1, 254], got " << ini_th_fast);
+  ORBATLAS_CHECK(min_th_fast >= 1 && min_th_fast <= ini_th_fast,
+                 "ORB: min_th_fast must be in [1, ini_th_fast = " << ini_th_fast << "], got " << min_th_fast);
+  ORBATLAS_CHECK(cell_size >= 8 && cell_size <= 1000, "ORB: cell_size must be in [8, 1000] pixels, got " << cell_size);
+}
+
+OrbExtractor::OrbExtractor(const OrbExtractorOptions& options) : options_(options) {
+  options_.check();
+  const auto levels = static_cast<std::size_t>(options_.n_levels);
+  scale_factors_.resize(levels);
+  level_sigma2_.resize(levels);
+  scale_factors_[0] = 1.0;
+  for (std::size_t l = 1; l < levels; ++l) scale_factors_[l] = scale_factors_[l - 1] * options_.scale_factor;
+  for (std::size_t l = 0; l < levels; ++l) level_sigma2_[l] = scale_factors_[l] * scale_factors_[l];
+
+  // Features per level in geometric proportion to the level area (ratio 1/s^2);
+  // the last level takes the remainder so that the shares sum to n_features.
+  const double ratio = 1.0 / (options_.scale_factor * options_.scale_factor);
+  double share = options_.n_features * (1.0 - ratio) / (1.0 - std::pow(ratio, options_.n_levels));
+  features_per_level_.resize(levels);
+  int assigned = 0;
+  for (std::size_t l = 0; l + 1 < levels; ++l) {
+    features_per_level_[l] = static_cast<int>(std::lround(share));
+    assigned += features_per_level_[l];
+    share *= ratio;
+  }
+  features_per_level_[levels - 1] = std::max(options_.n_features - assigned, 0);
+
+  // Row half-widths of the circular patch, symmetric in u and v (as OpenCV's ORB).
+  umax_.resize(kHalfPatch + 2);
+  const int vmax = static_cast<int>(std::floor(kHalfPatch * std::sqrt(2.0) / 2 + 1));
+  const int vmin = static_cast<int>(std::ceil(kHalfPatch * std::sqrt(2.0) / 2));
+  for (int v = 0; v <= vmax; ++v)
+    umax_[static_cast<std::size_t>(v)] = static_cast<int>(std::lround(std::sqrt(double(kHalfPatch * kHalfPatch - v * v))));
+  for (int v = kHalfPatch, v0 = 0; v >= vmin; --v) {
+    while (umax_[static_cast<std::size_t>(v0)] == umax_[static_cast<std::size_t>(v0) + 1]) ++v0;
+    umax_[static_cast<std::size_t>(v)] = v0;
+    ++v0;
+  }
+
+  // Only compute() is used: one level at a time, keypoints at octave 0, patch 31,
+  // WTA_K 2. edgeThreshold only filters keypoints near the image edge, and ours
+  // are never closer than kBorder.
+  orb_ = cv::ORB::create(options_.n_features, 1.2f, 1, kBorder, 0, 2, cv::ORB::HARRIS_SCORE, kPatchSize);
+  pyramid_.resize(levels);
+  bordered_.resize(levels);
+}
+
+void OrbExtractor::build_pyramid(const cv::Mat& image) {
+  if (image.size() != pyramid_size_) {
+    for (std::size_t l = 0; l < pyramid_.size(); ++l) {
+      const float inv = static_cast<float>(1.0 / scale_factors_[l]);
+      const cv::Size sz(cvRound(static_cast<float>(image.cols) * inv), cvRound(static_cast<float>(image.rows) * inv));
+      ORBATLAS_CHECK(sz.width >= 1 && sz.height >= 1, "ORB: a " << image.cols << "x" << image.rows
+                                                                 << " image is too small for " << pyramid_.size() << " levels");
+      bordered_[l].create(sz.height + 2 * kBorder, sz.width + 2 * kBorder, CV_8UC1);
+      pyramid_[l] = bordered_[l](cv::Rect(kBorder, kBorder, sz.width, sz.height));
+    }
+    pyramid_size_ = image.size();
+  }
+  image.copyTo(pyramid_[0]);
+  fill_border(bordered_[0]);
+  for (std::size_t l = 1; l < pyramid_.size(); ++l) {
+    // Each level from the one before, as ORB-SLAM: the interior only (resize never
+    // reads outside its source), the border filled afterwards.
+    cv::resize(pyramid_[l - 1], pyramid_[l], pyramid_[l].size(), 0, 0, cv::INTER_LINEAR);
+    fill_border(bordered_[l]);
+  }
+}
+
+void OrbExtractor::detect_level(int level) {
+  const cv::Mat& img = pyramid_[static_cast<std::size_t>(level)];
+  candidates_.clear();
+  // ORB-SLAM's FAST windows: cells of about cell_size over [min, max) of the level,
+  // each window 3 px wider on every side than its cell. cv::FAST finds nothing in
+  // a window's outer 3 px, so the detection areas of the cells tile [kBorder, size - kBorder).
+  const int min_x = kBorder - kFastRadius, min_y = kBorder - kFastRadius;
+  const int max_x = img.cols - kBorder + kFastRadius, max_y = img.rows - kBorder + kFastRadius;
+  const int width = max_x - min_x, height = max_y - min_y;
+  if (width < 2 * kFastRadius + 1 || height < 2 * kFastRadius + 1) return;
+
+  // Scores of the whole detection area once; the cells then only threshold them.
+  scores_.resize(static_cast<std::size_t>(img.rows) * static_cast<std::size_t>(img.cols));
+  const auto stride = static_cast<std::size_t>(img.cols);
+  std::ptrdiff_t offsets[16];
+  for (int k = 0; k < 16; ++k)
+    offsets[k] = static_cast<std::ptrdiff_t>(kCircle[k][1]) * static_cast<std::ptrdiff_t>(img.step1()) + kCircle[k][0];
+  for (int y = kBorder; y < img.rows - kBorder; ++y)
+    fast_score_row(img.ptr<std::uint8_t>(y), offsets, kBorder, img.cols - kBorder, scores_.data() + y * stride,
+                   options_.min_th_fast);
+
+  const int n_cols = std::max(1, width / options_.cell_size), n_rows = std::max(1, height / options_.cell_size);
+  const int cell_w = (width + n_cols - 1) / n_cols, cell_h = (height + n_rows - 1) / n_rows;
+  for (int i = 0; i < n_rows; ++i) {
+    const int y0 = min_y + i * cell_h;
+    if (y0 >= max_y - 2 * kFastRadius) continue;
+    const int y1 = std::min(y0 + cell_h + 2 * kFastRadius, max_y);
+    for (int j = 0; j < n_cols; ++j) {
+      const int x0 = min_x + j * cell_w;
+      if (x0 >= max_x - 2 * kFastRadius) continue;
+      const int x1 = std::min(x0 + cell_w + 2 * kFastRadius, max_x);
+      // The window [x0, x1) x [y0, y1) detects in its interior, 3 px in.
+      const cv::Rect area(x0 + kFastRadius, y0 + kFastRadius, x1 - x0 - 2 * kFastRadius, y1 - y0 - 2 * kFastRadius);
+      if (!cell_corners(area, stride, options_.ini_th_fast, min_x, min_y))
+        cell_corners(area, stride, options_.min_th_fast, min_x, min_y);
+    }
+  }
+}
+
+bool OrbExtractor::cell_corners(const cv::Rect& area, std::size_t stride, int threshold, int min_x, int min_y) {
+  // The thresholded scores of the area with a frame of zeros: cv::FAST sees
+  // nothing outside its window, and a pixel below the threshold is no corner.
+  const int w = area.width, h = area.height;
+  const std::size_t tstride = static_cast<std::size_t>(((w + 2 + 15) & ~15) + 16);
+  tile_.assign((static_cast<std::size_t>(h) + 2) * tstride, 0);
+  const std::size_t before = candidates_.size();
+  for (int r = 0; r < h; ++r) {
+    const std::uint8_t* s = scores_.data() + static_cast<std::size_t>(area.y + r) * stride + static_cast<std::size_t>(area.x);
+    std::uint8_t* t = tile_.data() + static_cast<std::size_t>(r + 1) * tstride + 1;
+    threshold_row(s, t, w, threshold);
+  }
+  // Non-maximum suppression as cv::FAST: a corner must score strictly above
+  // each of its 8 neighbours (zero when not a corner).
+  for (int r = 1; r <= h; ++r) {
+    const std::uint8_t* row = tile_.data() + static_cast<std::size_t>(r) * tstride;
+    local_maxima_row(row, tstride, w, [&](int i, std::uint8_t score) {
+      candidates_.push_back({static_cast<float>(area.x + i - 1 - min_x), static_cast<float>(area.y + r - 1 - min_y),
+                             static_cast<float>(score)});
+    });
+  }
+  return candidates_.size() > before;
+}
+
+std::vector<cv::KeyPoint> OrbExtractor::fast_corners(int level) {
+  ORBATLAS_CHECK(level >= 0 && level < static_cast<int>(pyramid_.size()) && !pyramid_[0].empty(),
+                 "ORB: no level " << level << " (extract an image first)");
+  detect_level(level);
+  std::vector<cv::KeyPoint> out;
+  out.reserve(candidates_.size());
+  const float offset = static_cast<float>(kBorder - kFastRadius);
+  for (const Candidate& c : candidates_) out.emplace_back(c.x + offset, c.y + offset, 7.0f, -1.0f, c.response);
+  return out;
+}
+
+void OrbExtractor::split(std::uint32_t node_index) {
+  const QuadNode parent = nodes_[node_index];
+  nodes_[node_index].alive = false;
+  --alive_nodes_;
+  const int half_x = (parent.x1 - parent.x0 + 1) / 2, half_y = (parent.y1 - parent.y0 + 1) / 2;
+  const int mid_x = parent.x0 + half_x, mid_y = parent.y0 + half_y;
+  const auto begin = order_.begin() + parent.begin, end = order_.begin() + parent.end;
+  const auto top_end = std::partition(begin, end, [&](std::uint32_t c) { return candidates_[c].y < static_cast<float>(mid_y); });
+  const auto is_left = [&](std::uint32_t c) { return candidates_[c].x < static_cast<float>(mid_x); };
+  const auto top_mid = std::partition(begin, top_end, is_left);
+  const auto bottom_mid = std::partition(top_end, end, is_left);
+  const auto offset = [&](std::vector<std::uint32_t>::iterator it) { return static_cast<std::uint32_t>(it - order_.begin()); };
+  const QuadNode children[4] = {
+      {parent.x0, parent.y0, mid_x, mid_y, parent.begin, offset(top_mid), true},
+      {mid_x, parent.y0, parent.x1, mid_y, offset(top_mid), offset(top_end), true},
+      {parent.x0, mid_y, mid_x, parent.y1, offset(top_end), offset(bottom_mid), true},
+      {mid_x, mid_y, parent.x1, parent.y1, offset(bottom_mid), parent.end, true},
+  };
+  for (const QuadNode& child : children) {
+    const std::uint32_t count = child.end - child.begin;
+    if (count == 0) continue;
+    nodes_.push_back(child);
+    ++alive_nodes_;
+    if (count > 1) to_expand_.emplace_back(count, static_cast<std::uint32_t>(nodes_.size() - 1));
+  }
+}
+
+void OrbExtractor::distribute(int width, int height, int target) {
+  selected_.clear();
+  const auto n = static_cast<std::uint32_t>(candidates_.size());
+  if (n == 0 || target <= 0) return;
+  order_.resize(n);
+  nodes_.clear();
+  to_expand_.clear();
+  alive_nodes_ = 0;
+
+  // Initial nodes: about square, side by side along the longer axis.
+  const int n_initial = std::max(1, static_cast<int>(std::lround(static_cast<double>(width) / std::max(1, height))));
+  const double node_w = static_cast<double>(width) / n_initial;
+  // Counting sort of the candidates into the initial nodes (stable: detection order).
+  const auto initial_of = [&](std::uint32_t c) {
+    return std::min(n_initial - 1, static_cast<int>(static_cast<double>(candidates_[c].x) / node_w));
+  };
+  initial_begin_.assign(static_cast<std::size_t>(n_initial) + 1, 0);
+  for (std::uint32_t c = 0; c < n; ++c) ++initial_begin_[static_cast<std::size_t>(initial_of(c)) + 1];
+  for (std::size_t i = 1; i < initial_begin_.size(); ++i) initial_begin_[i] += initial_begin_[i - 1];
+  for (std::uint32_t c = 0; c < n; ++c) order_[initial_begin_[static_cast<std::size_t>(initial_of(c))]++] = c;
+  // Each slot now holds the end of its node, which is where the next one begins.
+  for (int i = 0; i < n_initial; ++i) {
+    const std::uint32_t begin = i == 0 ? 0 : initial_begin_[static_cast<std::size_t>(i) - 1];
+    const std::uint32_t end = initial_begin_[static_cast<std::size_t>(i)];
+    if (end > begin) {
+      nodes_.push_back({static_cast<int>(node_w * i), 0, static_cast<int>(node_w * (i + 1)), height, begin, end, true});
+      ++alive_nodes_;
+    }
+  }
+
+  const auto target_n = static_cast<std::uint32_t>(target);
+  bool finished = false;
+  while (!finished) {
+    // A full pass: every node holding more than one candidate splits in four.
+    const std::uint32_t before = alive_nodes_;
+    to_expand_.clear();
+    const auto existing = static_cast<std::uint32_t>(nodes_.size());
+    for (std::uint32_t i = 0; i < existing; ++i)
+      if (nodes_[i].alive && nodes_[i].end - nodes_[i].begin > 1) split(i);
+    if (alive_nodes_ >= target_n || alive_nodes_ == before) break;
+    if (alive_nodes_ + 3 * to_expand_.size() <= target_n) continue;
+    // The next full pass could overshoot: split the most populated nodes first
+    // and stop as soon as the target is reached (ORB-SLAM's DistributeOctTree).
+    while (!finished) {
+      const std::uint32_t before_pass = alive_nodes_;
+      expanding_.swap(to_expand_);
+      to_expand_.clear();
+      std::sort(expanding_.begin(), expanding_.end());
+      for (auto it = expanding_.rbegin(); it != expanding_.rend(); ++it) {
+        split(it->second);
+        if (alive_nodes_ >= target_n) break;
+      }
+      finished = alive_nodes_ >= target_n || alive_nodes_ == before_pass;
+    }
+  }
+
+  // The strongest corner of each node (ties: the first detected, i.e. the lowest index).
+  for (const QuadNode& node : nodes_) {
+    if (!node.alive) continue;
+    std::uint32_t best = order_[node.begin];
+    for (std::uint32_t k = node.begin + 1; k < node.end; ++k) {
+      const std::uint32_t c = order_[k];
+      if (candidates_[c].response > candidates_[best].response ||
+          (candidates_[c].response == candidates_[best].response && c < best))
+        best = c;
+    }
+    selected_.push_back(best);
+  }
+}
+
+// Intensity centroid of the circular patch of radius 15: the angle of (m10, m01)
+// in degrees, image axes (x right, y down).
+float OrbExtractor::orientation(const cv::Mat& level_image, int x, int y) const {
+  const std::uint8_t* center = level_image.ptr<std::uint8_t>(y) + x;
+  const auto step = static_cast<std::ptrdiff_t>(level_image.step1());
+  int m01 = 0, m10 = 0;
+  for (int u = -kHalfPatch; u <= kHalfPatch; ++u) m10 += u * center[u];
+  for (int v = 1; v <= kHalfPatch; ++v) {
+    int v_sum = 0;
+    const int d = umax_[static_cast<std::size_t>(v)];
+    const std::uint8_t* below = center + v * step;
+    const std::uint8_t* above = center - v * step;
+    for (int u = -d; u <= d; ++u) {
+      const int plus = below[u], minus = above[u];
+      v_sum += plus - minus;
+      m10 += u * (plus + minus);
+    }
+    m01 += v * v_sum;
+  }
+  const float angle = cv::fastAtan2(static_cast<float>(m01), static_cast<float>(m10));
+  return angle >= 360.0f ? angle - 360.0f : angle;
+}
+
+ImageFeatures OrbExtractor::extract(const cv::Mat& image) {
+  ORBATLAS_CHECK(!image.empty() && image.type() == CV_8UC1,
+                 "ORB: the image must be a non-empty CV_8UC1 image, got " << image.cols << "x" << image.rows << " of type "
+                                                                          << image.type());
+  build_pyramid(image);
+  ImageFeatures out;
+  out.width = image.cols;
+  out.height = image.rows;
+  out.keypoints.reserve(static_cast<std::size_t>(options_.n_features) + 4 * pyramid_.size());
+  out.descriptors.reserve(out.keypoints.capacity());
+
+  for (std::size_t level = 0; level < pyramid_.size(); ++level) {
+    const cv::Mat& img = pyramid_[level];
+    detect_level(static_cast<int>(level));
+    const int min_x = kBorder - kFastRadius, min_y = kBorder - kFastRadius;
+    distribute(img.cols - kBorder + kFastRadius - min_x, img.rows - kBorder + kFastRadius - min_y, features_per_level_[level]);
+    if (selected_.empty()) continue;
+
+    const auto scale = static_cast<float>(scale_factors_[level]);
+    level_keys_.clear();
+    for (const std::uint32_t c : selected_) {
+      const Candidate& cand = candidates_[c];
+      const int x = static_cast<int>(cand.x) + min_x, y = static_cast<int>(cand.y) + min_y;
+      const float angle = orientation(img, x, y);
+      level_keys_.emplace_back(static_cast<float>(x), static_cast<float>(y), static_cast<float>(kPatchSize), angle,
+                               cand.response, 0);
+      Keypoint kp;
+      kp.uv = Eigen::Vector2f(static_cast<float>(x) * scale, static_cast<float>(y) * scale);
+      kp.level = static_cast<int>(level);
+      kp.angle_deg = angle;
+      kp.response = cand.response;
+      out.keypoints.push_back(kp);
+    }
+    // Rotated BRIEF on the level image (OpenCV blurs it 7x7, sigma 2, and reads the
+    // pairs of its 31x31 pattern turned by each keypoint's angle).
+    const std::size_t expected = level_keys_.size();
+    orb_->compute(img, level_keys_, level_descriptors_);
+    ORBATLAS_CHECK(level_keys_.size() == expected && level_descriptors_.rows == static_cast<int>(expected),
+                   "ORB: OpenCV dropped keypoints of level " << level << " (" << level_keys_.size() << " of " << expected
+                                                             << " kept)");
+    for (int r = 0; r < level_descriptors_.rows; ++r) {
+      Descriptor d;
+      std::memcpy(d.data(), level_descriptors_.ptr(r), sizeof(Descriptor));
+      out.descriptors.push_back(d);
+    }
+  }
+  return out;
+}
+
+}  // namespace orbatlas

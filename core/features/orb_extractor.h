@@ -1,0 +1,105 @@
+#pragma once
+// ORB features the ORB-SLAM way: a scale pyramid, FAST per grid cell with a
+// high threshold and a low fallback, a quadtree that spreads the keypoints over
+// the image down to the requested count, orientation by intensity centroid and
+// 256-bit rotated BRIEF. OpenCV does the pyramid resize and the descriptor bits;
+// FAST (a SIMD score map giving exactly cv::FAST's corners per cell) and the
+// distribution logic are ours. One extractor per thread (scratch buffers).
+#include <cstdint>
+#include <opencv2/core/mat.hpp>
+#include <utility>
+#include <vector>
+
+#include "core/features/keypoint.h"
+
+namespace cv {
+class ORB;
+}
+
+namespace orbatlas {
+
+struct OrbExtractorOptions {
+  int n_features = 1200;
+  double scale_factor = 1.2;
+  int n_levels = 8;
+  int ini_th_fast = 20;
+  int min_th_fast = 7;
+  int cell_size = 35;  // FAST grid cell, pixels
+  void check() const;  // throws Error on invalid values
+};
+
+class OrbExtractor {
+ public:
+  // Each pyramid() level is a view into a buffer with this many valid pixels on
+  // every side (BORDER_REFLECT_101), as ORB-SLAM's EDGE_THRESHOLD. Keypoints lie
+  // at least this far from the level image's edges.
+  static constexpr int kPyramidBorder = 19;
+
+  explicit OrbExtractor(const OrbExtractorOptions& options);
+  // Not copyable: a copy would share the pyramid buffers (cv::Mat is shallow).
+  OrbExtractor(const OrbExtractor&) = delete;
+  OrbExtractor& operator=(const OrbExtractor&) = delete;
+  OrbExtractor(OrbExtractor&&) = default;
+  OrbExtractor& operator=(OrbExtractor&&) = default;
+
+  // image: CV_8UC1. Fills keypoints (uv, level, angle, response) and descriptors;
+  // bearing / uv_undistorted are left for the camera model.
+  ImageFeatures extract(const cv::Mat& image);
+
+  const OrbExtractorOptions& options() const { return options_; }
+  // Scale of each level (1, 1.2, 1.44, ...) and the squared sigma of a keypoint's
+  // position error at that level (scale^2), used by optimisers.
+  const std::vector<double>& scale_factors() const { return scale_factors_; }
+  const std::vector<double>& level_sigma2() const { return level_sigma2_; }
+  const std::vector<cv::Mat>& pyramid() const { return pyramid_; }  // of the last image
+  // Keypoints asked of each level (geometric in the level area; they sum to n_features).
+  const std::vector<int>& features_per_level() const { return features_per_level_; }
+
+  // The FAST stage alone on level `level` of the last image: the corners (level
+  // pixels, response = FAST score) before the quadtree, exactly those of
+  // cv::FAST(window, ini_th_fast, nonmax) per cell window, min_th_fast where that
+  // finds nothing. For tests and tools; throws Error before the first extract().
+  std::vector<cv::KeyPoint> fast_corners(int level);
+
+ private:
+  // A FAST corner of one level, relative to the corner of the level's detection area.
+  struct Candidate {
+    float x, y, response;
+  };
+  // A quadtree node (ORB-SLAM's ExtractorNode): a rectangle [x0, x1) x [y0, y1)
+  // and its candidates order_[begin, end).
+  struct QuadNode {
+    int x0, y0, x1, y1;
+    std::uint32_t begin, end;
+    bool alive;
+  };
+
+  void build_pyramid(const cv::Mat& image);
+  void detect_level(int level);  // FAST per cell -> candidates_
+  // Corners of one cell's detection area at `threshold` -> candidates_; false if none.
+  bool cell_corners(const cv::Rect& area, std::size_t stride, int threshold, int min_x, int min_y);
+  // Quadtree over candidates_ in a width x height area, down to `target` nodes -> selected_.
+  void distribute(int width, int height, int target);
+  void split(std::uint32_t node);  // children with candidates replace the node
+  float orientation(const cv::Mat& level_image, int x, int y) const;
+
+  OrbExtractorOptions options_;
+  std::vector<double> scale_factors_, level_sigma2_;
+  std::vector<int> features_per_level_;
+  std::vector<cv::Mat> pyramid_;
+  // Scratch kept between calls so that extraction does not allocate.
+  std::vector<cv::Mat> bordered_;  // level buffers; pyramid_[l] views their interior
+  cv::Size pyramid_size_;
+  std::vector<int> umax_;  // half-width of each row of the circular orientation patch
+  cv::Ptr<cv::ORB> orb_;   // descriptor bits on a level image
+  std::vector<std::uint8_t> scores_, tile_;  // FAST scores of a level; one cell's thresholded scores
+  std::vector<cv::KeyPoint> level_keys_;
+  cv::Mat level_descriptors_;
+  std::vector<Candidate> candidates_;
+  std::vector<std::uint32_t> order_, selected_, initial_begin_;
+  std::vector<QuadNode> nodes_;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> to_expand_, expanding_;  // (candidate count, node)
+  std::uint32_t alive_nodes_ = 0;
+};
+
+}  // namespace orbatlas

@@ -1,0 +1,139 @@
+// Stereo depth on rendered pairs against the exact depth of the scene.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include "core/camera/camera_factory.h"
+#include "core/common/error.h"
+#include "core/features/keypoint_geometry.h"
+#include "core/features/orb_extractor.h"
+#include "core/features/stereo_rectified.h"
+#include "core/features/stereo_triangulated.h"
+#include "core/sim/renderer.h"
+#include "core/sim/world.h"
+#include "tests/sim_test_helpers.h"
+
+namespace orbatlas {
+namespace {
+
+// A textured wall perpendicular to the left camera's optical axis at `depth`.
+sim::World wall_world(const Pose3& T_w_c0, double depth) {
+  sim::World world;
+  sim::TextureRequest req;
+  req.width_m = req.height_m = 12.0;
+  req.texel_size_m = 0.004;
+  req.seed = 11;
+  const int tex = world.add_texture(sim::make_texture(req));
+  sim::Quad q;
+  const Eigen::Matrix3d R = T_w_c0.rotation();
+  q.edge_u = R.col(0) * 12.0;
+  q.edge_v = R.col(1) * 12.0;
+  q.origin = T_w_c0 * Eigen::Vector3d(-6.0, -6.0, depth);
+  q.texture = tex;
+  world.add_quad(q);
+  return world;
+}
+
+double median(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+// True depth (z in the camera frame `T_w_c`) of the wall along a bearing.
+double wall_depth_along(const Pose3& T_w_c, const Eigen::Vector3d& bearing_c, const Pose3& T_w_c0, double depth) {
+  const Eigen::Vector3d n_w = T_w_c0.rotation().col(2);
+  const Eigen::Vector3d p0 = T_w_c0 * Eigen::Vector3d(0, 0, depth);
+  const Eigen::Vector3d d_w = T_w_c.q * bearing_c;
+  const double s = n_w.dot(p0 - T_w_c.t) / n_w.dot(d_w);
+  return (s * bearing_c).z();
+}
+
+class RectifiedStereoDepth : public ::testing::TestWithParam<double> {};
+
+TEST_P(RectifiedStereoDepth, MedianDepthErrorBelowOnePercent) {
+  const double depth = GetParam();
+  const CameraCalibration c0 = test::euroc_cam0(), c1 = test::euroc_cam1();
+  const Pose3 T_w_b(Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ())), Eigen::Vector3d(1, 2, 1));
+  const Pose3 T_w_c0 = T_w_b * c0.T_b_c, T_w_c1 = T_w_b * c1.T_b_c;
+  const sim::World world = wall_world(T_w_c0, depth);
+  const auto cam0 = make_camera(c0), cam1 = make_camera(c1);
+  sim::Renderer r0(world, *cam0), r1(world, *cam1);
+  cv::Mat left, right, left_rect, right_rect;
+  r0.render(T_w_c0, left, 1);
+  r1.render(T_w_c1, right, 2);
+
+  const StereoRectifier rectifier(c0, c1);
+  EXPECT_NEAR(rectifier.baseline(), 0.110, 0.001);
+  rectifier.rectify(left, right, left_rect, right_rect);
+  OrbExtractor ex_left({}), ex_right({});
+  ImageFeatures fl = ex_left.extract(left_rect), fr = ex_right.extract(right_rect);
+  const StereoDepths depths = match_stereo_rectified(fl, ex_left.pyramid(), fr, ex_right.pyramid(),
+                                                     ex_left.scale_factors(), rectifier.bf(), rectifier.baseline());
+  const auto rect_cam = make_camera(rectifier.rectified_left());
+  compute_keypoint_geometry(*rect_cam, fl.keypoints);
+  const Pose3 T_w_rect = T_w_b * rectifier.rectified_left().T_b_c;
+  std::vector<double> rel_errors, signed_errors;
+  for (std::size_t i = 0; i < fl.keypoints.size(); ++i) {
+    if (depths.depth[i] <= 0) continue;
+    const double truth = wall_depth_along(T_w_rect, fl.keypoints[i].bearing, T_w_c0, depth);
+    rel_errors.push_back(std::abs(depths.depth[i] - truth) / truth);
+    signed_errors.push_back((depths.depth[i] - truth) / truth);
+  }
+  std::cout << "signed median " << median(signed_errors) << "\n";
+  std::cout << "depth " << depth << " m: " << rel_errors.size() << " of " << fl.keypoints.size()
+            << " keypoints with depth, median relative error " << median(rel_errors) << "\n";
+  ASSERT_GT(rel_errors.size(), fl.keypoints.size() / 3);
+  EXPECT_LT(median(rel_errors), 0.01);
+  // Outlier rejection keeps gross errors rare.
+  const auto gross = std::count_if(rel_errors.begin(), rel_errors.end(), [](double e) { return e > 0.1; });
+  EXPECT_LT(static_cast<double>(gross), 0.02 * static_cast<double>(rel_errors.size()));
+}
+
+INSTANTIATE_TEST_SUITE_P(Depths, RectifiedStereoDepth, ::testing::Values(2.0, 5.0));
+
+TEST(RectifiedStereo, RejectsMismatchedImagesAndFisheye) {
+  const StereoRectifier rectifier(test::euroc_cam0(), test::euroc_cam1());
+  cv::Mat small(100, 100, CV_8UC1, cv::Scalar(0)), a, b;
+  EXPECT_THROW(rectifier.rectify(small, small, a, b), Error);
+  EXPECT_THROW(StereoRectifier(test::fisheye_left(), test::fisheye_right()), Error);
+}
+
+TEST(TriangulatedStereo, FisheyeDepthAtFiveMetres) {
+  const double depth = 5.0;
+  const CameraCalibration c0 = test::fisheye_left(), c1 = test::fisheye_right();
+  const Pose3 T_w_b(Eigen::Quaterniond(Eigen::AngleAxisd(-0.3, Eigen::Vector3d::UnitZ())), Eigen::Vector3d(0, 1, 1));
+  const Pose3 T_w_c0 = T_w_b * c0.T_b_c, T_w_c1 = T_w_b * c1.T_b_c;
+  const sim::World world = wall_world(T_w_c0, depth);
+  const auto cam0 = make_camera(c0), cam1 = make_camera(c1);
+  sim::Renderer r0(world, *cam0), r1(world, *cam1);
+  cv::Mat left, right;
+  r0.render(T_w_c0, left, 1);
+  r1.render(T_w_c1, right, 2);
+  OrbExtractor ex_left({}), ex_right({});
+  ImageFeatures fl = ex_left.extract(left), fr = ex_right.extract(right);
+  compute_keypoint_geometry(*cam0, fl.keypoints);
+  compute_keypoint_geometry(*cam1, fr.keypoints);
+  const TriangulatedStereo st =
+      match_stereo_triangulated(*cam0, fl, *cam1, fr, T_w_c0.inverse() * T_w_c1, ex_left.level_sigma2(), left, right);
+  std::vector<double> rel_errors;
+  for (std::size_t i = 0; i < fl.keypoints.size(); ++i) {
+    if (st.right_index[i] < 0) continue;
+    const double truth = wall_depth_along(T_w_c0, fl.keypoints[i].bearing, T_w_c0, depth);
+    rel_errors.push_back(std::abs(st.depth[i] - truth) / truth);
+  }
+  std::cout << "fisheye: " << rel_errors.size() << " triangulated, median relative depth error " << median(rel_errors) << "\n";
+  ASSERT_GT(rel_errors.size(), 200u);
+  EXPECT_LT(median(rel_errors), 0.01);
+}
+
+TEST(TriangulatedStereo, RaysMeetAtTheirCommonPoint) {
+  const Eigen::Vector3d p(0.3, -0.2, 4.0), o2(0.11, 0.0, 0.0);
+  Eigen::Vector3d out;
+  ASSERT_TRUE(triangulate_rays(Eigen::Vector3d::Zero(), p.normalized(), o2, (p - o2).normalized(), &out));
+  EXPECT_LT((out - p).norm(), 1e-9);
+  EXPECT_FALSE(triangulate_rays(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), o2, Eigen::Vector3d::UnitZ(), &out));
+  EXPECT_FALSE(triangulate_rays(Eigen::Vector3d::Zero(), -p.normalized(), o2, -(p - o2).normalized(), &out)) << "behind";
+}
+
+}  // namespace
+}  // namespace orbatlas
