@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "client/benchmarks.h"
@@ -33,6 +34,7 @@ cv::Mat read_gray(const std::filesystem::path& path) {
 }  // namespace
 
 void run_feature_bench(const FeatureBenchOptions& o) {
+  cv::setNumThreads(1);  // single-thread figures: OpenCV's resize/blur would otherwise use every core
   const auto config = o.config.empty() ? shipped_config_dir() / "euroc" / "stereo.yaml" : o.config;
   const SlamSettings settings = read_settings(config, SensorType::kStereo);
   ORBATLAS_CHECK(settings.camera1.has_value(), "bench features needs a stereo configuration: " << config.string());

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <opencv2/core/utility.hpp>
 
 #include "client/benchmarks.h"
 #include "core/camera/camera_factory.h"
@@ -22,6 +23,7 @@ double percentile(std::vector<double> v, double p) {
 }
 
 void run_render_bench(const RenderBenchOptions& o) {
+  cv::setNumThreads(1);  // one core: cv::remap would otherwise use every core
   using Clock = std::chrono::steady_clock;
   const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo_inertial.yaml");
   const auto camera = make_camera(settings.camera0);
