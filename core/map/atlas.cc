@@ -1,0 +1,42 @@
+#include "core/map/atlas.h"
+
+#include "core/common/error.h"
+
+namespace orbatlas {
+
+Atlas::Atlas() : ids_(std::make_shared<IdAllocator>()), counters_(std::make_shared<ObjectCounters>()) {}
+
+std::shared_ptr<Map> Atlas::create_map() {
+  auto map = std::make_shared<Map>(ids_->next_map_id(), ids_, counters_);
+  std::lock_guard lock(mutex_);
+  maps_.emplace(map->id(), map);
+  active_ = map;
+  return map;
+}
+
+void Atlas::set_active(MapId id) {
+  std::lock_guard lock(mutex_);
+  const auto it = maps_.find(id);
+  ORBATLAS_CHECK(it != maps_.end(), "atlas has no map " << id);
+  active_ = it->second;
+}
+
+std::shared_ptr<Map> Atlas::active_map() const {
+  std::lock_guard lock(mutex_);
+  return active_;
+}
+
+std::shared_ptr<Map> Atlas::map(MapId id) const {
+  std::lock_guard lock(mutex_);
+  const auto it = maps_.find(id);
+  return it == maps_.end() ? nullptr : it->second;
+}
+
+std::vector<std::shared_ptr<Map>> Atlas::maps() const {
+  std::lock_guard lock(mutex_);
+  std::vector<std::shared_ptr<Map>> out;
+  for (const auto& [id, map] : maps_) out.push_back(map);
+  return out;
+}
+
+}  // namespace orbatlas

@@ -1,0 +1,39 @@
+#pragma once
+// An atlas: several maps, one of them active, with the id allocator and object
+// counters they share. No process-wide state: atlases are independent.
+#include <map>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "core/map/id_allocator.h"
+#include "core/map/map.h"
+#include "core/map/object_counters.h"
+
+namespace orbatlas {
+
+class Atlas {
+ public:
+  Atlas();
+  Atlas(const Atlas&) = delete;
+  Atlas& operator=(const Atlas&) = delete;
+
+  // A new empty map with a fresh id; it becomes the active map (as in ORB-SLAM3).
+  std::shared_ptr<Map> create_map();
+  void set_active(MapId id);  // throws if the atlas has no such map
+  std::shared_ptr<Map> active_map() const;  // null before the first create_map
+  std::shared_ptr<Map> map(MapId id) const;  // null if absent
+  std::vector<std::shared_ptr<Map>> maps() const;  // by id
+
+  IdAllocator& ids() { return *ids_; }
+  const std::shared_ptr<ObjectCounters>& counters() const { return counters_; }
+
+ private:
+  const std::shared_ptr<IdAllocator> ids_;
+  const std::shared_ptr<ObjectCounters> counters_;
+  mutable std::mutex mutex_;  // guards maps_ and active_; no other lock is taken under it
+  std::map<MapId, std::shared_ptr<Map>> maps_;
+  std::shared_ptr<Map> active_;
+};
+
+}  // namespace orbatlas

@@ -1,0 +1,33 @@
+#pragma once
+// Per-atlas id source: one atomic counter per kind of object, so ids are unique
+// in the whole atlas (across its maps) without any process-wide state.
+#include <array>
+#include <atomic>
+#include <cstdint>
+
+#include "core/map/ids.h"
+
+namespace orbatlas {
+
+enum class IdKind { keyframe, map_point, map };
+
+class IdAllocator {
+ public:
+  KeyframeId next_keyframe_id() { return next(IdKind::keyframe); }
+  MapPointId next_map_point_id() { return next(IdKind::map_point); }
+  MapId next_map_id() { return next(IdKind::map); }
+
+  std::uint64_t next(IdKind kind);
+  // The id next() would hand out now (for reports and tests).
+  std::uint64_t peek(IdKind kind) const;
+  // Re-seed after loading stored objects: every later id of `kind` is > max_used.
+  void ensure_above(IdKind kind, std::uint64_t max_used);
+
+ private:
+  std::atomic<std::uint64_t>& counter(IdKind kind) { return next_[static_cast<std::size_t>(kind)]; }
+  const std::atomic<std::uint64_t>& counter(IdKind kind) const { return next_[static_cast<std::size_t>(kind)]; }
+
+  std::array<std::atomic<std::uint64_t>, 3> next_{};  // indexed by IdKind; ids start at 0
+};
+
+}  // namespace orbatlas

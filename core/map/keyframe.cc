@@ -1,0 +1,161 @@
+// KeyFrame: construction, pose and the observation slots (both sides).
+#include "core/map/keyframe.h"
+
+#include "core/common/error.h"
+
+namespace orbatlas {
+
+std::shared_ptr<KeyFrame> KeyFrame::create(KeyframeId id, MapId map, KeyFrameData data,
+                                           std::shared_ptr<ObjectCounters> counters) {
+  const std::size_t n = data.features.keypoints.size();
+  ORBATLAS_CHECK(data.depth.empty() || data.depth.size() == n,
+                 "keyframe " << id << ": " << data.depth.size() << " depths for " << n << " keypoints");
+  ORBATLAS_CHECK(data.u_right.size() == data.depth.size(),
+                 "keyframe " << id << ": " << data.u_right.size() << " right columns for " << data.depth.size() << " depths");
+  ORBATLAS_CHECK(data.features.descriptors.empty() || data.features.descriptors.size() == n,
+                 "keyframe " << id << ": " << data.features.descriptors.size() << " descriptors for " << n << " keypoints");
+  ORBATLAS_CHECK(n <= UINT32_MAX, "keyframe " << id << ": too many keypoints");
+  // Not make_shared: with a separate allocation the object's memory is freed when
+  // the last strong reference drops, even while weak references remain.
+  return std::shared_ptr<KeyFrame>(new KeyFrame(id, map, std::move(data), std::move(counters)));
+}
+
+KeyFrame::KeyFrame(KeyframeId id, MapId map, KeyFrameData data, std::shared_ptr<ObjectCounters> counters)
+    : token_(std::move(counters), ObjectKind::keyframe),
+      id_(id),
+      map_id_(map),
+      data_(std::move(data)),
+      redundant_(std::make_shared<std::atomic<int>>(0)),
+      T_w_b_(data_.T_w_b),
+      slots_(data_.features.keypoints.size()) {}
+
+KeyFrame::~KeyFrame() {
+  // Nobody else can reach this keyframe any more (weak links fail to lock), but
+  // the points it still observes list it: remove those records so observer lists
+  // and redundancy counts stay exact. The points' destructors (if this was their
+  // last owner) run after this body, when slots_ is destroyed, with no lock held.
+  for (const auto& mp : slots_)
+    if (mp) mp->detach_observer(id_);
+}
+
+void KeyFrame::check_slot(std::size_t slot) const {
+  ORBATLAS_CHECK(slot < slot_count(), "keyframe " << id_ << ": slot " << slot << " out of range (" << slot_count() << ")");
+}
+
+const Keypoint& KeyFrame::keypoint(std::size_t slot) const {
+  check_slot(slot);
+  return data_.features.keypoints[slot];
+}
+
+float KeyFrame::depth(std::size_t slot) const {
+  check_slot(slot);
+  return data_.depth.empty() ? -1.0f : data_.depth[slot];
+}
+
+float KeyFrame::u_right(std::size_t slot) const {
+  check_slot(slot);
+  return data_.u_right.empty() ? -1.0f : data_.u_right[slot];
+}
+
+Pose3 KeyFrame::T_w_b() const {
+  std::lock_guard lock(mutex_);
+  return T_w_b_;
+}
+
+Pose3 KeyFrame::T_w_c() const { return T_w_b() * data_.T_b_c; }
+
+void KeyFrame::set_T_w_b(const Pose3& T_w_b) {
+  std::lock_guard lock(mutex_);
+  T_w_b_ = T_w_b;
+}
+
+bool KeyFrame::attach_locked(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {
+  ObserverRecord record;
+  record.keyframe = weak_from_this();
+  record.slot = static_cast<std::uint32_t>(slot);
+  record.level = data_.features.keypoints[slot].level;
+  record.redundant_counter = redundant_;
+  return map_point->attach_observer(id_, std::move(record));
+}
+
+bool KeyFrame::add_observation(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {
+  ORBATLAS_CHECK(map_point != nullptr, "keyframe " << id_ << ": null map point for slot " << slot);
+  check_slot(slot);
+  std::lock_guard lock(mutex_);
+  ORBATLAS_CHECK(!slots_[slot], "keyframe " << id_ << ": slot " << slot << " already holds map point " << slots_[slot]->id());
+  if (bad_.load()) return false;
+  if (!attach_locked(slot, map_point)) return false;
+  slots_[slot] = map_point;
+  map_point_count_.fetch_add(1);
+  return true;
+}
+
+std::shared_ptr<MapPoint> KeyFrame::erase_slot(std::size_t slot) {
+  check_slot(slot);
+  std::shared_ptr<MapPoint> released;  // returned: never dropped under our lock
+  {
+    std::lock_guard lock(mutex_);
+    released = std::move(slots_[slot]);
+    slots_[slot].reset();
+    if (!released) return nullptr;
+    released->detach_observer(id_);
+    map_point_count_.fetch_sub(1);
+  }
+  return released;
+}
+
+void KeyFrame::erase_slot_if_holds(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {
+  std::shared_ptr<MapPoint> released;  // declared before the lock: dropped after unlocking
+  std::lock_guard lock(mutex_);
+  if (slot >= slots_.size() || slots_[slot] != map_point) return;
+  released = std::move(slots_[slot]);
+  slots_[slot].reset();
+  released->detach_observer(id_);
+  map_point_count_.fetch_sub(1);
+}
+
+bool KeyFrame::replace(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {
+  ORBATLAS_CHECK(map_point != nullptr, "keyframe " << id_ << ": null map point for slot " << slot);
+  check_slot(slot);
+  std::shared_ptr<MapPoint> released;  // declared before the lock: dropped after unlocking
+  std::lock_guard lock(mutex_);
+  if (slots_[slot] == map_point) return true;
+  if (bad_.load()) return false;
+  // Attach the new point first: if that fails or throws, nothing has changed.
+  if (!attach_locked(slot, map_point)) return false;
+  released = std::move(slots_[slot]);
+  if (released) {
+    released->detach_observer(id_);
+  } else {
+    map_point_count_.fetch_add(1);
+  }
+  slots_[slot] = map_point;
+  return true;
+}
+
+std::shared_ptr<MapPoint> KeyFrame::map_point(std::size_t slot) const {
+  check_slot(slot);
+  std::lock_guard lock(mutex_);
+  return slots_[slot];
+}
+
+std::vector<std::shared_ptr<MapPoint>> KeyFrame::slots() const {
+  std::lock_guard lock(mutex_);
+  return slots_;
+}
+
+std::vector<std::shared_ptr<MapPoint>> KeyFrame::map_points() const {
+  std::lock_guard lock(mutex_);
+  std::vector<std::shared_ptr<MapPoint>> out;
+  out.reserve(static_cast<std::size_t>(map_point_count_.load()));
+  for (const auto& mp : slots_)
+    if (mp) out.push_back(mp);
+  return out;
+}
+
+void KeyFrame::mark_bad() {
+  std::lock_guard lock(mutex_);
+  bad_.store(true);
+}
+
+}  // namespace orbatlas

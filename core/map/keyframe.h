@@ -1,0 +1,138 @@
+#pragma once
+// A keyframe of one map: immutable features, a mutable pose, one map point slot
+// per keypoint (strong: KeyFrame -> MapPoint), and graph links to other keyframes
+// (covisibility, spanning tree, loop edges) that are all weak, so reference
+// counting alone frees culled keyframes. Thread-safe: one mutex per keyframe
+// guards its mutable state; see docs/map_model.md for the lock order.
+#include <atomic>
+#include <cstddef>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <vector>
+
+#include "core/map/ids.h"
+#include "core/map/keyframe_data.h"
+#include "core/map/map_point.h"
+#include "core/map/object_counters.h"
+
+namespace orbatlas {
+
+inline constexpr int kCovisibilityMinWeight = 15;  // ORB-SLAM's threshold on shared points
+
+struct CovisibilityEdge {
+  KeyframeId keyframe = 0;
+  int weight = 0;  // number of map points both keyframes observe
+};
+
+class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
+ public:
+  // Checks that stereo vectors are empty or index-aligned with the keypoints.
+  static std::shared_ptr<KeyFrame> create(KeyframeId id, MapId map, KeyFrameData data,
+                                          std::shared_ptr<ObjectCounters> counters);
+  ~KeyFrame();  // detaches from the map points it still observes
+  KeyFrame(const KeyFrame&) = delete;
+  KeyFrame& operator=(const KeyFrame&) = delete;
+
+  // --- immutable ---
+  KeyframeId id() const { return id_; }
+  MapId map_id() const { return map_id_; }
+  std::int64_t timestamp_ns() const { return data_.timestamp_ns; }
+  const ImageFeatures& features() const { return data_.features; }
+  std::size_t slot_count() const { return data_.features.keypoints.size(); }
+  const Keypoint& keypoint(std::size_t slot) const;
+  bool is_stereo() const { return !data_.depth.empty(); }
+  float depth(std::size_t slot) const;    // -1 when unmatched or monocular
+  float u_right(std::size_t slot) const;  // -1 when unmatched or monocular
+  const BowVector& bow() const { return data_.bow; }
+  const FeatureVector& feature_vector() const { return data_.feature_vector; }
+  const Pose3& T_b_c() const { return data_.T_b_c; }
+
+  bool is_bad() const { return bad_.load(); }  // culled
+
+  // --- pose ---
+  Pose3 T_w_b() const;
+  Pose3 T_w_c() const;
+  void set_T_w_b(const Pose3& T_w_b);
+
+  // --- observations (both sides: the slot and the map point's observer list) ---
+  // False (nothing changed) when this keyframe or the point is bad. Throws when
+  // the slot is out of range or taken, or the point already sits in another slot.
+  bool add_observation(std::size_t slot, const std::shared_ptr<MapPoint>& map_point);
+  // Empties the slot; returns the point that was there (null if none).
+  std::shared_ptr<MapPoint> erase_slot(std::size_t slot);
+  // Puts `map_point` in the slot instead of what was there (same rules as add).
+  bool replace(std::size_t slot, const std::shared_ptr<MapPoint>& map_point);
+  std::shared_ptr<MapPoint> map_point(std::size_t slot) const;
+  std::vector<std::shared_ptr<MapPoint>> slots() const;       // index-aligned, nulls included
+  std::vector<std::shared_ptr<MapPoint>> map_points() const;  // non-null slots
+  int map_point_count() const { return map_point_count_.load(); }
+  // Incremental redundancy (redundancy_tracker.h): points of this keyframe that
+  // kRedundancyMinObservers other keyframes see at the same or a finer level.
+  int redundant_map_point_count() const { return redundant_->load(); }
+
+  // --- covisibility (weak links) ---
+  // Recomputes the weights to every keyframe sharing map points with this one; keeps
+  // those >= min_weight, or the best one if none is, and mirrors them in the neighbours.
+  void update_connections(int min_weight = kCovisibilityMinWeight);
+  void add_connection(const std::shared_ptr<KeyFrame>& other, int weight);
+  void erase_connection(KeyframeId other);
+  int weight(KeyframeId other) const;                 // 0 when not connected
+  std::vector<CovisibilityEdge> connections() const;  // weight descending, then id ascending
+  std::vector<std::shared_ptr<KeyFrame>> best_covisibles(std::size_t n) const;  // live, not bad
+
+  // --- spanning tree (weak links) ---
+  void set_parent(const std::shared_ptr<KeyFrame>& parent);  // null makes it a root
+  std::shared_ptr<KeyFrame> parent() const;
+  std::optional<KeyframeId> parent_id() const;  // kept after culling (the parent may be gone)
+  std::vector<std::shared_ptr<KeyFrame>> children() const;  // by id
+  std::vector<KeyframeId> child_ids() const;
+
+  // --- loop edges (weak links, both ways) ---
+  void add_loop_edge(const std::shared_ptr<KeyFrame>& other);
+  std::vector<KeyframeId> loop_edge_ids() const;
+
+ private:
+  friend class Map;  // culling
+
+  struct Link {
+    std::weak_ptr<KeyFrame> keyframe;
+    int weight = 0;
+  };
+
+  KeyFrame(KeyframeId id, MapId map, KeyFrameData data, std::shared_ptr<ObjectCounters> counters);
+
+  void check_slot(std::size_t slot) const;
+  // erase_slot, only if the slot still holds `map_point` (culling a point).
+  void erase_slot_if_holds(std::size_t slot, const std::shared_ptr<MapPoint>& map_point);
+  // Attaches this keyframe to `map_point` for `slot`; mutex_ must be held.
+  bool attach_locked(std::size_t slot, const std::shared_ptr<MapPoint>& map_point);
+  void rebuild_order_locked();
+  void add_child(KeyframeId id, std::weak_ptr<KeyFrame> child);
+  void erase_child(KeyframeId id);
+  void erase_loop_edge(KeyframeId id);
+  void mark_bad();
+  std::map<KeyframeId, Link> take_connections();
+  std::map<KeyframeId, std::weak_ptr<KeyFrame>> take_loop_edges();
+
+  LifetimeToken token_;  // first member: destroyed last (see object_counters.h)
+  const KeyframeId id_;
+  const MapId map_id_;
+  const KeyFrameData data_;  // data_.T_w_b is only the initial pose; T_w_b_ is current
+  const std::shared_ptr<std::atomic<int>> redundant_;
+  std::atomic<bool> bad_{false};
+  std::atomic<int> map_point_count_{0};
+
+  mutable std::mutex mutex_;  // guards everything below
+  Pose3 T_w_b_;
+  std::vector<std::shared_ptr<MapPoint>> slots_;
+  std::map<KeyframeId, Link> connections_;
+  std::vector<CovisibilityEdge> ordered_;  // connections_ by weight descending, id ascending
+  std::weak_ptr<KeyFrame> parent_;
+  std::optional<KeyframeId> parent_id_;
+  std::map<KeyframeId, std::weak_ptr<KeyFrame>> children_;
+  std::map<KeyframeId, std::weak_ptr<KeyFrame>> loop_edges_;
+};
+
+}  // namespace orbatlas

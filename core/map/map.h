@@ -1,0 +1,70 @@
+#pragma once
+// One map: the sole container owner of its keyframes and map points. Culling
+// removes an object at once, detaches every relation, and leaves reclamation to
+// reference counting: the memory is freed when the last thread holding the
+// object lets go. See docs/map_model.md for ownership and lock order.
+#include <memory>
+#include <mutex>
+#include <unordered_map>
+#include <vector>
+
+#include "core/map/id_allocator.h"
+#include "core/map/ids.h"
+#include "core/map/keyframe.h"
+#include "core/map/map_point.h"
+#include "core/map/object_counters.h"
+
+namespace orbatlas {
+
+class Map {
+ public:
+  // `ids` and `counters` are the atlas's (shared: a map may outlive its atlas).
+  Map(MapId id, std::shared_ptr<IdAllocator> ids, std::shared_ptr<ObjectCounters> counters);
+  Map(const Map&) = delete;
+  Map& operator=(const Map&) = delete;
+
+  MapId id() const { return id_; }
+
+  // New objects with fresh atlas-wide ids, added to this map.
+  std::shared_ptr<KeyFrame> new_keyframe(KeyFrameData data);
+  std::shared_ptr<MapPoint> new_map_point(MapPointData data);
+  // Existing objects (e.g. loaded with stored ids): the map id must match and the id be new here.
+  void add_keyframe(std::shared_ptr<KeyFrame> keyframe);
+  void add_map_point(std::shared_ptr<MapPoint> map_point);
+
+  // Null when absent (never added, or culled).
+  std::shared_ptr<KeyFrame> keyframe(KeyframeId id) const;
+  std::shared_ptr<MapPoint> map_point(MapPointId id) const;
+  // Snapshots for other threads, sorted by id.
+  std::vector<std::shared_ptr<KeyFrame>> keyframes() const;
+  std::vector<std::shared_ptr<MapPoint>> map_points() const;
+  std::size_t keyframe_count() const;
+  std::size_t map_point_count() const;
+
+  // Remove from the map at once, mark bad, detach every relation and count as
+  // culled. False when the id is not in the map. A keyframe's spanning-tree
+  // children are reattached like ORB-SLAM's SetBadFlag (to the parent or to a
+  // sibling they share more points with).
+  bool cull_keyframe(KeyframeId id);
+  bool cull_map_point(MapPointId id);
+
+  const std::shared_ptr<ObjectCounters>& counters() const { return counters_; }
+
+ private:
+  void reattach_children(const std::shared_ptr<KeyFrame>& culled);
+
+  const MapId id_;
+  const std::shared_ptr<IdAllocator> ids_;
+  const std::shared_ptr<ObjectCounters> counters_;
+
+  // Serialises structural edits that span several objects (culling, and with it
+  // spanning-tree reattachment). Outermost lock: see docs/map_model.md.
+  std::mutex structure_mutex_;
+  // Guards the two containers only; a leaf lock (nothing is locked under it, and
+  // no object is released under it).
+  mutable std::mutex objects_mutex_;
+  std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> map_points_;
+  std::unordered_map<KeyframeId, std::shared_ptr<KeyFrame>> keyframes_;
+};
+
+}  // namespace orbatlas

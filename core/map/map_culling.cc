@@ -1,0 +1,84 @@
+// Map: culling keyframes and map points. The object leaves the containers at
+// once; then every relation is detached, so that only threads still holding a
+// shared_ptr keep it alive. The last of them frees it.
+#include <map>
+
+#include "core/map/map.h"
+
+namespace orbatlas {
+
+bool Map::cull_keyframe(KeyframeId id) {
+  std::lock_guard structure(structure_mutex_);
+  std::shared_ptr<KeyFrame> kf;
+  {
+    std::lock_guard lock(objects_mutex_);
+    const auto it = keyframes_.find(id);
+    if (it == keyframes_.end()) return false;
+    kf = std::move(it->second);
+    keyframes_.erase(it);
+  }
+  kf->mark_bad();  // from here on, no new observation or connection is accepted
+  for (const auto& [other_id, link] : kf->take_connections())
+    if (auto other = link.keyframe.lock()) other->erase_connection(id);
+  for (const auto& [other_id, edge] : kf->take_loop_edges())
+    if (auto other = edge.lock()) other->erase_loop_edge(id);
+  for (std::size_t slot = 0; slot < kf->slot_count(); ++slot) kf->erase_slot(slot);
+  reattach_children(kf);
+  counters_->on_culled(ObjectKind::keyframe);
+  return true;
+}
+
+// ORB-SLAM's KeyFrame::SetBadFlag: the candidates for a new parent are the culled
+// keyframe's parent and the children already reattached; repeatedly, the
+// (child, candidate) pair with the largest covisibility weight is linked (ties: lower
+// child id, then lower candidate id). Children covisible with no candidate go to
+// the parent (or become roots when the culled keyframe had none).
+void Map::reattach_children(const std::shared_ptr<KeyFrame>& culled) {
+  const std::shared_ptr<KeyFrame> parent = culled->parent();
+  std::map<KeyframeId, std::shared_ptr<KeyFrame>> children, candidates;
+  for (auto& child : culled->children())
+    if (!child->is_bad()) children.emplace(child->id(), std::move(child));
+  if (parent) candidates.emplace(parent->id(), parent);
+
+  while (!children.empty()) {
+    int best_weight = 0;
+    std::shared_ptr<KeyFrame> best_child, best_parent;
+    for (const auto& [child_id, child] : children) {
+      for (const auto& [candidate_id, candidate] : candidates) {
+        const int w = child->weight(candidate_id);
+        if (w > best_weight) {
+          best_weight = w;
+          best_child = child;
+          best_parent = candidate;
+        }
+      }
+    }
+    if (!best_child) break;
+    best_child->set_parent(best_parent);
+    candidates.emplace(best_child->id(), best_child);
+    children.erase(best_child->id());
+  }
+  for (const auto& [child_id, child] : children) child->set_parent(parent);
+  if (parent) parent->erase_child(culled->id());
+  // The culled keyframe keeps its (weak) parent link and id, so poses expressed
+  // relative to it can still be chained; it has no children any more.
+}
+
+bool Map::cull_map_point(MapPointId id) {
+  std::lock_guard structure(structure_mutex_);
+  std::shared_ptr<MapPoint> mp;
+  {
+    std::lock_guard lock(objects_mutex_);
+    const auto it = map_points_.find(id);
+    if (it == map_points_.end()) return false;
+    mp = std::move(it->second);
+    map_points_.erase(it);
+  }
+  mp->mark_bad();  // no new observer is accepted, so this snapshot is complete
+  for (const auto& obs : mp->observations())
+    if (auto kf = obs.kf.lock()) kf->erase_slot_if_holds(obs.slot, mp);
+  counters_->on_culled(ObjectKind::map_point);
+  return true;
+}
+
+}  // namespace orbatlas

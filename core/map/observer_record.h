@@ -1,0 +1,29 @@
+#pragma once
+// What a map point keeps about one keyframe observing it. The link back to the
+// keyframe is weak (MapPoint -> KeyFrame never owns); the keyframe's redundancy
+// counter is shared so that updating it never touches (or revives) the keyframe.
+#include <atomic>
+#include <cstdint>
+#include <map>
+#include <memory>
+
+#include "core/map/ids.h"
+
+namespace orbatlas {
+
+class KeyFrame;
+
+struct ObserverRecord {
+  std::weak_ptr<KeyFrame> keyframe;
+  std::uint32_t slot = 0;   // keypoint index in the keyframe
+  int level = 0;            // pyramid level of that keypoint (immutable copy)
+  // Incremental redundancy (redundancy_tracker.h): the number of OTHER observers
+  // whose level <= this level + 1, and the observer's count of its redundant points.
+  int finer_observers = 0;
+  std::shared_ptr<std::atomic<int>> redundant_counter;
+};
+
+// Ordered by keyframe id, so iteration (and the reference-keyframe choice) is deterministic.
+using ObserverRecords = std::map<KeyframeId, ObserverRecord>;
+
+}  // namespace orbatlas

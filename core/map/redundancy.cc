@@ -1,0 +1,26 @@
+#include "core/map/redundancy.h"
+
+namespace orbatlas {
+
+RedundancyCount count_redundant_scan(const KeyFrame& keyframe, int min_observers) {
+  RedundancyCount count;
+  const auto slots = keyframe.slots();
+  for (std::size_t i = 0; i < slots.size(); ++i) {
+    const auto& mp = slots[i];
+    if (!mp || mp->is_bad()) continue;
+    ++count.map_points;
+    const int level = keyframe.keypoint(i).level;
+    if (mp->observers_up_to_level(level + 1, keyframe.id(), min_observers) >= min_observers) ++count.redundant;
+  }
+  return count;
+}
+
+RedundancyCount count_redundant_incremental(const KeyFrame& keyframe) {
+  return {keyframe.redundant_map_point_count(), keyframe.map_point_count()};
+}
+
+bool is_redundant(const RedundancyCount& count, const RedundancyOptions& options) {
+  return count.map_points > 0 && count.redundant > options.redundant_fraction * count.map_points;
+}
+
+}  // namespace orbatlas

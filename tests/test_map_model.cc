@@ -1,0 +1,294 @@
+// Map model: ids, atlases side by side, covisibility, spanning tree, culling.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <numeric>
+#include <random>
+#include <set>
+#include <thread>
+
+#include "core/common/error.h"
+#include "core/map/atlas.h"
+
+namespace orbatlas {
+namespace {
+
+KeyFrameData keyframe_data(std::size_t slots, const std::vector<int>& levels = {}) {
+  KeyFrameData data;
+  data.features.keypoints.resize(slots);
+  for (std::size_t i = 0; i < slots && i < levels.size(); ++i) data.features.keypoints[i].level = levels[i];
+  return data;
+}
+
+TEST(MapModel, IdsAreUniqueAcrossTheMapsOfAnAtlas) {
+  Atlas atlas;
+  EXPECT_EQ(atlas.active_map(), nullptr);
+  const std::vector<std::shared_ptr<Map>> maps = {atlas.create_map(), atlas.create_map(), atlas.create_map()};
+  EXPECT_EQ(atlas.active_map(), maps[2]);
+  std::set<MapId> map_ids;
+  std::set<KeyframeId> kf_ids;
+  std::set<MapPointId> mp_ids;
+  for (const auto& m : maps) map_ids.insert(m->id());
+  for (int i = 0; i < 60; ++i) {
+    const auto& m = maps[static_cast<std::size_t>(i) % maps.size()];
+    kf_ids.insert(m->new_keyframe(keyframe_data(4))->id());
+    mp_ids.insert(m->new_map_point({})->id());
+  }
+  EXPECT_EQ(map_ids.size(), 3u);
+  EXPECT_EQ(kf_ids.size(), 60u);
+  EXPECT_EQ(mp_ids.size(), 60u);
+  for (const auto& m : maps) EXPECT_EQ(m->keyframe_count(), 20u);
+  atlas.set_active(maps[0]->id());
+  EXPECT_EQ(atlas.active_map(), maps[0]);
+  EXPECT_EQ(atlas.map(maps[1]->id()), maps[1]);
+  EXPECT_THROW(atlas.set_active(12345), Error);
+  EXPECT_EQ(atlas.maps().size(), 3u);
+  // An object of one map cannot be added to another.
+  auto kf = KeyFrame::create(1000, maps[1]->id(), keyframe_data(1), atlas.counters());
+  EXPECT_THROW(maps[0]->add_keyframe(kf), Error);
+  EXPECT_THROW(maps[1]->add_keyframe(maps[1]->keyframes().front()), Error);  // duplicate id
+}
+
+TEST(MapModel, IdAllocatorCanBeReseeded) {
+  IdAllocator ids;
+  EXPECT_EQ(ids.next_keyframe_id(), 0u);
+  ids.ensure_above(IdKind::keyframe, 41);
+  EXPECT_EQ(ids.next_keyframe_id(), 42u);
+  ids.ensure_above(IdKind::keyframe, 10);  // never goes back
+  EXPECT_EQ(ids.next_keyframe_id(), 43u);
+  EXPECT_EQ(ids.next_map_point_id(), 0u);  // kinds are independent
+  EXPECT_EQ(ids.next_map_id(), 0u);
+  EXPECT_EQ(ids.peek(IdKind::map), 1u);
+}
+
+TEST(MapModel, TwoAtlasesInOneProcessAreIndependent) {
+  struct Result {
+    std::vector<KeyframeId> kf_ids;
+    std::vector<MapPointId> mp_ids;
+    CounterSnapshot kfs, mps;
+  };
+  auto run = [](int n, Result& result) {
+    Atlas atlas;
+    auto map = atlas.create_map();
+    for (int i = 0; i < n; ++i) {
+      auto kf = map->new_keyframe(keyframe_data(8));
+      auto mp = map->new_map_point({});
+      kf->add_observation(0, mp);
+      result.kf_ids.push_back(kf->id());
+      result.mp_ids.push_back(mp->id());
+    }
+    for (int i = 0; i < n; i += 2) map->cull_keyframe(result.kf_ids[static_cast<std::size_t>(i)]);
+    result.kfs = atlas.counters()->keyframes();
+    result.mps = atlas.counters()->map_points();
+  };
+  Result a, b;
+  std::thread ta(run, 500, std::ref(a));
+  std::thread tb(run, 300, std::ref(b));
+  ta.join();
+  tb.join();
+  for (std::size_t i = 0; i < a.kf_ids.size(); ++i) EXPECT_EQ(a.kf_ids[i], i);  // each atlas counts from 0
+  for (std::size_t i = 0; i < b.kf_ids.size(); ++i) EXPECT_EQ(b.kf_ids[i], i);
+  for (std::size_t i = 0; i < b.mp_ids.size(); ++i) EXPECT_EQ(b.mp_ids[i], i);
+  EXPECT_EQ(a.kfs.created, 500u);
+  EXPECT_EQ(a.kfs.culled, 250u);
+  EXPECT_EQ(a.kfs.reclaimed, 250u);
+  EXPECT_EQ(b.kfs.created, 300u);
+  EXPECT_EQ(b.kfs.culled, 150u);
+  EXPECT_EQ(b.kfs.reclaimed, 150u);
+  EXPECT_EQ(a.mps.created, 500u);
+  EXPECT_EQ(b.mps.created, 300u);
+  EXPECT_EQ(b.mps.reclaimed, 0u);  // the atlas was still alive when read
+}
+
+TEST(MapModel, CovisibilityKeepsStrongEdgesOrTheBestOne) {
+  Atlas atlas;
+  auto map = atlas.create_map();
+  auto A = map->new_keyframe(keyframe_data(100));
+  auto B = map->new_keyframe(keyframe_data(100));
+  auto C = map->new_keyframe(keyframe_data(100));
+  auto D = map->new_keyframe(keyframe_data(100));
+  std::size_t slot_a = 0, slot_b = 0, slot_c = 0, slot_d = 0;
+  auto share = [&](int n, std::shared_ptr<KeyFrame>& x, std::size_t& sx, std::shared_ptr<KeyFrame>& y, std::size_t& sy) {
+    for (int i = 0; i < n; ++i) {
+      auto mp = map->new_map_point({});
+      ASSERT_TRUE(x->add_observation(sx++, mp));
+      ASSERT_TRUE(y->add_observation(sy++, mp));
+    }
+  };
+  share(20, A, slot_a, B, slot_b);
+  share(16, A, slot_a, C, slot_c);
+  share(5, A, slot_a, D, slot_d);
+  share(2, B, slot_b, D, slot_d);
+
+  A->update_connections();  // B 20, C 16; D (5) is below 15
+  ASSERT_EQ(A->connections().size(), 2u);
+  EXPECT_EQ(A->connections()[0].keyframe, B->id());
+  EXPECT_EQ(A->connections()[0].weight, 20);
+  EXPECT_EQ(A->connections()[1].keyframe, C->id());
+  EXPECT_EQ(A->connections()[1].weight, 16);
+  EXPECT_EQ(B->weight(A->id()), 20);  // mirrored
+  EXPECT_EQ(C->weight(A->id()), 16);
+  EXPECT_EQ(A->weight(D->id()), 0);
+
+  D->update_connections();  // nothing >= 15: keeps only the best (A, 5), mirrored in A
+  ASSERT_EQ(D->connections().size(), 1u);
+  EXPECT_EQ(D->connections()[0].keyframe, A->id());
+  EXPECT_EQ(D->connections()[0].weight, 5);
+  EXPECT_EQ(A->weight(D->id()), 5);
+  EXPECT_EQ(B->weight(D->id()), 0);
+  const auto best = A->best_covisibles(2);
+  ASSERT_EQ(best.size(), 2u);
+  EXPECT_EQ(best[0], B);
+  EXPECT_EQ(best[1], C);
+}
+
+TEST(MapModel, CovisibilityWeightsEqualSharedPointsOnARandomMap) {
+  Atlas atlas;
+  auto map = atlas.create_map();
+  std::mt19937 rng(7);
+  const int n_kf = 15, n_mp = 300, n_slots = 150;
+  std::vector<std::shared_ptr<KeyFrame>> kfs;
+  std::vector<std::shared_ptr<MapPoint>> mps;
+  for (int i = 0; i < n_mp; ++i) mps.push_back(map->new_map_point({}));
+  std::vector<std::set<std::size_t>> seen(n_kf);  // map point indices per keyframe
+  for (int k = 0; k < n_kf; ++k) {
+    kfs.push_back(map->new_keyframe(keyframe_data(n_slots)));
+    std::vector<std::size_t> order(n_mp);
+    std::iota(order.begin(), order.end(), 0);
+    std::shuffle(order.begin(), order.end(), rng);
+    const int n_obs = std::uniform_int_distribution<int>(20, n_slots)(rng);
+    for (int s = 0; s < n_obs; ++s) {
+      ASSERT_TRUE(kfs.back()->add_observation(static_cast<std::size_t>(s), mps[order[static_cast<std::size_t>(s)]]));
+      seen[static_cast<std::size_t>(k)].insert(order[static_cast<std::size_t>(s)]);
+    }
+  }
+  for (const auto& kf : kfs) kf->update_connections(1);
+  for (int i = 0; i < n_kf; ++i) {
+    const auto& edges = kfs[static_cast<std::size_t>(i)]->connections();
+    for (std::size_t e = 1; e < edges.size(); ++e) {
+      EXPECT_TRUE(edges[e - 1].weight > edges[e].weight ||
+                  (edges[e - 1].weight == edges[e].weight && edges[e - 1].keyframe < edges[e].keyframe));
+    }
+    for (int j = 0; j < n_kf; ++j) {
+      if (i == j) continue;
+      int shared = 0;
+      for (std::size_t p : seen[static_cast<std::size_t>(i)]) shared += static_cast<int>(seen[static_cast<std::size_t>(j)].count(p));
+      EXPECT_EQ(kfs[static_cast<std::size_t>(i)]->weight(kfs[static_cast<std::size_t>(j)]->id()), shared) << i << " " << j;
+    }
+  }
+}
+
+TEST(MapModel, CullingReattachesSpanningTreeChildren) {
+  Atlas atlas;
+  auto map = atlas.create_map();
+  auto A = map->new_keyframe(keyframe_data(1));
+  auto B = map->new_keyframe(keyframe_data(1));
+  auto C = map->new_keyframe(keyframe_data(1));
+  auto D = map->new_keyframe(keyframe_data(1));
+  auto E = map->new_keyframe(keyframe_data(1));
+  B->set_parent(A);
+  C->set_parent(B);
+  D->set_parent(B);
+  E->set_parent(B);
+  auto link = [](const std::shared_ptr<KeyFrame>& x, const std::shared_ptr<KeyFrame>& y, int w) {
+    x->add_connection(y, w);
+    y->add_connection(x, w);
+  };
+  link(C, A, 30);  // C goes to A first,
+  link(D, C, 20);  // then D to the reattached C (not to A),
+  link(D, B, 50);  // (links to the culled keyframe do not count)
+  // and E, covisible with no candidate, to A.
+  ASSERT_TRUE(map->cull_keyframe(B->id()));
+  EXPECT_EQ(C->parent(), A);
+  EXPECT_EQ(D->parent(), C);
+  EXPECT_EQ(E->parent(), A);
+  EXPECT_EQ(A->child_ids(), (std::vector<KeyframeId>{C->id(), E->id()}));
+  EXPECT_EQ(C->child_ids(), (std::vector<KeyframeId>{D->id()}));
+  EXPECT_TRUE(B->child_ids().empty());
+  EXPECT_EQ(B->parent_id(), A->id());  // kept for chaining relative poses
+  EXPECT_EQ(D->weight(B->id()), 0);
+
+  // Culling the root makes its children roots.
+  ASSERT_TRUE(map->cull_keyframe(A->id()));
+  EXPECT_EQ(C->parent(), nullptr);
+  EXPECT_EQ(E->parent(), nullptr);
+  EXPECT_EQ(D->parent(), C);
+}
+
+TEST(MapModel, CulledObjectsVanishFromTheMapAtOnce) {
+  Atlas atlas;
+  auto map = atlas.create_map();
+  std::vector<std::shared_ptr<KeyFrame>> kfs;
+  for (int i = 0; i < 3; ++i) kfs.push_back(map->new_keyframe(keyframe_data(30)));
+  std::vector<std::shared_ptr<MapPoint>> mps;
+  for (int p = 0; p < 20; ++p) {
+    mps.push_back(map->new_map_point({}));
+    for (auto& kf : kfs) ASSERT_TRUE(kf->add_observation(static_cast<std::size_t>(p), mps.back()));
+  }
+  for (auto& kf : kfs) kf->update_connections();
+  kfs[1]->set_parent(kfs[0]);
+  kfs[2]->set_parent(kfs[1]);
+  kfs[0]->add_loop_edge(kfs[2]);
+  EXPECT_EQ(kfs[2]->loop_edge_ids(), std::vector<KeyframeId>{kfs[0]->id()});
+  EXPECT_EQ(mps[0]->reference_keyframe(), kfs[0]);
+
+  const KeyframeId gone = kfs[1]->id();
+  ASSERT_TRUE(map->cull_keyframe(gone));
+  EXPECT_FALSE(map->cull_keyframe(gone));
+  EXPECT_EQ(map->keyframe(gone), nullptr);
+  EXPECT_EQ(map->keyframe_count(), 2u);
+  for (const auto& kf : map->keyframes()) EXPECT_NE(kf->id(), gone);
+  EXPECT_TRUE(kfs[1]->is_bad());
+  EXPECT_EQ(kfs[1]->map_point_count(), 0);
+  EXPECT_TRUE(kfs[1]->connections().empty());
+  EXPECT_EQ(kfs[0]->weight(gone), 0);
+  EXPECT_EQ(kfs[0]->weight(kfs[2]->id()), 20);
+  EXPECT_EQ(kfs[2]->parent(), kfs[0]);
+  for (const auto& mp : mps) {
+    EXPECT_EQ(mp->observation_count(), 2u);
+    EXPECT_FALSE(mp->slot_in(gone).has_value());
+  }
+  EXPECT_FALSE(kfs[1]->add_observation(25, mps[0]));  // a culled keyframe takes nothing new
+
+  const MapPointId mp_gone = mps[0]->id();
+  ASSERT_TRUE(map->cull_map_point(mp_gone));
+  EXPECT_EQ(map->map_point(mp_gone), nullptr);
+  EXPECT_EQ(map->map_point_count(), 19u);
+  EXPECT_TRUE(mps[0]->is_bad());
+  EXPECT_EQ(mps[0]->observation_count(), 0u);
+  EXPECT_EQ(mps[0]->reference_keyframe(), nullptr);
+  EXPECT_EQ(kfs[0]->map_point(0), nullptr);
+  EXPECT_EQ(kfs[0]->map_point_count(), 19);
+  EXPECT_FALSE(kfs[0]->add_observation(0, mps[0]));  // nor does a culled point
+
+  // The reference keyframe moves to the next observer when the first one leaves.
+  ASSERT_TRUE(map->cull_keyframe(kfs[0]->id()));
+  EXPECT_EQ(mps[1]->reference_keyframe(), kfs[2]);
+  EXPECT_TRUE(kfs[2]->loop_edge_ids().empty());
+}
+
+TEST(MapModel, ObservationRulesAreChecked) {
+  Atlas atlas;
+  auto map = atlas.create_map();
+  auto kf = map->new_keyframe(keyframe_data(3));
+  auto mp = map->new_map_point({});
+  auto other = map->new_map_point({});
+  EXPECT_THROW(kf->add_observation(3, mp), Error);
+  ASSERT_TRUE(kf->add_observation(0, mp));
+  EXPECT_THROW(kf->add_observation(0, other), Error);  // slot taken
+  EXPECT_THROW(kf->add_observation(1, mp), Error);     // already in slot 0
+  EXPECT_THROW(kf->replace(1, mp), Error);
+  EXPECT_TRUE(kf->replace(0, other));
+  EXPECT_EQ(mp->observation_count(), 0u);
+  EXPECT_EQ(other->slot_in(kf->id()), 0u);
+  EXPECT_EQ(kf->erase_slot(0), other);
+  EXPECT_EQ(kf->erase_slot(0), nullptr);
+  EXPECT_EQ(kf->map_point_count(), 0);
+  KeyFrameData bad = keyframe_data(3);
+  bad.depth = {1.0f, 2.0f};
+  bad.u_right = {1.0f, 2.0f};
+  EXPECT_THROW(map->new_keyframe(bad), Error);
+}
+
+}  // namespace
+}  // namespace orbatlas
