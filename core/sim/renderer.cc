@@ -128,6 +128,15 @@ void Renderer::render(const Pose3& T_w_c, cv::Mat& image, std::uint64_t noise_se
   if (options_.noise_sigma > 0.0) add_noise(image, noise_seed);
 }
 
+std::optional<double> Renderer::depth_along(const Eigen::Vector3d& ray_c) const {
+  if (ray_c.z() <= 1e-9) return std::nullopt;
+  const long x = std::lround(fx_ * ray_c.x() / ray_c.z() + cx_), y = std::lround(fy_ * ray_c.y() / ray_c.z() + cy_);
+  if (x < 0 || y < 0 || x >= zbuffer_.cols || y >= zbuffer_.rows) return std::nullopt;
+  const float z = zbuffer_.at<float>(static_cast<int>(y), static_cast<int>(x));
+  if (!std::isfinite(z)) return std::nullopt;
+  return static_cast<double>(z);
+}
+
 void Renderer::add_noise(cv::Mat& image, std::uint64_t seed) const {
   const std::size_t mask = noise_table_.size() - 1;
   std::size_t offset = static_cast<std::size_t>(seed * 0x9E3779B97F4A7C15ULL >> 20);

@@ -7,6 +7,7 @@
 // only reads the World.
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <opencv2/core/mat.hpp>
 #include <utility>
 #include <vector>
@@ -42,6 +43,10 @@ class Renderer {
   const cv::Mat& canvas() const { return canvas_; }
   // Depth (z in the camera frame) of the last render on the canvas; +inf where empty.
   const cv::Mat& canvas_depth() const { return zbuffer_; }
+  // Rendered depth (z in the camera frame) along a ray of the camera frame, from
+  // the nearest canvas pixel of the last render; empty outside the canvas or
+  // where nothing was drawn. Ground truth for depth-estimation tests.
+  std::optional<double> depth_along(const Eigen::Vector3d& ray_c) const;
 
  private:
   void rasterize_quad(const Quad& quad, const Eigen::Matrix3d& R_c_w, const Eigen::Vector3d& t_c_w);

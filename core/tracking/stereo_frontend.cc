@@ -1,0 +1,69 @@
+#include "core/tracking/stereo_frontend.h"
+
+#include <algorithm>
+#include <opencv2/imgproc.hpp>
+
+#include "core/camera/camera_factory.h"
+#include "core/common/error.h"
+#include "core/features/keypoint_geometry.h"
+
+namespace orbatlas {
+namespace {
+
+const CameraCalibration& require_camera1(const SlamSettings& settings) {
+  ORBATLAS_CHECK(settings.camera1.has_value(), "stereo tracking needs a second camera (Camera2.* in the settings)");
+  return *settings.camera1;
+}
+
+// Grey view of an input image (converted into `scratch` when it has colour).
+const cv::Mat& as_gray(const cv::Mat& image, cv::Mat& scratch, const char* which) {
+  ORBATLAS_CHECK(!image.empty(), which << " image is empty");
+  ORBATLAS_CHECK(image.depth() == CV_8U, which << " image must be 8-bit");
+  if (image.channels() == 1) return image;
+  ORBATLAS_CHECK(image.channels() == 3 || image.channels() == 4, which << " image has " << image.channels() << " channels");
+  cv::cvtColor(image, scratch, image.channels() == 3 ? cv::COLOR_BGR2GRAY : cv::COLOR_BGRA2GRAY);
+  return scratch;
+}
+
+}  // namespace
+
+OrbExtractorOptions orb_options_from(const SlamSettings& settings) {
+  OrbExtractorOptions o;
+  o.n_features = settings.orb.n_features;
+  o.scale_factor = settings.orb.scale_factor;
+  o.n_levels = settings.orb.n_levels;
+  o.ini_th_fast = settings.orb.ini_th_fast;
+  o.min_th_fast = settings.orb.min_th_fast;
+  return o;
+}
+
+std::size_t StereoFrame::stereo_count() const {
+  return static_cast<std::size_t>(std::count_if(depth.begin(), depth.end(), [](float d) { return d > 0.0f; }));
+}
+
+StereoFrontend::StereoFrontend(const SlamSettings& settings)
+    : rectifier_(settings.camera0, require_camera1(settings)),
+      camera_(make_camera(rectifier_.rectified_left())),
+      left_extractor_(orb_options_from(settings)),
+      right_extractor_(orb_options_from(settings)) {}
+
+StereoFrame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
+  const cv::Mat& l = as_gray(left, left_gray_, "left");
+  const cv::Mat& r = as_gray(right, right_gray_, "right");
+  rectifier_.rectify(l, r, left_rect_, right_rect_);  // checks the sizes
+  StereoFrame f;
+  f.t_ns = t_ns;
+  f.features = left_extractor_.extract(left_rect_);
+  const ImageFeatures right_features = right_extractor_.extract(right_rect_);
+  StereoDepths depths = match_stereo_rectified(f.features, left_extractor_.pyramid(), right_features,
+                                               right_extractor_.pyramid(), left_extractor_.scale_factors(), bf(), baseline());
+  f.depth = std::move(depths.depth);
+  f.u_right = std::move(depths.u_right);
+  compute_keypoint_geometry(*camera_, f.features.keypoints);
+  f.grid = FeatureGrid(f.features);
+  f.map_points.assign(f.size(), nullptr);
+  f.outlier.assign(f.size(), false);
+  return f;
+}
+
+}  // namespace orbatlas

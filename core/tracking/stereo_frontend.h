@@ -1,0 +1,42 @@
+#pragma once
+// Turns a raw stereo pair into a StereoFrame: rectification (pinhole pairs), ORB
+// on both images, stereo matching, keypoint geometry and the search grid. One
+// frontend per session: it owns the extractors' scratch buffers.
+#include <memory>
+#include <opencv2/core/mat.hpp>
+
+#include "core/camera/camera.h"
+#include "core/features/orb_extractor.h"
+#include "core/features/stereo_rectified.h"
+#include "core/io/settings.h"
+#include "core/tracking/stereo_frame.h"
+
+namespace orbatlas {
+
+class StereoFrontend {
+ public:
+  // Needs a stereo pinhole calibration (camera0 and camera1). Throws Error otherwise.
+  explicit StereoFrontend(const SlamSettings& settings);
+
+  // left/right: CV_8UC1 (or 3-channel, converted) of the calibrated size; throws
+  // Error on empty images or a size that does not match the calibration.
+  StereoFrame make_frame(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
+
+  // The rectified left camera tracking works with (pinhole, no distortion), its
+  // pose in the body, and stereo constants.
+  const Camera& camera() const { return *camera_; }
+  const CameraCalibration& calibration() const { return rectifier_.rectified_left(); }
+  double bf() const { return rectifier_.bf(); }
+  double baseline() const { return rectifier_.baseline(); }
+  const OrbExtractor& extractor() const { return left_extractor_; }
+
+ private:
+  StereoRectifier rectifier_;
+  std::unique_ptr<Camera> camera_;
+  OrbExtractor left_extractor_, right_extractor_;
+  cv::Mat left_rect_, right_rect_, left_gray_, right_gray_;
+};
+
+OrbExtractorOptions orb_options_from(const SlamSettings& settings);
+
+}  // namespace orbatlas

@@ -1,0 +1,71 @@
+// The stereo front end on a rendered Machine Hall pair and on bad input.
+#include <gtest/gtest.h>
+
+#include "core/camera/camera_factory.h"
+#include "core/common/data_paths.h"
+#include "core/common/error.h"
+#include "core/io/settings.h"
+#include "core/sim/euroc_sequences.h"
+#include "core/sim/machine_hall.h"
+#include "core/sim/renderer.h"
+#include "core/sim/trajectory_spline.h"
+#include "core/tracking/stereo_frontend.h"
+
+namespace orbatlas {
+namespace {
+
+TEST(StereoFrontend, RenderedPairGivesKeypointsWithDepthConsistentWithTheScene) {
+  const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
+  sim::MachineHallOptions hall;
+  hall.texel_size_m = 0.01;  // quick to build
+  const sim::World world = sim::build_machine_hall(sim::load_machine_hall_trajectories(), hall);
+  const sim::TrajectorySpline spline(sim::load_ground_truth(sim::find_sequence("MH_01")));
+  const Pose3 T_w_b = spline.pose(spline.start_ns() + 40 * kNsPerSecond);
+  const auto cam0 = make_camera(settings.camera0), cam1 = make_camera(*settings.camera1);
+  sim::RenderOptions ro;
+  sim::Renderer r0(world, *cam0, ro), r1(world, *cam1, ro);
+  cv::Mat left, right;
+  r0.render(T_w_b * settings.camera0.T_b_c, left, 1);
+  r1.render(T_w_b * settings.camera1->T_b_c, right, 2);
+
+  StereoFrontend frontend(settings);
+  const StereoFrame f = frontend.make_frame(123, left, right);
+  EXPECT_EQ(f.t_ns, 123);
+  EXPECT_GE(f.size(), 1150u);
+  EXPECT_GT(f.stereo_count(), f.size() / 3);
+  ASSERT_EQ(f.depth.size(), f.size());
+  ASSERT_EQ(f.map_points.size(), f.size());
+  EXPECT_EQ(f.grid.size(), f.size());
+  // Depths agree with the renderer's depth buffer: the point at a keypoint's
+  // stereo depth along its ray, seen from cam0, has the depth cam0 rendered there.
+  const Pose3 T_c0_rect = settings.camera0.T_b_c.inverse() * frontend.calibration().T_b_c;
+  std::vector<double> rel;
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    if (f.depth[i] <= 0) continue;
+    const Eigen::Vector3d& b = f.features.keypoints[i].bearing;
+    const Eigen::Vector3d p_c0 = T_c0_rect * (b * (f.depth[i] / b.z()));
+    const auto truth = r0.depth_along(p_c0);
+    if (truth) rel.push_back(std::abs(p_c0.z() - *truth) / *truth);
+  }
+  ASSERT_GT(rel.size(), 300u);
+  std::nth_element(rel.begin(), rel.begin() + static_cast<std::ptrdiff_t>(rel.size() / 2), rel.end());
+  std::cout << rel.size() << " stereo keypoints checked, median relative depth error " << rel[rel.size() / 2] << "\n";
+  EXPECT_LT(rel[rel.size() / 2], 0.01);
+}
+
+TEST(StereoFrontend, RejectsBadImages) {
+  const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
+  StereoFrontend frontend(settings);
+  const cv::Mat ok(480, 752, CV_8UC1, cv::Scalar(100)), small(240, 376, CV_8UC1, cv::Scalar(100)), empty;
+  const cv::Mat wide(480, 752, CV_16UC1, cv::Scalar(100));
+  EXPECT_THROW(frontend.make_frame(0, empty, ok), Error);
+  EXPECT_THROW(frontend.make_frame(0, ok, small), Error);
+  EXPECT_THROW(frontend.make_frame(0, wide, ok), Error);
+  const StereoFrame blank = frontend.make_frame(0, ok, ok);  // no texture: no crash, few or no features
+  EXPECT_EQ(blank.depth.size(), blank.size());
+  const SlamSettings mono = read_settings(shipped_config_dir() / "euroc" / "mono.yaml", SensorType::kMonocular);
+  EXPECT_THROW(StereoFrontend{mono}, Error);
+}
+
+}  // namespace
+}  // namespace orbatlas
