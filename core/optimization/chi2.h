@@ -1,0 +1,10 @@
+#pragma once
+// 95% quantiles of the chi-square distribution used to classify reprojection
+// errors (ORB-SLAM's thresholds): 2 degrees of freedom for a monocular
+// observation (u, v), 3 for a rectified stereo one (u, v, u_right).
+namespace orbatlas {
+
+inline constexpr double kChi2Mono95 = 5.991;
+inline constexpr double kChi2Stereo95 = 7.815;
+
+}  // namespace orbatlas

@@ -1,0 +1,68 @@
+#pragma once
+// ORB-SLAM's LocalBundleAdjustment on the map model: the current keyframe and its
+// covisible keyframes (the window) and every map point they observe are
+// optimised; the other keyframes observing those points are fixed (the border).
+// Two stages (5 robust + 10 plain iterations); afterwards, observations with a
+// chi2 above the threshold or a point behind the camera are erased from the map,
+// and the poses and points are written back. See docs/optimization.md.
+#include <atomic>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "core/camera/camera.h"
+#include "core/map/map.h"
+#include "core/optimization/chi2.h"
+#include "core/optimization/level_sigma.h"
+
+namespace orbatlas {
+
+struct LocalBundleAdjustmentOptions {
+  // Window: the current keyframe and at most this many of its best covisibles
+  // (by weight); ORB-SLAM takes all of them.
+  std::size_t max_covisibles = std::numeric_limits<std::size_t>::max();
+  int first_iterations = 5;    // with the Huber kernel, on all observations
+  int second_iterations = 10;  // without kernel, outliers of the first stage left out (0: skip)
+  double chi2_mono = kChi2Mono95;
+  double chi2_stereo = kChi2Stereo95;
+  double huber_mono = std::sqrt(kChi2Mono95);
+  double huber_stereo = std::sqrt(kChi2Stereo95);
+  std::vector<double> level_sigma2 = pyramid_level_sigma2();  // per pyramid level
+  // Kept fixed when it is in the window (the map's first keyframe, as ORB-SLAM).
+  std::optional<KeyframeId> origin;
+  // Gauge: when no keyframe would be fixed, fix the oldest one of the window.
+  bool fix_oldest_without_border = true;
+  // DENSE_SCHUR up to this many free keyframes, SPARSE_SCHUR above.
+  std::size_t dense_schur_max_keyframes = 40;
+  // After erasing observations, points left with fewer observers are culled
+  // from the map (ORB-SLAM discards them in EraseObservation); 0 never culls.
+  std::size_t min_observers = 2;
+  int num_threads = 1;
+};
+
+struct LocalBundleAdjustmentStats {
+  std::size_t window_keyframes = 0;  // optimised
+  std::size_t fixed_keyframes = 0;   // border (+ origin / gauge keyframe)
+  std::size_t points = 0;
+  std::size_t observations = 0;          // residuals built
+  std::size_t observations_removed = 0;  // erased from the map
+  std::size_t points_culled = 0;
+  int iterations = 0;    // both stages
+  bool stopped = false;  // interrupted by the stop flag
+  double time_ms = 0.0;
+};
+
+// `camera`: the model of every keyframe's (left) keypoints; `bf`: baseline * fx of
+// the rectified stereo pair (stereo observations, i.e. u_right >= 0, count as
+// monocular when bf <= 0). `stop` (may be null) is polled at every iteration;
+// when raised the solve ends early, the current estimates are written back and
+// no observation is erased. Throws Error on a keypoint level without sigma2.
+LocalBundleAdjustmentStats local_bundle_adjustment(Map& map, const std::shared_ptr<KeyFrame>& current,
+                                                   const Camera& camera, double bf,
+                                                   const LocalBundleAdjustmentOptions& options = {},
+                                                   const std::atomic<bool>* stop = nullptr);
+
+}  // namespace orbatlas

@@ -1,0 +1,58 @@
+#pragma once
+// Motion-only optimisation of one frame's camera pose from 2D-3D (and rectified
+// stereo) correspondences: ORB-SLAM's PoseOptimization. Rounds of a few
+// Levenberg-Marquardt iterations with a Huber kernel; after each round every
+// correspondence is classified by its chi2 (outliers are left out of the next
+// round, inliers — including earlier outliers that now fit — are kept). See
+// docs/optimization.md.
+#include <Eigen/Core>
+#include <cmath>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "core/camera/camera.h"
+#include "core/geometry/pose.h"
+#include "core/optimization/chi2.h"
+
+namespace orbatlas {
+
+struct PoseCorrespondence {
+  Eigen::Vector3d p_w = Eigen::Vector3d::Zero();  // map point in the world
+  Eigen::Vector2d uv = Eigen::Vector2d::Zero();   // observed keypoint (the camera model's image)
+  std::optional<double> u_right;                  // rectified stereo: right-image column
+  double level_sigma2 = 1.0;                      // sigma^2 of the keypoint's pyramid level
+};
+
+struct PoseOptimizerInput {
+  Pose3 T_c_w;  // initial camera pose (world -> camera)
+  std::vector<PoseCorrespondence> correspondences;
+  double bf = 0.0;  // stereo baseline * fx; needed when a correspondence has u_right
+};
+
+struct PoseOptimizerOptions {
+  int rounds = 4;
+  int iterations_per_round = 10;
+  int robust_rounds = 3;  // the Huber kernel is used in the first rounds only (ORB-SLAM: 3 of 4)
+  double chi2_mono = kChi2Mono95;
+  double chi2_stereo = kChi2Stereo95;
+  double huber_mono = std::sqrt(kChi2Mono95);
+  double huber_stereo = std::sqrt(kChi2Stereo95);
+  int min_correspondences = 3;  // fewer: the pose is returned unchanged, no inliers
+  int min_round_inliers = 10;   // stop the rounds when fewer inliers remain
+};
+
+struct PoseOptimizerResult {
+  Pose3 T_c_w;
+  std::vector<std::uint8_t> inliers;  // per correspondence: 1 inlier, 0 outlier
+  int inlier_count = 0;
+  int rounds = 0;      // rounds run
+  int iterations = 0;  // Levenberg-Marquardt iterations, all rounds
+};
+
+// Throws Error when a stereo correspondence comes without bf > 0 or a sigma2 is
+// not positive. `camera` is the model the keypoints were observed with.
+PoseOptimizerResult optimize_pose(const Camera& camera, const PoseOptimizerInput& input,
+                                  const PoseOptimizerOptions& options = {});
+
+}  // namespace orbatlas

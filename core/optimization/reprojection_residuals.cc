@@ -1,0 +1,71 @@
+#include "core/optimization/reprojection_residuals.h"
+
+#include <array>
+#include <cmath>
+
+#include "core/camera/kannala_brandt.h"
+#include "core/camera/pinhole_radtan.h"
+#include "core/common/error.h"
+#include "core/optimization/chained_costs.h"
+
+namespace orbatlas {
+namespace {
+
+template <class Residual>
+std::unique_ptr<ceres::CostFunction> pose_only(const Residual& residual, const Eigen::Vector3d& p_w) {
+  return std::make_unique<PoseOnlyChainCost<Residual>>(residual, p_w);
+}
+
+template <class Residual>
+std::unique_ptr<ceres::CostFunction> pose_point(const Residual& residual) {
+  return std::make_unique<PosePointChainCost<Residual>>(residual);
+}
+
+template <class CameraT, class Make>
+std::unique_ptr<ceres::CostFunction> with_residual(const CameraT& camera, const PixelObservation& obs, double bf,
+                                                   bool pad_mono, const Make& make) {
+  ORBATLAS_CHECK(obs.level_sigma2 > 0.0 && std::isfinite(obs.level_sigma2),
+                 "reprojection residual: level sigma2 must be positive, got " << obs.level_sigma2);
+  const double inv_sigma = 1.0 / std::sqrt(obs.level_sigma2);
+  if (obs.u_right) {
+    ORBATLAS_CHECK(bf > 0.0, "reprojection residual: a stereo observation needs bf > 0, got " << bf);
+    return make(StereoResidual<CameraT>{&camera, obs.uv, *obs.u_right, bf, inv_sigma});
+  }
+  if (pad_mono) return make(MonoResidual<CameraT, 3>{&camera, obs.uv, inv_sigma});
+  return make(MonoResidual<CameraT>{&camera, obs.uv, inv_sigma});
+}
+
+template <class Make>
+std::unique_ptr<ceres::CostFunction> dispatch(const Camera& camera, const PixelObservation& obs, double bf,
+                                              bool pad_mono, const Make& make) {
+  switch (camera.model()) {
+    case CameraModel::kPinholeRadTan:
+      return with_residual(dynamic_cast<const PinholeRadTan&>(camera), obs, bf, pad_mono, make);
+    case CameraModel::kKannalaBrandt:
+      return with_residual(dynamic_cast<const KannalaBrandt&>(camera), obs, bf, pad_mono, make);
+  }
+  throw_error("reprojection residual: unsupported camera model");
+}
+
+}  // namespace
+
+std::unique_ptr<ceres::CostFunction> make_pose_only_cost(const Camera& camera, const Eigen::Vector3d& p_w,
+                                                         const PixelObservation& obs, double bf) {
+  return dispatch(camera, obs, bf, false, [&](const auto& residual) { return pose_only(residual, p_w); });
+}
+
+std::unique_ptr<ceres::CostFunction> make_pose_point_cost(const Camera& camera, const PixelObservation& obs,
+                                                          double bf, bool pad_mono) {
+  return dispatch(camera, obs, bf, pad_mono, [](const auto& residual) { return pose_point(residual); });
+}
+
+std::optional<double> residual_chi2(const ceres::CostFunction& cost, const double* const* parameters) {
+  std::array<double, 3> r{};
+  if (cost.num_residuals() > static_cast<int>(r.size())) return std::nullopt;
+  if (!cost.Evaluate(parameters, r.data(), nullptr)) return std::nullopt;
+  double chi2 = 0.0;
+  for (int i = 0; i < cost.num_residuals(); ++i) chi2 += r[static_cast<std::size_t>(i)] * r[static_cast<std::size_t>(i)];
+  return chi2;
+}
+
+}  // namespace orbatlas
