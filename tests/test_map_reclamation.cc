@@ -234,11 +234,13 @@ TEST(MapReclamation, ReadersRunWhileTheMapCulls) {
   RandomMap rm = build_random_map(atlas, 60, 1500, 200, 120, rng);
   std::atomic<bool> stop{false};
   std::atomic<long> reads{0};
+  std::atomic<int> reading{0};  // readers that have completed a first pass
   std::vector<std::thread> readers;
   for (int t = 0; t < 3; ++t) {
     readers.emplace_back([&, t] {
       std::mt19937 local(static_cast<unsigned>(t));
       long n = 0;
+      bool counted = false;
       while (!stop.load()) {
         const auto kfs = rm.map->keyframes();
         if (kfs.empty()) break;
@@ -249,12 +251,18 @@ TEST(MapReclamation, ReadersRunWhileTheMapCulls) {
         if (auto parent = kf->parent()) n += static_cast<long>(parent->child_ids().size());
         if (t == 0) kf->update_connections();
         ++n;
+        if (!counted) {
+          counted = true;
+          reading.fetch_add(1);
+        }
       }
       reads.fetch_add(n);
     });
   }
   std::shuffle(rm.kf_ids.begin(), rm.kf_ids.end(), rng);
   std::shuffle(rm.mp_ids.begin(), rm.mp_ids.end(), rng);
+  // Cull only once every reader is inside its loop, so the race is real.
+  while (reading.load() < 3) std::this_thread::yield();
   for (int i = 0; i < 30; ++i) {
     rm.map->cull_keyframe(rm.kf_ids[static_cast<std::size_t>(i)]);
     for (int j = 0; j < 20; ++j) rm.map->cull_map_point(rm.mp_ids[static_cast<std::size_t>(i * 20 + j)]);
