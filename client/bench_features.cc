@@ -14,6 +14,7 @@
 #include "core/features/stereo_rectified.h"
 #include "core/io/euroc_reader.h"
 #include "core/io/settings.h"
+#include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
 #include "core/vocabulary/keyframe_database.h"
 #include "core/vocabulary/vocabulary.h"
@@ -49,13 +50,7 @@ void run_feature_bench(const FeatureBenchOptions& o) {
   const std::vector<StereoFrame> frames = pair_stereo_frames(dataset);
   ORBATLAS_CHECK(!frames.empty(), "no stereo frames in " << o.dataset.string());
 
-  OrbExtractorOptions eo;
-  eo.n_features = settings.orb.n_features;
-  eo.scale_factor = settings.orb.scale_factor;
-  eo.n_levels = settings.orb.n_levels;
-  eo.ini_th_fast = settings.orb.ini_th_fast;
-  eo.min_th_fast = settings.orb.min_th_fast;
-  OrbExtractor left_extractor(eo), right_extractor(eo);
+  OrbExtractor left_extractor(orb_options_from(settings)), right_extractor(orb_options_from(settings));
   const StereoRectifier rectifier(settings.camera0, *settings.camera1);
 
   // Timed frames, spread over the dataset; the database gets up to N keyframes.

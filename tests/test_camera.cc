@@ -13,26 +13,14 @@
 #include "core/camera/kannala_brandt.h"
 #include "core/camera/pinhole_radtan.h"
 #include "core/common/error.h"
+#include "tests/sim_test_helpers.h"
 
 namespace orbatlas {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// EuRoC cam0 (mav0/cam0/sensor.yaml).
-CameraCalibration euroc_cam0() {
-  CameraCalibration c;
-  c.model = CameraModel::kPinholeRadTan;
-  c.fx = 458.654;
-  c.fy = 457.296;
-  c.cx = 367.215;
-  c.cy = 248.375;
-  c.distortion = {-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05};
-  c.width = 752;
-  c.height = 480;
-  c.rate_hz = 20;
-  return c;
-}
+using test::euroc_cam0;
 
 CameraCalibration euroc_cam0_k3() {
   CameraCalibration c = euroc_cam0();
@@ -41,19 +29,7 @@ CameraCalibration euroc_cam0_k3() {
 }
 
 // EuRoC-size fisheye (ORB-SLAM3's KannalaBrandt8 example calibration).
-CameraCalibration fisheye() {
-  CameraCalibration c;
-  c.model = CameraModel::kKannalaBrandt;
-  c.fx = 366.163;
-  c.fy = 365.631;
-  c.cx = 380.573;
-  c.cy = 225.950;
-  c.distortion = {-0.020476443, -0.007108226, 0.002180580, -0.001192386};
-  c.width = 752;
-  c.height = 480;
-  c.rate_hz = 20;
-  return c;
-}
+CameraCalibration fisheye() { return test::fisheye_left(); }
 
 std::vector<CameraCalibration> all_calibrations() { return {euroc_cam0(), euroc_cam0_k3(), fisheye()}; }
 

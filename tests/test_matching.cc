@@ -18,26 +18,13 @@
 #include "core/sim/machine_hall.h"
 #include "core/sim/renderer.h"
 #include "core/sim/trajectory_spline.h"
-#include "tests/sim_test_helpers.h"
+#include "tests/rendered_frames.h"
 
 namespace orbatlas {
 namespace {
 
-// cam0 on MH_01 at 40% of the sequence, coarse textures (quick to build).
 const cv::Mat& rendered_frame() {
-  static const cv::Mat image = [] {
-    sim::MachineHallOptions hall;
-    hall.texel_size_m = 0.01;
-    const sim::World world = sim::build_machine_hall(sim::load_machine_hall_trajectories(), hall);
-    const CameraCalibration cal = test::euroc_cam0();
-    const auto camera = make_camera(cal);
-    const sim::TrajectorySpline spline(sim::load_ground_truth(sim::find_sequence("MH_01")));
-    const TimestampNs t = spline.start_ns() + (spline.end_ns() - spline.start_ns()) * 2 / 5;
-    sim::Renderer renderer(world, *camera);
-    cv::Mat out;
-    renderer.render(spline.pose(t) * cal.T_b_c, out, 7);
-    return out;
-  }();
+  static const cv::Mat image = test::render_machine_hall_frame(0.4);  // built once for the whole file
   return image;
 }
 

@@ -28,30 +28,13 @@
 #include "core/sim/machine_hall.h"
 #include "core/sim/renderer.h"
 #include "core/sim/trajectory_spline.h"
-#include "tests/sim_test_helpers.h"
+#include "tests/rendered_frames.h"
 
 namespace orbatlas {
 namespace {
 
-// cam0 on MH_01, `fraction` of the way through the sequence, in a hall with
-// coarse textures (texel 1 cm) so that building it is quick.
-cv::Mat render_machine_hall_frame(double fraction) {
-  sim::MachineHallOptions hall;
-  hall.texel_size_m = 0.01;
-  const sim::World world = sim::build_machine_hall(sim::load_machine_hall_trajectories(), hall);
-  const CameraCalibration cal = test::euroc_cam0();
-  const auto camera = make_camera(cal);
-  const sim::TrajectorySpline spline(sim::load_ground_truth(sim::find_sequence("MH_01")));
-  const TimestampNs t =
-      spline.start_ns() + static_cast<TimestampNs>(fraction * static_cast<double>(spline.end_ns() - spline.start_ns()));
-  sim::Renderer renderer(world, *camera);
-  cv::Mat image;
-  renderer.render(spline.pose(t) * cal.T_b_c, image, 7);
-  return image;
-}
-
 const cv::Mat& rendered_frame() {
-  static const cv::Mat image = render_machine_hall_frame(0.4);  // built once for the whole file
+  static const cv::Mat image = test::render_machine_hall_frame(0.4);  // built once for the whole file
   return image;
 }
 
@@ -431,15 +414,7 @@ TEST(KeypointGeometry, PinholeMatchesOpenCvUndistortion) {
 }
 
 TEST(KeypointGeometry, FisheyeBeyondNinetyDegreesHasNoPinholePixel) {
-  CameraCalibration c;  // EuRoC-size Kannala-Brandt (ORB-SLAM3's example calibration)
-  c.model = CameraModel::kKannalaBrandt;
-  c.fx = 366.163;
-  c.fy = 365.631;
-  c.cx = 380.573;
-  c.cy = 225.950;
-  c.distortion = {-0.020476443, -0.007108226, 0.002180580, -0.001192386};
-  c.width = 752;
-  c.height = 480;
+  const CameraCalibration c = test::fisheye_left();  // EuRoC-size Kannala-Brandt
   const auto camera = make_camera(c);
   std::vector<Keypoint> keypoints(2);
   keypoints[0].uv = Eigen::Vector2f(500.0f, 300.0f);

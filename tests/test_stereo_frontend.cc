@@ -29,7 +29,7 @@ TEST(StereoFrontend, RenderedPairGivesKeypointsWithDepthConsistentWithTheScene) 
   r1.render(T_w_b * settings.camera1->T_b_c, right, 2);
 
   StereoFrontend frontend(settings);
-  const StereoFrame f = frontend.make_frame(123, left, right);
+  const Frame f = frontend.make_frame(123, left, right);
   EXPECT_EQ(f.t_ns, 123);
   EXPECT_GE(f.size(), 1150u);
   EXPECT_GT(f.stereo_count(), f.size() / 3);
@@ -61,7 +61,7 @@ TEST(StereoFrontend, RejectsBadImages) {
   EXPECT_THROW(frontend.make_frame(0, empty, ok), Error);
   EXPECT_THROW(frontend.make_frame(0, ok, small), Error);
   EXPECT_THROW(frontend.make_frame(0, wide, ok), Error);
-  const StereoFrame blank = frontend.make_frame(0, ok, ok);  // no texture: no crash, few or no features
+  const Frame blank = frontend.make_frame(0, ok, ok);  // no texture: no crash, few or no features
   EXPECT_EQ(blank.depth.size(), blank.size());
   const SlamSettings mono = read_settings(shipped_config_dir() / "euroc" / "mono.yaml", SensorType::kMonocular);
   EXPECT_THROW(StereoFrontend{mono}, Error);

@@ -37,7 +37,7 @@ OrbExtractorOptions orb_options_from(const SlamSettings& settings) {
   return o;
 }
 
-std::size_t StereoFrame::stereo_count() const {
+std::size_t Frame::stereo_count() const {
   return static_cast<std::size_t>(std::count_if(depth.begin(), depth.end(), [](float d) { return d > 0.0f; }));
 }
 
@@ -47,11 +47,11 @@ StereoFrontend::StereoFrontend(const SlamSettings& settings)
       left_extractor_(orb_options_from(settings)),
       right_extractor_(orb_options_from(settings)) {}
 
-StereoFrame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
+Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
   const cv::Mat& l = as_gray(left, left_gray_, "left");
   const cv::Mat& r = as_gray(right, right_gray_, "right");
   rectifier_.rectify(l, r, left_rect_, right_rect_);  // checks the sizes
-  StereoFrame f;
+  Frame f;
   f.t_ns = t_ns;
   f.features = left_extractor_.extract(left_rect_);
   const ImageFeatures right_features = right_extractor_.extract(right_rect_);

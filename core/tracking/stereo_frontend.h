@@ -1,5 +1,5 @@
 #pragma once
-// Turns a raw stereo pair into a StereoFrame: rectification (pinhole pairs), ORB
+// Turns a raw stereo pair into a Frame: rectification (pinhole pairs), ORB
 // on both images, stereo matching, keypoint geometry and the search grid. One
 // frontend per session: it owns the extractors' scratch buffers.
 #include <memory>
@@ -9,7 +9,7 @@
 #include "core/features/orb_extractor.h"
 #include "core/features/stereo_rectified.h"
 #include "core/io/settings.h"
-#include "core/tracking/stereo_frame.h"
+#include "core/tracking/frame.h"
 
 namespace orbatlas {
 
@@ -20,7 +20,7 @@ class StereoFrontend {
 
   // left/right: CV_8UC1 (or 3-channel, converted) of the calibrated size; throws
   // Error on empty images or a size that does not match the calibration.
-  StereoFrame make_frame(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
+  Frame make_frame(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
 
   // The rectified left camera tracking works with (pinhole, no distortion), its
   // pose in the body, and stereo constants.

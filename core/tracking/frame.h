@@ -1,5 +1,5 @@
 #pragma once
-// One stereo frame as tracking sees it: features of the rectified left image,
+// One frame as tracking sees it (built by StereoFrontend from a stereo pair): features of the rectified left image,
 // per-keypoint stereo depth, bearings, a search grid, and (filled by tracking)
 // its pose and the map points its keypoints were associated with.
 #include <memory>
@@ -15,7 +15,7 @@ namespace orbatlas {
 
 class MapPoint;
 
-struct StereoFrame {
+struct Frame {
   TimestampNs t_ns = 0;
   ImageFeatures features;      // rectified left image; uv_undistorted == uv (no distortion)
   std::vector<float> depth;    // metres per keypoint, -1 without a stereo match
