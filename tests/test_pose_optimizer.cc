@@ -194,7 +194,8 @@ TEST(PoseOptimizer, TooFewCorrespondencesLeaveThePose) {
   EXPECT_THROW(optimize_pose(*camera, s.input), Error);
 }
 
-TEST(PoseOptimizer, Timing) {  // printed, not asserted
+// Times are printed, not asserted (docs/benchmarks.md); every timed call must still converge.
+TEST(PoseOptimizer, Timing) {
   for (const bool fisheye : {false, true}) {
     for (const bool stereo : {false, true}) {
       if (fisheye && stereo) continue;
@@ -204,7 +205,11 @@ TEST(PoseOptimizer, Timing) {  // printed, not asserted
       constexpr int kRuns = 20;
       int iterations = 0;
       const auto t0 = std::chrono::steady_clock::now();
-      for (int i = 0; i < kRuns; ++i) iterations += optimize_pose(*camera, s.input).iterations;
+      for (int i = 0; i < kRuns; ++i) {
+        const PoseOptimizerResult r = optimize_pose(*camera, s.input);
+        iterations += r.iterations;
+        EXPECT_LT(translation_distance(r.T_c_w, s.T_c_w), 0.01);
+      }
       const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       std::printf("[pose timing] %s %s, 1000 correspondences (20%% outliers): %.2f ms per call, %.1f iterations\n",
                   camera_model_name(camera->model()), stereo ? "stereo" : "mono", ms / kRuns,
