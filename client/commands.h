@@ -9,5 +9,6 @@ void register_sim_command(CLI::App& app);
 void register_eval_command(CLI::App& app);
 void register_bench_command(CLI::App& app);
 void register_vocab_command(CLI::App& app);
+void register_run_command(CLI::App& app);
 
 }  // namespace orbatlas::cli

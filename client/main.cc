@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   orbatlas::cli::register_eval_command(app);
   orbatlas::cli::register_bench_command(app);
   orbatlas::cli::register_vocab_command(app);
+  orbatlas::cli::register_run_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

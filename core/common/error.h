@@ -31,3 +31,13 @@ class DataError : public Error {
       ::orbatlas::throw_error(orbatlas_check_stream_.str()); \
     }                                                  \
   } while (false)
+
+// ORBATLAS_DATA_CHECK(cond, "text" << value): throws orbatlas::DataError (bad input data).
+#define ORBATLAS_DATA_CHECK(cond, msg)                 \
+  do {                                                 \
+    if (!(cond)) {                                     \
+      std::ostringstream orbatlas_check_stream_;       \
+      orbatlas_check_stream_ << msg;                   \
+      throw ::orbatlas::DataError(orbatlas_check_stream_.str()); \
+    }                                                  \
+  } while (false)

@@ -47,6 +47,7 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   float u_right(std::size_t slot) const;  // -1 when unmatched or monocular
   const BowVector& bow() const { return data_.bow; }
   const FeatureVector& feature_vector() const { return data_.feature_vector; }
+  const FeatureGrid& grid() const { return data_.grid; }
   const Pose3& T_b_c() const { return data_.T_b_c; }
 
   bool is_bad() const { return bad_.load(); }  // culled

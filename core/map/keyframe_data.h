@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/features/feature_grid.h"
 #include "core/features/keypoint.h"
 #include "core/geometry/pose.h"
 #include "core/vocabulary/bow_vector.h"
@@ -20,6 +21,7 @@ struct KeyFrameData {
   std::vector<float> u_right;
   BowVector bow;
   FeatureVector feature_vector;
+  FeatureGrid grid;  // over features.keypoints, for projection searches
 };
 
 }  // namespace orbatlas

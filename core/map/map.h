@@ -5,6 +5,7 @@
 // object lets go. See docs/map_model.md for ownership and lock order.
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <unordered_map>
 #include <vector>
 
@@ -48,9 +49,20 @@ class Map {
   bool cull_keyframe(KeyframeId id);
   bool cull_map_point(MapPointId id);
 
+  // Body pose of a keyframe, alive or culled: a culled keyframe is chained through
+  // the pose relative to its spanning-tree parent recorded when it was culled (a
+  // few bytes per culled keyframe; the keyframe itself is freed), so frame poses
+  // anchored to it follow later corrections. Null for an id the map never held.
+  std::optional<Pose3> keyframe_pose(KeyframeId id) const;
+
   const std::shared_ptr<ObjectCounters>& counters() const { return counters_; }
 
  private:
+  struct CulledAnchor {
+    std::optional<KeyframeId> parent;  // none: T is the world pose
+    Pose3 T_parent_b;
+  };
+
   void reattach_children(const std::shared_ptr<KeyFrame>& culled);
 
   const MapId id_;
@@ -65,6 +77,7 @@ class Map {
   mutable std::mutex objects_mutex_;
   std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> map_points_;
   std::unordered_map<KeyframeId, std::shared_ptr<KeyFrame>> keyframes_;
+  std::unordered_map<KeyframeId, CulledAnchor> culled_anchors_;
 };
 
 }  // namespace orbatlas

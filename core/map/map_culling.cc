@@ -24,6 +24,17 @@ bool Map::cull_keyframe(KeyframeId id) {
     if (auto other = edge.lock()) other->erase_loop_edge(id);
   for (std::size_t slot = 0; slot < kf->slot_count(); ++slot) kf->erase_slot(slot);
   reattach_children(kf);
+  {
+    CulledAnchor anchor;
+    if (const auto parent = kf->parent()) {
+      anchor.parent = parent->id();
+      anchor.T_parent_b = parent->T_w_b().inverse() * kf->T_w_b();
+    } else {
+      anchor.T_parent_b = kf->T_w_b();
+    }
+    std::lock_guard lock(objects_mutex_);
+    culled_anchors_[id] = anchor;
+  }
   counters_->on_culled(ObjectKind::keyframe);
   return true;
 }
@@ -62,6 +73,24 @@ void Map::reattach_children(const std::shared_ptr<KeyFrame>& culled) {
   if (parent) parent->erase_child(culled->id());
   // The culled keyframe keeps its (weak) parent link and id, so poses expressed
   // relative to it can still be chained; it has no children any more.
+}
+
+std::optional<Pose3> Map::keyframe_pose(KeyframeId id) const {
+  Pose3 T_anchor_b;  // accumulated: the pose of the body in the current anchor's frame
+  std::unique_lock lock(objects_mutex_);
+  for (std::size_t hops = 0; hops <= culled_anchors_.size(); ++hops) {
+    if (const auto it = keyframes_.find(id); it != keyframes_.end()) {
+      const auto kf = it->second;
+      lock.unlock();
+      return kf->T_w_b() * T_anchor_b;
+    }
+    const auto anchor = culled_anchors_.find(id);
+    if (anchor == culled_anchors_.end()) return std::nullopt;
+    T_anchor_b = anchor->second.T_parent_b * T_anchor_b;
+    if (!anchor->second.parent) return T_anchor_b;
+    id = *anchor->second.parent;
+  }
+  return std::nullopt;  // a cycle: cannot happen with a tree, guarded anyway
 }
 
 bool Map::cull_map_point(MapPointId id) {

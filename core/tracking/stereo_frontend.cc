@@ -17,10 +17,10 @@ const CameraCalibration& require_camera1(const SlamSettings& settings) {
 
 // Grey view of an input image (converted into `scratch` when it has colour).
 const cv::Mat& as_gray(const cv::Mat& image, cv::Mat& scratch, const char* which) {
-  ORBATLAS_CHECK(!image.empty(), which << " image is empty");
-  ORBATLAS_CHECK(image.depth() == CV_8U, which << " image must be 8-bit");
+  ORBATLAS_DATA_CHECK(!image.empty(), which << " image is empty");
+  ORBATLAS_DATA_CHECK(image.depth() == CV_8U, which << " image must be 8-bit");
   if (image.channels() == 1) return image;
-  ORBATLAS_CHECK(image.channels() == 3 || image.channels() == 4, which << " image has " << image.channels() << " channels");
+  ORBATLAS_DATA_CHECK(image.channels() == 3 || image.channels() == 4, which << " image has " << image.channels() << " channels");
   cv::cvtColor(image, scratch, image.channels() == 3 ? cv::COLOR_BGR2GRAY : cv::COLOR_BGRA2GRAY);
   return scratch;
 }
@@ -50,7 +50,11 @@ StereoFrontend::StereoFrontend(const SlamSettings& settings)
 Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
   const cv::Mat& l = as_gray(left, left_gray_, "left");
   const cv::Mat& r = as_gray(right, right_gray_, "right");
-  rectifier_.rectify(l, r, left_rect_, right_rect_);  // checks the sizes
+  const CameraCalibration& c0 = rectifier_.rectified_left();
+  ORBATLAS_DATA_CHECK(l.cols == c0.width && l.rows == c0.height && r.cols == c0.width && r.rows == c0.height,
+                      "stereo pair of " << l.cols << "x" << l.rows << " and " << r.cols << "x" << r.rows
+                                        << " pixels; the calibration says " << c0.width << "x" << c0.height);
+  rectifier_.rectify(l, r, left_rect_, right_rect_);
   Frame f;
   f.t_ns = t_ns;
   f.features = left_extractor_.extract(left_rect_);

@@ -1,0 +1,46 @@
+#include "core/mapping/keyframe_culling.h"
+
+#include <chrono>
+
+namespace orbatlas {
+namespace {
+
+double micros_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+const char* culling_scheme_name(CullingScheme scheme) {
+  return scheme == CullingScheme::kScan ? "scan" : "incremental";
+}
+
+KeyframeCullingResult cull_redundant_keyframes(Map& map, const KeyFrame& current, std::optional<KeyframeId> origin,
+                                               const KeyframeCullingOptions& options) {
+  KeyframeCullingResult result;
+  const bool run_scan = options.scheme == CullingScheme::kScan || options.compare_schemes;
+  const bool run_incremental = options.scheme == CullingScheme::kIncremental || options.compare_schemes;
+  for (const auto& edge : current.connections()) {
+    if (origin && edge.keyframe == *origin) continue;
+    const auto kf = map.keyframe(edge.keyframe);
+    if (!kf || kf->is_bad()) continue;
+    ++result.candidates;
+    bool scan_says = false, incremental_says = false;
+    if (run_scan) {
+      const auto start = std::chrono::steady_clock::now();
+      scan_says = is_redundant(count_redundant_scan(*kf), options.redundancy);
+      result.scan_us += micros_since(start);
+    }
+    if (run_incremental) {
+      const auto start = std::chrono::steady_clock::now();
+      incremental_says = is_redundant(count_redundant_incremental(*kf), options.redundancy);
+      result.incremental_us += micros_since(start);
+    }
+    if (run_scan && run_incremental && scan_says != incremental_says) ++result.disagreements;
+    const bool redundant = options.scheme == CullingScheme::kScan ? scan_says : incremental_says;
+    if (redundant && map.cull_keyframe(kf->id())) result.culled.push_back(kf->id());
+  }
+  return result;
+}
+
+}  // namespace orbatlas

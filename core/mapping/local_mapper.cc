@@ -1,0 +1,227 @@
+#include "core/mapping/local_mapper.h"
+
+#include <chrono>
+#include <unordered_set>
+
+#include "core/common/error.h"
+#include "core/common/log.h"
+#include "core/map/map_point_update.h"
+#include "core/mapping/fusion.h"
+#include "core/mapping/triangulation.h"
+
+namespace orbatlas {
+namespace {
+
+double ms_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+// ORB-SLAM's observation count: a stereo observation counts twice.
+int weighted_observations(const MapPoint& point) {
+  int n = 0;
+  for (const auto& obs : point.observations()) {
+    const auto kf = obs.kf.lock();
+    if (!kf) continue;
+    n += kf->u_right(obs.slot) >= 0.0f ? 2 : 1;
+  }
+  return n;
+}
+
+}  // namespace
+
+LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options)
+    : atlas_(atlas), cam_(std::move(cam)), options_(std::move(options)), queue_(options_.queue_capacity) {
+  ORBATLAS_CHECK(cam_.camera != nullptr, "local mapper needs a camera");
+  thread_ = std::thread([this] { run(); });
+}
+
+LocalMapper::~LocalMapper() {
+  try {
+    finish();
+  } catch (const std::exception& e) {
+    log_warn(std::string("local mapping stopped with an error: ") + e.what());
+  }
+}
+
+bool LocalMapper::idle() const {
+  std::lock_guard lock(state_mutex_);
+  return in_flight_ == 0;
+}
+
+void LocalMapper::insert(std::shared_ptr<KeyFrame> keyframe) {
+  {
+    std::lock_guard lock(state_mutex_);
+    if (error_) std::rethrow_exception(error_);
+    ++in_flight_;
+  }
+  if (!queue_.push(std::move(keyframe))) {
+    std::lock_guard lock(state_mutex_);
+    --in_flight_;
+    idle_cv_.notify_all();
+    throw Error("local mapping has stopped; no keyframe can be inserted");
+  }
+}
+
+void LocalMapper::wait_until_idle() const {
+  std::unique_lock lock(state_mutex_);
+  idle_cv_.wait(lock, [&] { return in_flight_ == 0; });
+  if (error_) std::rethrow_exception(error_);
+}
+
+void LocalMapper::finish() {
+  queue_.close();
+  if (thread_.joinable()) thread_.join();
+  std::lock_guard lock(state_mutex_);
+  if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+}
+
+LocalMapperStats LocalMapper::stats() const {
+  std::lock_guard lock(stats_mutex_);
+  return stats_;
+}
+
+void LocalMapper::run() {
+  while (auto keyframe = queue_.pop()) {
+    abort_ba_.store(false);
+    try {
+      process(*keyframe);
+    } catch (...) {
+      std::lock_guard lock(state_mutex_);
+      if (!error_) error_ = std::current_exception();
+    }
+    keyframe->reset();  // drop our reference before reporting idle
+    std::lock_guard lock(state_mutex_);
+    --in_flight_;
+    idle_cv_.notify_all();
+  }
+}
+
+void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
+  const auto start = std::chrono::steady_clock::now();
+  const auto map = atlas_.map(keyframe->map_id());
+  if (!map || keyframe->is_bad()) return;
+  origins_.try_emplace(map->id(), keyframe->id());
+
+  complete_keyframe(*map, keyframe);
+  cull_recent_points(*map);
+  triangulate(*map, keyframe);
+  if (queue_.size() == 0) fuse_with_neighbours(*map, keyframe);
+
+  double ba_ms = -1.0;
+  KeyframeCullingResult culling;
+  bool culling_ran = false;
+  bool interrupted = false;
+  if (queue_.size() == 0 && !abort_ba_.load()) {
+    if (options_.run_bundle_adjustment && map->keyframe_count() > 2) {
+      LocalBundleAdjustmentOptions ba = options_.bundle_adjustment;
+      ba.origin = origins_.at(map->id());
+      ba.level_sigma2 = cam_.pyramid.level_sigma2();
+      const auto stats = local_bundle_adjustment(*map, keyframe, *cam_.camera, cam_.bf, ba, &abort_ba_);
+      ba_ms = stats.time_ms;
+      interrupted = stats.stopped;
+    }
+    if (options_.run_culling) {
+      culling = cull_redundant_keyframes(*map, *keyframe, origins_.at(map->id()), options_.culling);
+      culling_ran = true;
+    }
+  }
+  ++sequence_;
+
+  std::lock_guard lock(stats_mutex_);
+  ++stats_.keyframes;
+  stats_.keyframe_ms.push_back(ms_since(start));
+  if (ba_ms >= 0.0) stats_.bundle_adjustment_ms.push_back(ba_ms);
+  if (interrupted) ++stats_.bundle_adjustments_interrupted;
+  if (culling_ran) {
+    const bool scan = options_.culling.scheme == CullingScheme::kScan || options_.culling.compare_schemes;
+    const bool incremental = options_.culling.scheme == CullingScheme::kIncremental || options_.culling.compare_schemes;
+    if (scan) stats_.culling_scan_ms.push_back(culling.scan_us * 1e-3);
+    if (incremental) stats_.culling_incremental_ms.push_back(culling.incremental_us * 1e-3);
+    stats_.culling_candidates += static_cast<std::size_t>(culling.candidates);
+    stats_.culling_disagreements += static_cast<std::size_t>(culling.disagreements);
+    stats_.culled_keyframes.insert(stats_.culled_keyframes.end(), culling.culled.begin(), culling.culled.end());
+  }
+}
+
+void LocalMapper::complete_keyframe(Map& map, const std::shared_ptr<KeyFrame>& keyframe) {
+  (void)map;
+  for (const auto& mp : keyframe->map_points()) {
+    if (mp->is_bad()) continue;
+    update_map_point(*mp, cam_.pyramid);
+    if (mp->observation_count() == 1 && mp->reference_keyframe_id() == keyframe->id())
+      recent_.push_back({mp, sequence_});
+  }
+  keyframe->update_connections();
+  if (!keyframe->parent() && keyframe->id() != origins_.at(keyframe->map_id())) {
+    const auto best = keyframe->best_covisibles(1);
+    if (!best.empty()) keyframe->set_parent(best.front());
+  }
+}
+
+void LocalMapper::cull_recent_points(Map& map) {
+  std::size_t culled = 0;
+  std::vector<RecentPoint> kept;
+  kept.reserve(recent_.size());
+  for (auto& entry : recent_) {
+    const auto mp = entry.point.lock();
+    if (!mp || mp->is_bad()) continue;
+    const std::size_t age = sequence_ - entry.created_at;
+    if (mp->found_ratio() < 0.25 || (age >= 2 && weighted_observations(*mp) <= 3)) {
+      if (map.cull_map_point(mp->id())) ++culled;
+    } else if (age < 3) {
+      kept.push_back(std::move(entry));
+    }
+  }
+  recent_ = std::move(kept);
+  std::lock_guard lock(stats_mutex_);
+  stats_.recent_points_culled += culled;
+}
+
+void LocalMapper::triangulate(Map& map, const std::shared_ptr<KeyFrame>& keyframe) {
+  std::vector<std::shared_ptr<MapPoint>> created;
+  std::size_t n = 0;
+  for (const auto& neighbour : keyframe->best_covisibles(options_.triangulation_neighbours)) {
+    if (n++ > 0 && queue_.size() > 0) break;  // a keyframe is waiting: tracking needs us
+    triangulate_pair(map, keyframe, neighbour, cam_, &created);
+  }
+  for (auto& mp : created) recent_.push_back({mp, sequence_});
+  std::lock_guard lock(stats_mutex_);
+  stats_.points_triangulated += created.size();
+}
+
+void LocalMapper::fuse_with_neighbours(Map& map, const std::shared_ptr<KeyFrame>& keyframe) {
+  std::vector<std::shared_ptr<KeyFrame>> targets;
+  std::unordered_set<KeyframeId> in_targets{keyframe->id()};
+  for (auto& kf : keyframe->best_covisibles(options_.fusion_neighbours))
+    if (in_targets.insert(kf->id()).second) targets.push_back(std::move(kf));
+  const std::size_t first_ring = targets.size();
+  for (std::size_t i = 0; i < first_ring; ++i)
+    for (auto& kf : targets[i]->best_covisibles(options_.fusion_second_neighbours))
+      if (in_targets.insert(kf->id()).second) targets.push_back(std::move(kf));
+
+  FusionStats total;
+  const auto own = keyframe->map_points();
+  for (const auto& target : targets) {
+    const FusionStats s = fuse_into_keyframe(map, target, own, cam_, options_.fusion_radius);
+    total.added += s.added;
+    total.merged += s.merged;
+  }
+  std::vector<std::shared_ptr<MapPoint>> theirs;
+  std::unordered_set<MapPointId> seen;
+  for (const auto& target : targets)
+    for (auto& mp : target->map_points())
+      if (!mp->is_bad() && seen.insert(mp->id()).second) theirs.push_back(std::move(mp));
+  const FusionStats s = fuse_into_keyframe(map, keyframe, theirs, cam_, options_.fusion_radius);
+  total.added += s.added;
+  total.merged += s.merged;
+
+  for (const auto& mp : keyframe->map_points())
+    if (!mp->is_bad()) update_map_point(*mp, cam_.pyramid);
+  keyframe->update_connections();
+
+  std::lock_guard lock(stats_mutex_);
+  stats_.points_fused += static_cast<std::size_t>(total.merged);
+  stats_.observations_fused += static_cast<std::size_t>(total.added);
+}
+
+}  // namespace orbatlas

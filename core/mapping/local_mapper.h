@@ -1,0 +1,107 @@
+#pragma once
+// Local mapping (ORB-SLAM's LocalMapping) in its own thread, fed by tracking
+// through a bounded queue. Per keyframe: complete the new keyframe (point
+// normals and descriptors, covisibility, spanning-tree parent), cull recent
+// points that tracking does not confirm, triangulate new points with the
+// covisible keyframes, fuse duplicates with the neighbours, run local bundle
+// adjustment, and cull redundant keyframes. See docs/mapping.md.
+#include <atomic>
+#include <condition_variable>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "core/common/bounded_queue.h"
+#include "core/map/atlas.h"
+#include "core/mapping/keyframe_culling.h"
+#include "core/optimization/local_bundle_adjustment.h"
+#include "core/tracking/frame_camera.h"
+#include "core/tracking/keyframe_sink.h"
+
+namespace orbatlas {
+
+struct LocalMapperOptions {
+  std::size_t queue_capacity = 8;
+  std::size_t triangulation_neighbours = 10;  // best covisibles (ORB-SLAM: 10 for stereo)
+  std::size_t fusion_neighbours = 10;
+  std::size_t fusion_second_neighbours = 5;
+  float fusion_radius = 3.0f;
+  KeyframeCullingOptions culling;
+  LocalBundleAdjustmentOptions bundle_adjustment;  // origin and level_sigma2 are filled in
+  bool run_bundle_adjustment = true;
+  bool run_culling = true;
+};
+
+// Figures of a run (copies; safe to read while the mapper runs).
+struct LocalMapperStats {
+  std::size_t keyframes = 0;  // processed
+  std::vector<double> keyframe_ms;          // whole processing per keyframe
+  std::vector<double> bundle_adjustment_ms;
+  std::vector<double> culling_scan_ms;         // per keyframe (all candidates), when the scan ran
+  std::vector<double> culling_incremental_ms;  // per keyframe, when the incremental read ran
+  std::size_t culling_candidates = 0;
+  std::size_t culling_disagreements = 0;
+  std::vector<KeyframeId> culled_keyframes;  // in order
+  std::size_t points_triangulated = 0, points_fused = 0, observations_fused = 0, recent_points_culled = 0;
+  std::size_t bundle_adjustments_interrupted = 0;
+};
+
+class LocalMapper final : public KeyframeSink {
+ public:
+  // `atlas` and `cam.camera` must outlive the mapper. The thread starts at once.
+  LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options);
+  ~LocalMapper() override;  // finish()
+  LocalMapper(const LocalMapper&) = delete;
+  LocalMapper& operator=(const LocalMapper&) = delete;
+
+  // KeyframeSink
+  bool idle() const override;
+  std::size_t queued() const override { return queue_.size(); }
+  void insert(std::shared_ptr<KeyFrame> keyframe) override;
+  void interrupt_optimization() override { abort_ba_.store(true); }
+
+  void wait_until_idle() const;
+  // Processes what is queued, then stops the thread (idempotent). Rethrows an
+  // error that stopped the thread.
+  void finish();
+
+  LocalMapperStats stats() const;
+
+ private:
+  struct RecentPoint {
+    std::weak_ptr<MapPoint> point;
+    std::size_t created_at = 0;  // keyframe sequence number
+  };
+
+  void run();
+  void process(const std::shared_ptr<KeyFrame>& keyframe);
+  void complete_keyframe(Map& map, const std::shared_ptr<KeyFrame>& keyframe);
+  void cull_recent_points(Map& map);
+  void triangulate(Map& map, const std::shared_ptr<KeyFrame>& keyframe);
+  void fuse_with_neighbours(Map& map, const std::shared_ptr<KeyFrame>& keyframe);
+
+  Atlas& atlas_;
+  const FrameCamera cam_;
+  const LocalMapperOptions options_;
+
+  BoundedQueue<std::shared_ptr<KeyFrame>> queue_;
+  std::atomic<bool> abort_ba_{false};
+  mutable std::mutex state_mutex_;
+  mutable std::condition_variable idle_cv_;
+  std::size_t in_flight_ = 0;  // inserted and not yet processed
+  std::exception_ptr error_;
+
+  // Mapper-thread state.
+  std::map<MapId, KeyframeId> origins_;
+  std::vector<RecentPoint> recent_;
+  std::size_t sequence_ = 0;
+
+  mutable std::mutex stats_mutex_;
+  LocalMapperStats stats_;
+
+  std::thread thread_;  // last: started after everything above exists
+};
+
+}  // namespace orbatlas

@@ -1,0 +1,43 @@
+#pragma once
+// Runs a stereo SLAM session over an EuRoC ASL dataset (what `orbatlas run`
+// does): images are decoded by a loader thread into a bounded queue, tracked,
+// and optionally paced at the sensor rate.
+#include <filesystem>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/geometry/trajectory.h"
+#include "core/slam/stereo_slam.h"
+
+namespace orbatlas {
+
+struct DatasetRunOptions {
+  std::filesystem::path settings;  // ORB-SLAM3-style YAML (stereo)
+  std::filesystem::path dataset;   // folder holding mav0/
+  std::filesystem::path vocabulary;  // empty: the shipped one
+  StereoSlamOptions slam;
+  double start_s = 0.0;                    // skip this much of the sequence
+  std::optional<double> duration_s;        // and stop after this much
+  bool realtime = false;  // feed frames at their timestamps; count the late ones
+  bool show_progress = true;
+};
+
+struct DatasetRunReport {
+  Trajectory trajectory;     // every tracked frame, body frame
+  std::vector<MapId> trajectory_maps;  // map of each trajectory pose
+  SlamStats stats;
+  std::size_t skipped_frames = 0;  // unreadable images, reported and skipped
+  std::size_t late_frames = 0;     // realtime: processing ended after the next frame arrived
+  double peak_rss_mb = 0.0;
+  double wall_s = 0.0;
+  std::optional<double> ate_rmse_m;  // when the dataset has ground truth (SE3 alignment)
+  nlohmann::json to_json() const;    // SlamStats' keys + late_frames, peak_rss_mb, ...
+};
+
+// Throws Error for unusable settings, a missing dataset or a non-stereo dataset.
+DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options);
+
+}  // namespace orbatlas

@@ -1,0 +1,36 @@
+#pragma once
+// Figures of a SLAM run, and their JSON form (the `orbatlas run --stats` file).
+#include <cstddef>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "core/map/object_counters.h"
+#include "core/mapping/local_mapper.h"
+
+namespace orbatlas {
+
+struct Percentiles {
+  double p50 = 0.0, p95 = 0.0, max = 0.0, mean = 0.0;
+  std::size_t count = 0;
+};
+Percentiles percentiles(std::vector<double> values);
+
+struct SlamStats {
+  std::size_t frames = 0, tracked = 0, lost = 0;  // lost: frames without a pose
+  std::size_t maps = 0, keyframes = 0, mappoints = 0;  // in the atlas at the end
+  std::size_t keyframes_made = 0;
+  std::vector<double> tracking_ms;  // per frame: front end + tracking
+  LocalMapperStats mapping;
+  CullingScheme culling_scheme = CullingScheme::kIncremental;
+  CounterSnapshot keyframe_objects, mappoint_objects;
+};
+
+// Keys: frames, tracked, lost, maps, keyframes, mappoints, tracking_ms{p50,p95,max,mean},
+// local_mapping_ms_per_kf{p50,p95,max}, local_ba_ms{p50,p95,max}, culling_scheme,
+// culling_ms_per_kf (the scheme in use), culling_ms_per_kf_by_scheme{scan,incremental},
+// culling_disagreements, culled_keyframes, points_triangulated, points_fused,
+// objects{keyframes,mappoints}{created,culled,alive,reclaimed}.
+nlohmann::json to_json(const SlamStats& stats);
+
+}  // namespace orbatlas

@@ -1,0 +1,84 @@
+#include "core/slam/stereo_slam.h"
+
+#include <chrono>
+
+#include "core/common/error.h"
+
+namespace orbatlas {
+
+StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
+                       StereoSlamOptions options)
+    : atlas_(atlas), options_(std::move(options)), frontend_(settings) {
+  cam_.camera = &frontend_.camera();
+  cam_.bf = frontend_.bf();
+  cam_.pyramid.scale_factor = settings.orb.scale_factor;
+  cam_.pyramid.n_levels = settings.orb.n_levels;
+  options_.tracker.th_depth_m = settings.stereo_th_depth * frontend_.baseline();
+  options_.tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));
+  mapper_ = std::make_unique<LocalMapper>(atlas_, cam_, options_.mapper);
+  tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *mapper_, cam_, frontend_.calibration().T_b_c,
+                                       options_.tracker);
+}
+
+StereoSlam::~StereoSlam() {
+  // The tracker refers to the mapper: it goes first.
+  tracker_.reset();
+  mapper_.reset();
+}
+
+TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
+  ORBATLAS_CHECK(!finished_, "this SLAM session has finished; it takes no more frames");
+  const auto start = std::chrono::steady_clock::now();
+  Frame frame = frontend_.make_frame(t_ns, left, right);
+  const TrackResult result = tracker_->track(std::move(frame));
+  tracking_ms_.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  ++frames_;
+  if (result.tracked) ++tracked_;
+  if (result.keyframe) {
+    ++keyframes_made_;
+    if (options_.synchronous_mapping) mapper_->wait_until_idle();
+  }
+  return result;
+}
+
+void StereoSlam::finish() {
+  if (finished_) return;
+  finished_ = true;
+  mapper_->finish();
+  tracker_->release_frames();
+}
+
+std::vector<TimedPose> StereoSlam::trajectory() const {
+  std::vector<TimedPose> out;
+  out.reserve(tracker_->anchors().size());
+  for (const auto& anchor : tracker_->anchors()) {
+    const auto map = atlas_.map(anchor.map);
+    if (!map) continue;
+    const auto T_w_ref = map->keyframe_pose(anchor.reference);
+    if (!T_w_ref) continue;
+    out.push_back({anchor.t_ns, anchor.map, *T_w_ref * anchor.T_ref_b});
+  }
+  return out;
+}
+
+SlamStats StereoSlam::stats() const {
+  SlamStats s;
+  s.frames = frames_;
+  s.tracked = tracked_;
+  s.lost = frames_ - tracked_;
+  s.keyframes_made = keyframes_made_;
+  for (const auto& map : atlas_.maps()) {
+    if (map->keyframe_count() == 0) continue;
+    ++s.maps;
+    s.keyframes += map->keyframe_count();
+    s.mappoints += map->map_point_count();
+  }
+  s.tracking_ms = tracking_ms_;
+  s.mapping = mapper_->stats();
+  s.culling_scheme = options_.mapper.culling.scheme;
+  s.keyframe_objects = atlas_.counters()->keyframes();
+  s.mappoint_objects = atlas_.counters()->map_points();
+  return s;
+}
+
+}  // namespace orbatlas

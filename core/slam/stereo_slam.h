@@ -1,0 +1,67 @@
+#pragma once
+// One stereo SLAM session: the front end, tracking on the caller's thread and
+// local mapping on its own, working on a map of an atlas the caller owns (so
+// several sessions and several atlases can live in one process).
+#include <memory>
+#include <opencv2/core/mat.hpp>
+#include <vector>
+
+#include "core/io/settings.h"
+#include "core/map/atlas.h"
+#include "core/mapping/local_mapper.h"
+#include "core/slam/slam_stats.h"
+#include "core/tracking/stereo_frontend.h"
+#include "core/tracking/tracker.h"
+#include "core/vocabulary/vocabulary.h"
+
+namespace orbatlas {
+
+struct StereoSlamOptions {
+  TrackerOptions tracker;  // th_depth_m and the keyframe interval are derived from the settings
+  LocalMapperOptions mapper;
+  // Wait for local mapping to finish each keyframe before the next frame: slower,
+  // but the run is deterministic (tests, comparing culling schemes).
+  bool synchronous_mapping = false;
+};
+
+struct TimedPose {
+  TimestampNs t_ns = 0;
+  MapId map = 0;
+  Pose3 T_w_b;
+};
+
+class StereoSlam {
+ public:
+  // `atlas` and `vocabulary` must outlive the session. Throws Error for settings
+  // that are not a stereo rig.
+  StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary, StereoSlamOptions options = {});
+  ~StereoSlam();
+  StereoSlam(const StereoSlam&) = delete;
+  StereoSlam& operator=(const StereoSlam&) = delete;
+
+  // One stereo pair (throws Error on bad images or a timestamp that does not increase).
+  TrackResult process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
+
+  // Lets local mapping finish what is queued, stops it and releases the last
+  // frame (so every culled object can be reclaimed). Idempotent; process() may
+  // not be called afterwards.
+  void finish();
+
+  // Every tracked frame's body pose, from its reference keyframe's current pose.
+  std::vector<TimedPose> trajectory() const;
+  SlamStats stats() const;
+  const StereoFrontend& frontend() const { return frontend_; }
+
+ private:
+  Atlas& atlas_;
+  StereoSlamOptions options_;
+  StereoFrontend frontend_;
+  FrameCamera cam_;
+  std::unique_ptr<LocalMapper> mapper_;
+  std::unique_ptr<Tracker> tracker_;
+  bool finished_ = false;
+  std::vector<double> tracking_ms_;
+  std::size_t frames_ = 0, tracked_ = 0, keyframes_made_ = 0;
+};
+
+}  // namespace orbatlas

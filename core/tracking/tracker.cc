@@ -1,0 +1,369 @@
+#include "core/tracking/tracker.h"
+
+#include <algorithm>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "core/common/error.h"
+#include "core/map/map_point_update.h"
+#include "core/tracking/frame_pose.h"
+
+namespace orbatlas {
+namespace {
+
+constexpr float kMotionModelRadius = 7.0f;  // ORB-SLAM's th for stereo
+constexpr int kMinMotionMatches = 20;
+constexpr int kMinPoseInliers = 10;
+constexpr int kMinBowMatches = 15;
+
+double seconds_between(TimestampNs a, TimestampNs b) { return static_cast<double>(b - a) * 1e-9; }
+
+}  // namespace
+
+const char* tracking_state_name(TrackingState state) {
+  switch (state) {
+    case TrackingState::kNotInitialized: return "NOT_INITIALIZED";
+    case TrackingState::kOk: return "OK";
+    case TrackingState::kRecentlyLost: return "RECENTLY_LOST";
+    case TrackingState::kLost: return "LOST";
+  }
+  return "?";
+}
+
+Tracker::Tracker(Atlas& atlas, const Vocabulary& vocabulary, KeyframeSink& sink, FrameCamera cam, Pose3 T_b_c,
+                 TrackerOptions options)
+    : atlas_(atlas), vocabulary_(vocabulary), sink_(sink), cam_(std::move(cam)), T_b_c_(T_b_c), options_(options) {
+  ORBATLAS_CHECK(cam_.camera != nullptr, "tracker needs a camera");
+  ORBATLAS_CHECK(cam_.bf > 0.0, "the stereo tracker needs bf > 0");
+}
+
+TrackResult Tracker::track(Frame frame) {
+  ORBATLAS_DATA_CHECK(!has_last_t_ || frame.t_ns > last_t_ns_,
+                 "frame timestamps must increase: " << frame.t_ns << " ns after " << last_t_ns_ << " ns");
+  ORBATLAS_CHECK(frame.map_points.size() == frame.size() && frame.outlier.size() == frame.size() &&
+                     frame.depth.size() == frame.size() && frame.u_right.size() == frame.size(),
+                 "frame at " << frame.t_ns << " ns has inconsistent per-keypoint arrays");
+  has_last_t_ = true;
+  last_t_ns_ = frame.t_ns;
+  ++frame_index_;
+
+  TrackResult result;
+  result.t_ns = frame.t_ns;
+
+  if (state_ == TrackingState::kLost) start_new_map();
+  if (!map_) start_new_map();
+
+  bool ok = false;
+  if (state_ == TrackingState::kNotInitialized) {
+    ok = initialize(frame);
+    if (ok) result.keyframe = true;
+  } else {
+    refresh_last_frame_pose();
+    if (state_ == TrackingState::kOk) {
+      ok = velocity_ && track_motion_model(frame);
+      if (!ok) ok = reference_ && track_reference_keyframe(frame, reference_);
+    } else {  // kRecentlyLost
+      ok = recover(frame);
+      if (ok) last_recovery_index_ = frame_index_;
+    }
+    if (ok) ok = track_local_map(frame);
+
+    if (ok) {
+      state_ = TrackingState::kOk;
+    } else if (state_ == TrackingState::kOk) {
+      const bool keep = map_->keyframe_count() > static_cast<std::size_t>(options_.min_keyframes_to_keep_map);
+      state_ = keep ? TrackingState::kRecentlyLost : TrackingState::kLost;
+      lost_since_ns_ = frame.t_ns;
+    } else if (seconds_between(lost_since_ns_, frame.t_ns) > options_.recently_lost_s) {
+      state_ = TrackingState::kLost;
+    }
+
+    if (ok) {
+      int inliers = 0;
+      for (std::size_t i = 0; i < frame.size(); ++i)
+        if (frame.map_points[i] && !frame.outlier[i]) ++inliers;
+      result.inliers = inliers;
+      if (last_ && last_->has_pose) velocity_ = last_->T_w_b.inverse() * frame.T_w_b;
+      if (need_new_keyframe(frame, inliers)) {
+        create_keyframe(frame, false);
+        result.keyframe = true;
+      }
+    } else {
+      velocity_.reset();
+    }
+  }
+
+  result.state = state_;
+  result.map = map_ ? map_->id() : 0;
+  result.tracked = ok;
+  if (ok) {
+    result.T_w_b = frame.T_w_b;
+    frame.has_pose = true;
+    // Outliers are dropped so the next frame's motion-model search uses only inliers.
+    discard_outliers(frame);
+    T_ref_last_ = reference_->T_w_b().inverse() * frame.T_w_b;
+    last_reference_ = reference_->id();
+    anchors_.push_back({frame.t_ns, map_->id(), reference_->id(), T_ref_last_});
+  } else {
+    frame.has_pose = false;
+    last_reference_.reset();
+  }
+  last_ = std::move(frame);
+  return result;
+}
+
+void Tracker::release_frames() {
+  last_.reset();
+  reference_.reset();
+  last_keyframe_.reset();
+  local_keyframes_.clear();
+}
+
+void Tracker::start_new_map() {
+  if (!map_ || map_->keyframe_count() > 0) {
+    map_ = atlas_.create_map();
+    ++maps_started_;
+  }
+  state_ = TrackingState::kNotInitialized;
+  velocity_.reset();
+  reference_.reset();
+  last_keyframe_.reset();
+  local_keyframes_.clear();
+  last_reference_.reset();
+}
+
+void Tracker::refresh_last_frame_pose() {
+  // The last frame's pose relative to its reference keyframe, which local BA may have moved.
+  if (!last_ || !last_->has_pose || !last_reference_) return;
+  if (const auto pose = map_->keyframe_pose(*last_reference_)) last_->T_w_b = *pose * T_ref_last_;
+}
+
+void Tracker::ensure_bow(Frame& frame) const {
+  if (frame.bow.empty()) vocabulary_.transform(frame.features.descriptors, &frame.bow, &frame.feature_vector);
+}
+
+bool Tracker::initialize(Frame& frame) {
+  if (static_cast<int>(frame.stereo_count()) < options_.min_init_stereo_points) return false;
+  frame.T_w_b = Pose3();
+  frame.has_pose = true;
+  std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+  create_keyframe(frame, true);
+  local_keyframes_ = {reference_};
+  state_ = TrackingState::kOk;
+  velocity_.reset();
+  return true;
+}
+
+bool Tracker::track_motion_model(Frame& frame) {
+  if (!last_ || !last_->has_pose) return false;
+  frame.T_w_b = last_->T_w_b * *velocity_;
+  std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+  const Pose3 T_c_w = (frame.T_w_b * T_b_c_).inverse();
+  int matches = search_from_last_frame(frame, *last_, T_c_w, cam_, kMotionModelRadius);
+  if (matches < kMinMotionMatches) {
+    std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+    matches = search_from_last_frame(frame, *last_, T_c_w, cam_, 2.0f * kMotionModelRadius);
+  }
+  if (matches < kMinMotionMatches) return false;
+  optimize_frame_pose(frame, cam_, T_b_c_);
+  return discard_outliers(frame) >= kMinPoseInliers;
+}
+
+bool Tracker::track_reference_keyframe(Frame& frame, const std::shared_ptr<KeyFrame>& keyframe) {
+  if (!keyframe || keyframe->is_bad()) return false;
+  ensure_bow(frame);
+  std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+  if (search_by_bow(*keyframe, frame) < kMinBowMatches) return false;
+  frame.T_w_b = (last_ && last_->has_pose) ? last_->T_w_b : keyframe->T_w_b();
+  optimize_frame_pose(frame, cam_, T_b_c_);
+  return discard_outliers(frame) >= kMinPoseInliers;
+}
+
+bool Tracker::recover(Frame& frame) {
+  // Without relocalisation against the whole database (a later step), try the
+  // last reference keyframe and its best covisibles by bag of words.
+  std::vector<std::shared_ptr<KeyFrame>> candidates;
+  if (reference_ && !reference_->is_bad()) {
+    candidates.push_back(reference_);
+    for (auto& kf : reference_->best_covisibles(5)) candidates.push_back(std::move(kf));
+  }
+  for (const auto& kf : candidates) {
+    if (track_reference_keyframe(frame, kf)) {
+      reference_ = kf;
+      return true;
+    }
+  }
+  return false;
+}
+
+void Tracker::update_local_map(const Frame& frame) {
+  // Keyframes that observe the frame's points, by how many; the best is the new reference.
+  std::unordered_map<KeyframeId, std::pair<std::shared_ptr<KeyFrame>, int>> counts;
+  for (std::size_t i = 0; i < frame.size(); ++i) {
+    const auto& mp = frame.map_points[i];
+    if (!mp || mp->is_bad()) continue;
+    for (const auto& obs : mp->observations()) {
+      auto& entry = counts[obs.keyframe];
+      if (!entry.first) entry.first = obs.kf.lock();
+      ++entry.second;
+    }
+  }
+  local_keyframes_.clear();
+  std::unordered_set<KeyframeId> in_local;
+  std::shared_ptr<KeyFrame> best;
+  int best_count = 0;
+  std::vector<std::pair<int, std::shared_ptr<KeyFrame>>> sorted;
+  for (auto& [id, entry] : counts) {
+    if (!entry.first || entry.first->is_bad()) continue;
+    sorted.emplace_back(entry.second, entry.first);
+  }
+  std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first > b.first : a.second->id() < b.second->id();
+  });
+  for (auto& [count, kf] : sorted) {
+    if (count > best_count) {
+      best_count = count;
+      best = kf;
+    }
+    in_local.insert(kf->id());
+    local_keyframes_.push_back(kf);
+  }
+  const std::size_t max_kfs = static_cast<std::size_t>(options_.max_local_keyframes);
+  const std::size_t first_ring = local_keyframes_.size();
+  auto add = [&](const std::shared_ptr<KeyFrame>& kf) {
+    if (kf && !kf->is_bad() && local_keyframes_.size() < max_kfs && in_local.insert(kf->id()).second)
+      local_keyframes_.push_back(kf);
+  };
+  for (std::size_t k = 0; k < first_ring && local_keyframes_.size() < max_kfs; ++k) {
+    const auto kf = local_keyframes_[k];
+    for (const auto& n : kf->best_covisibles(10)) add(n);
+    for (const auto& c : kf->children()) add(c);
+    add(kf->parent());
+  }
+  if (best) reference_ = best;
+}
+
+bool Tracker::track_local_map(Frame& frame) {
+  update_local_map(frame);
+  std::unordered_set<MapPointId> seen;
+  for (std::size_t i = 0; i < frame.size(); ++i) {
+    const auto& mp = frame.map_points[i];
+    if (!mp || mp->is_bad()) continue;
+    mp->increase_visible();
+    seen.insert(mp->id());
+  }
+  const Pose3 T_c_w = (frame.T_w_b * T_b_c_).inverse();
+  std::vector<ProjectedPoint> candidates;
+  for (const auto& kf : local_keyframes_) {
+    for (const auto& mp : kf->map_points()) {
+      if (mp->is_bad() || !seen.insert(mp->id()).second) continue;
+      ProjectedPoint pp;
+      if (!project_into_frame(*mp, T_c_w, cam_, &pp)) continue;
+      mp->increase_visible();
+      pp.point = mp;
+      candidates.push_back(std::move(pp));
+    }
+  }
+  float th = 1.0f;
+  if (frame_index_ < last_recovery_index_ + 2) th = 5.0f;
+  if (state_ == TrackingState::kRecentlyLost) th = 15.0f;
+  search_projected_points(frame, candidates, cam_, th);
+
+  optimize_frame_pose(frame, cam_, T_b_c_);
+  int inliers = 0;
+  for (std::size_t i = 0; i < frame.size(); ++i) {
+    const auto& mp = frame.map_points[i];
+    if (!mp || frame.outlier[i] || mp->is_bad()) continue;
+    mp->increase_found();
+    if (mp->observation_count() > 0) ++inliers;
+  }
+  const bool recovering = frame_index_ < last_recovery_index_ + options_.max_frames_between_keyframes;
+  return inliers >= (recovering ? options_.min_inliers_after_recovery : options_.min_inliers);
+}
+
+bool Tracker::need_new_keyframe(const Frame& frame, int inliers) const {
+  if (!reference_) return false;
+  const std::size_t n_kfs = map_->keyframe_count();
+  const int min_obs = n_kfs <= 2 ? 1 : 2;  // keyframes; ORB-SLAM counts stereo observations twice (3 of 4)
+  int ref_matches = 0;
+  for (const auto& mp : reference_->map_points())
+    if (!mp->is_bad() && mp->observation_count() >= static_cast<std::size_t>(min_obs)) ++ref_matches;
+
+  int tracked_close = 0, untracked_close = 0;
+  for (std::size_t i = 0; i < frame.size(); ++i) {
+    const float z = frame.depth[i];
+    if (z <= 0.0f || z >= options_.th_depth_m) continue;
+    if (frame.map_points[i] && !frame.outlier[i]) {
+      ++tracked_close;
+    } else {
+      ++untracked_close;
+    }
+  }
+  const bool need_close = tracked_close < 100 && untracked_close > 70;
+  const double ref_ratio = n_kfs < 2 ? 0.4 : 0.75;
+  const bool idle = sink_.idle();
+  const bool c1a = frame_index_ >= last_keyframe_index_ + options_.max_frames_between_keyframes;
+  const bool c1b = idle;
+  const bool c1c = inliers < ref_matches * 0.25 || need_close;
+  const bool c2 = (inliers < ref_matches * ref_ratio || need_close) && inliers > 15;
+  if (!((c1a || c1b || c1c) && c2)) return false;
+  if (idle) return true;
+  sink_.interrupt_optimization();
+  return sink_.queued() < 3;
+}
+
+void Tracker::create_keyframe(Frame& frame, bool all_stereo_points) {
+  ensure_bow(frame);
+  KeyFrameData data;
+  data.timestamp_ns = frame.t_ns;
+  data.T_w_b = frame.T_w_b;
+  data.T_b_c = T_b_c_;
+  data.features = frame.features;
+  data.depth = frame.depth;
+  data.u_right = frame.u_right;
+  data.bow = frame.bow;
+  data.feature_vector = frame.feature_vector;
+  data.grid = frame.grid;
+  auto kf = map_->new_keyframe(std::move(data));
+
+  for (std::size_t i = 0; i < frame.size(); ++i) {
+    const auto& mp = frame.map_points[i];
+    if (mp && !frame.outlier[i] && !mp->is_bad()) add_observation_if_free(*kf, i, mp);
+  }
+
+  // New points from the closest stereo matches without one (all of them when
+  // initialising), and at least 100 in total (ORB-SLAM's CreateNewKeyFrame).
+  std::vector<std::pair<float, std::size_t>> by_depth;
+  for (std::size_t i = 0; i < frame.size(); ++i)
+    if (frame.depth[i] > 0.0f) by_depth.emplace_back(frame.depth[i], i);
+  std::sort(by_depth.begin(), by_depth.end());
+  const Pose3 T_w_c = frame.T_w_b * T_b_c_;
+  int points = 0;
+  for (const auto& [z, i] : by_depth) {
+    const auto& existing = frame.map_points[i];
+    if (existing && !existing->is_bad() && existing->observation_count() > 0) {
+      ++points;
+    } else {
+      const Keypoint& kp = frame.features.keypoints[i];
+      MapPointData pd;
+      pd.p_w = T_w_c * (kp.bearing * (static_cast<double>(z) / kp.bearing.z()));
+      pd.descriptor = frame.features.descriptors[i];
+      auto mp = map_->new_map_point(pd);
+      mp->set_reference_keyframe(kf);
+      if (kf->map_point(i)) kf->erase_slot(i);
+      kf->add_observation(i, mp);
+      update_normal_and_distances(*mp, cam_.pyramid);
+      frame.map_points[i] = mp;
+      frame.outlier[i] = false;
+      ++points;
+    }
+    if (!all_stereo_points && z > options_.th_depth_m && points > 100) break;
+  }
+
+  reference_ = kf;
+  last_keyframe_ = kf;
+  last_keyframe_index_ = frame_index_;
+  sink_.insert(std::move(kf));
+}
+
+}  // namespace orbatlas

@@ -1,0 +1,106 @@
+#pragma once
+// The tracking state machine of one session (ORB-SLAM3's Tracking for a stereo
+// rig without IMU): stereo initialisation, the motion model, the reference
+// keyframe by bag of words, the local map, the keyframe decision, and the states
+// NOT_INITIALIZED -> OK <-> RECENTLY_LOST -> LOST. When tracking is lost for good
+// a new map is started in the atlas and initialised from the next stereo frame.
+// Runs on the caller's thread; keyframes go to a KeyframeSink (the local mapper).
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "core/map/atlas.h"
+#include "core/tracking/frame.h"
+#include "core/tracking/keyframe_sink.h"
+#include "core/tracking/projection_search.h"
+#include "core/vocabulary/vocabulary.h"
+
+namespace orbatlas {
+
+enum class TrackingState { kNotInitialized, kOk, kRecentlyLost, kLost };
+const char* tracking_state_name(TrackingState state);
+
+struct TrackerOptions {
+  int min_init_stereo_points = 500;  // stereo matches needed to start a map
+  double th_depth_m = 3.5;           // close / far stereo points (ORB-SLAM's ThDepth * baseline)
+  int max_frames_between_keyframes = 20;  // a keyframe at least this often (the frame rate)
+  int min_inliers = 30;                   // after the local-map search
+  int min_inliers_after_recovery = 50;    // during the first second after recovering
+  double recently_lost_s = 5.0;           // then LOST and a new map
+  int max_local_keyframes = 80;
+  int min_keyframes_to_keep_map = 10;  // a map lost with fewer keyframes goes straight to LOST
+};
+
+struct TrackResult {
+  TimestampNs t_ns = 0;
+  TrackingState state = TrackingState::kNotInitialized;
+  bool tracked = false;  // has a pose
+  Pose3 T_w_b;           // valid when tracked, in map `map`
+  MapId map = 0;
+  bool keyframe = false;  // a keyframe was made from this frame
+  int inliers = 0;
+};
+
+// Where a tracked frame was: relative to its reference keyframe, so the pose
+// follows later corrections of that keyframe (resolved with Map::keyframe_pose).
+struct FrameAnchor {
+  TimestampNs t_ns = 0;
+  MapId map = 0;
+  KeyframeId reference = 0;
+  Pose3 T_ref_b;
+};
+
+class Tracker {
+ public:
+  // `atlas`, `vocabulary` and `sink` must outlive the tracker; `cam.camera` too.
+  Tracker(Atlas& atlas, const Vocabulary& vocabulary, KeyframeSink& sink, FrameCamera cam, Pose3 T_b_c,
+          TrackerOptions options);
+
+  // Tracks one frame (timestamps strictly increasing; throws Error otherwise).
+  TrackResult track(Frame frame);
+
+  TrackingState state() const { return state_; }
+  const std::vector<FrameAnchor>& anchors() const { return anchors_; }
+  std::size_t maps_started() const { return maps_started_; }
+  // Drops the last frame and the keyframes tracking holds (end of a session), so
+  // that nothing keeps culled objects alive; the anchors stay.
+  void release_frames();
+
+ private:
+  bool initialize(Frame& frame);
+  bool track_motion_model(Frame& frame);
+  bool track_reference_keyframe(Frame& frame, const std::shared_ptr<KeyFrame>& keyframe);
+  bool recover(Frame& frame);
+  bool track_local_map(Frame& frame);
+  void update_local_map(const Frame& frame);
+  bool need_new_keyframe(const Frame& frame, int inliers) const;
+  void create_keyframe(Frame& frame, bool all_stereo_points);
+  void ensure_bow(Frame& frame) const;
+  void start_new_map();
+  void refresh_last_frame_pose();
+
+  Atlas& atlas_;
+  const Vocabulary& vocabulary_;
+  KeyframeSink& sink_;
+  const FrameCamera cam_;
+  const Pose3 T_b_c_;
+  const TrackerOptions options_;
+
+  TrackingState state_ = TrackingState::kNotInitialized;
+  std::shared_ptr<Map> map_;
+  std::optional<Frame> last_;
+  std::optional<Pose3> velocity_;  // T_last_current of the body, when the last two frames were tracked
+  std::shared_ptr<KeyFrame> reference_;
+  std::shared_ptr<KeyFrame> last_keyframe_;
+  std::optional<KeyframeId> last_reference_;  // of the last frame, for its pose refresh
+  Pose3 T_ref_last_;
+  std::vector<std::shared_ptr<KeyFrame>> local_keyframes_;
+  std::int64_t frame_index_ = 0, last_keyframe_index_ = 0, last_recovery_index_ = -1000000;
+  TimestampNs last_t_ns_ = 0;
+  bool has_last_t_ = false;
+  TimestampNs lost_since_ns_ = 0;
+  std::size_t maps_started_ = 0;
+  std::vector<FrameAnchor> anchors_;
+};
+
+}  // namespace orbatlas
