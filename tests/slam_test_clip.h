@@ -1,0 +1,38 @@
+#pragma once
+// A short simulated Machine Hall clip for the SLAM tests, rendered once per test
+// process into its own temporary folder (ctest runs tests in parallel processes).
+#include <unistd.h>
+
+#include <filesystem>
+#include <string>
+
+#include "core/sim/sequence_simulator.h"
+
+namespace orbatlas::test {
+
+inline std::filesystem::path simulated_clip(const std::string& sequence, double start_s, double duration_s) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("orbatlas_test_slam_" + std::to_string(::getpid()) + "_" + sequence + "_" +
+                    std::to_string(static_cast<int>(start_s * 10)) + "_" + std::to_string(static_cast<int>(duration_s * 10)));
+  if (std::filesystem::exists(dir / "mav0" / "cam1" / "data.csv")) return dir;
+  std::filesystem::remove_all(dir);
+  sim::SimulationOptions o;
+  o.sequence = sequence;
+  o.out_dir = dir;
+  o.start_s = start_s;
+  o.duration_s = duration_s;
+  o.show_progress = false;
+  sim::simulate_sequence(o);
+  return dir;
+}
+
+// Removes a clip folder when the test process ends.
+struct ClipCleanup {
+  std::filesystem::path dir;
+  ~ClipCleanup() {
+    std::error_code ec;
+    std::filesystem::remove_all(dir, ec);
+  }
+};
+
+}  // namespace orbatlas::test

@@ -1,0 +1,195 @@
+// Stereo SLAM end to end on simulated Machine Hall clips: accuracy against the
+// simulator's exact ground truth, the reclamation counters, the two culling
+// schemes, two atlases side by side, and bad input.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/common/data_paths.h"
+#include "core/common/error.h"
+#include "core/io/euroc_reader.h"
+#include "core/slam/dataset_runner.h"
+#include "core/vocabulary/default_vocabulary.h"
+#include "tests/slam_test_clip.h"
+
+namespace orbatlas {
+namespace {
+
+std::filesystem::path stereo_settings() { return shipped_config_dir() / "euroc" / "stereo.yaml"; }
+
+DatasetRunOptions options_for(const std::filesystem::path& dataset) {
+  DatasetRunOptions o;
+  o.settings = stereo_settings();
+  o.dataset = dataset;
+  o.show_progress = false;
+  return o;
+}
+
+// Objects alive are exactly those the maps hold, and every culled object was freed.
+void expect_counters_consistent(const SlamStats& s) {
+  EXPECT_EQ(s.keyframe_objects.alive(), s.keyframes);
+  EXPECT_EQ(s.mappoint_objects.alive(), s.mappoints);
+  EXPECT_EQ(s.keyframe_objects.reclaimed, s.keyframe_objects.culled);
+  EXPECT_EQ(s.mappoint_objects.reclaimed, s.mappoint_objects.culled);
+  EXPECT_EQ(s.keyframe_objects.created, s.keyframe_objects.culled + s.keyframes);
+  EXPECT_EQ(s.mappoint_objects.created, s.mappoint_objects.culled + s.mappoints);
+}
+
+TEST(StereoSlam, TenSecondClipTracksWithinThreeCentimetres) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
+  test::ClipCleanup cleanup{clip};
+  const DatasetRunReport r = run_stereo_dataset(options_for(clip));
+  EXPECT_EQ(r.stats.frames, 201u);
+  EXPECT_EQ(r.stats.tracked, r.stats.frames);
+  EXPECT_EQ(r.stats.maps, 1u);
+  EXPECT_EQ(r.trajectory.size(), r.stats.tracked);
+  ASSERT_TRUE(r.ate_rmse_m.has_value());
+  EXPECT_LT(*r.ate_rmse_m, 0.03);
+  std::printf("10 s clip: ATE %.4f m, %zu keyframes (%zu culled), %zu map points, tracking p50 %.1f ms\n",
+              *r.ate_rmse_m, r.stats.keyframes, r.stats.mapping.culled_keyframes.size(), r.stats.mappoints,
+              percentiles(r.stats.tracking_ms).p50);
+  EXPECT_GE(r.stats.keyframes, 5u);
+  EXPECT_GT(r.stats.mapping.points_triangulated, 0u);
+  expect_counters_consistent(r.stats);
+  // The JSON carries the keys the issue lists.
+  const auto j = r.to_json();
+  for (const char* key : {"frames", "tracked", "lost", "maps", "keyframes", "mappoints", "tracking_ms",
+                          "local_mapping_ms_per_kf", "local_ba_ms", "culling_ms_per_kf", "peak_rss_mb", "objects",
+                          "late_frames"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["objects"]["mappoints"]["reclaimed"].get<std::uint64_t>(), r.stats.mappoint_objects.reclaimed);
+}
+
+TEST(StereoSlam, BothCullingSchemesTakeTheSameDecisions) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
+  test::ClipCleanup cleanup{clip};
+  DatasetRunReport runs[2];
+  const CullingScheme schemes[2] = {CullingScheme::kScan, CullingScheme::kIncremental};
+  for (int i = 0; i < 2; ++i) {
+    DatasetRunOptions o = options_for(clip);
+    o.slam.synchronous_mapping = true;  // deterministic: both runs see the same maps
+    o.slam.mapper.culling.scheme = schemes[i];
+    o.slam.mapper.culling.compare_schemes = true;
+    // At ORB-SLAM's 90% a 10 s clip culls nothing (keyframes are few and fresh);
+    // at 50% both decisions occur, and the schemes must agree at any threshold.
+    o.slam.mapper.culling.redundancy.redundant_fraction = 0.5;
+    runs[i] = run_stereo_dataset(o);
+    EXPECT_EQ(runs[i].stats.mapping.culling_disagreements, 0u) << culling_scheme_name(schemes[i]);
+    EXPECT_GT(runs[i].stats.mapping.culling_candidates, 0u);
+    expect_counters_consistent(runs[i].stats);
+  }
+  EXPECT_FALSE(runs[0].stats.mapping.culled_keyframes.empty()) << "no keyframe was culled: the test shows nothing";
+  EXPECT_GT(runs[0].stats.mapping.culling_candidates, runs[0].stats.mapping.culled_keyframes.size())
+      << "every candidate was culled: the test shows only one kind of decision";
+  EXPECT_EQ(runs[0].stats.mapping.culled_keyframes, runs[1].stats.mapping.culled_keyframes);
+  EXPECT_EQ(runs[0].stats.keyframes, runs[1].stats.keyframes);
+  EXPECT_EQ(runs[0].stats.mappoints, runs[1].stats.mappoints);
+  ASSERT_EQ(runs[0].trajectory.size(), runs[1].trajectory.size());
+  EXPECT_EQ(runs[0].trajectory.back().pose.t, runs[1].trajectory.back().pose.t);
+  std::printf("culling per keyframe: scan %.4f ms, incremental %.4f ms (%zu candidates, %zu culled)\n",
+              percentiles(runs[0].stats.mapping.culling_scan_ms).mean,
+              percentiles(runs[1].stats.mapping.culling_incremental_ms).mean,
+              runs[0].stats.mapping.culling_candidates, runs[0].stats.mapping.culled_keyframes.size());
+}
+
+struct LoadedClip {
+  std::vector<StereoFrame> frames;
+};
+
+LoadedClip load_clip(const std::filesystem::path& dir) {
+  EurocReadOptions ro;
+  ro.require_cam1 = true;
+  return {pair_stereo_frames(read_euroc_dataset(dir, ro))};
+}
+
+TEST(StereoSlam, TwoAtlasesInOneProcessRunSideBySide) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 3.0);
+  test::ClipCleanup cleanup{clip};
+  const auto frames = load_clip(clip).frames;
+  const SlamSettings settings = read_settings(stereo_settings(), SensorType::kStereo);
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  StereoSlamOptions o;
+  o.synchronous_mapping = true;
+  Atlas a, b;
+  StereoSlam sa(a, settings, vocabulary, o), sb(b, settings, vocabulary, o);
+  for (const auto& f : frames) {
+    const cv::Mat l = cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE);
+    const cv::Mat r = cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE);
+    EXPECT_TRUE(sa.process(f.t_ns, l, r).tracked);
+    EXPECT_TRUE(sb.process(f.t_ns, l, r).tracked);
+  }
+  sa.finish();
+  sb.finish();
+  // Each atlas numbers its own objects from the start, and both saw the same input.
+  const auto ka = a.active_map()->keyframes(), kb = b.active_map()->keyframes();
+  ASSERT_EQ(ka.size(), kb.size());
+  for (std::size_t i = 0; i < ka.size(); ++i) EXPECT_EQ(ka[i]->id(), kb[i]->id());
+  EXPECT_EQ(a.counters()->map_points().created, b.counters()->map_points().created);
+  EXPECT_NE(a.counters().get(), b.counters().get());
+  const auto ta = sa.trajectory(), tb = sb.trajectory();
+  ASSERT_EQ(ta.size(), frames.size());
+  ASSERT_EQ(ta.size(), tb.size());
+  EXPECT_EQ(ta.back().T_w_b.t, tb.back().T_w_b.t);
+  expect_counters_consistent(sa.stats());
+  expect_counters_consistent(sb.stats());
+}
+
+TEST(StereoSlam, BadFramesAreDataErrorsAndTheSessionGoesOn) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 1.0);
+  test::ClipCleanup cleanup{clip};
+  const auto frames = load_clip(clip).frames;
+  ASSERT_GE(frames.size(), 6u);
+  const SlamSettings settings = read_settings(stereo_settings(), SensorType::kStereo);
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  Atlas atlas;
+  StereoSlam slam(atlas, settings, vocabulary);
+  auto load = [&](std::size_t i, cv::Mat& l, cv::Mat& r) {
+    l = cv::imread(frames[i].left.string(), cv::IMREAD_GRAYSCALE);
+    r = cv::imread(frames[i].right.string(), cv::IMREAD_GRAYSCALE);
+  };
+  cv::Mat l, r;
+  for (std::size_t i = 0; i < 3; ++i) {
+    load(i, l, r);
+    EXPECT_TRUE(slam.process(frames[i].t_ns, l, r).tracked);
+  }
+  load(3, l, r);
+  EXPECT_THROW(slam.process(frames[1].t_ns, l, r), DataError);  // timestamp going backwards
+  EXPECT_THROW(slam.process(frames[3].t_ns, cv::Mat(), r), DataError);  // empty image
+  cv::Mat small;
+  cv::resize(l, small, cv::Size(l.cols / 2, l.rows / 2));
+  EXPECT_THROW(slam.process(frames[3].t_ns, small, small), DataError);  // wrong size
+  cv::Mat deep;
+  l.convertTo(deep, CV_16U);
+  EXPECT_THROW(slam.process(frames[3].t_ns, deep, r), DataError);  // 16-bit
+  for (std::size_t i = 3; i < frames.size(); ++i) {
+    load(i, l, r);
+    EXPECT_TRUE(slam.process(frames[i].t_ns, l, r).tracked) << "frame " << i;
+  }
+  slam.finish();
+  EXPECT_THROW(slam.process(frames.back().t_ns + 1, l, r), Error);  // finished
+  EXPECT_EQ(slam.trajectory().size(), frames.size());
+}
+
+TEST(DatasetRunner, UnreadableImageIsSkippedAndReported) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 1.0);
+  test::ClipCleanup cleanup{clip};
+  const auto frames = load_clip(clip).frames;
+  { std::ofstream(frames[5].left, std::ios::trunc) << "not a png"; }
+  const DatasetRunReport r = run_stereo_dataset(options_for(clip));
+  EXPECT_EQ(r.skipped_frames, 1u);
+  EXPECT_EQ(r.stats.frames, frames.size() - 1);
+  EXPECT_EQ(r.stats.tracked, r.stats.frames);
+}
+
+TEST(DatasetRunner, RejectsMonocularSettingsAndMissingDatasets) {
+  EXPECT_THROW(run_stereo_dataset(options_for("/nonexistent/orbatlas/dataset")), Error);
+  const SlamSettings mono = read_settings(shipped_config_dir() / "euroc" / "mono.yaml");
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  Atlas atlas;
+  EXPECT_THROW(StereoSlam(atlas, mono, vocabulary), Error);
+}
+
+}  // namespace
+}  // namespace orbatlas
