@@ -24,6 +24,9 @@ if ((${#missing[@]})); then
   $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
+# --deps-only: stop after the packages (scripts that configure their own build).
+[ "${1:-}" = "--deps-only" ] && exit 0
+
 JOBS="${ORBATLAS_JOBS:-$(nproc)}"
 if [ ! -f "$BUILD_DIR/build.ninja" ]; then
   cmake -S "$ROOT" -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release

@@ -71,6 +71,18 @@ void StereoRectifier::rectify(const cv::Mat& left, const cv::Mat& right, cv::Mat
   cv::remap(right, right_rect, map_right_x_, map_right_y_, cv::INTER_LINEAR);
 }
 
+void StereoRectifier::rectify_left(const cv::Mat& left, cv::Mat& left_rect) const {
+  ORBATLAS_CHECK(left.size() == map_left_x_.size(), "left image of " << left.cols << "x" << left.rows
+                                                                     << " does not match the calibration");
+  cv::remap(left, left_rect, map_left_x_, map_left_y_, cv::INTER_LINEAR);
+}
+
+void StereoRectifier::rectify_right(const cv::Mat& right, cv::Mat& right_rect) const {
+  ORBATLAS_CHECK(right.size() == map_right_x_.size(), "right image of " << right.cols << "x" << right.rows
+                                                                        << " does not match the calibration");
+  cv::remap(right, right_rect, map_right_x_, map_right_y_, cv::INTER_LINEAR);
+}
+
 std::size_t StereoDepths::matched() const {
   return static_cast<std::size_t>(std::count_if(depth.begin(), depth.end(), [](float d) { return d > 0.0f; }));
 }

@@ -20,6 +20,9 @@ class StereoRectifier {
 
   // Rectified images of the same size as the inputs (CV_8UC1).
   void rectify(const cv::Mat& left, const cv::Mat& right, cv::Mat& left_rect, cv::Mat& right_rect) const;
+  // One side only (the two may run on different threads).
+  void rectify_left(const cv::Mat& left, cv::Mat& left_rect) const;
+  void rectify_right(const cv::Mat& right, cv::Mat& right_rect) const;
 
   const CameraCalibration& rectified_left() const { return rect_left_; }
   const CameraCalibration& rectified_right() const { return rect_right_; }

@@ -1,6 +1,7 @@
 #include "core/tracking/stereo_frontend.h"
 
 #include <algorithm>
+#include <future>
 #include <opencv2/imgproc.hpp>
 
 #include "core/camera/camera_factory.h"
@@ -41,8 +42,9 @@ std::size_t Frame::stereo_count() const {
   return static_cast<std::size_t>(std::count_if(depth.begin(), depth.end(), [](float d) { return d > 0.0f; }));
 }
 
-StereoFrontend::StereoFrontend(const SlamSettings& settings)
-    : rectifier_(settings.camera0, require_camera1(settings)),
+StereoFrontend::StereoFrontend(const SlamSettings& settings, bool parallel)
+    : parallel_(parallel),
+      rectifier_(settings.camera0, require_camera1(settings)),
       camera_(make_camera(rectifier_.rectified_left())),
       left_extractor_(orb_options_from(settings)),
       right_extractor_(orb_options_from(settings)) {}
@@ -54,11 +56,25 @@ Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv
   ORBATLAS_DATA_CHECK(l.cols == c0.width && l.rows == c0.height && r.cols == c0.width && r.rows == c0.height,
                       "stereo pair of " << l.cols << "x" << l.rows << " and " << r.cols << "x" << r.rows
                                         << " pixels; the calibration says " << c0.width << "x" << c0.height);
-  rectifier_.rectify(l, r, left_rect_, right_rect_);
+  // The right image on a second thread (as ORB-SLAM): the two extractions are
+  // independent and together are most of a frame's cost.
+  auto right_side = [&] {
+    rectifier_.rectify_right(r, right_rect_);
+    return right_extractor_.extract(right_rect_);
+  };
+  std::future<ImageFeatures> right_job;
+  if (parallel_) right_job = std::async(std::launch::async, right_side);
   Frame f;
   f.t_ns = t_ns;
-  f.features = left_extractor_.extract(left_rect_);
-  const ImageFeatures right_features = right_extractor_.extract(right_rect_);
+  ImageFeatures right_features;
+  try {
+    rectifier_.rectify_left(l, left_rect_);
+    f.features = left_extractor_.extract(left_rect_);
+  } catch (...) {
+    if (right_job.valid()) right_job.wait();  // never leave the job running on our buffers
+    throw;
+  }
+  right_features = parallel_ ? right_job.get() : right_side();
   StereoDepths depths = match_stereo_rectified(f.features, left_extractor_.pyramid(), right_features,
                                                right_extractor_.pyramid(), left_extractor_.scale_factors(), bf(), baseline());
   f.depth = std::move(depths.depth);

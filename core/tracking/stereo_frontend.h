@@ -16,7 +16,8 @@ namespace orbatlas {
 class StereoFrontend {
  public:
   // Needs a stereo pinhole calibration (camera0 and camera1). Throws Error otherwise.
-  explicit StereoFrontend(const SlamSettings& settings);
+  // parallel: extract the right image's features on a second thread.
+  explicit StereoFrontend(const SlamSettings& settings, bool parallel = true);
 
   // left/right: CV_8UC1 (or 3-channel, converted) of the calibrated size; throws
   // Error on empty images or a size that does not match the calibration.
@@ -31,6 +32,7 @@ class StereoFrontend {
   const OrbExtractor& extractor() const { return left_extractor_; }
 
  private:
+  bool parallel_;
   StereoRectifier rectifier_;
   std::unique_ptr<Camera> camera_;
   OrbExtractor left_extractor_, right_extractor_;

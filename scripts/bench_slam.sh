@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Long benchmark (not part of the test suite): stereo SLAM on full-length simulated
+# Machine Hall sequences. Renders each sequence once (about 80 s and 1.7 GB each,
+# kept in $ORBATLAS_BENCH_DATA, default build/bench_data), runs `orbatlas run` with
+# --stats, scores it with `orbatlas eval`, and prints one line per sequence.
+#   scripts/bench_slam.sh                    # MH_01..MH_05
+#   scripts/bench_slam.sh MH_01 MH_03        # some of them
+#   REALTIME=1 scripts/bench_slam.sh MH_01   # frames fed at 20 Hz, late frames counted
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+"$ROOT/scripts/setup.sh"
+BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
+OA="$BUILD_DIR/client/orbatlas"
+DATA="${ORBATLAS_BENCH_DATA:-$BUILD_DIR/bench_data}"
+OUT="$ROOT/out/bench_slam"
+mkdir -p "$DATA" "$OUT"
+SEQUENCES=("$@")
+[ ${#SEQUENCES[@]} -eq 0 ] && SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)
+EXTRA=(--compare-culling)
+[ "${REALTIME:-0}" = "1" ] && EXTRA+=(--realtime)
+
+for s in "${SEQUENCES[@]}"; do
+  if [ ! -f "$DATA/$s/mav0/cam1/data.csv" ]; then
+    echo "== simulating $s into $DATA/$s"
+    rm -rf "$DATA/$s"
+    "$OA" sim --sequence "$s" --out "$DATA/$s"
+  fi
+  echo "== orbatlas run on $s"
+  "$OA" run --config "$ROOT/config/euroc/stereo.yaml" --dataset "$DATA/$s" \
+      --out-trajectory "$OUT/$s.txt" --stats "$OUT/$s.json" "${EXTRA[@]}"
+  "$OA" eval --gt "$DATA/$s" --est "$OUT/$s.txt" --align se3 --json > "$OUT/$s.eval.json"
+done
+
+/usr/bin/python3 - "$OUT" "${SEQUENCES[@]}" <<'PY'
+import json, sys
+out, seqs = sys.argv[1], sys.argv[2:]
+print(f"{'seq':6} {'frames':>6} {'tracked':>7} {'maps':>4} {'ATE[m]':>7} {'track p50/p95 [ms]':>18} "
+      f"{'map/KF p50 [ms]':>15} {'BA p50 [ms]':>11} {'cull scan/incr [ms/KF]':>22} {'KFs':>5} {'MPs':>6} {'RSS[MB]':>7} {'late':>5}")
+for s in seqs:
+    j = json.load(open(f"{out}/{s}.json")); e = json.load(open(f"{out}/{s}.eval.json"))
+    by = j["culling_ms_per_kf_by_scheme"]
+    cull = "/".join("-" if by[k] is None else f"{by[k]:.4f}" for k in ("scan", "incremental"))
+    print(f"{s:6} {j['frames']:>6} {j['tracked']:>7} {j['maps']:>4} {e['ate_rmse_m']:>7.4f} "
+          f"{j['tracking_ms']['p50']:>8.1f}/{j['tracking_ms']['p95']:<9.1f} {j['local_mapping_ms_per_kf']['p50']:>15.1f} "
+          f"{j['local_ba_ms']['p50']:>11.1f} {cull:>22} {j['keyframes']:>5} {j['mappoints']:>6} {j['peak_rss_mb']:>7.0f} {j['late_frames']:>5}")
+    o = j["objects"]
+    print(f"       objects: keyframes {o['keyframes']}, mappoints {o['mappoints']}")
+PY
