@@ -246,8 +246,11 @@ TEST(ProjectionSearch, ProjectedPointsFindTheirKeypoints) {
   for (std::uint32_t i = 0; i < frame.size(); ++i) frame.feature_vector[0].push_back(i);
   const int bow = search_by_bow(*kf, frame);
   EXPECT_GE(bow, static_cast<int>(projected.size() * 95 / 100));
-  for (std::size_t i = 0; i < frame.size(); ++i)
-    if (frame.map_points[i]) EXPECT_EQ(idx_kf[*frame.map_points[i]->slot_in(kf->id())], idx_frame[i]);
+  for (std::size_t i = 0; i < frame.size(); ++i) {
+    if (frame.map_points[i]) {
+      EXPECT_EQ(idx_kf[*frame.map_points[i]->slot_in(kf->id())], idx_frame[i]);
+    }
+  }
 }
 
 TEST(MapModel, CulledKeyframePoseFollowsItsParent) {

@@ -193,3 +193,48 @@ TEST(DatasetRunner, RejectsMonocularSettingsAndMissingDatasets) {
 
 }  // namespace
 }  // namespace orbatlas
+
+namespace orbatlas {
+namespace {
+
+// Kidnapping with a small map: tracking fails at the jump, the map (at most 10
+// keyframes) is given up at once (LOST), and a new map is started in the atlas
+// from the next frame; the first map stays, and poses come out in both.
+TEST(StereoSlam, LostTrackingStartsANewMapInTheAtlas) {
+  const auto before = test::simulated_clip("MH_01", 40.0, 2.0);
+  const auto after = test::simulated_clip("MH_01", 125.0, 2.0);
+  test::ClipCleanup c1{before}, c2{after};
+  std::vector<StereoFrame> frames = load_clip(before).frames;
+  for (const auto& f : load_clip(after).frames) frames.push_back(f);
+  const SlamSettings settings = read_settings(stereo_settings(), SensorType::kStereo);
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  StereoSlamOptions o;
+  o.synchronous_mapping = true;
+  Atlas atlas;
+  StereoSlam slam(atlas, settings, vocabulary, o);
+  std::vector<TrackResult> results;
+  for (const auto& f : frames)
+    results.push_back(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                                   cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE)));
+  slam.finish();
+  const std::size_t jump = load_clip(before).frames.size();
+  for (std::size_t i = 0; i < jump; ++i) EXPECT_TRUE(results[i].tracked) << "frame " << i;
+  EXPECT_FALSE(results[jump].tracked) << "the jump across the hall went unnoticed";
+  EXPECT_EQ(results[jump].state, TrackingState::kLost);
+  const MapId first_map = results[0].map;
+  EXPECT_NE(results[jump + 1].map, first_map);
+  EXPECT_TRUE(results[jump + 1].tracked);  // initialised the new map
+  for (std::size_t i = jump + 1; i < results.size(); ++i) EXPECT_TRUE(results[i].tracked) << "frame " << i;
+  const SlamStats s = slam.stats();
+  EXPECT_EQ(s.maps, 2u);
+  EXPECT_EQ(s.lost, 1u);
+  EXPECT_GT(atlas.map(first_map)->keyframe_count(), 0u);
+  const auto trajectory = slam.trajectory();
+  EXPECT_EQ(trajectory.size(), results.size() - 1);
+  EXPECT_EQ(trajectory.front().map, first_map);
+  EXPECT_EQ(trajectory.back().map, results.back().map);
+  expect_counters_consistent(s);
+}
+
+}  // namespace
+}  // namespace orbatlas
