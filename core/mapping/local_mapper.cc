@@ -29,8 +29,8 @@ int weighted_observations(const MapPoint& point) {
 
 }  // namespace
 
-LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options)
-    : atlas_(atlas), cam_(std::move(cam)), options_(std::move(options)), queue_(options_.queue_capacity) {
+LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options, KeyframeIndex* index)
+    : atlas_(atlas), index_(index), cam_(std::move(cam)), options_(std::move(options)), queue_(options_.queue_capacity) {
   ORBATLAS_CHECK(cam_.camera != nullptr, "local mapper needs a camera");
   thread_ = std::thread([this] { run(); });
 }
@@ -103,6 +103,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   origins_.try_emplace(map->id(), keyframe->id());
 
   complete_keyframe(*map, keyframe);
+  if (index_) index_->add(keyframe);
   cull_recent_points(*map);
   triangulate(*map, keyframe);
   if (queue_.size() == 0) fuse_with_neighbours(*map, keyframe);
@@ -123,6 +124,8 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
     if (options_.run_culling) {
       culling = cull_redundant_keyframes(*map, *keyframe, origins_.at(map->id()), options_.culling);
       culling_ran = true;
+      if (index_)
+        for (const KeyframeId id : culling.culled) index_->erase(id);
     }
   }
   ++sequence_;

@@ -15,6 +15,7 @@
 
 #include "core/common/bounded_queue.h"
 #include "core/map/atlas.h"
+#include "core/map/keyframe_index.h"
 #include "core/mapping/keyframe_culling.h"
 #include "core/optimization/local_bundle_adjustment.h"
 #include "core/tracking/frame_camera.h"
@@ -50,8 +51,10 @@ struct LocalMapperStats {
 
 class LocalMapper final : public KeyframeSink {
  public:
-  // `atlas` and `cam.camera` must outlive the mapper. The thread starts at once.
-  LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options);
+  // `atlas`, `cam.camera` and `index` (may be null) must outlive the mapper. The
+  // thread starts at once. Processed keyframes are added to `index`, culled ones
+  // erased from it.
+  LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options, KeyframeIndex* index = nullptr);
   ~LocalMapper() override;  // finish()
   LocalMapper(const LocalMapper&) = delete;
   LocalMapper& operator=(const LocalMapper&) = delete;
@@ -83,6 +86,7 @@ class LocalMapper final : public KeyframeSink {
   void fuse_with_neighbours(Map& map, const std::shared_ptr<KeyFrame>& keyframe);
 
   Atlas& atlas_;
+  KeyframeIndex* const index_;  // not owned, may be null
   const FrameCamera cam_;
   const LocalMapperOptions options_;
 

@@ -48,6 +48,7 @@ nlohmann::json to_json(const SlamStats& s) {
   j["keyframes"] = s.keyframes;
   j["mappoints"] = s.mappoints;
   j["keyframes_made"] = s.keyframes_made;
+  j["relocalizations"] = s.relocalizations;
   j["tracking_ms"] = summary(s.tracking_ms);
   j["local_mapping_ms_per_kf"] = summary(s.mapping.keyframe_ms);
   j["local_ba_ms"] = summary(s.mapping.bundle_adjustment_ms);

@@ -20,6 +20,7 @@ struct SlamStats {
   std::size_t frames = 0, tracked = 0, lost = 0;  // lost: frames without a pose
   std::size_t maps = 0, keyframes = 0, mappoints = 0;  // in the atlas at the end
   std::size_t keyframes_made = 0;
+  std::size_t relocalizations = 0;
   std::vector<double> tracking_ms;  // per frame: front end + tracking
   LocalMapperStats mapping;
   CullingScheme culling_scheme = CullingScheme::kIncremental;

@@ -3,8 +3,29 @@
 #include <chrono>
 
 #include "core/common/error.h"
+#include "core/place/relocalizer.h"
 
 namespace orbatlas {
+namespace {
+
+class IndexRelocalizer final : public FrameRelocalizer {
+ public:
+  IndexRelocalizer(const Vocabulary& vocabulary, const KeyframeIndex& index, const FrameCamera& cam, Pose3 T_b_c)
+      : vocabulary_(vocabulary), index_(index), cam_(cam), T_b_c_(T_b_c) {}
+  std::optional<Relocalized> relocalize(Frame& frame) override {
+    const RelocalizationResult r = orbatlas::relocalize(frame, vocabulary_, index_, cam_, T_b_c_);
+    if (!r.success) return std::nullopt;
+    return Relocalized{r.map, r.keyframe};
+  }
+
+ private:
+  const Vocabulary& vocabulary_;
+  const KeyframeIndex& index_;
+  const FrameCamera cam_;
+  const Pose3 T_b_c_;
+};
+
+}  // namespace
 
 StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
                        StereoSlamOptions options)
@@ -15,9 +36,11 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
   cam_.pyramid.n_levels = settings.orb.n_levels;
   options_.tracker.th_depth_m = settings.stereo_th_depth * frontend_.baseline();
   options_.tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));
-  mapper_ = std::make_unique<LocalMapper>(atlas_, cam_, options_.mapper);
-  tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *mapper_, cam_, frontend_.calibration().T_b_c,
-                                       options_.tracker);
+  const Pose3 T_b_c = frontend_.calibration().T_b_c;
+  if (options_.relocalization) relocalizer_ = std::make_unique<IndexRelocalizer>(vocabulary, index_, cam_, T_b_c);
+  mapper_ = std::make_unique<LocalMapper>(atlas_, cam_, options_.mapper, &index_);
+  tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *mapper_, cam_, T_b_c, options_.tracker,
+                                       relocalizer_.get());
 }
 
 StereoSlam::~StereoSlam() {
@@ -64,6 +87,7 @@ std::vector<TimedPose> StereoSlam::trajectory() const {
 SlamStats StereoSlam::stats() const {
   SlamStats s;
   s.frames = frames_;
+  s.relocalizations = tracker_->relocalizations();
   s.tracked = tracked_;
   s.lost = frames_ - tracked_;
   s.keyframes_made = keyframes_made_;

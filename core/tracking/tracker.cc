@@ -31,8 +31,8 @@ const char* tracking_state_name(TrackingState state) {
 }
 
 Tracker::Tracker(Atlas& atlas, const Vocabulary& vocabulary, KeyframeSink& sink, FrameCamera cam, Pose3 T_b_c,
-                 TrackerOptions options)
-    : atlas_(atlas), vocabulary_(vocabulary), sink_(sink), cam_(std::move(cam)), T_b_c_(T_b_c), options_(options) {
+                 TrackerOptions options, FrameRelocalizer* relocalizer)
+    : atlas_(atlas), vocabulary_(vocabulary), sink_(sink), relocalizer_(relocalizer), cam_(std::move(cam)), T_b_c_(T_b_c), options_(options) {
   ORBATLAS_CHECK(cam_.camera != nullptr, "tracker needs a camera");
   ORBATLAS_CHECK(cam_.bf > 0.0, "the stereo tracker needs bf > 0");
 }
@@ -180,8 +180,23 @@ bool Tracker::track_reference_keyframe(Frame& frame, const std::shared_ptr<KeyFr
 }
 
 bool Tracker::recover(Frame& frame) {
-  // Without relocalisation against the whole database (a later step), try the
-  // last reference keyframe and its best covisibles by bag of words.
+  if (relocalizer_) {
+    // Against every map of the atlas; tracking resumes in the map recognised.
+    ensure_bow(frame);
+    const auto found = relocalizer_->relocalize(frame);
+    if (!found) return false;
+    if (found->map != map_->id()) {
+      auto map = atlas_.map(found->map);
+      if (!map) return false;
+      map_ = std::move(map);
+      atlas_.set_active(found->map);
+      last_keyframe_.reset();
+    }
+    reference_ = found->keyframe;
+    ++relocalizations_;
+    return true;
+  }
+  // Without a relocaliser: the last reference keyframe and its best covisibles.
   std::vector<std::shared_ptr<KeyFrame>> candidates;
   if (reference_ && !reference_->is_bad()) {
     candidates.push_back(reference_);

@@ -11,6 +11,7 @@
 
 #include "core/map/atlas.h"
 #include "core/tracking/frame.h"
+#include "core/tracking/frame_relocalizer.h"
 #include "core/tracking/keyframe_sink.h"
 #include "core/tracking/projection_search.h"
 #include "core/vocabulary/vocabulary.h"
@@ -53,8 +54,10 @@ struct FrameAnchor {
 class Tracker {
  public:
   // `atlas`, `vocabulary` and `sink` must outlive the tracker; `cam.camera` too.
+  // `relocalizer` (may be null: then only the last reference keyframe's
+  // neighbourhood is searched when recently lost) must outlive the tracker too.
   Tracker(Atlas& atlas, const Vocabulary& vocabulary, KeyframeSink& sink, FrameCamera cam, Pose3 T_b_c,
-          TrackerOptions options);
+          TrackerOptions options, FrameRelocalizer* relocalizer = nullptr);
 
   // Tracks one frame (timestamps strictly increasing; throws Error otherwise).
   TrackResult track(Frame frame);
@@ -62,6 +65,7 @@ class Tracker {
   TrackingState state() const { return state_; }
   const std::vector<FrameAnchor>& anchors() const { return anchors_; }
   std::size_t maps_started() const { return maps_started_; }
+  std::size_t relocalizations() const { return relocalizations_; }
   // Drops the last frame and the keyframes tracking holds (end of a session), so
   // that nothing keeps culled objects alive; the anchors stay.
   void release_frames();
@@ -82,6 +86,7 @@ class Tracker {
   Atlas& atlas_;
   const Vocabulary& vocabulary_;
   KeyframeSink& sink_;
+  FrameRelocalizer* const relocalizer_;  // not owned, may be null
   const FrameCamera cam_;
   const Pose3 T_b_c_;
   const TrackerOptions options_;
@@ -99,7 +104,7 @@ class Tracker {
   TimestampNs last_t_ns_ = 0;
   bool has_last_t_ = false;
   TimestampNs lost_since_ns_ = 0;
-  std::size_t maps_started_ = 0;
+  std::size_t maps_started_ = 0, relocalizations_ = 0;
   std::vector<FrameAnchor> anchors_;
 };
 

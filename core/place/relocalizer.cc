@@ -1,0 +1,88 @@
+#include "core/place/relocalizer.h"
+
+#include <unordered_set>
+
+#include "core/map/map_point.h"
+#include "core/tracking/frame_pose.h"
+#include "core/tracking/projection_search.h"
+
+namespace orbatlas {
+namespace {
+
+void clear_associations(Frame& frame) {
+  std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+  std::fill(frame.outlier.begin(), frame.outlier.end(), false);
+}
+
+// Projects the points of `keyframe` and its best covisibles that the frame has
+// not matched yet, and searches around them; returns the new matches.
+int guided_search(Frame& frame, const KeyFrame& keyframe, const FrameCamera& cam, const Pose3& T_b_c, float radius) {
+  std::unordered_set<MapPointId> have;
+  for (const auto& mp : frame.map_points)
+    if (mp) have.insert(mp->id());
+  const Pose3 T_c_w = (frame.T_w_b * T_b_c).inverse();
+  std::vector<ProjectedPoint> candidates;
+  auto add_points = [&](const KeyFrame& kf) {
+    for (const auto& mp : kf.map_points()) {
+      if (mp->is_bad() || !have.insert(mp->id()).second) continue;
+      ProjectedPoint pp;
+      if (!project_into_frame(*mp, T_c_w, cam, &pp)) continue;
+      pp.point = mp;
+      candidates.push_back(std::move(pp));
+    }
+  };
+  add_points(keyframe);
+  for (const auto& kf : keyframe.best_covisibles(10)) add_points(*kf);
+  return search_projected_points(frame, candidates, cam, radius / 4.0f, 0.9f);
+}
+
+}  // namespace
+
+RelocalizationResult relocalize(Frame& frame, const Vocabulary& vocabulary, const KeyframeIndex& index,
+                                const FrameCamera& cam, const Pose3& T_b_c, const RelocalizationOptions& options) {
+  RelocalizationResult result;
+  if (frame.bow.empty()) vocabulary.transform(frame.features.descriptors, &frame.bow, &frame.feature_vector);
+  for (const auto& candidate : index.query(frame.bow, options.max_candidates)) {
+    const auto& kf = candidate.keyframe;
+    if (options.only_map && kf->map_id() != *options.only_map) continue;
+    ++result.candidates;
+    clear_associations(frame);
+    if (search_by_bow(*kf, frame, 0.75f) < options.min_bow_matches) continue;
+
+    std::vector<Eigen::Vector3d> bearings, points;
+    std::vector<std::size_t> keypoint_of;
+    for (std::size_t i = 0; i < frame.size(); ++i) {
+      const auto& mp = frame.map_points[i];
+      if (!mp || mp->is_bad()) continue;
+      bearings.push_back(frame.features.keypoints[i].bearing);
+      points.push_back(mp->p_w());
+      keypoint_of.push_back(i);
+    }
+    const PnpRansacResult pnp = solve_pnp_ransac(bearings, points, options.pnp);
+    if (!pnp.success) continue;
+    for (std::size_t c = 0; c < keypoint_of.size(); ++c)
+      if (!pnp.inliers[c]) frame.map_points[keypoint_of[c]] = nullptr;
+    frame.T_w_b = pnp.T_c_w.inverse() * T_b_c.inverse();
+
+    optimize_frame_pose(frame, cam, T_b_c);
+    int good = discard_outliers(frame);
+    if (good < 10) continue;
+    if (good < options.min_inliers) {
+      guided_search(frame, *kf, cam, T_b_c, options.guided_radius);
+      optimize_frame_pose(frame, cam, T_b_c);
+      good = discard_outliers(frame);
+    }
+    if (good < options.min_inliers) continue;
+    result.success = true;
+    result.keyframe = kf;
+    result.map = kf->map_id();
+    result.T_w_b = frame.T_w_b;
+    result.inliers = good;
+    frame.has_pose = true;
+    return result;
+  }
+  clear_associations(frame);
+  return result;
+}
+
+}  // namespace orbatlas

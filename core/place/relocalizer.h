@@ -1,0 +1,41 @@
+#pragma once
+// Relocalisation of a frame against every map of the atlas (ORB-SLAM's
+// Relocalization with MLPnP replaced by P3P-RANSAC on bearings): bag-of-words
+// candidates from the keyframe index, BoW matching, PnP-RANSAC on bearing vectors
+// (camera-model agnostic), pose-only optimisation, then a guided search in the
+// candidate's local map when too few inliers remain.
+#include <memory>
+#include <optional>
+
+#include "core/map/keyframe_index.h"
+#include "core/place/pnp_ransac.h"
+#include "core/tracking/frame.h"
+#include "core/tracking/frame_camera.h"
+#include "core/vocabulary/vocabulary.h"
+
+namespace orbatlas {
+
+struct RelocalizationOptions {
+  std::size_t max_candidates = 10;
+  int min_bow_matches = 15;
+  int min_inliers = 50;  // after optimisation (ORB-SLAM's threshold)
+  float guided_radius = 10.0f;
+  PnpRansacOptions pnp;
+  std::optional<MapId> only_map;  // restrict to one map
+};
+
+struct RelocalizationResult {
+  bool success = false;
+  std::shared_ptr<KeyFrame> keyframe;  // the candidate that worked
+  MapId map = 0;
+  Pose3 T_w_b;
+  int inliers = 0;
+  std::size_t candidates = 0;  // tried
+};
+
+// On success the frame holds the pose (T_w_b) and its map-point associations.
+// `frame.bow` is computed with `vocabulary` when empty.
+RelocalizationResult relocalize(Frame& frame, const Vocabulary& vocabulary, const KeyframeIndex& index,
+                                const FrameCamera& cam, const Pose3& T_b_c, const RelocalizationOptions& options = {});
+
+}  // namespace orbatlas

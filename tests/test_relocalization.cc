@@ -1,0 +1,170 @@
+// Relocalisation: P3P-RANSAC on bearings against exact synthetic data, a new
+// image of a known place relocalised against a map built from a simulated clip,
+// and tracking that relocalises after a jump.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+#include <optional>
+#include <random>
+
+#include "core/common/data_paths.h"
+#include "core/io/euroc_reader.h"
+#include "core/place/pnp_ransac.h"
+#include "core/place/relocalizer.h"
+#include "core/slam/stereo_slam.h"
+#include "core/vocabulary/default_vocabulary.h"
+#include "tests/slam_test_clip.h"
+
+namespace orbatlas {
+namespace {
+
+TEST(PnpRansac, RecoversTheExactPoseDespiteOutliers) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Pose3 T_c_w(Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, 1.0, -0.3).normalized())),
+                    Eigen::Vector3d(0.3, -0.2, 1.5));
+  std::vector<Eigen::Vector3d> bearings, points;
+  std::vector<bool> is_outlier;
+  for (int i = 0; i < 200; ++i) {
+    // Points all around the camera, including behind: bearings, not pixels.
+    const Eigen::Vector3d p_c = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized() * (2.0 + 3.0 * (u(rng) + 1.0));
+    points.push_back(T_c_w.inverse() * p_c);
+    const bool outlier = i % 3 == 0;  // a third are wrong
+    bearings.push_back(outlier ? Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized() : p_c.normalized());
+    is_outlier.push_back(outlier);
+  }
+  const PnpRansacResult r = solve_pnp_ransac(bearings, points);
+  ASSERT_TRUE(r.success);
+  EXPECT_LT(translation_distance(r.T_c_w, T_c_w), 1e-8);
+  EXPECT_LT(rotation_distance(r.T_c_w, T_c_w), 1e-8);
+  for (std::size_t i = 0; i < points.size(); ++i) EXPECT_EQ(r.inliers[i] == 1, !is_outlier[i]) << i;
+  // Too few correspondences, or pure noise: no pose.
+  EXPECT_FALSE(solve_pnp_ransac({bearings.begin(), bearings.begin() + 3}, {points.begin(), points.begin() + 3}).success);
+  std::vector<Eigen::Vector3d> noise;
+  for (std::size_t i = 0; i < points.size(); ++i) noise.push_back(Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized());
+  EXPECT_FALSE(solve_pnp_ransac(noise, points).success);
+  EXPECT_THROW(solve_pnp_ransac(noise, {points.begin(), points.begin() + 10}), Error);
+}
+
+std::vector<StereoFrame> frames_of(const std::filesystem::path& dir) {
+  EurocReadOptions ro;
+  ro.require_cam1 = true;
+  return pair_stereo_frames(read_euroc_dataset(dir, ro));
+}
+
+EurocDataset dataset_of(const std::filesystem::path& dir) {
+  EurocReadOptions ro;
+  ro.require_cam1 = true;
+  return read_euroc_dataset(dir, ro);
+}
+
+Pose3 ground_truth_at(const EurocDataset& ds, TimestampNs t) {
+  for (const auto& s : ds.ground_truth)
+    if (s.t_ns == t) return s.T_w_b;
+  ADD_FAILURE() << "no ground truth at " << t;
+  return Pose3();
+}
+
+TEST(Relocalization, NewImageOfAKnownPlaceGivesItsPose) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
+  test::ClipCleanup cleanup{clip};
+  const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  StereoSlamOptions o;
+  o.synchronous_mapping = true;
+  Atlas atlas;
+  StereoSlam slam(atlas, settings, vocabulary, o);
+  const auto frames = frames_of(clip);
+  for (const auto& f : frames)
+    ASSERT_TRUE(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                             cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE))
+                    .tracked);
+  slam.finish();
+  ASSERT_GT(slam.keyframe_index().size(), 0u);
+
+  // The same places seen again with other sensor noise (another "visit").
+  const auto again = std::filesystem::temp_directory_path() / ("orbatlas_test_reloc_" + std::to_string(::getpid()));
+  test::ClipCleanup cleanup_again{again};
+  sim::SimulationOptions so;
+  so.sequence = "MH_01";
+  so.out_dir = again;
+  so.start_s = 43.0;
+  so.duration_s = 4.0;
+  so.every = 20;
+  so.sensor_seed = 99;
+  so.show_progress = false;
+  sim::simulate_sequence(so);
+  const EurocDataset clip_ds = dataset_of(clip), again_ds = dataset_of(again);
+  const Pose3 T_gt_map = ground_truth_at(clip_ds, frames.front().t_ns);  // the map starts at the first frame's body
+
+  StereoFrontend frontend(settings);
+  FrameCamera cam;
+  cam.camera = &frontend.camera();
+  cam.bf = frontend.bf();
+  int relocalized = 0;
+  for (const auto& f : frames_of(again)) {
+    Frame frame = frontend.make_frame(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                                      cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+    const RelocalizationResult r =
+        relocalize(frame, vocabulary, slam.keyframe_index(), cam, frontend.calibration().T_b_c);
+    ASSERT_TRUE(r.success) << "frame at " << f.t_ns;
+    ++relocalized;
+    EXPECT_EQ(r.map, atlas.active_map()->id());
+    EXPECT_GE(r.inliers, 50);
+    const Pose3 expected = T_gt_map.inverse() * ground_truth_at(again_ds, f.t_ns);
+    EXPECT_LT(translation_distance(r.T_w_b, expected), 0.02) << "frame at " << f.t_ns;
+    EXPECT_LT(rotation_distance(r.T_w_b, expected) * 180.0 / M_PI, 0.5) << "frame at " << f.t_ns;
+  }
+  EXPECT_GE(relocalized, 4);
+}
+
+TEST(Relocalization, TrackingRelocalizesAfterFramesFromElsewhere) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
+  const auto elsewhere = test::simulated_clip("MH_01", 125.0, 1.0);
+  test::ClipCleanup cleanup{clip}, cleanup_elsewhere{elsewhere};
+  const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  StereoSlamOptions o;
+  o.synchronous_mapping = true;
+  o.tracker.min_keyframes_to_keep_map = 1;  // a 10 s map is small: keep it and relocalise
+  Atlas atlas;
+  StereoSlam slam(atlas, settings, vocabulary, o);
+  const auto frames = frames_of(clip), other = frames_of(elsewhere);
+  // Frames 0..119 of the clip, 1 s of frames from another part of the hall, then
+  // the clip again from frame 40 (timestamps keep increasing, the view jumps twice).
+  struct Feed {
+    TimestampNs t;
+    const StereoFrame* frame;
+    std::optional<std::size_t> clip_index;
+  };
+  std::vector<Feed> feed;
+  for (std::size_t i = 0; i < 120; ++i) feed.push_back({frames[i].t_ns, &frames[i], i});
+  TimestampNs t = frames[119].t_ns;
+  for (const auto& f : other) feed.push_back({t += kNsPerSecond / 20, &f, std::nullopt});
+  for (std::size_t i = 40; i < 80; ++i) feed.push_back({t += kNsPerSecond / 20, &frames[i], i});
+  std::vector<TrackResult> results;
+  for (const auto& f : feed)
+    results.push_back(slam.process(f.t, cv::imread(f.frame->left.string(), cv::IMREAD_GRAYSCALE),
+                                   cv::imread(f.frame->right.string(), cv::IMREAD_GRAYSCALE)));
+  slam.finish();
+  const std::size_t back = 120 + other.size();
+  for (std::size_t k = 120; k < back; ++k) EXPECT_FALSE(results[k].tracked) << "a frame from elsewhere was tracked: " << k;
+  std::size_t first_back = 0;
+  for (std::size_t k = back; k < results.size(); ++k)
+    if (results[k].tracked) {
+      first_back = k;
+      break;
+    }
+  ASSERT_GT(first_back, 0u) << "never relocalised";
+  EXPECT_LE(first_back - back, 10u);
+  EXPECT_GE(slam.stats().relocalizations, 1u);
+  EXPECT_EQ(slam.stats().maps, 1u);
+  // Back in the clip, frame i gets (about) the pose it had the first time.
+  for (std::size_t k = first_back; k < results.size(); ++k) {
+    ASSERT_TRUE(results[k].tracked) << "feed " << k;
+    EXPECT_LT(translation_distance(results[k].T_w_b, results[*feed[k].clip_index].T_w_b), 0.02) << "feed " << k;
+  }
+}
+
+}  // namespace
+}  // namespace orbatlas
