@@ -14,6 +14,15 @@ std::shared_ptr<Map> Atlas::create_map() {
   return map;
 }
 
+std::shared_ptr<Map> Atlas::add_map(MapId id) {
+  ids_->ensure_above(IdKind::map, id);
+  auto map = std::make_shared<Map>(id, ids_, counters_);
+  std::lock_guard lock(mutex_);
+  const bool inserted = maps_.try_emplace(id, map).second;
+  ORBATLAS_CHECK(inserted, "atlas already has a map " << id);
+  return map;
+}
+
 void Atlas::set_active(MapId id) {
   std::lock_guard lock(mutex_);
   const auto it = maps_.find(id);

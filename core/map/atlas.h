@@ -20,12 +20,17 @@ class Atlas {
 
   // A new empty map with a fresh id; it becomes the active map (as in ORB-SLAM3).
   std::shared_ptr<Map> create_map();
+  // A new empty map with a given id (loading a stored atlas). The allocator moves
+  // above the id, so create_map never hands it out again. Throws when the atlas
+  // already has a map with that id. Does not change the active map.
+  std::shared_ptr<Map> add_map(MapId id);
   void set_active(MapId id);  // throws if the atlas has no such map
   std::shared_ptr<Map> active_map() const;  // null before the first create_map
   std::shared_ptr<Map> map(MapId id) const;  // null if absent
   std::vector<std::shared_ptr<Map>> maps() const;  // by id
 
   IdAllocator& ids() { return *ids_; }
+  const IdAllocator& ids() const { return *ids_; }  // for peek() (saving an atlas)
   const std::shared_ptr<ObjectCounters>& counters() const { return counters_; }
 
  private:

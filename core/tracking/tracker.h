@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/map/atlas.h"
+#include "core/map/frame_anchor.h"
 #include "core/tracking/frame.h"
 #include "core/tracking/frame_relocalizer.h"
 #include "core/tracking/keyframe_sink.h"
@@ -40,15 +41,6 @@ struct TrackResult {
   MapId map = 0;
   bool keyframe = false;  // a keyframe was made from this frame
   int inliers = 0;
-};
-
-// Where a tracked frame was: relative to its reference keyframe, so the pose
-// follows later corrections of that keyframe (resolved with Map::keyframe_pose).
-struct FrameAnchor {
-  TimestampNs t_ns = 0;
-  MapId map = 0;
-  KeyframeId reference = 0;
-  Pose3 T_ref_b;
 };
 
 class Tracker {

@@ -1,0 +1,89 @@
+#pragma once
+// The persistent atlas: one SQLite database (schema/*.sql, docs/schema.md) holding
+// an Atlas — maps, keyframes, map points, observations, the covisibility graph,
+// spanning tree and loop edges — with the sessions that built it and their
+// per-frame trajectories. Blobs are Cereal binary (blob_codec.h).
+//
+// One store is one connection, for one thread at a time. Saving reads the atlas
+// through its snapshots; it is exact when no other thread edits the atlas
+// meanwhile (pause local mapping), and otherwise consistent per object.
+#include <cstddef>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "core/map/atlas.h"
+#include "core/persistence/session_info.h"
+#include "core/persistence/sqlite_db.h"
+#include "core/map/frame_anchor.h"
+#include "core/vocabulary/vocabulary.h"
+
+namespace orbatlas {
+
+struct AtlasSaveOptions {
+  // The session each keyframe was made in (KeyFrame does not record it). A
+  // keyframe not listed keeps the session stored for it by an earlier save.
+  std::unordered_map<KeyframeId, SessionId> keyframe_sessions;
+};
+
+struct AtlasLoadReport {
+  std::size_t maps = 0, keyframes = 0, map_points = 0, observations = 0;
+  std::size_t covisibility_links = 0, loop_edges = 0;
+  std::unordered_map<KeyframeId, SessionId> keyframe_sessions;  // keyframes with a stored session
+};
+
+class AtlasStore {
+ public:
+  // Creates the database, or opens one and brings its schema up to date. Before
+  // anything is written, refuses (DataError, file untouched) a file that is not
+  // an SQLite database, an SQLite database that is not an atlas, a schema newer
+  // than this build, and an atlas built with another vocabulary (hash differs).
+  static AtlasStore open(const std::filesystem::path& path, const std::string& vocabulary_hash);
+
+  AtlasStore(AtlasStore&&) noexcept = default;
+  AtlasStore& operator=(AtlasStore&&) noexcept = default;
+
+  const std::filesystem::path& path() const { return db_.path(); }
+  const std::string& vocabulary_hash() const { return vocabulary_hash_; }
+  TimestampNs created_ns() const { return created_ns_; }
+  int schema_version();
+
+  // --- the atlas ---
+  // In one transaction: every map of the atlas replaces what was stored for that
+  // map id (maps stored earlier but no longer in the atlas are kept); the id
+  // allocator's next ids and the active map are recorded. Culled objects are not
+  // stored; a link to an object outside the saved snapshot (culled meanwhile) is
+  // left out.
+  void save_atlas(const Atlas& atlas, const AtlasSaveOptions& options = {});
+  // Recreates every stored map in `atlas`, which must hold no map yet, with the
+  // stored ids; the atlas's id allocator continues above every stored id (and
+  // above the ids the saved atlas had already handed out). BoW vectors are
+  // recomputed with `vocabulary` (it must have the store's hash), or left empty
+  // when it is null; feature grids are rebuilt. Throws DataError on inconsistent
+  // stored data; the atlas may then hold part of it and should be discarded.
+  AtlasLoadReport load_atlas(Atlas& atlas, const Vocabulary* vocabulary);
+  std::vector<MapId> stored_map_ids();
+
+  // --- sessions and their trajectories ---
+  // Inserts or replaces the session row and its cameras (its trajectory and
+  // keyframe references stay).
+  void save_session(const SessionInfo& session);
+  std::optional<SessionInfo> load_session(SessionId id);
+  std::vector<SessionInfo> load_sessions();  // by id
+  // Replaces the session's stored trajectory (the session must be stored).
+  // Timestamps must be distinct. References may name keyframes culled since.
+  void save_trajectory(SessionId session, const std::vector<FrameAnchor>& anchors);
+  std::vector<FrameAnchor> load_trajectory(SessionId session);  // by timestamp
+
+ private:
+  explicit AtlasStore(SqliteDb db) : db_(std::move(db)) {}
+  void read_metadata();
+
+  SqliteDb db_;
+  std::string vocabulary_hash_;
+  TimestampNs created_ns_ = 0;
+};
+
+}  // namespace orbatlas

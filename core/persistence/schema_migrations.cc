@@ -1,0 +1,50 @@
+#include "core/persistence/schema_migrations.h"
+
+#include "core/common/error.h"
+#include "persistence_generated/embedded_schema.h"
+
+namespace orbatlas {
+
+std::span<const SchemaMigration> schema_migrations() { return persistence_detail::kEmbeddedMigrations; }
+
+int latest_schema_version() { return schema_migrations().back().version; }
+
+int read_schema_version(SqliteDb& db) {
+  const std::int64_t version = db.query_int64("PRAGMA user_version");
+  ORBATLAS_DATA_CHECK(version >= 0, db.path().string() << ": negative schema version (user_version " << version << ")");
+  return static_cast<int>(version);
+}
+
+void check_schema_version_supported(SqliteDb& db) {
+  const int version = read_schema_version(db);
+  ORBATLAS_DATA_CHECK(version <= latest_schema_version(),
+                      db.path().string() << ": atlas schema version " << version
+                                         << " is newer than this build understands (up to " << latest_schema_version()
+                                         << "); use a newer orbatlas");
+  if (version == 0) {
+    const std::int64_t objects = db.query_int64("SELECT count(*) FROM sqlite_schema");
+    ORBATLAS_DATA_CHECK(objects == 0, db.path().string() << ": an SQLite database that is not an orbatlas atlas ("
+                                                         << objects << " schema objects but user_version 0)");
+  }
+}
+
+void migrate_schema(SqliteDb& db, TimestampNs now_ns) {
+  for (const SchemaMigration& migration : schema_migrations()) {
+    if (read_schema_version(db) >= migration.version) continue;
+    SqliteTransaction transaction(db);
+    // Re-read under the write lock: another connection may have migrated meanwhile.
+    if (read_schema_version(db) >= migration.version) continue;
+    db.exec(migration.sql);
+    const int reached = read_schema_version(db);
+    ORBATLAS_CHECK(reached == migration.version, db.path().string() << ": migration " << migration.name
+                                                                    << " left user_version at " << reached);
+    db.prepare("INSERT INTO schema_migrations(version, name, applied_ns) VALUES (?1, ?2, ?3)")
+        .bind_int64(1, migration.version)
+        .bind_text(2, migration.name)
+        .bind_int64(3, now_ns)
+        .run();
+    transaction.commit();
+  }
+}
+
+}  // namespace orbatlas
