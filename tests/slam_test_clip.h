@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <string>
 
+#include "core/io/euroc_reader.h"
 #include "core/sim/sequence_simulator.h"
 
 namespace orbatlas::test {
@@ -24,6 +25,16 @@ inline std::filesystem::path simulated_clip(const std::string& sequence, double 
   o.show_progress = false;
   sim::simulate_sequence(o);
   return dir;
+}
+
+// The stereo frames of a clip (or any ASL folder with cam0 and cam1).
+inline EurocDataset stereo_dataset(const std::filesystem::path& dir) {
+  EurocReadOptions ro;
+  ro.require_cam1 = true;
+  return read_euroc_dataset(dir, ro);
+}
+inline std::vector<StereoFrame> stereo_frames(const std::filesystem::path& dir) {
+  return pair_stereo_frames(stereo_dataset(dir));
 }
 
 // Removes a clip folder when the test process ends.

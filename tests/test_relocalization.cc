@@ -46,18 +46,6 @@ TEST(PnpRansac, RecoversTheExactPoseDespiteOutliers) {
   EXPECT_THROW(solve_pnp_ransac(noise, {points.begin(), points.begin() + 10}), Error);
 }
 
-std::vector<StereoFrame> frames_of(const std::filesystem::path& dir) {
-  EurocReadOptions ro;
-  ro.require_cam1 = true;
-  return pair_stereo_frames(read_euroc_dataset(dir, ro));
-}
-
-EurocDataset dataset_of(const std::filesystem::path& dir) {
-  EurocReadOptions ro;
-  ro.require_cam1 = true;
-  return read_euroc_dataset(dir, ro);
-}
-
 Pose3 ground_truth_at(const EurocDataset& ds, TimestampNs t) {
   for (const auto& s : ds.ground_truth)
     if (s.t_ns == t) return s.T_w_b;
@@ -74,7 +62,7 @@ TEST(Relocalization, NewImageOfAKnownPlaceGivesItsPose) {
   o.synchronous_mapping = true;
   Atlas atlas;
   StereoSlam slam(atlas, settings, vocabulary, o);
-  const auto frames = frames_of(clip);
+  const auto frames = test::stereo_frames(clip);
   for (const auto& f : frames)
     ASSERT_TRUE(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
                              cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE))
@@ -94,7 +82,7 @@ TEST(Relocalization, NewImageOfAKnownPlaceGivesItsPose) {
   so.sensor_seed = 99;
   so.show_progress = false;
   sim::simulate_sequence(so);
-  const EurocDataset clip_ds = dataset_of(clip), again_ds = dataset_of(again);
+  const EurocDataset clip_ds = test::stereo_dataset(clip), again_ds = test::stereo_dataset(again);
   const Pose3 T_gt_map = ground_truth_at(clip_ds, frames.front().t_ns);  // the map starts at the first frame's body
 
   StereoFrontend frontend(settings);
@@ -102,7 +90,7 @@ TEST(Relocalization, NewImageOfAKnownPlaceGivesItsPose) {
   cam.camera = &frontend.camera();
   cam.bf = frontend.bf();
   int relocalized = 0;
-  for (const auto& f : frames_of(again)) {
+  for (const auto& f : test::stereo_frames(again)) {
     Frame frame = frontend.make_frame(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
                                       cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
     const RelocalizationResult r =
@@ -129,7 +117,7 @@ TEST(Relocalization, TrackingRelocalizesAfterFramesFromElsewhere) {
   o.tracker.min_keyframes_to_keep_map = 1;  // a 10 s map is small: keep it and relocalise
   Atlas atlas;
   StereoSlam slam(atlas, settings, vocabulary, o);
-  const auto frames = frames_of(clip), other = frames_of(elsewhere);
+  const auto frames = test::stereo_frames(clip), other = test::stereo_frames(elsewhere);
   // Frames 0..119 of the clip, 1 s of frames from another part of the hall, then
   // the clip again from frame 40 (timestamps keep increasing, the view jumps twice).
   struct Feed {

@@ -94,20 +94,10 @@ TEST(StereoSlam, BothCullingSchemesTakeTheSameDecisions) {
               runs[0].stats.mapping.culling_candidates, runs[0].stats.mapping.culled_keyframes.size());
 }
 
-struct LoadedClip {
-  std::vector<StereoFrame> frames;
-};
-
-LoadedClip load_clip(const std::filesystem::path& dir) {
-  EurocReadOptions ro;
-  ro.require_cam1 = true;
-  return {pair_stereo_frames(read_euroc_dataset(dir, ro))};
-}
-
 TEST(StereoSlam, TwoAtlasesInOneProcessRunSideBySide) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 3.0);
   test::ClipCleanup cleanup{clip};
-  const auto frames = load_clip(clip).frames;
+  const auto frames = test::stereo_frames(clip);
   const SlamSettings settings = read_settings(stereo_settings(), SensorType::kStereo);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
   StereoSlamOptions o;
@@ -139,7 +129,7 @@ TEST(StereoSlam, TwoAtlasesInOneProcessRunSideBySide) {
 TEST(StereoSlam, BadFramesAreDataErrorsAndTheSessionGoesOn) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 1.0);
   test::ClipCleanup cleanup{clip};
-  const auto frames = load_clip(clip).frames;
+  const auto frames = test::stereo_frames(clip);
   ASSERT_GE(frames.size(), 6u);
   const SlamSettings settings = read_settings(stereo_settings(), SensorType::kStereo);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
@@ -175,7 +165,7 @@ TEST(StereoSlam, BadFramesAreDataErrorsAndTheSessionGoesOn) {
 TEST(DatasetRunner, UnreadableImageIsSkippedAndReported) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 1.0);
   test::ClipCleanup cleanup{clip};
-  const auto frames = load_clip(clip).frames;
+  const auto frames = test::stereo_frames(clip);
   { std::ofstream(frames[5].left, std::ios::trunc) << "not a png"; }
   const DatasetRunReport r = run_stereo_dataset(options_for(clip));
   EXPECT_EQ(r.skipped_frames, 1u);
@@ -204,8 +194,8 @@ TEST(StereoSlam, LostTrackingStartsANewMapInTheAtlas) {
   const auto before = test::simulated_clip("MH_01", 40.0, 2.0);
   const auto after = test::simulated_clip("MH_01", 125.0, 2.0);
   test::ClipCleanup c1{before}, c2{after};
-  std::vector<StereoFrame> frames = load_clip(before).frames;
-  for (const auto& f : load_clip(after).frames) frames.push_back(f);
+  std::vector<StereoFrame> frames = test::stereo_frames(before);
+  for (const auto& f : test::stereo_frames(after)) frames.push_back(f);
   const SlamSettings settings = read_settings(stereo_settings(), SensorType::kStereo);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
   StereoSlamOptions o;
@@ -217,7 +207,7 @@ TEST(StereoSlam, LostTrackingStartsANewMapInTheAtlas) {
     results.push_back(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
                                    cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE)));
   slam.finish();
-  const std::size_t jump = load_clip(before).frames.size();
+  const std::size_t jump = test::stereo_frames(before).size();
   for (std::size_t i = 0; i < jump; ++i) EXPECT_TRUE(results[i].tracked) << "frame " << i;
   EXPECT_FALSE(results[jump].tracked) << "the jump across the hall went unnoticed";
   EXPECT_EQ(results[jump].state, TrackingState::kLost);

@@ -102,7 +102,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   if (!map || keyframe->is_bad()) return;
   origins_.try_emplace(map->id(), keyframe->id());
 
-  complete_keyframe(*map, keyframe);
+  complete_keyframe(keyframe);
   if (index_) index_->add(keyframe);
   cull_recent_points(*map);
   triangulate(*map, keyframe);
@@ -146,8 +146,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   }
 }
 
-void LocalMapper::complete_keyframe(Map& map, const std::shared_ptr<KeyFrame>& keyframe) {
-  (void)map;
+void LocalMapper::complete_keyframe(const std::shared_ptr<KeyFrame>& keyframe) {
   for (const auto& mp : keyframe->map_points()) {
     if (mp->is_bad()) continue;
     update_map_point(*mp, cam_.pyramid);

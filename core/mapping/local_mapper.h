@@ -80,7 +80,7 @@ class LocalMapper final : public KeyframeSink {
 
   void run();
   void process(const std::shared_ptr<KeyFrame>& keyframe);
-  void complete_keyframe(Map& map, const std::shared_ptr<KeyFrame>& keyframe);
+  void complete_keyframe(const std::shared_ptr<KeyFrame>& keyframe);
   void cull_recent_points(Map& map);
   void triangulate(Map& map, const std::shared_ptr<KeyFrame>& keyframe);
   void fuse_with_neighbours(Map& map, const std::shared_ptr<KeyFrame>& keyframe);

@@ -87,24 +87,13 @@ TriangulationStats triangulate_pair(Map& map, const std::shared_ptr<KeyFrame>& k
   std::vector<int> taken(f2.keypoints.size(), 257);
   std::vector<std::size_t> owner(f2.keypoints.size(), BestTwo::kNone);
 
-  auto it1 = kf1->feature_vector().begin();
-  auto it2 = kf2->feature_vector().begin();
-  const auto end1 = kf1->feature_vector().end(), end2 = kf2->feature_vector().end();
-  while (it1 != end1 && it2 != end2) {
-    if (it1->first < it2->first) {
-      it1 = kf1->feature_vector().lower_bound(it2->first);
-      continue;
-    }
-    if (it2->first < it1->first) {
-      it2 = kf2->feature_vector().lower_bound(it1->first);
-      continue;
-    }
-    for (const std::uint32_t i1 : it1->second) {
+  for_each_common_node(kf1->feature_vector(), kf2->feature_vector(), [&](const auto& node1, const auto& node2) {
+    for (const std::uint32_t i1 : node1) {
       if (slots1[i1]) continue;
       const Keypoint& kp1 = f1.keypoints[i1];
       int best = kHammingLow + 1;
       std::size_t best_i2 = BestTwo::kNone;
-      for (const std::uint32_t i2 : it2->second) {
+      for (const std::uint32_t i2 : node2) {
         if (slots2[i2]) continue;
         const int d = hamming(f1.descriptors[i1], f2.descriptors[i2]);
         if (d > kHammingLow || d >= best) continue;
@@ -118,9 +107,7 @@ TriangulationStats triangulate_pair(Map& map, const std::shared_ptr<KeyFrame>& k
       taken[best_i2] = best;
       owner[best_i2] = i1;
     }
-    ++it1;
-    ++it2;
-  }
+  });
   std::vector<FeatureMatch> matches;
   for (std::size_t i2 = 0; i2 < owner.size(); ++i2)
     if (owner[i2] != BestTwo::kNone) matches.push_back({owner[i2], i2, taken[i2]});

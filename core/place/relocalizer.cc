@@ -33,6 +33,8 @@ int guided_search(Frame& frame, const KeyFrame& keyframe, const FrameCamera& cam
   };
   add_points(keyframe);
   for (const auto& kf : keyframe.best_covisibles(10)) add_points(*kf);
+  // search_projected_points widens th by 2.5 (head-on) to 4 (oblique) x scale;
+  // th = radius / 4 keeps the window within `radius` pixels at level 0.
   return search_projected_points(frame, candidates, cam, radius / 4.0f, 0.9f);
 }
 

@@ -126,25 +126,13 @@ int search_by_bow(const KeyFrame& keyframe, Frame& frame, float ratio) {
   std::vector<FeatureMatch> matches;
   std::vector<int> taken_distance(frame.size(), 257);
   std::vector<std::size_t> taken_by(frame.size(), BestTwo::kNone);
-  auto kf_it = keyframe.feature_vector().begin();
-  const auto kf_end = keyframe.feature_vector().end();
-  auto f_it = frame.feature_vector.begin();
-  const auto f_end = frame.feature_vector.end();
-  while (kf_it != kf_end && f_it != f_end) {
-    if (kf_it->first < f_it->first) {
-      kf_it = keyframe.feature_vector().lower_bound(f_it->first);
-      continue;
-    }
-    if (f_it->first < kf_it->first) {
-      f_it = frame.feature_vector.lower_bound(kf_it->first);
-      continue;
-    }
-    for (const std::uint32_t k : kf_it->second) {
+  for_each_common_node(keyframe.feature_vector(), frame.feature_vector, [&](const auto& kf_slots, const auto& frame_kps) {
+    for (const std::uint32_t k : kf_slots) {
       const auto& mp = slots[k];
       if (!mp || mp->is_bad()) continue;
       const Descriptor& d = kf_features.descriptors[k];
       BestTwo best;
-      for (const std::uint32_t i : f_it->second) {
+      for (const std::uint32_t i : frame_kps) {
         if (frame.map_points[i]) continue;
         best.add(i, hamming(d, frame.features.descriptors[i]));
       }
@@ -153,9 +141,7 @@ int search_by_bow(const KeyFrame& keyframe, Frame& frame, float ratio) {
       taken_distance[best.index] = best.best;
       taken_by[best.index] = k;
     }
-    ++kf_it;
-    ++f_it;
-  }
+  });
   for (std::size_t i = 0; i < frame.size(); ++i)
     if (taken_by[i] != BestTwo::kNone) matches.push_back({taken_by[i], i, taken_distance[i]});
   for (const auto& m : matches) {

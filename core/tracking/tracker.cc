@@ -365,7 +365,6 @@ void Tracker::create_keyframe(Frame& frame, bool all_stereo_points) {
       pd.descriptor = frame.features.descriptors[i];
       auto mp = map_->new_map_point(pd);
       mp->set_reference_keyframe(kf);
-      if (kf->map_point(i)) kf->erase_slot(i);
       kf->add_observation(i, mp);
       update_normal_and_distances(*mp, cam_.pyramid);
       frame.map_points[i] = mp;
