@@ -23,6 +23,16 @@ struct FeatureBenchOptions {
 };
 void run_feature_bench(const FeatureBenchOptions& options);
 
+struct AtlasStoreBenchOptions {
+  int keyframes = 1000;
+  int keypoints = 1200;            // per keyframe (EuRoC stereo settings)
+  int points_per_keyframe = 60;    // new map points per keyframe, each seen by ~5 keyframes
+  std::filesystem::path vocabulary;  // default: the shipped vocabulary (loading recomputes BoW with it)
+  std::filesystem::path database;    // default: a temporary file, removed at the end
+  bool json = false;
+};
+void run_atlas_store_bench(const AtlasStoreBenchOptions& options);
+
 // p in [0, 1] of an unsorted sample (copied).
 double percentile(std::vector<double> values, double p);
 

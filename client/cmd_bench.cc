@@ -26,6 +26,16 @@ void register_bench_command(CLI::App& app) {
   f->add_option("--database-keyframes", features->database_keyframes, "Keyframes in the queried database")->capture_default_str();
   f->add_flag("--json", features->json, "Print one JSON object");
   f->callback([features]() { run_feature_bench(*features); });
+
+  auto store = std::make_shared<AtlasStoreBenchOptions>();
+  auto* s = bench->add_subcommand("atlas-store", "Atlas database size, full save / load and checkpoint times");
+  s->add_option("--keyframes", store->keyframes, "Keyframes of the synthetic atlas")->capture_default_str();
+  s->add_option("--keypoints", store->keypoints, "ORB keypoints per keyframe")->capture_default_str();
+  s->add_option("--points-per-keyframe", store->points_per_keyframe, "New map points per keyframe")->capture_default_str();
+  s->add_option("--vocabulary", store->vocabulary, "Vocabulary file (default: the shipped one)");
+  s->add_option("--database", store->database, "Keep the database at this path (default: a removed temporary file)");
+  s->add_flag("--json", store->json, "Print one JSON object");
+  s->callback([store]() { run_atlas_store_bench(*store); });
 }
 
 }  // namespace orbatlas::cli

@@ -19,34 +19,16 @@
 #include "core/persistence/blob_codec.h"
 #include "core/persistence/schema_migrations.h"
 #include "core/persistence/sqlite_db.h"
+#include "tests/test_persistence_expect.h"
+#include "tests/test_persistence_random_atlas.h"
 
 namespace orbatlas {
 namespace {
 
 namespace fs = std::filesystem;
+using namespace test;  // NOLINT: the shared helpers of the persistence tests
 
 constexpr const char* kOtherHash = "00000000deadbeef";
-
-// A database path in the temp folder, unique per process and test; removed
-// (with its WAL companions) at the end.
-class TempDb {
- public:
-  explicit TempDb(const std::string& name)
-      : path_(fs::temp_directory_path() /
-              ("orbatlas_test_persistence_" + std::to_string(::getpid()) + "_" + name + ".db")) {
-    remove_all();
-  }
-  ~TempDb() { remove_all(); }
-  const fs::path& path() const { return path_; }
-  fs::path companion(const char* suffix) const { return fs::path(path_.string() + suffix); }
-
- private:
-  void remove_all() const {
-    std::error_code ec;
-    for (const char* suffix : {"", "-wal", "-shm", "-journal"}) fs::remove(path_.string() + suffix, ec);
-  }
-  fs::path path_;
-};
 
 std::string file_bytes(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -73,288 +55,6 @@ std::string data_error_message(F&& f) {
   return {};
 }
 
-// --- random content ---
-
-Descriptor random_descriptor(std::mt19937_64& rng) { return {rng(), rng(), rng(), rng()}; }
-
-Pose3 random_pose(std::mt19937_64& rng) {
-  std::normal_distribution<double> n(0.0, 1.0);
-  return Pose3(Eigen::Quaterniond(n(rng), n(rng), n(rng), n(rng)), Eigen::Vector3d(n(rng), n(rng), n(rng)) * 5.0);
-}
-
-ImageFeatures random_features(std::mt19937_64& rng, std::size_t n, bool descriptors = true) {
-  std::uniform_real_distribution<float> u(0.0f, 752.0f), v(0.0f, 480.0f), angle(0.0f, 360.0f), response(0.0f, 200.0f);
-  std::normal_distribution<double> gauss(0.0, 1.0);
-  ImageFeatures f;
-  f.width = 752;
-  f.height = 480;
-  for (std::size_t i = 0; i < n; ++i) {
-    Keypoint kp;
-    kp.uv = {u(rng), v(rng)};
-    kp.level = static_cast<int>(rng() % 8);
-    kp.angle_deg = angle(rng);
-    kp.response = response(rng);
-    kp.bearing = Eigen::Vector3d(gauss(rng), gauss(rng), 1.0 + std::abs(gauss(rng))).normalized();
-    kp.uv_undistorted = {u(rng), v(rng)};
-    f.keypoints.push_back(kp);
-    if (descriptors) f.descriptors.push_back(random_descriptor(rng));
-  }
-  return f;
-}
-
-std::shared_ptr<KeyFrame> add_keyframe(Map& map, std::mt19937_64& rng, const Vocabulary& vocabulary, std::size_t n,
-                                       bool stereo, bool descriptors = true) {
-  KeyFrameData data;
-  data.timestamp_ns = 1'403'636'579'763'555'584LL + static_cast<std::int64_t>(rng() % 1'000'000'000'000ULL);
-  data.T_w_b = random_pose(rng);
-  data.T_b_c = random_pose(rng);
-  data.features = random_features(rng, n, descriptors);
-  if (stereo) {
-    std::uniform_real_distribution<float> depth(0.5f, 20.0f), column(0.0f, 752.0f);
-    for (std::size_t i = 0; i < n; ++i) {
-      const bool matched = rng() % 4 != 0;
-      data.depth.push_back(matched ? depth(rng) : -1.0f);
-      data.u_right.push_back(matched ? column(rng) : -1.0f);
-    }
-  }
-  if (descriptors) vocabulary.transform(data.features.descriptors, &data.bow, &data.feature_vector);
-  data.grid = FeatureGrid(data.features);
-  return map.new_keyframe(std::move(data));
-}
-
-std::shared_ptr<MapPoint> add_point(Map& map, std::mt19937_64& rng) {
-  std::normal_distribution<double> n(0.0, 3.0);
-  MapPointData data;
-  data.p_w = {n(rng), n(rng), n(rng)};
-  data.normal = Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
-  data.min_distance = 0.5f + static_cast<float>(rng() % 100) / 37.0f;
-  data.max_distance = data.min_distance * 8.3f;
-  data.descriptor = random_descriptor(rng);
-  auto mp = map.new_map_point(data);
-  mp->increase_visible(static_cast<int>(rng() % 50));
-  mp->increase_found(static_cast<int>(rng() % 20));
-  return mp;
-}
-
-// Observes each point from `observers` random keyframes at free slots.
-void observe(const std::vector<std::shared_ptr<KeyFrame>>& kfs, const std::vector<std::shared_ptr<MapPoint>>& points,
-             std::mt19937_64& rng, std::size_t min_observers, std::size_t max_observers) {
-  std::vector<std::vector<std::size_t>> free_slots(kfs.size());
-  for (std::size_t k = 0; k < kfs.size(); ++k) {
-    for (std::size_t s = 0; s < kfs[k]->slot_count(); ++s)
-      if (!kfs[k]->map_point(s)) free_slots[k].push_back(s);
-    std::shuffle(free_slots[k].begin(), free_slots[k].end(), rng);
-  }
-  for (const auto& mp : points) {
-    std::vector<std::size_t> order(kfs.size());
-    std::iota(order.begin(), order.end(), 0);
-    std::shuffle(order.begin(), order.end(), rng);
-    const std::size_t count = min_observers + rng() % (max_observers - min_observers + 1);
-    for (std::size_t i = 0; i < std::min(count, order.size()); ++i) {
-      auto& slots = free_slots[order[i]];
-      if (slots.empty()) continue;
-      ASSERT_TRUE(kfs[order[i]]->add_observation(slots.back(), mp));
-      slots.pop_back();
-    }
-  }
-}
-
-// Two maps with every kind of content, an empty third map, culled keyframes and
-// points (the last ids handed out belong to culled objects), and an active map
-// that is not the last one created.
-void build_atlas(Atlas& atlas, const Vocabulary& vocabulary, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  auto a = atlas.create_map();
-  auto b = atlas.create_map();
-  atlas.create_map();  // stays empty
-
-  // Map a: 10 keyframes, one monocular, one without descriptors.
-  std::vector<std::shared_ptr<KeyFrame>> ka;
-  for (int i = 0; i < 10; ++i) ka.push_back(add_keyframe(*a, rng, vocabulary, 80, i != 4, i != 7));
-  std::vector<std::shared_ptr<MapPoint>> pa;
-  for (int i = 0; i < 150; ++i) pa.push_back(add_point(*a, rng));
-  observe(ka, pa, rng, 2, 6);
-  for (const auto& kf : ka) kf->update_connections(8);
-  for (std::size_t i = 1; i < ka.size(); ++i) ka[i]->set_parent(ka[i == 5 ? 2 : i - 1]);
-  ka[0]->add_loop_edge(ka[8]);
-  ka[1]->add_loop_edge(ka[3]);  // goes with ka[3]
-  // A reference keyframe that is not the first observer.
-  const auto obs = pa[10]->observations();
-  ASSERT_GE(obs.size(), 2u);
-  pa[10]->set_reference_keyframe(obs.back().kf.lock());
-  // Culling: ka[3] has children to reattach and a loop edge; a point goes too.
-  ASSERT_TRUE(a->cull_keyframe(ka[3]->id()));
-  ASSERT_TRUE(a->cull_map_point(pa[20]->id()));
-  // More observations, then only some keyframes update: covisibility becomes
-  // asymmetric, as it is at run time.
-  std::vector<std::shared_ptr<KeyFrame>> alive_a;
-  for (const auto& kf : ka)
-    if (!kf->is_bad()) alive_a.push_back(kf);
-  std::vector<std::shared_ptr<MapPoint>> more;
-  for (int i = 0; i < 40; ++i) more.push_back(add_point(*a, rng));
-  observe(alive_a, more, rng, 2, 4);
-  for (std::size_t i = 0; i < alive_a.size(); i += 2) alive_a[i]->update_connections(8);
-  // A threshold nobody reaches: alive_a[1] keeps only its best neighbour, the
-  // others keep their mirrored links to it.
-  alive_a[1]->update_connections(1000);
-
-  // Map b: 5 keyframes; its last keyframe and point are culled.
-  std::vector<std::shared_ptr<KeyFrame>> kb;
-  for (int i = 0; i < 5; ++i) kb.push_back(add_keyframe(*b, rng, vocabulary, 50, true));
-  std::vector<std::shared_ptr<MapPoint>> pb;
-  for (int i = 0; i < 60; ++i) pb.push_back(add_point(*b, rng));
-  observe(kb, pb, rng, 2, 4);
-  for (const auto& kf : kb) kf->update_connections();
-  for (std::size_t i = 1; i < kb.size(); ++i) kb[i]->set_parent(kb[0]);
-  kb[1]->add_loop_edge(kb[3]);
-  auto last_kf = add_keyframe(*b, rng, vocabulary, 20, true);
-  auto last_mp = add_point(*b, rng);
-  ASSERT_TRUE(b->cull_keyframe(last_kf->id()));
-  ASSERT_TRUE(b->cull_map_point(last_mp->id()));
-
-  atlas.set_active(a->id());
-}
-
-// --- comparison of every field ---
-
-void expect_pose_eq(const Pose3& a, const Pose3& b, const std::string& what) {
-  EXPECT_EQ(a.q.coeffs(), b.q.coeffs()) << what;
-  EXPECT_EQ(a.t, b.t) << what;
-}
-
-void expect_keyframe_eq(const Map& map_a, const KeyFrame& a, const KeyFrame& b, bool same_bow) {
-  const std::string what = "keyframe " + std::to_string(a.id());
-  EXPECT_EQ(a.id(), b.id());
-  EXPECT_EQ(a.map_id(), b.map_id()) << what;
-  EXPECT_FALSE(b.is_bad()) << what;
-  EXPECT_EQ(a.timestamp_ns(), b.timestamp_ns()) << what;
-  expect_pose_eq(a.T_w_b(), b.T_w_b(), what + " T_w_b");
-  expect_pose_eq(a.T_b_c(), b.T_b_c(), what + " T_b_c");
-  // Features, every field.
-  EXPECT_EQ(a.features().width, b.features().width) << what;
-  EXPECT_EQ(a.features().height, b.features().height) << what;
-  ASSERT_EQ(a.slot_count(), b.slot_count()) << what;
-  for (std::size_t i = 0; i < a.slot_count(); ++i) {
-    const Keypoint &ka = a.keypoint(i), &kb = b.keypoint(i);
-    EXPECT_EQ(ka.uv, kb.uv) << what << " slot " << i;
-    EXPECT_EQ(ka.level, kb.level) << what << " slot " << i;
-    EXPECT_EQ(ka.angle_deg, kb.angle_deg) << what << " slot " << i;
-    EXPECT_EQ(ka.response, kb.response) << what << " slot " << i;
-    EXPECT_EQ(ka.bearing, kb.bearing) << what << " slot " << i;
-    EXPECT_EQ(ka.uv_undistorted, kb.uv_undistorted) << what << " slot " << i;
-    EXPECT_EQ(a.depth(i), b.depth(i)) << what << " slot " << i;
-    EXPECT_EQ(a.u_right(i), b.u_right(i)) << what << " slot " << i;
-  }
-  EXPECT_EQ(a.features().descriptors, b.features().descriptors) << what;
-  EXPECT_EQ(a.is_stereo(), b.is_stereo()) << what;
-  if (same_bow) {
-    EXPECT_EQ(a.bow(), b.bow()) << what;
-    EXPECT_EQ(a.feature_vector(), b.feature_vector()) << what;
-  } else {
-    EXPECT_TRUE(b.bow().empty()) << what;
-    EXPECT_TRUE(b.feature_vector().empty()) << what;
-  }
-  // The rebuilt grid answers like the original.
-  EXPECT_EQ(a.grid().size(), b.grid().size()) << what;
-  EXPECT_EQ(a.grid().cols(), b.grid().cols()) << what;
-  EXPECT_EQ(a.grid().rows(), b.grid().rows()) << what;
-  for (const Eigen::Vector2f& uv : {Eigen::Vector2f(100, 100), Eigen::Vector2f(400, 250), Eigen::Vector2f(700, 450)})
-    EXPECT_EQ(a.grid().in_radius(uv, 60.0f), b.grid().in_radius(uv, 60.0f)) << what;
-  // Observations and graph.
-  const auto sa = a.slots(), sb = b.slots();
-  for (std::size_t i = 0; i < sa.size(); ++i) {
-    ASSERT_EQ(sa[i] == nullptr, sb[i] == nullptr) << what << " slot " << i;
-    if (sa[i]) {
-      EXPECT_EQ(sa[i]->id(), sb[i]->id()) << what << " slot " << i;
-    }
-  }
-  EXPECT_EQ(a.map_point_count(), b.map_point_count()) << what;
-  EXPECT_EQ(a.redundant_map_point_count(), b.redundant_map_point_count()) << what;
-  // Links to culled keyframes are not stored: culling erases only the links the
-  // culled keyframe itself holds, so a neighbour whose mirrored link it had
-  // dropped keeps a dead one (as in ORB-SLAM); it is not worth persisting.
-  std::vector<CovisibilityEdge> ca;
-  for (const CovisibilityEdge& edge : a.connections())
-    if (map_a.keyframe(edge.keyframe)) ca.push_back(edge);
-  const auto cb = b.connections();
-  ASSERT_EQ(ca.size(), cb.size()) << what;
-  for (std::size_t i = 0; i < ca.size(); ++i) {
-    EXPECT_EQ(ca[i].keyframe, cb[i].keyframe) << what << " connection " << i;
-    EXPECT_EQ(ca[i].weight, cb[i].weight) << what << " connection " << i;
-  }
-  EXPECT_EQ(a.parent_id(), b.parent_id()) << what;
-  EXPECT_EQ(a.child_ids(), b.child_ids()) << what;
-  EXPECT_EQ(a.loop_edge_ids(), b.loop_edge_ids()) << what;
-}
-
-void expect_point_eq(const MapPoint& a, const MapPoint& b) {
-  const std::string what = "map point " + std::to_string(a.id());
-  EXPECT_EQ(a.id(), b.id());
-  EXPECT_EQ(a.map_id(), b.map_id()) << what;
-  EXPECT_EQ(a.p_w(), b.p_w()) << what;
-  EXPECT_EQ(a.normal(), b.normal()) << what;
-  EXPECT_EQ(a.min_distance(), b.min_distance()) << what;
-  EXPECT_EQ(a.max_distance(), b.max_distance()) << what;
-  EXPECT_EQ(a.descriptor(), b.descriptor()) << what;
-  EXPECT_EQ(a.reference_keyframe_id(), b.reference_keyframe_id()) << what;
-  EXPECT_EQ(a.visible(), b.visible()) << what;
-  EXPECT_EQ(a.found(), b.found()) << what;
-  const auto oa = a.observations(), ob = b.observations();
-  ASSERT_EQ(oa.size(), ob.size()) << what;
-  for (std::size_t i = 0; i < oa.size(); ++i) {
-    EXPECT_EQ(oa[i].keyframe, ob[i].keyframe) << what;
-    EXPECT_EQ(oa[i].slot, ob[i].slot) << what;
-    EXPECT_EQ(oa[i].level, ob[i].level) << what;
-  }
-}
-
-void expect_atlas_eq(const Atlas& a, const Atlas& b, bool same_bow) {
-  const auto ma = a.maps(), mb = b.maps();
-  ASSERT_EQ(ma.size(), mb.size());
-  ASSERT_NE(a.active_map(), nullptr);
-  ASSERT_NE(b.active_map(), nullptr);
-  EXPECT_EQ(a.active_map()->id(), b.active_map()->id());
-  for (std::size_t m = 0; m < ma.size(); ++m) {
-    ASSERT_EQ(ma[m]->id(), mb[m]->id());
-    const auto ka = ma[m]->keyframes(), kb = mb[m]->keyframes();
-    ASSERT_EQ(ka.size(), kb.size()) << "map " << ma[m]->id();
-    for (std::size_t i = 0; i < ka.size(); ++i) expect_keyframe_eq(*ma[m], *ka[i], *kb[i], same_bow);
-    const auto pa = ma[m]->map_points(), pb = mb[m]->map_points();
-    ASSERT_EQ(pa.size(), pb.size()) << "map " << ma[m]->id();
-    for (std::size_t i = 0; i < pa.size(); ++i) expect_point_eq(*pa[i], *pb[i]);
-  }
-  for (const IdKind kind : {IdKind::keyframe, IdKind::map_point, IdKind::map})
-    EXPECT_EQ(a.ids().peek(kind), b.ids().peek(kind)) << "id kind " << static_cast<int>(kind);
-}
-
-// A small vocabulary trained on random descriptors, for BoW recomputation.
-const Vocabulary& test_vocabulary() {
-  static const Vocabulary vocabulary = [] {
-    std::mt19937_64 rng(3);
-    std::vector<std::vector<Descriptor>> images(6);
-    for (auto& image : images)
-      for (int i = 0; i < 100; ++i) image.push_back(random_descriptor(rng));
-    VocabularyTrainingOptions options;
-    options.k = 4;
-    options.levels = 3;
-    options.threads = 1;
-    return Vocabulary::train(images, options);
-  }();
-  return vocabulary;
-}
-
-std::size_t count_keyframes(const Atlas& atlas) {
-  std::size_t n = 0;
-  for (const auto& m : atlas.maps()) n += m->keyframe_count();
-  return n;
-}
-
-std::size_t count_points(const Atlas& atlas) {
-  std::size_t n = 0;
-  for (const auto& m : atlas.maps()) n += m->map_point_count();
-  return n;
-}
-
 // --- tests ---
 
 TEST(Persistence, FreshDatabaseHasTheLatestSchemaInWalMode) {
@@ -370,16 +70,51 @@ TEST(Persistence, FreshDatabaseHasTheLatestSchemaInWalMode) {
   }
   ASSERT_EQ(schema_migrations().size(), static_cast<std::size_t>(latest_schema_version()));
   EXPECT_EQ(schema_migrations()[0].name, "001_initial.sql");
+  EXPECT_EQ(schema_migrations()[1].name, "002_culled_keyframes.sql");
   SqliteDb raw(db.path());
-  EXPECT_EQ(raw.query_int64("PRAGMA user_version"), 1);
+  EXPECT_EQ(raw.query_int64("PRAGMA user_version"), latest_schema_version());
   SqliteStatement mode = raw.prepare("PRAGMA journal_mode");
   ASSERT_TRUE(mode.step());
   EXPECT_EQ(mode.text(0), "wal");
   EXPECT_EQ(raw.query_int64("SELECT count(*) FROM schema_migrations WHERE version = 1"), 1);
+  EXPECT_EQ(raw.query_int64("SELECT checkpoint_seq FROM atlas"), 0);
   // Reopening neither migrates again nor recreates the atlas row.
   AtlasStore again = AtlasStore::open(db.path(), test_vocabulary().hash());
   EXPECT_EQ(again.created_ns(), created);
-  EXPECT_EQ(raw.query_int64("SELECT count(*) FROM schema_migrations"), 1);
+  EXPECT_EQ(raw.query_int64("SELECT count(*) FROM schema_migrations"), latest_schema_version());
+}
+
+// An atlas written by a build that knew only schema 1 (no culled keyframes, no
+// checkpoint sequence) opens, migrates and keeps its rows.
+TEST(Persistence, VersionOneAtlasMigratesForward) {
+  TempDb db("v1");
+  Atlas atlas;
+  build_atlas(atlas, test_vocabulary(), 16);
+  {
+    AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+    store.save_atlas(atlas);
+  }
+  {
+    // Back to what schema 1 held: its tables and rows, user_version 1.
+    SqliteDb raw(db.path());
+    raw.exec("PRAGMA foreign_keys = OFF; BEGIN; DROP TRIGGER keyframes_not_culled; DROP TABLE culled_keyframes; "
+             "ALTER TABLE atlas DROP COLUMN "
+             "checkpoint_seq; DELETE FROM schema_migrations WHERE version = 2; PRAGMA user_version = 1; COMMIT");
+    ASSERT_EQ(raw.query_int64("SELECT count(*) FROM sqlite_schema WHERE name = 'keyframes_not_culled'"), 0);
+  }
+  AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+  EXPECT_EQ(store.schema_version(), 2);
+  EXPECT_EQ(store.checkpoint_sequence(), 0);
+  Atlas loaded;
+  const AtlasLoadReport report = store.load_atlas(loaded, nullptr);
+  EXPECT_EQ(report.keyframes, count_keyframes(atlas));
+  EXPECT_EQ(report.map_points, count_points(atlas));
+  EXPECT_EQ(report.culled_keyframes, 0u);  // schema 1 had nowhere to keep them
+  store.save_atlas(atlas);
+  EXPECT_EQ(store.checkpoint_sequence(), 1);
+  Atlas again;
+  store.load_atlas(again, nullptr);
+  expect_atlas_eq(atlas, again, false);
 }
 
 TEST(Persistence, AtlasRoundTripKeepsEveryField) {
@@ -394,7 +129,8 @@ TEST(Persistence, AtlasRoundTripKeepsEveryField) {
   for (const auto& kf : original.maps()[0]->keyframes()) {
     redundant += kf->redundant_map_point_count();
     for (const CovisibilityEdge& edge : kf->connections())
-      if (original.maps()[0]->keyframe(edge.keyframe)->weight(kf->id()) != edge.weight) ++asymmetric;
+      if (const auto other = original.maps()[0]->keyframe(edge.keyframe); other && other->weight(kf->id()) != edge.weight)
+        ++asymmetric;
   }
   EXPECT_GT(asymmetric, 0);
   EXPECT_GT(redundant, 0);
@@ -412,7 +148,29 @@ TEST(Persistence, AtlasRoundTripKeepsEveryField) {
   EXPECT_EQ(report.loop_edges, 2u);  // ka[0]-ka[8] and kb[1]-kb[3]; ka[1]-ka[3] went with ka[3]
   EXPECT_GT(report.covisibility_links, 0u);
   EXPECT_GT(report.observations, 0u);
+  EXPECT_EQ(report.culled_keyframes, 4u);  // ka[3], the chain ka[7] -> ka[6], and map b's root
+  EXPECT_EQ(report.culled_keyframes, count_culled_keyframes(original));
   expect_atlas_eq(original, loaded, true);
+
+  // Frames anchored to culled keyframes resolve to the same poses after the round
+  // trip, through chains of culled parents and from a culled root.
+  SessionInfo session;
+  session.id = 1;
+  store.save_session(session);
+  std::vector<FrameAnchor> anchors;
+  std::mt19937_64 frame_rng(17);
+  for (const auto& map : original.maps())
+    for (const Map::CulledKeyframe& c : map->culled_keyframes())
+      anchors.push_back({static_cast<TimestampNs>(anchors.size()) * 50'000'000, map->id(), c.id, random_pose(frame_rng)});
+  ASSERT_EQ(anchors.size(), 4u);
+  store.save_trajectory(session.id, anchors);
+  for (const FrameAnchor& a : store.load_trajectory(session.id)) {
+    const auto before = original.map(a.map)->keyframe_pose(a.reference);
+    const auto after = loaded.map(a.map)->keyframe_pose(a.reference);
+    ASSERT_TRUE(before && after) << "keyframe " << a.reference;
+    expect_pose_eq(*before * a.T_ref_b, *after * a.T_ref_b, "frame at " + std::to_string(a.t_ns));
+  }
+  EXPECT_EQ(store.checkpoint_sequence(), 1);  // one save_atlas
 
   // Nothing loaded is culled; the counters count what was created by loading.
   EXPECT_EQ(loaded.counters()->keyframes().created, count_keyframes(original));
@@ -750,6 +508,19 @@ TEST(Persistence, CorruptBlobsAreDataErrors) {
   m = tamper_and_load("PRAGMA ignore_check_constraints = ON; UPDATE map_points SET descriptor = X'0102' WHERE id = " +
                       std::to_string(point));
   EXPECT_NE(m.find("descriptor"), std::string::npos) << m;
+
+  // Culled keyframes whose chain of parents cannot be resolved.
+  std::int64_t culled = 0, chained = 0;
+  {
+    SqliteDb raw(db.path());
+    chained = raw.query_int64("SELECT id FROM culled_keyframes WHERE parent_id IN (SELECT id FROM culled_keyframes)");
+    culled = raw.query_int64("SELECT parent_id FROM culled_keyframes WHERE id = " + std::to_string(chained));
+  }
+  m = tamper_and_load("UPDATE culled_keyframes SET parent_id = 999999 WHERE id = " + std::to_string(culled));
+  EXPECT_NE(m.find("parent 999999 is neither"), std::string::npos) << m;
+  m = tamper_and_load("UPDATE culled_keyframes SET parent_id = " + std::to_string(chained) +
+                      " WHERE id = " + std::to_string(culled));
+  EXPECT_NE(m.find("cycle"), std::string::npos) << m;
 }
 
 TEST(Persistence, FeaturesBlobRejectsEveryTruncation) {
@@ -799,8 +570,21 @@ TEST(Persistence, SchemaConstraintsHold) {
   EXPECT_THROW(raw.exec("INSERT INTO observations VALUES (1, 2, 1)"), Error);  // point already in slot 3
   EXPECT_THROW(raw.exec("UPDATE keyframes SET features = 'text, not a blob'"), Error);  // STRICT types
   EXPECT_THROW(raw.exec("UPDATE map_points SET descriptor = zeroblob(31)"), Error);
+  // Culled keyframes: never alive at the same time, not their own parent, a unit quaternion.
+  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (1, 1, NULL, 1, 0, 0, 0, 0, 0, 0)"), Error);
+  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (2, 1, 2, 1, 0, 0, 0, 0, 0, 0)"), Error);
+  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (2, 1, 1, 0.5, 0, 0, 0, 0, 0, 0)"), Error);
+  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (2, 7, 1, 1, 0, 0, 0, 0, 0, 0)"), Error);  // no map 7
+  raw.exec("INSERT INTO culled_keyframes VALUES (2, 1, 1, 1, 0, 0, 0, 0, 0, 0)");
+  raw.exec("INSERT INTO culled_keyframes VALUES (3, 1, 2, 1, 0, 0, 0, 0, 0, 0)");  // a chain 3 -> 2 -> 1
+  EXPECT_THROW(raw.exec("INSERT INTO keyframes(id, map_id, timestamp_ns, qw, qx, qy, qz, tx, ty, tz, "
+                        "c_qw, c_qx, c_qy, c_qz, c_tx, c_ty, c_tz, slot_count, features) "
+                        "VALUES (2, 1, 0, 1, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 4, X'')"),
+               Error);
+  EXPECT_THROW(raw.exec("UPDATE atlas SET checkpoint_seq = -1"), Error);
   // Deleting the map cascades to everything in it, and not to the trajectory.
   raw.exec("DELETE FROM maps WHERE id = 1");
+  EXPECT_EQ(raw.query_int64("SELECT count(*) FROM culled_keyframes"), 0);
   EXPECT_EQ(raw.query_int64("SELECT count(*) FROM keyframes"), 0);
   EXPECT_EQ(raw.query_int64("SELECT count(*) FROM observations"), 0);
   EXPECT_EQ(raw.query_int64("SELECT count(*) FROM trajectory"), 1);

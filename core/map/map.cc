@@ -105,4 +105,24 @@ std::size_t Map::map_point_count() const {
   return map_points_.size();
 }
 
+std::vector<Map::CulledKeyframe> Map::culled_keyframes() const {
+  std::vector<CulledKeyframe> out;
+  {
+    std::lock_guard lock(objects_mutex_);  // culling records anchors under it
+    out.reserve(culled_anchors_.size());
+    for (const auto& [id, anchor] : culled_anchors_) out.push_back({id, anchor.parent, anchor.T_parent_b});
+  }
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.id < b.id; });
+  return out;
+}
+
+void Map::restore_culled_keyframes(const std::vector<CulledKeyframe>& culled) {
+  std::lock_guard lock(objects_mutex_);
+  for (const CulledKeyframe& c : culled) {
+    ORBATLAS_CHECK(!keyframes_.contains(c.id), "map " << id_ << ": culled keyframe " << c.id << " is alive here");
+    const bool inserted = culled_anchors_.try_emplace(c.id, CulledAnchor{c.parent, c.T_parent_b}).second;
+    ORBATLAS_CHECK(inserted, "map " << id_ << ": culled keyframe " << c.id << " restored twice");
+  }
+}
+
 }  // namespace orbatlas

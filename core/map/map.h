@@ -55,6 +55,18 @@ class Map {
   // anchored to it follow later corrections. Null for an id the map never held.
   std::optional<Pose3> keyframe_pose(KeyframeId id) const;
 
+  // What a culled keyframe leaves for keyframe_pose, as persisted with the map.
+  struct CulledKeyframe {
+    KeyframeId id = 0;
+    std::optional<KeyframeId> parent;  // none: T_parent_b is the world pose
+    Pose3 T_parent_b;
+  };
+  // Snapshot of every culled keyframe's anchor, by id.
+  std::vector<CulledKeyframe> culled_keyframes() const;
+  // Restores stored anchors (loading a map). Throws when an id is a keyframe of
+  // this map or already has an anchor; parents are not checked (they may come later).
+  void restore_culled_keyframes(const std::vector<CulledKeyframe>& culled);
+
   const std::shared_ptr<ObjectCounters>& counters() const { return counters_; }
 
  private:

@@ -41,7 +41,9 @@ class AtlasReader {
                                  "ORDER BY c.keyframe_id, c.other_id")),
         loop_edges_(db.prepare("SELECT l.keyframe_id, l.other_id FROM loop_edges l "
                                "JOIN keyframes k ON k.id = l.keyframe_id WHERE k.map_id = ?1 "
-                               "ORDER BY l.keyframe_id, l.other_id")) {}
+                               "ORDER BY l.keyframe_id, l.other_id")),
+        culled_(db.prepare("SELECT id, parent_id, qw, qx, qy, qz, tx, ty, tz FROM culled_keyframes "
+                           "WHERE map_id = ?1 ORDER BY id")) {}
 
   // The largest keyframe and map point ids read so far.
   std::optional<KeyframeId> max_keyframe_id;
@@ -52,6 +54,7 @@ class AtlasReader {
     points_by_id_.clear();
     const std::int64_t map_id = sql_id(map.id());
     read_keyframes(map, map_id);
+    read_culled_keyframes(map, map_id);
     read_points(map, map_id);
     read_observations(map_id);
     read_graph(map_id);
@@ -101,6 +104,46 @@ class AtlasReader {
       ++report_.keyframes;
     }
     row.reset();
+  }
+
+  // The anchors culled keyframes left for Map::keyframe_pose. Every chain of
+  // parents must end at an alive keyframe of the map or at a root, without a
+  // cycle: otherwise a frame anchored to it could not be resolved.
+  void read_culled_keyframes(Map& map, std::int64_t map_id) {
+    std::vector<Map::CulledKeyframe> culled;
+    std::unordered_map<KeyframeId, std::optional<KeyframeId>> parent_of;
+    culled_.bind_int64(1, map_id);
+    while (culled_.step()) {
+      Map::CulledKeyframe c;
+      c.id = id_column(culled_, 0);
+      if (!culled_.is_null(1)) c.parent = id_column(culled_, 1);
+      c.T_parent_b = pose_columns(culled_, 2);
+      if (keyframes_by_id_.contains(c.id))
+        fail("culled keyframe " + std::to_string(c.id) + " is also an alive keyframe of map " +
+             std::to_string(map.id()));
+      parent_of.emplace(c.id, c.parent);
+      culled.push_back(c);
+      max_keyframe_id = std::max(max_keyframe_id.value_or(0), c.id);
+    }
+    culled_.reset();
+    std::unordered_map<KeyframeId, bool> resolves;  // memo: chains share their tails
+    for (const Map::CulledKeyframe& c : culled) {
+      std::vector<KeyframeId> chain = {c.id};
+      std::optional<KeyframeId> next = c.parent;
+      while (next && parent_of.contains(*next) && !resolves.contains(*next)) {
+        if (chain.size() > parent_of.size())
+          fail("culled keyframe " + std::to_string(c.id) + ": its chain of parents has a cycle");
+        chain.push_back(*next);
+        next = parent_of.at(*next);
+      }
+      const bool ok = !next || keyframes_by_id_.contains(*next) || resolves.contains(*next);
+      if (!ok)
+        fail("culled keyframe " + std::to_string(chain.back()) + ": parent " + std::to_string(*next) +
+             " is neither a keyframe nor a culled keyframe of map " + std::to_string(map.id()));
+      for (const KeyframeId id : chain) resolves[id] = true;
+    }
+    map.restore_culled_keyframes(culled);
+    report_.culled_keyframes += culled.size();
   }
 
   void read_points(Map& map, std::int64_t map_id) {
@@ -183,7 +226,7 @@ class AtlasReader {
   const std::string file_;
   const Vocabulary* const vocabulary_;  // not owned, may be null
   AtlasLoadReport& report_;
-  SqliteStatement keyframes_, points_, observations_, covisibility_, loop_edges_;
+  SqliteStatement keyframes_, points_, observations_, covisibility_, loop_edges_, culled_;
   std::unordered_map<KeyframeId, LoadedKeyframe> keyframes_by_id_;  // of the current map
   std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> points_by_id_;
   std::unordered_map<MapPointId, std::optional<KeyframeId>> references_;

@@ -71,6 +71,10 @@ void AtlasStore::read_metadata() {
 
 int AtlasStore::schema_version() { return read_schema_version(db_); }
 
+std::int64_t AtlasStore::checkpoint_sequence() {
+  return db_.query_int64("SELECT checkpoint_seq FROM atlas WHERE id = 1");
+}
+
 std::vector<MapId> AtlasStore::stored_map_ids() {
   std::vector<MapId> ids;
   SqliteStatement rows = db_.prepare("SELECT id FROM maps ORDER BY id");

@@ -8,6 +8,7 @@
 // through its snapshots; it is exact when no other thread edits the atlas
 // meanwhile (pause local mapping), and otherwise consistent per object.
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -31,6 +32,7 @@ struct AtlasSaveOptions {
 struct AtlasLoadReport {
   std::size_t maps = 0, keyframes = 0, map_points = 0, observations = 0;
   std::size_t covisibility_links = 0, loop_edges = 0;
+  std::size_t culled_keyframes = 0;  // anchors restored for Map::keyframe_pose
   std::unordered_map<KeyframeId, SessionId> keyframe_sessions;  // keyframes with a stored session
 };
 
@@ -49,19 +51,23 @@ class AtlasStore {
   const std::string& vocabulary_hash() const { return vocabulary_hash_; }
   TimestampNs created_ns() const { return created_ns_; }
   int schema_version();
+  // atlas.checkpoint_seq: incremented by every committed save_atlas or checkpoint.
+  std::int64_t checkpoint_sequence();
 
   // --- the atlas ---
   // In one transaction: every map of the atlas replaces what was stored for that
   // map id (maps stored earlier but no longer in the atlas are kept); the id
-  // allocator's next ids and the active map are recorded. Culled objects are not
-  // stored; a link to an object outside the saved snapshot (culled meanwhile) is
-  // left out.
+  // allocator's next ids and the active map are recorded, and the checkpoint
+  // sequence number goes up by one. Culled map points are not stored; culled
+  // keyframes only as the anchor Map::keyframe_pose chains through. A link to an
+  // object outside the saved snapshot (culled meanwhile) is left out.
   void save_atlas(const Atlas& atlas, const AtlasSaveOptions& options = {});
   // Recreates every stored map in `atlas`, which must hold no map yet, with the
   // stored ids; the atlas's id allocator continues above every stored id (and
   // above the ids the saved atlas had already handed out). BoW vectors are
   // recomputed with `vocabulary` (it must have the store's hash), or left empty
-  // when it is null; feature grids are rebuilt. Throws DataError on inconsistent
+  // when it is null; feature grids are rebuilt; culled keyframes' anchors are
+  // restored (Map::keyframe_pose resolves them as before). Throws DataError on inconsistent
   // stored data; the atlas may then hold part of it and should be discarded.
   AtlasLoadReport load_atlas(Atlas& atlas, const Vocabulary* vocabulary);
   std::vector<MapId> stored_map_ids();
@@ -78,6 +84,8 @@ class AtlasStore {
   std::vector<FrameAnchor> load_trajectory(SessionId session);  // by timestamp
 
  private:
+  friend class AtlasCheckpointWriter;  // writes through this connection, in its own transactions
+
   explicit AtlasStore(SqliteDb db) : db_(std::move(db)) {}
   void read_metadata();
 

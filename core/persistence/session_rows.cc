@@ -4,6 +4,7 @@
 #include "core/common/error.h"
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/blob_codec.h"
+#include "core/persistence/session_rows.h"
 #include "core/persistence/sql_columns.h"
 
 namespace orbatlas {
@@ -60,11 +61,10 @@ void read_cameras(SqliteDb& db, std::map<SessionId, SessionInfo>& sessions) {
 
 }  // namespace
 
-void AtlasStore::save_session(const SessionInfo& session) {
+void write_session_rows(SqliteDb& db, const SessionInfo& session) {
   const std::int64_t id = sql_id(session.id);
-  SqliteTransaction transaction(db_);
   // An upsert, not INSERT OR REPLACE, which would cascade-delete the trajectory.
-  db_.prepare("INSERT INTO sessions(id, name, sensor, created_ns) VALUES (?1, ?2, ?3, ?4) "
+  db.prepare("INSERT INTO sessions(id, name, sensor, created_ns) VALUES (?1, ?2, ?3, ?4) "
               "ON CONFLICT(id) DO UPDATE SET name = excluded.name, sensor = excluded.sensor, "
               "created_ns = excluded.created_ns")
       .bind_int64(1, id)
@@ -72,8 +72,8 @@ void AtlasStore::save_session(const SessionInfo& session) {
       .bind_text(3, sensor_type_name(session.sensor))
       .bind_int64(4, session.created_ns)
       .run();
-  db_.prepare("DELETE FROM cameras WHERE session_id = ?1").bind_int64(1, id).run();
-  SqliteStatement insert = db_.prepare(
+  db.prepare("DELETE FROM cameras WHERE session_id = ?1").bind_int64(1, id).run();
+  SqliteStatement insert = db.prepare(
       "INSERT INTO cameras(session_id, camera_index, model, fx, fy, cx, cy, distortion, width, height, rate_hz, "
       "qw, qx, qy, qz, tx, ty, tz) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)");
   for (std::size_t i = 0; i < session.cameras.size(); ++i) {
@@ -93,6 +93,11 @@ void AtlasStore::save_session(const SessionInfo& session) {
     insert.run();
     insert.reset();
   }
+}
+
+void AtlasStore::save_session(const SessionInfo& session) {
+  SqliteTransaction transaction(db_);
+  write_session_rows(db_, session);
   transaction.commit();
 }
 

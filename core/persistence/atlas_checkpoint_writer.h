@@ -1,0 +1,77 @@
+#pragma once
+// One connection's checkpoints of an atlas (and of one session's trajectory).
+// Each checkpoint is one write transaction holding only the rows that are new or
+// changed since this writer's last commit, and deleting the rows of objects
+// culled since; it is told apart by the content hashes of the rows last
+// committed (atlas_rows.h), kept here and replaced only after COMMIT succeeded.
+// The first checkpoint rewrites every map of the atlas, as save_atlas does: the
+// writer does not know yet what the file holds. It assumes that nobody else
+// writes the atlas's maps into the file meanwhile.
+//
+// Not thread-safe: AtlasCheckpointer runs one on its own thread.
+#include <functional>
+#include <optional>
+#include <vector>
+
+#include "core/map/atlas.h"
+#include "core/map/frame_anchor.h"
+#include "core/persistence/atlas_row_sync.h"
+#include "core/persistence/atlas_rows.h"
+#include "core/persistence/atlas_store.h"
+#include "core/persistence/session_info.h"
+
+namespace orbatlas {
+
+struct CheckpointSession {
+  SessionInfo info;  // written by the first checkpoint
+  // The session's frames so far; called on the checkpoint thread, so it must be
+  // safe to call while tracking runs (e.g. a copy under a lock). May be empty.
+  std::function<std::vector<FrameAnchor>()> trajectory;
+};
+
+struct CheckpointResult {
+  bool committed = false;  // false: nothing had changed and nothing was written
+  bool full = false;       // the first checkpoint: every map rewritten
+  RowCounts rows;          // atlas rows, trajectory rows, the session row, the atlas row
+  std::int64_t sequence = 0;  // atlas.checkpoint_seq after the commit (0 when nothing was written)
+};
+
+class AtlasCheckpointWriter {
+ public:
+  // `atlas` must outlive the writer. Keyframes with an id the atlas had not
+  // handed out yet at construction are recorded as made in `session`.
+  AtlasCheckpointWriter(const Atlas& atlas, AtlasStore store, std::optional<CheckpointSession> session);
+
+  // Throws Error / DataError on any failure; the database then holds the last
+  // committed checkpoint and the next call writes everything changed since.
+  // `before_transaction` runs just before the write transaction begins.
+  CheckpointResult checkpoint(const std::function<void()>& before_transaction = {});
+
+  // PRAGMA synchronous: FULL (a commit survives power loss) or NORMAL (a commit
+  // survives a crash of the process; see docs/schema.md).
+  void set_durable(bool durable);
+
+  AtlasStore& store() { return store_; }
+
+ private:
+  struct TrajectoryRow {
+    FrameAnchor anchor;
+    std::uint64_t hash = 0;
+  };
+
+  std::vector<TrajectoryRow> current_trajectory() const;
+  RowCounts write_trajectory(AtlasRowWriter& writer, const std::vector<TrajectoryRow>& before,
+                             const std::vector<TrajectoryRow>& now) const;
+
+  const Atlas& atlas_;
+  AtlasStore store_;
+  std::optional<CheckpointSession> session_;
+  KeyframeId first_session_keyframe_ = 0;
+  std::unordered_map<KeyframeId, SessionId> stored_sessions_;  // read by the first checkpoint
+
+  bool has_committed_ = false;
+  AtlasRows committed_;  // what the file holds for the atlas (objects dropped)
+  std::vector<TrajectoryRow> committed_trajectory_;
+};
+
+}  // namespace orbatlas

@@ -1,0 +1,235 @@
+#include "core/persistence/atlas_row_writer.h"
+
+#include "core/common/error.h"
+#include "core/persistence/blob_codec.h"
+#include "core/persistence/sql_columns.h"
+
+namespace orbatlas {
+namespace {
+
+// Runs a statement whose parameters are bound, then makes it ready again.
+void run_once(SqliteStatement& s) {
+  s.run();
+  s.reset();
+}
+
+void bind_optional_id(SqliteStatement& s, int index, const std::optional<std::uint64_t>& id) {
+  if (id) s.bind_int64(index, sql_id(*id));  // unbound parameters are NULL
+}
+
+std::string features_blob(const KeyFrame& kf) {
+  // KeyFrame exposes depth / u_right per slot; monocular keyframes have none.
+  std::vector<float> depth, u_right;
+  if (kf.is_stereo()) {
+    depth.resize(kf.slot_count());
+    u_right.resize(kf.slot_count());
+    for (std::size_t i = 0; i < kf.slot_count(); ++i) {
+      depth[i] = kf.depth(i);
+      u_right[i] = kf.u_right(i);
+    }
+  }
+  return encode_features(kf.features(), depth, u_right);
+}
+
+}  // namespace
+
+AtlasRowWriter::AtlasRowWriter(SqliteDb& db)
+    : file_(db.path().string()),
+      stored_sessions_(db.prepare("SELECT id, session_id FROM keyframes WHERE session_id IS NOT NULL")),
+      delete_culled_of_map_(db.prepare("DELETE FROM culled_keyframes WHERE map_id = ?1")),
+      // Points first: deleting them cascades to their observations before the
+      // keyframes go (which cascades to covisibility and loop edges).
+      delete_points_of_map_(db.prepare("DELETE FROM map_points WHERE map_id = ?1")),
+      delete_keyframes_of_map_(db.prepare("DELETE FROM keyframes WHERE map_id = ?1")),
+      upsert_map_(db.prepare("INSERT INTO maps(id, saved_ns) VALUES (?1, ?2) "
+                             "ON CONFLICT(id) DO UPDATE SET saved_ns = excluded.saved_ns")),
+      insert_keyframe_(db.prepare(
+          "INSERT INTO keyframes(id, map_id, session_id, timestamp_ns, qw, qx, qy, qz, tx, ty, tz, "
+          "c_qw, c_qx, c_qy, c_qz, c_tx, c_ty, c_tz, parent_id, slot_count, features) "
+          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21)")),
+      // The mutable columns only: the features blob (most of the bytes) is never rewritten.
+      update_keyframe_(db.prepare(
+          "UPDATE keyframes SET qw = ?2, qx = ?3, qy = ?4, qz = ?5, tx = ?6, ty = ?7, tz = ?8, parent_id = ?9, "
+          "session_id = coalesce(?10, session_id) WHERE id = ?1")),
+      delete_keyframe_(db.prepare("DELETE FROM keyframes WHERE id = ?1")),
+      upsert_point_(db.prepare(
+          "INSERT INTO map_points(id, map_id, x, y, z, nx, ny, nz, min_distance, max_distance, descriptor, "
+          "reference_keyframe_id, visible, found) "
+          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14) "
+          "ON CONFLICT(id) DO UPDATE SET map_id = excluded.map_id, x = excluded.x, y = excluded.y, z = excluded.z, "
+          "nx = excluded.nx, ny = excluded.ny, nz = excluded.nz, min_distance = excluded.min_distance, "
+          "max_distance = excluded.max_distance, descriptor = excluded.descriptor, "
+          "reference_keyframe_id = excluded.reference_keyframe_id, visible = excluded.visible, "
+          "found = excluded.found")),
+      delete_point_(db.prepare("DELETE FROM map_points WHERE id = ?1")),
+      upsert_culled_(db.prepare(
+          "INSERT INTO culled_keyframes(id, map_id, parent_id, qw, qx, qy, qz, tx, ty, tz) "
+          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10) "
+          "ON CONFLICT(id) DO UPDATE SET map_id = excluded.map_id, parent_id = excluded.parent_id, "
+          "qw = excluded.qw, qx = excluded.qx, qy = excluded.qy, qz = excluded.qz, "
+          "tx = excluded.tx, ty = excluded.ty, tz = excluded.tz")),
+      delete_culled_(db.prepare("DELETE FROM culled_keyframes WHERE id = ?1")),
+      insert_observation_(db.prepare("INSERT INTO observations(keyframe_id, slot, map_point_id) VALUES (?1, ?2, ?3)")),
+      delete_observation_(db.prepare("DELETE FROM observations WHERE keyframe_id = ?1 AND slot = ?2")),
+      upsert_covisibility_(db.prepare("INSERT INTO covisibility(keyframe_id, other_id, weight) VALUES (?1, ?2, ?3) "
+                                      "ON CONFLICT(keyframe_id, other_id) DO UPDATE SET weight = excluded.weight")),
+      delete_covisibility_(db.prepare("DELETE FROM covisibility WHERE keyframe_id = ?1 AND other_id = ?2")),
+      insert_loop_edge_(db.prepare("INSERT OR IGNORE INTO loop_edges(keyframe_id, other_id) VALUES (?1, ?2)")),
+      delete_loop_edge_(db.prepare("DELETE FROM loop_edges WHERE keyframe_id = ?1 AND other_id = ?2")),
+      upsert_trajectory_(db.prepare(
+          "INSERT INTO trajectory(session_id, t_ns, map_id, reference_keyframe_id, qw, qx, qy, qz, tx, ty, tz) "
+          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11) "
+          "ON CONFLICT(session_id, t_ns) DO UPDATE SET map_id = excluded.map_id, "
+          "reference_keyframe_id = excluded.reference_keyframe_id, qw = excluded.qw, qx = excluded.qx, "
+          "qy = excluded.qy, qz = excluded.qz, tx = excluded.tx, ty = excluded.ty, tz = excluded.tz")),
+      delete_trajectory_(db.prepare("DELETE FROM trajectory WHERE session_id = ?1 AND t_ns = ?2")),
+      delete_session_trajectory_(db.prepare("DELETE FROM trajectory WHERE session_id = ?1")),
+      write_meta_(db.prepare(
+          "UPDATE atlas SET saved_ns = ?1, next_keyframe_id = max(next_keyframe_id, ?2), "
+          "next_map_point_id = max(next_map_point_id, ?3), next_map_id = max(next_map_id, ?4), "
+          "active_map_id = ?5, checkpoint_seq = checkpoint_seq + 1 WHERE id = 1")),
+      read_sequence_(db.prepare("SELECT checkpoint_seq FROM atlas WHERE id = 1")) {}
+
+std::unordered_map<KeyframeId, SessionId> AtlasRowWriter::stored_keyframe_sessions() {
+  std::unordered_map<KeyframeId, SessionId> out;
+  while (stored_sessions_.step()) out[id_column(stored_sessions_, 0)] = id_column(stored_sessions_, 1);
+  stored_sessions_.reset();
+  return out;
+}
+
+void AtlasRowWriter::delete_map_contents(MapId map) {
+  for (SqliteStatement* s : {&delete_culled_of_map_, &delete_points_of_map_, &delete_keyframes_of_map_}) {
+    s->bind_int64(1, sql_id(map));
+    run_once(*s);
+  }
+}
+
+void AtlasRowWriter::upsert_map(MapId map, TimestampNs saved_ns) {
+  upsert_map_.bind_int64(1, sql_id(map)).bind_int64(2, saved_ns);
+  run_once(upsert_map_);
+}
+
+void AtlasRowWriter::insert_keyframe(const KeyframeRow& row) {
+  const KeyFrame& kf = *row.keyframe;
+  SqliteStatement& s = insert_keyframe_;
+  s.bind_int64(1, sql_id(row.id)).bind_int64(2, sql_id(row.map));
+  bind_optional_id(s, 3, row.session);
+  s.bind_int64(4, kf.timestamp_ns());
+  bind_pose(s, 5, row.T_w_b);
+  bind_pose(s, 12, kf.T_b_c());
+  bind_optional_id(s, 19, row.parent);
+  s.bind_int64(20, static_cast<std::int64_t>(kf.slot_count()));
+  s.bind_blob(21, features_blob(kf));
+  run_once(s);
+}
+
+void AtlasRowWriter::update_keyframe(const KeyframeRow& row) {
+  SqliteStatement& s = update_keyframe_;
+  s.bind_int64(1, sql_id(row.id));
+  bind_pose(s, 2, row.T_w_b);
+  bind_optional_id(s, 9, row.parent);
+  bind_optional_id(s, 10, row.session);
+  run_once(s);
+}
+
+void AtlasRowWriter::delete_keyframe(KeyframeId id) {
+  delete_keyframe_.bind_int64(1, sql_id(id));
+  run_once(delete_keyframe_);
+}
+
+void AtlasRowWriter::upsert_map_point(const MapPointRow& row) {
+  SqliteStatement& s = upsert_point_;
+  s.bind_int64(1, sql_id(row.id)).bind_int64(2, sql_id(row.map));
+  for (int i = 0; i < 3; ++i) s.bind_real(3 + i, row.data.p_w[i]);
+  for (int i = 0; i < 3; ++i) s.bind_real(6 + i, row.data.normal[i]);
+  s.bind_real(9, row.data.min_distance).bind_real(10, row.data.max_distance);
+  s.bind_blob(11, encode_descriptor(row.data.descriptor));
+  bind_optional_id(s, 12, row.reference);
+  s.bind_int64(13, row.visible).bind_int64(14, row.found);
+  run_once(s);
+}
+
+void AtlasRowWriter::delete_map_point(MapPointId id) {
+  delete_point_.bind_int64(1, sql_id(id));
+  run_once(delete_point_);
+}
+
+void AtlasRowWriter::upsert_culled_keyframe(const CulledKeyframeRow& row) {
+  SqliteStatement& s = upsert_culled_;
+  s.bind_int64(1, sql_id(row.anchor.id)).bind_int64(2, sql_id(row.map));
+  bind_optional_id(s, 3, row.anchor.parent);
+  bind_pose(s, 4, row.anchor.T_parent_b);
+  run_once(s);
+}
+
+void AtlasRowWriter::delete_culled_keyframe(KeyframeId id) {
+  delete_culled_.bind_int64(1, sql_id(id));
+  run_once(delete_culled_);
+}
+
+void AtlasRowWriter::insert_observation(KeyframeId keyframe, std::size_t slot, MapPointId point) {
+  insert_observation_.bind_int64(1, sql_id(keyframe))
+      .bind_int64(2, static_cast<std::int64_t>(slot))
+      .bind_int64(3, sql_id(point));
+  run_once(insert_observation_);
+}
+
+void AtlasRowWriter::delete_observation(KeyframeId keyframe, std::size_t slot) {
+  delete_observation_.bind_int64(1, sql_id(keyframe)).bind_int64(2, static_cast<std::int64_t>(slot));
+  run_once(delete_observation_);
+}
+
+void AtlasRowWriter::upsert_covisibility(KeyframeId keyframe, const CovisibilityEdge& edge) {
+  upsert_covisibility_.bind_int64(1, sql_id(keyframe)).bind_int64(2, sql_id(edge.keyframe)).bind_int64(3, edge.weight);
+  run_once(upsert_covisibility_);
+}
+
+void AtlasRowWriter::delete_covisibility(KeyframeId keyframe, KeyframeId other) {
+  delete_covisibility_.bind_int64(1, sql_id(keyframe)).bind_int64(2, sql_id(other));
+  run_once(delete_covisibility_);
+}
+
+void AtlasRowWriter::insert_loop_edge(const LoopEdge& edge) {
+  insert_loop_edge_.bind_int64(1, sql_id(edge.first)).bind_int64(2, sql_id(edge.second));
+  run_once(insert_loop_edge_);
+}
+
+void AtlasRowWriter::delete_loop_edge(const LoopEdge& edge) {
+  delete_loop_edge_.bind_int64(1, sql_id(edge.first)).bind_int64(2, sql_id(edge.second));
+  run_once(delete_loop_edge_);
+}
+
+void AtlasRowWriter::upsert_trajectory(SessionId session, const FrameAnchor& anchor) {
+  SqliteStatement& s = upsert_trajectory_;
+  s.bind_int64(1, sql_id(session))
+      .bind_int64(2, anchor.t_ns)
+      .bind_int64(3, sql_id(anchor.map))
+      .bind_int64(4, sql_id(anchor.reference));
+  bind_pose(s, 5, anchor.T_ref_b);
+  run_once(s);
+}
+
+void AtlasRowWriter::delete_trajectory(SessionId session, TimestampNs t_ns) {
+  delete_trajectory_.bind_int64(1, sql_id(session)).bind_int64(2, t_ns);
+  run_once(delete_trajectory_);
+}
+
+void AtlasRowWriter::delete_session_trajectory(SessionId session) {
+  delete_session_trajectory_.bind_int64(1, sql_id(session));
+  run_once(delete_session_trajectory_);
+}
+
+std::int64_t AtlasRowWriter::write_meta(const AtlasMetaRow& meta, TimestampNs saved_ns) {
+  write_meta_.bind_int64(1, saved_ns)
+      .bind_int64(2, sql_id(meta.next_keyframe_id))
+      .bind_int64(3, sql_id(meta.next_map_point_id))
+      .bind_int64(4, sql_id(meta.next_map_id));
+  bind_optional_id(write_meta_, 5, meta.active_map);
+  run_once(write_meta_);
+  ORBATLAS_DATA_CHECK(read_sequence_.step(), file_ << ": the atlas row is missing");
+  const std::int64_t sequence = read_sequence_.int64(0);
+  read_sequence_.reset();
+  return sequence;
+}
+
+}  // namespace orbatlas

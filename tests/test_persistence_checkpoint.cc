@@ -1,0 +1,333 @@
+// Incremental checkpoints (AtlasCheckpointer): only changed rows are written,
+// the file always loads back equal to the atlas as of the last checkpoint, a
+// failed checkpoint keeps the last good state and the next one catches up.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <future>
+#include <mutex>
+#include <random>
+#include <thread>
+
+#include "core/common/error.h"
+#include "core/persistence/atlas_checkpointer.h"
+#include "core/persistence/atlas_store.h"
+#include "core/persistence/sqlite_db.h"
+#include "tests/test_persistence_expect.h"
+#include "tests/test_persistence_random_atlas.h"
+
+namespace orbatlas {
+namespace {
+
+using namespace test;  // NOLINT: the shared helpers of the persistence tests
+
+CheckpointOptions manual_only() {
+  CheckpointOptions options;
+  options.every_keyframes = 0;
+  options.every_seconds = 0;
+  return options;
+}
+
+// Loads the file through a connection of its own and compares every field.
+void expect_file_holds(const std::filesystem::path& path, const Atlas& atlas) {
+  AtlasStore store = AtlasStore::open(path, test_vocabulary().hash());
+  Atlas loaded;
+  store.load_atlas(loaded, &test_vocabulary());
+  expect_atlas_eq(atlas, loaded, true);
+}
+
+template <class T>
+const std::shared_ptr<T>& pick(const std::vector<std::shared_ptr<T>>& v, std::mt19937_64& rng) {
+  return v[rng() % v.size()];
+}
+
+// One round of the edits local mapping and loop closing make: new keyframes and
+// points, new observations and a replaced / erased slot, new covisibility,
+// parents and a loop edge, moved keyframes and points, statistics, culled
+// keyframes (with children and parents: chains of anchors) and points, and now
+// and then a new map that becomes the active one.
+void random_edits(Atlas& atlas, std::mt19937_64& rng) {
+  if (rng() % 4 == 0) atlas.create_map();
+  const auto map = atlas.active_map();
+  std::vector<std::shared_ptr<KeyFrame>> fresh;
+  for (int i = 0; i < 2; ++i) fresh.push_back(add_random_keyframe(*map, rng, &test_vocabulary(), 60, i == 0));
+  auto keyframes = map->keyframes();
+  std::vector<std::shared_ptr<MapPoint>> points;
+  for (int i = 0; i < 30; ++i) points.push_back(add_random_point(*map, rng));
+  observe_randomly(keyframes, points, rng, 2, 4);
+  for (const auto& kf : fresh) {
+    kf->update_connections(5);
+    if (keyframes.size() > fresh.size()) kf->set_parent(keyframes[rng() % (keyframes.size() - fresh.size())]);
+  }
+  pick(keyframes, rng)->update_connections(5);
+  if (keyframes.size() > 3) {
+    const auto& a = pick(keyframes, rng);
+    const auto& b = pick(keyframes, rng);
+    if (a != b) a->add_loop_edge(b);
+  }
+  // An observation moves to another point, one goes.
+  const auto& edited = pick(keyframes, rng);
+  for (std::size_t slot = 0; slot < edited->slot_count(); ++slot) {
+    if (!edited->map_point(slot)) continue;
+    if (rng() % 2) {
+      edited->erase_slot(slot);
+    } else {
+      edited->replace(slot, add_random_point(*map, rng));
+    }
+    break;
+  }
+  pick(keyframes, rng)->set_T_w_b(random_pose(rng));
+  const auto all_points = map->map_points();
+  for (int i = 0; i < 5; ++i) {
+    const auto& mp = pick(all_points, rng);
+    mp->set_p_w(mp->p_w() + Eigen::Vector3d(0.01, 0, 0));
+    mp->increase_visible();
+  }
+  for (int i = 0; i < 3; ++i) map->cull_map_point(pick(all_points, rng)->id());
+  if (keyframes.size() > 4) map->cull_keyframe(pick(keyframes, rng)->id());
+}
+
+TEST(Checkpoint, WritesOnlyChangedRowsAndLoadsEqual) {
+  TempDb db("checkpoint_rows");
+  Atlas atlas;
+  build_atlas(atlas, test_vocabulary(), 21);
+  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), manual_only());
+
+  // The first checkpoint writes everything.
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  CheckpointStats stats = checkpointer.stats();
+  EXPECT_EQ(stats.commits, 1u);
+  EXPECT_EQ(stats.sequence, 1);
+  EXPECT_GT(stats.last_rows.inserted, count_keyframes(atlas) + count_points(atlas));
+  expect_file_holds(db.path(), atlas);
+
+  // Nothing changed: nothing written, the sequence stays.
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  stats = checkpointer.stats();
+  EXPECT_EQ(stats.checkpoints, 2u);
+  EXPECT_EQ(stats.commits, 1u);
+  EXPECT_EQ(stats.last_rows.total(), 0u);
+  EXPECT_EQ(AtlasStore::open(db.path(), test_vocabulary().hash()).checkpoint_sequence(), 1);
+
+  // One keyframe moved: exactly its row.
+  const auto kf = atlas.maps()[0]->keyframes()[1];
+  kf->set_T_w_b(Pose3(Eigen::Quaterniond(0.5, 0.5, -0.5, 0.5), Eigen::Vector3d(1, 2, 3)));
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  stats = checkpointer.stats();
+  EXPECT_EQ(stats.last_rows.updated, 1u);
+  EXPECT_EQ(stats.last_rows.inserted, 0u);
+  EXPECT_EQ(stats.last_rows.deleted, 0u);
+  EXPECT_EQ(stats.sequence, 2);
+  expect_file_holds(db.path(), atlas);
+
+  // One point's statistics: its row.
+  atlas.maps()[1]->map_points()[3]->increase_found();
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  EXPECT_EQ(checkpointer.stats().last_rows.updated, 1u);
+  EXPECT_EQ(checkpointer.stats().last_rows.total(), 1u);
+
+  // Rounds of random edits: after each, the file loads equal to the atlas, and
+  // an edit round writes far fewer rows than the atlas has.
+  const std::size_t full_rows = checkpointer.stats().total_rows.inserted;
+  std::size_t deleted = 0;
+  std::mt19937_64 rng(22);
+  for (int round = 0; round < 8; ++round) {
+    random_edits(atlas, rng);
+    ASSERT_TRUE(checkpointer.checkpoint_now()) << checkpointer.stats().last_error;
+    stats = checkpointer.stats();
+    EXPECT_GT(stats.last_rows.total(), 0u) << "round " << round;
+    EXPECT_LT(stats.last_rows.total(), full_rows / 2) << "round " << round;
+    deleted += stats.last_rows.deleted;
+    expect_file_holds(db.path(), atlas);
+    if (HasFailure()) return;
+  }
+  EXPECT_GT(deleted, 8u);
+  EXPECT_GT(count_culled_keyframes(atlas), 4u);
+  stats = checkpointer.stats();
+  EXPECT_EQ(stats.failures, 0u);
+  EXPECT_EQ(stats.wall_ms.size(), stats.checkpoints);
+  EXPECT_EQ(stats.sequence, 11);
+  checkpointer.stop();
+  EXPECT_EQ(checkpointer.stats().commits, 11u);  // the final checkpoint had nothing to write
+}
+
+TEST(Checkpoint, FailedCheckpointKeepsTheLastGoodStateAndRetries) {
+  TempDb db("checkpoint_failure");
+  Atlas atlas;
+  build_atlas(atlas, test_vocabulary(), 23);
+  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), manual_only());
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+
+  // Another connection makes every keyframe update fail (as a full disk or an
+  // I/O error would, in the middle of the transaction).
+  SqliteDb raw(db.path());
+  raw.exec("CREATE TRIGGER injected_failure BEFORE UPDATE ON keyframes "
+           "BEGIN SELECT RAISE(ABORT, 'injected failure'); END");
+  Atlas before;
+  build_atlas(before, test_vocabulary(), 23);  // the same content, as committed
+  const auto kfs = atlas.maps()[0]->keyframes();
+  std::mt19937_64 rng(1);
+  kfs[0]->set_T_w_b(random_pose(rng));
+  add_random_point(*atlas.maps()[0], rng);
+  EXPECT_FALSE(checkpointer.checkpoint_now());
+  CheckpointStats stats = checkpointer.stats();
+  EXPECT_EQ(stats.failures, 1u);
+  EXPECT_NE(stats.last_error.find("injected failure"), std::string::npos) << stats.last_error;
+  EXPECT_EQ(stats.commits, 1u);
+  EXPECT_EQ(raw.query_int64("SELECT checkpoint_seq FROM atlas"), 1);
+  expect_file_holds(db.path(), before);  // all or nothing: the new point is not there either
+
+  // The cause goes away; the next checkpoint writes everything changed since the last commit.
+  raw.exec("DROP TRIGGER injected_failure");
+  kfs[1]->set_T_w_b(random_pose(rng));
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  stats = checkpointer.stats();
+  EXPECT_EQ(stats.last_rows.updated, 3u);  // two keyframes, the atlas row (allocator)
+  EXPECT_EQ(stats.last_rows.inserted, 1u);
+  EXPECT_EQ(stats.sequence, 2);
+  expect_file_holds(db.path(), atlas);
+}
+
+TEST(Checkpoint, SessionTrajectoryAndKeyframeSessions) {
+  TempDb db("checkpoint_session");
+  Atlas atlas;
+  build_atlas(atlas, test_vocabulary(), 24);
+  const std::size_t old_keyframes = count_keyframes(atlas);
+  std::mutex frames_mutex;  // the trajectory source is called on the checkpoint thread
+  std::vector<FrameAnchor> frames;
+  CheckpointSession session;
+  session.info.id = 5;
+  session.info.name = "live";
+  session.trajectory = [&] {
+    std::lock_guard lock(frames_mutex);
+    return frames;
+  };
+  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), manual_only(), session);
+  std::mt19937_64 rng(25);
+  const auto map = atlas.active_map();
+  const auto add_frames = [&](int n) {
+    std::lock_guard lock(frames_mutex);
+    for (int i = 0; i < n; ++i)
+      frames.push_back({static_cast<TimestampNs>(frames.size()) * 50'000'000, map->id(),
+                        map->keyframes().front()->id(), random_pose(rng)});
+  };
+  add_frames(20);
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  // New keyframes are the session's; 5 frames more and one corrected.
+  const auto kf1 = add_random_keyframe(*map, rng, &test_vocabulary(), 40, true);
+  const auto kf2 = add_random_keyframe(*map, rng, &test_vocabulary(), 40, true);
+  add_frames(5);
+  {
+    std::lock_guard lock(frames_mutex);
+    frames[3].T_ref_b = random_pose(rng);
+  }
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  const CheckpointStats stats = checkpointer.stats();
+  EXPECT_EQ(stats.last_rows.inserted, 2u + 5u);  // two keyframes, five frames
+  EXPECT_EQ(stats.last_rows.updated, 1u + 1u);   // one frame, the atlas row (allocator)
+  checkpointer.stop();
+
+  AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+  const auto stored_session = store.load_session(5);
+  ASSERT_TRUE(stored_session.has_value());
+  EXPECT_EQ(stored_session->name, "live");
+  const auto stored_frames = store.load_trajectory(5);
+  ASSERT_EQ(stored_frames.size(), frames.size());
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    EXPECT_EQ(stored_frames[i].t_ns, frames[i].t_ns);
+    expect_pose_eq(stored_frames[i].T_ref_b, frames[i].T_ref_b, "frame " + std::to_string(i));
+  }
+  Atlas loaded;
+  const AtlasLoadReport report = store.load_atlas(loaded, &test_vocabulary());
+  EXPECT_EQ(count_keyframes(loaded), old_keyframes + 2);
+  ASSERT_EQ(report.keyframe_sessions.size(), 2u);  // keyframes made before the checkpointer have none
+  EXPECT_EQ(report.keyframe_sessions.at(kf1->id()), 5u);
+  EXPECT_EQ(report.keyframe_sessions.at(kf2->id()), 5u);
+
+  // Two frames at one time: the checkpoint fails (and says why), nothing else happens.
+  Atlas empty;
+  CheckpointSession twice;
+  twice.info.id = 6;
+  twice.trajectory = [] { return std::vector<FrameAnchor>{FrameAnchor{7, 0, 0, Pose3()}, FrameAnchor{7, 0, 1, Pose3()}}; };
+  AtlasCheckpointer failing(empty, db.path(), test_vocabulary().hash(), manual_only(), twice);
+  EXPECT_FALSE(failing.checkpoint_now());
+  EXPECT_NE(failing.stats().last_error.find("two frames at timestamp 7"), std::string::npos)
+      << failing.stats().last_error;
+}
+
+TEST(Checkpoint, KeyframeCountAndTimerTriggerCheckpoints) {
+  TempDb db("checkpoint_triggers");
+  Atlas atlas;
+  const auto map = atlas.create_map();
+  std::mt19937_64 rng(26);
+
+  // Every 3 keyframes, no timer: two notifications do nothing, the third wakes the worker.
+  std::promise<void> started;
+  std::once_flag once;
+  CheckpointOptions options;
+  options.every_keyframes = 3;
+  options.every_seconds = 0;
+  options.before_transaction = [&] { std::call_once(once, [&] { started.set_value(); }); };
+  {
+    AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), options);
+    auto future = started.get_future();
+    for (int i = 0; i < 2; ++i) {
+      add_random_keyframe(*map, rng, nullptr, 10, true);
+      checkpointer.notify_keyframe();
+    }
+    EXPECT_EQ(future.wait_for(std::chrono::milliseconds(300)), std::future_status::timeout);
+    add_random_keyframe(*map, rng, nullptr, 10, true);
+    checkpointer.notify_keyframe();
+    EXPECT_EQ(future.wait_for(std::chrono::seconds(10)), std::future_status::ready);
+  }
+
+  // A timer alone.
+  std::promise<void> timed;
+  std::once_flag timed_once;
+  options.every_keyframes = 0;
+  options.every_seconds = 0.05;
+  options.before_transaction = [&] { std::call_once(timed_once, [&] { timed.set_value(); }); };
+  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), options);
+  EXPECT_EQ(timed.get_future().wait_for(std::chrono::seconds(10)), std::future_status::ready);
+
+  // stop(): a final checkpoint, idempotent; nothing afterwards.
+  add_random_keyframe(*map, rng, nullptr, 10, true);
+  checkpointer.stop();
+  checkpointer.stop();
+  EXPECT_FALSE(checkpointer.checkpoint_now());
+  EXPECT_EQ(checkpointer.stats().failures, 0u);
+  Atlas loaded;
+  AtlasStore::open(db.path(), test_vocabulary().hash()).load_atlas(loaded, nullptr);
+  EXPECT_EQ(count_keyframes(loaded), 4u);
+}
+
+// Checkpoints while another thread edits the atlas: every checkpoint commits
+// (a snapshot consistent per object satisfies every constraint), and once the
+// edits stop, the file equals the atlas.
+TEST(Checkpoint, ConcurrentEditsNeverBreakACheckpoint) {
+  TempDb db("checkpoint_concurrent");
+  Atlas atlas;
+  build_atlas(atlas, test_vocabulary(), 27);
+  CheckpointOptions options;
+  options.every_keyframes = 2;
+  options.every_seconds = 0.01;
+  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), options);
+  std::thread editor([&] {
+    std::mt19937_64 rng(28);
+    for (int round = 0; round < 60; ++round) {
+      random_edits(atlas, rng);
+      checkpointer.notify_keyframe();
+      checkpointer.notify_keyframe();
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));  // frames come at a rate
+    }
+  });
+  editor.join();
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  const CheckpointStats stats = checkpointer.stats();
+  EXPECT_EQ(stats.failures, 0u) << stats.last_error;
+  EXPECT_GT(stats.commits, 3u);
+  expect_file_holds(db.path(), atlas);
+}
+
+}  // namespace
+}  // namespace orbatlas

@@ -1,0 +1,156 @@
+#include "tests/test_persistence_expect.h"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+namespace orbatlas::test {
+
+void expect_pose_eq(const Pose3& a, const Pose3& b, const std::string& what) {
+  EXPECT_EQ(a.q.coeffs(), b.q.coeffs()) << what;
+  EXPECT_EQ(a.t, b.t) << what;
+}
+
+void expect_keyframe_eq(const Map& map_a, const KeyFrame& a, const KeyFrame& b, bool same_bow) {
+  const std::string what = "keyframe " + std::to_string(a.id());
+  EXPECT_EQ(a.id(), b.id());
+  EXPECT_EQ(a.map_id(), b.map_id()) << what;
+  EXPECT_FALSE(b.is_bad()) << what;
+  EXPECT_EQ(a.timestamp_ns(), b.timestamp_ns()) << what;
+  expect_pose_eq(a.T_w_b(), b.T_w_b(), what + " T_w_b");
+  expect_pose_eq(a.T_b_c(), b.T_b_c(), what + " T_b_c");
+  // Features, every field.
+  EXPECT_EQ(a.features().width, b.features().width) << what;
+  EXPECT_EQ(a.features().height, b.features().height) << what;
+  ASSERT_EQ(a.slot_count(), b.slot_count()) << what;
+  for (std::size_t i = 0; i < a.slot_count(); ++i) {
+    const Keypoint &ka = a.keypoint(i), &kb = b.keypoint(i);
+    EXPECT_EQ(ka.uv, kb.uv) << what << " slot " << i;
+    EXPECT_EQ(ka.level, kb.level) << what << " slot " << i;
+    EXPECT_EQ(ka.angle_deg, kb.angle_deg) << what << " slot " << i;
+    EXPECT_EQ(ka.response, kb.response) << what << " slot " << i;
+    EXPECT_EQ(ka.bearing, kb.bearing) << what << " slot " << i;
+    EXPECT_EQ(ka.uv_undistorted, kb.uv_undistorted) << what << " slot " << i;
+    EXPECT_EQ(a.depth(i), b.depth(i)) << what << " slot " << i;
+    EXPECT_EQ(a.u_right(i), b.u_right(i)) << what << " slot " << i;
+  }
+  EXPECT_EQ(a.features().descriptors, b.features().descriptors) << what;
+  EXPECT_EQ(a.is_stereo(), b.is_stereo()) << what;
+  if (same_bow) {
+    EXPECT_EQ(a.bow(), b.bow()) << what;
+    EXPECT_EQ(a.feature_vector(), b.feature_vector()) << what;
+  } else {
+    EXPECT_TRUE(b.bow().empty()) << what;
+    EXPECT_TRUE(b.feature_vector().empty()) << what;
+  }
+  // The rebuilt grid answers like the original.
+  EXPECT_EQ(a.grid().size(), b.grid().size()) << what;
+  EXPECT_EQ(a.grid().cols(), b.grid().cols()) << what;
+  EXPECT_EQ(a.grid().rows(), b.grid().rows()) << what;
+  for (const Eigen::Vector2f& uv : {Eigen::Vector2f(100, 100), Eigen::Vector2f(400, 250), Eigen::Vector2f(700, 450)})
+    EXPECT_EQ(a.grid().in_radius(uv, 60.0f), b.grid().in_radius(uv, 60.0f)) << what;
+  // Observations and graph.
+  const auto sa = a.slots(), sb = b.slots();
+  for (std::size_t i = 0; i < sa.size(); ++i) {
+    ASSERT_EQ(sa[i] == nullptr, sb[i] == nullptr) << what << " slot " << i;
+    if (sa[i]) {
+      EXPECT_EQ(sa[i]->id(), sb[i]->id()) << what << " slot " << i;
+    }
+  }
+  EXPECT_EQ(a.map_point_count(), b.map_point_count()) << what;
+  EXPECT_EQ(a.redundant_map_point_count(), b.redundant_map_point_count()) << what;
+  // Links to culled keyframes are not stored: culling erases only the links the
+  // culled keyframe itself holds, so a neighbour whose mirrored link it had
+  // dropped keeps a dead one (as in ORB-SLAM); it is not worth persisting.
+  std::vector<CovisibilityEdge> ca;
+  for (const CovisibilityEdge& edge : a.connections())
+    if (map_a.keyframe(edge.keyframe)) ca.push_back(edge);
+  const auto cb = b.connections();
+  ASSERT_EQ(ca.size(), cb.size()) << what;
+  for (std::size_t i = 0; i < ca.size(); ++i) {
+    EXPECT_EQ(ca[i].keyframe, cb[i].keyframe) << what << " connection " << i;
+    EXPECT_EQ(ca[i].weight, cb[i].weight) << what << " connection " << i;
+  }
+  EXPECT_EQ(a.parent_id(), b.parent_id()) << what;
+  EXPECT_EQ(a.child_ids(), b.child_ids()) << what;
+  EXPECT_EQ(a.loop_edge_ids(), b.loop_edge_ids()) << what;
+}
+
+void expect_point_eq(const MapPoint& a, const MapPoint& b) {
+  const std::string what = "map point " + std::to_string(a.id());
+  EXPECT_EQ(a.id(), b.id());
+  EXPECT_EQ(a.map_id(), b.map_id()) << what;
+  EXPECT_EQ(a.p_w(), b.p_w()) << what;
+  EXPECT_EQ(a.normal(), b.normal()) << what;
+  EXPECT_EQ(a.min_distance(), b.min_distance()) << what;
+  EXPECT_EQ(a.max_distance(), b.max_distance()) << what;
+  EXPECT_EQ(a.descriptor(), b.descriptor()) << what;
+  EXPECT_EQ(a.reference_keyframe_id(), b.reference_keyframe_id()) << what;
+  EXPECT_EQ(a.visible(), b.visible()) << what;
+  EXPECT_EQ(a.found(), b.found()) << what;
+  const auto oa = a.observations(), ob = b.observations();
+  ASSERT_EQ(oa.size(), ob.size()) << what;
+  for (std::size_t i = 0; i < oa.size(); ++i) {
+    EXPECT_EQ(oa[i].keyframe, ob[i].keyframe) << what;
+    EXPECT_EQ(oa[i].slot, ob[i].slot) << what;
+    EXPECT_EQ(oa[i].level, ob[i].level) << what;
+  }
+}
+
+void expect_culled_eq(const Map& a, const Map& b) {
+  const auto ca = a.culled_keyframes(), cb = b.culled_keyframes();
+  ASSERT_EQ(ca.size(), cb.size()) << "map " << a.id();
+  for (std::size_t i = 0; i < ca.size(); ++i) {
+    const std::string what = "culled keyframe " + std::to_string(ca[i].id);
+    ASSERT_EQ(ca[i].id, cb[i].id) << what;
+    EXPECT_EQ(ca[i].parent, cb[i].parent) << what;
+    expect_pose_eq(ca[i].T_parent_b, cb[i].T_parent_b, what + " T_parent_b");
+    // What trajectories anchored to it resolve to: chained through the same
+    // (possibly culled) parents to the same alive keyframe.
+    const auto pa = a.keyframe_pose(ca[i].id), pb = b.keyframe_pose(cb[i].id);
+    ASSERT_TRUE(pa.has_value()) << what;
+    ASSERT_TRUE(pb.has_value()) << what;
+    expect_pose_eq(*pa, *pb, what + " keyframe_pose");
+  }
+}
+
+void expect_atlas_eq(const Atlas& a, const Atlas& b, bool same_bow) {
+  const auto ma = a.maps(), mb = b.maps();
+  ASSERT_EQ(ma.size(), mb.size());
+  ASSERT_EQ(a.active_map() == nullptr, b.active_map() == nullptr);
+  if (a.active_map()) {
+    EXPECT_EQ(a.active_map()->id(), b.active_map()->id());
+  }
+  for (std::size_t m = 0; m < ma.size(); ++m) {
+    ASSERT_EQ(ma[m]->id(), mb[m]->id());
+    const auto ka = ma[m]->keyframes(), kb = mb[m]->keyframes();
+    ASSERT_EQ(ka.size(), kb.size()) << "map " << ma[m]->id();
+    for (std::size_t i = 0; i < ka.size(); ++i) expect_keyframe_eq(*ma[m], *ka[i], *kb[i], same_bow);
+    const auto pa = ma[m]->map_points(), pb = mb[m]->map_points();
+    ASSERT_EQ(pa.size(), pb.size()) << "map " << ma[m]->id();
+    for (std::size_t i = 0; i < pa.size(); ++i) expect_point_eq(*pa[i], *pb[i]);
+    expect_culled_eq(*ma[m], *mb[m]);
+  }
+  for (const IdKind kind : {IdKind::keyframe, IdKind::map_point, IdKind::map})
+    EXPECT_EQ(a.ids().peek(kind), b.ids().peek(kind)) << "id kind " << static_cast<int>(kind);
+}
+
+std::size_t count_keyframes(const Atlas& atlas) {
+  std::size_t n = 0;
+  for (const auto& m : atlas.maps()) n += m->keyframe_count();
+  return n;
+}
+
+std::size_t count_points(const Atlas& atlas) {
+  std::size_t n = 0;
+  for (const auto& m : atlas.maps()) n += m->map_point_count();
+  return n;
+}
+
+std::size_t count_culled_keyframes(const Atlas& atlas) {
+  std::size_t n = 0;
+  for (const auto& m : atlas.maps()) n += m->culled_keyframes().size();
+  return n;
+}
+
+}  // namespace orbatlas::test
