@@ -33,6 +33,21 @@ void print_summary(const DatasetRunReport& r) {
   std::printf("peak RSS %.0f MB; wall %.1f s", r.peak_rss_mb, r.wall_s);
   if (r.late_frames > 0 || r.stats.frames > 0) std::printf("; late frames %zu", r.late_frames);
   std::printf("\n");
+  if (r.stats.loop_closing) {
+    const auto pr = percentiles(r.stats.loop.place_recognition_ms);
+    std::printf("loops %zu", r.stats.loop.loops.size());
+    if (!r.stats.loop_error_m.empty()) {
+      std::size_t false_loops = 0;
+      for (std::size_t i = 0; i < r.stats.loop_error_m.size(); ++i)
+        if (r.stats.loop_error_m[i] > kFalseLoopM || r.stats.loop_error_deg[i] > kFalseLoopDeg) ++false_loops;
+      std::printf(" (false by the ground truth: %zu)", false_loops);
+    }
+    std::printf("; place recognition ms/keyframe p50 %.1f p95 %.1f", pr.p50, pr.p95);
+    for (const auto& loop : r.stats.loop.loops) std::printf("; correction %.0f ms", loop.correction.total_ms);
+    for (const auto& g : r.stats.loop.global_adjustments)
+      std::printf("; global BA %zu keyframes %.2f s%s", g.keyframes, g.seconds, g.interrupted ? " (interrupted)" : "");
+    std::printf("\n");
+  }
   if (r.ate_rmse_m) std::printf("ATE RMSE (SE3, against the dataset's ground truth) %.4f m\n", *r.ate_rmse_m);
 }
 
@@ -56,6 +71,8 @@ void register_run_command(CLI::App& app) {
                 "Also run the other redundancy scheme at every culling decision and count disagreements");
   cmd->add_flag("--synchronous", args->run.slam.synchronous_mapping,
                 "Wait for local mapping after each keyframe (deterministic, slower)");
+  cmd->add_flag("!--no-loop-closing", args->run.slam.loop_closing,
+                "No place recognition, loop correction or global bundle adjustment");
   cmd->add_flag("!--no-progress", args->run.show_progress, "Do not print progress");
   cmd->callback([args]() {
     DatasetRunOptions options = args->run;

@@ -51,13 +51,18 @@ TEST(StereoSlam, TenSecondClipTracksWithinThreeCentimetres) {
               *r.ate_rmse_m, r.stats.keyframes, r.stats.mapping.culled_keyframes.size(), r.stats.mappoints,
               percentiles(r.stats.tracking_ms).p50);
   EXPECT_GE(r.stats.keyframes, 5u);
+  // No part of this clip is revisited: place recognition runs but closes no loop.
+  EXPECT_TRUE(r.stats.loop_closing);
+  EXPECT_GT(r.stats.loop.keyframes, 0u);
+  EXPECT_LE(r.stats.loop.keyframes + r.stats.loop.keyframes_skipped, r.stats.mapping.keyframes);
+  EXPECT_EQ(r.stats.loop.loops.size(), 0u);
   EXPECT_GT(r.stats.mapping.points_triangulated, 0u);
   expect_counters_consistent(r.stats);
   // The JSON carries the keys the issue lists.
   const auto j = r.to_json();
   for (const char* key : {"frames", "tracked", "lost", "maps", "keyframes", "mappoints", "tracking_ms",
                           "local_mapping_ms_per_kf", "local_ba_ms", "culling_ms_per_kf", "peak_rss_mb", "objects",
-                          "late_frames"})
+                          "late_frames", "loops", "loop_closing"})
     EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_EQ(j["objects"]["mappoints"]["reclaimed"].get<std::uint64_t>(), r.stats.mappoint_objects.reclaimed);
 }

@@ -30,6 +30,16 @@ class BoundedQueue {
     return true;
   }
 
+  // Never blocks: false (item dropped) when the queue is full or closed. For
+  // producers that must not wait on a slower consumer (it may be waiting on them).
+  bool try_push(T item) {
+    std::lock_guard lock(mutex_);
+    if (closed_ || items_.size() >= capacity_) return false;
+    items_.push_back(std::move(item));
+    not_empty_.notify_one();
+    return true;
+  }
+
   // Blocks until an item arrives; empty once closed and drained.
   std::optional<T> pop() {
     std::unique_lock lock(mutex_);

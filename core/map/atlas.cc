@@ -48,4 +48,10 @@ std::vector<std::shared_ptr<Map>> Atlas::maps() const {
   return out;
 }
 
+std::size_t Atlas::index_all_keyframes() {
+  for (const auto& map : maps())
+    for (const auto& keyframe : map->keyframes()) index_.add(keyframe);
+  return index_.size();
+}
+
 }  // namespace orbatlas

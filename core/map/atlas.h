@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/map/id_allocator.h"
+#include "core/map/keyframe_index.h"
 #include "core/map/map.h"
 #include "core/map/object_counters.h"
 
@@ -33,12 +34,22 @@ class Atlas {
   const IdAllocator& ids() const { return *ids_; }  // for peek() (saving an atlas)
   const std::shared_ptr<ObjectCounters>& counters() const { return counters_; }
 
+  // The place-recognition index over the keyframes of every map (thread-safe):
+  // local mapping adds processed keyframes and erases culled ones; relocalisation,
+  // loop closing and map merging query it; loading an atlas rebuilds it.
+  KeyframeIndex& keyframe_index() { return index_; }
+  const KeyframeIndex& keyframe_index() const { return index_; }
+  // Indexes every live keyframe of every map (after loading a stored atlas);
+  // keyframes without a bag of words are skipped. Returns how many are indexed.
+  std::size_t index_all_keyframes();
+
  private:
   const std::shared_ptr<IdAllocator> ids_;
   const std::shared_ptr<ObjectCounters> counters_;
   mutable std::mutex mutex_;  // guards maps_ and active_; no other lock is taken under it
   std::map<MapId, std::shared_ptr<Map>> maps_;
   std::shared_ptr<Map> active_;
+  KeyframeIndex index_;  // has its own lock
 };
 
 }  // namespace orbatlas

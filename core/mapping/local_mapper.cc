@@ -80,11 +80,37 @@ LocalMapperStats LocalMapper::stats() const {
   return stats_;
 }
 
+void LocalMapper::set_processed_listener(std::function<void(const std::shared_ptr<KeyFrame>&)> listener) {
+  processed_listener_ = std::move(listener);
+}
+
+void LocalMapper::pause() {
+  std::unique_lock lock(state_mutex_);
+  pause_requested_.store(true);
+  // Tracking stops inserting; what was queued is processed first, so that no
+  // keyframe made before the correction is processed after it.
+  idle_cv_.wait(lock, [&] { return in_flight_ == 0; });
+  paused_ = true;
+}
+
+void LocalMapper::resume() {
+  std::lock_guard lock(state_mutex_);
+  paused_ = false;
+  pause_requested_.store(false);
+  idle_cv_.notify_all();
+}
+
 void LocalMapper::run() {
   while (auto keyframe = queue_.pop()) {
+    {
+      // A keyframe inserted just as a pause began waits for the resume.
+      std::unique_lock lock(state_mutex_);
+      idle_cv_.wait(lock, [&] { return !paused_; });
+    }
     abort_ba_.store(false);
     try {
       process(*keyframe);
+      if (processed_listener_ && !(*keyframe)->is_bad()) processed_listener_(*keyframe);
     } catch (...) {
       std::lock_guard lock(state_mutex_);
       if (!error_) error_ = std::current_exception();

@@ -7,6 +7,7 @@
 // adjustment, and cull redundant keyframes. See docs/mapping.md.
 #include <atomic>
 #include <condition_variable>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -64,6 +65,18 @@ class LocalMapper final : public KeyframeSink {
   std::size_t queued() const override { return queue_.size(); }
   void insert(std::shared_ptr<KeyFrame> keyframe) override;
   void interrupt_optimization() override { abort_ba_.store(true); }
+  bool accepting() const override { return !pause_requested_.load(); }
+
+  // Called on the mapper thread with every keyframe it has processed (loop
+  // detection). Must not block: hand the keyframe to a queue with try_push.
+  // Set before the first insert.
+  void set_processed_listener(std::function<void(const std::shared_ptr<KeyFrame>&)> listener);
+
+  // For a loop correction: tracking stops making keyframes, what is queued is
+  // processed, and the mapper then waits between keyframes until resume(). While
+  // paused nothing in the atlas is edited by this mapper. Returns once paused.
+  void pause();
+  void resume();
 
   void wait_until_idle() const;
   // Processes what is queued, then stops the thread (idempotent). Rethrows an
@@ -95,7 +108,10 @@ class LocalMapper final : public KeyframeSink {
   mutable std::mutex state_mutex_;
   mutable std::condition_variable idle_cv_;
   std::size_t in_flight_ = 0;  // inserted and not yet processed
+  std::atomic<bool> pause_requested_{false};
+  bool paused_ = false;  // guarded by state_mutex_; the mapper processes nothing while set
   std::exception_ptr error_;
+  std::function<void(const std::shared_ptr<KeyFrame>&)> processed_listener_;
 
   // Mapper-thread state.
   std::map<MapId, KeyframeId> origins_;

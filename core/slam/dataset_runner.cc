@@ -124,6 +124,16 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
     } catch (const Error& e) {
       log_warn(std::string("no ATE: ") + e.what());
     }
+    // Each closed loop's relative pose against the ground truth (false loops).
+    const Pose3 T_b_c = slam.frontend().calibration().T_b_c;
+    for (const ClosedLoop& loop : report.stats.loop.loops) {
+      const auto a = pose_at(gt, loop.current_t_ns, 50'000'000);
+      const auto m = pose_at(gt, loop.matched_t_ns, 50'000'000);
+      if (!a || !m) break;  // errors stay index-aligned with the loops
+      const Pose3 T_cur_m_gt = (*a * T_b_c).inverse() * (*m * T_b_c);
+      report.stats.loop_error_m.push_back(translation_distance(T_cur_m_gt, loop.T_cur_m));
+      report.stats.loop_error_deg.push_back(rotation_distance(T_cur_m_gt, loop.T_cur_m) * 180.0 / M_PI);
+    }
   }
   return report;
 }

@@ -66,6 +66,51 @@ nlohmann::json to_json(const SlamStats& s) {
   j["points_triangulated"] = s.mapping.points_triangulated;
   j["points_fused"] = s.mapping.points_fused;
   j["recent_points_culled"] = s.mapping.recent_points_culled;
+  j["loops"] = s.loop.loops.size();
+  if (s.loop_closing) {
+    nlohmann::json lc;
+    lc["keyframes"] = s.loop.keyframes;
+    lc["keyframes_skipped"] = s.loop.keyframes_skipped;
+    lc["hypotheses"] = s.loop.hypotheses;
+    lc["place_recognition_ms_per_kf"] = summary(s.loop.place_recognition_ms);
+    std::vector<double> correction_ms;
+    nlohmann::json loops = nlohmann::json::array();
+    for (std::size_t i = 0; i < s.loop.loops.size(); ++i) {
+      const ClosedLoop& l = s.loop.loops[i];
+      correction_ms.push_back(l.correction.total_ms);
+      nlohmann::json e = {{"current_keyframe", l.current},
+                          {"matched_keyframe", l.matched},
+                          {"current_t_s", static_cast<double>(l.current_t_ns) * 1e-9},
+                          {"matched_t_s", static_cast<double>(l.matched_t_ns) * 1e-9},
+                          {"matches", l.matches},
+                          {"correction_m", l.correction.correction_m},
+                          {"correction_deg", l.correction.correction_deg},
+                          {"group_keyframes", l.correction.group_keyframes},
+                          {"points_merged", l.correction.points_merged},
+                          {"essential_graph_edges", l.correction.graph_edges},
+                          {"essential_graph_ms", l.correction.graph_ms},
+                          {"correction_ms", l.correction.total_ms}};
+      if (i < s.loop_error_m.size()) {
+        e["error_m"] = s.loop_error_m[i];
+        e["error_deg"] = s.loop_error_deg[i];
+      }
+      loops.push_back(e);
+    }
+    lc["loop_correction_ms"] = summary(correction_ms);
+    lc["loops"] = loops;
+    nlohmann::json gba = nlohmann::json::array();
+    for (const auto& g : s.loop.global_adjustments)
+      gba.push_back({{"keyframes", g.keyframes}, {"points", g.points}, {"seconds", g.seconds},
+                     {"interrupted", g.interrupted}});
+    lc["global_ba"] = gba;
+    if (!s.loop_error_m.empty()) {
+      std::size_t false_loops = 0;
+      for (std::size_t i = 0; i < s.loop_error_m.size(); ++i)
+        if (s.loop_error_m[i] > kFalseLoopM || s.loop_error_deg[i] > kFalseLoopDeg) ++false_loops;
+      lc["false_loops"] = false_loops;
+    }
+    j["loop_closing"] = lc;
+  }
   j["objects"] = {{"keyframes", counters(s.keyframe_objects)}, {"mappoints", counters(s.mappoint_objects)}};
   return j;
 }

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/map/object_counters.h"
+#include "core/loop/loop_closer.h"
 #include "core/mapping/local_mapper.h"
 
 namespace orbatlas {
@@ -23,6 +24,12 @@ struct SlamStats {
   std::size_t relocalizations = 0;
   std::vector<double> tracking_ms;  // per frame: front end + tracking
   LocalMapperStats mapping;
+  bool loop_closing = false;  // the loop closer ran
+  LoopClosingStats loop;
+  // Per closed loop, when ground truth is known (dataset runs): the error of the
+  // estimated relative pose between the two keyframes; a false loop is off by
+  // more than kFalseLoopM or kFalseLoopDeg.
+  std::vector<double> loop_error_m, loop_error_deg;
   CullingScheme culling_scheme = CullingScheme::kIncremental;
   CounterSnapshot keyframe_objects, mappoint_objects;
 };
@@ -31,7 +38,10 @@ struct SlamStats {
 // local_mapping_ms_per_kf{p50,p95,max}, local_ba_ms{p50,p95,max}, culling_scheme,
 // culling_ms_per_kf (the scheme in use), culling_ms_per_kf_by_scheme{scan,incremental},
 // culling_disagreements, culled_keyframes, points_triangulated, points_fused,
-// objects{keyframes,mappoints}{created,culled,alive,reclaimed}.
+// objects{keyframes,mappoints}{created,culled,alive,reclaimed}, loops,
+// loop_closing{place_recognition_ms_per_kf, loop_correction_ms, loops[],
+// global_ba[], false_loops}.
+inline constexpr double kFalseLoopM = 0.2, kFalseLoopDeg = 5.0;
 nlohmann::json to_json(const SlamStats& stats);
 
 }  // namespace orbatlas

@@ -3,6 +3,7 @@
 #include <chrono>
 
 #include "core/common/error.h"
+#include "core/common/log.h"
 #include "core/place/relocalizer.h"
 
 namespace orbatlas {
@@ -37,15 +38,23 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
   options_.tracker.th_depth_m = settings.stereo_th_depth * frontend_.baseline();
   options_.tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));
   const Pose3 T_b_c = frontend_.calibration().T_b_c;
-  if (options_.relocalization) relocalizer_ = std::make_unique<IndexRelocalizer>(vocabulary, index_, cam_, T_b_c);
-  mapper_ = std::make_unique<LocalMapper>(atlas_, cam_, options_.mapper, &index_);
+  if (options_.relocalization) relocalizer_ = std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c);
+  mapper_ = std::make_unique<LocalMapper>(atlas_, cam_, options_.mapper, &atlas_.keyframe_index());
+  if (options_.loop_closing && !options_.tracker.localization_only)
+    loop_closer_ = std::make_unique<LoopCloser>(atlas_, cam_, *mapper_, options_.loop);
   tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *mapper_, cam_, T_b_c, options_.tracker,
                                        relocalizer_.get());
 }
 
 StereoSlam::~StereoSlam() {
-  // The tracker refers to the mapper: it goes first.
+  // The tracker refers to the mapper, the loop closer to the mapper: they go first.
   tracker_.reset();
+  try {
+    if (mapper_) mapper_->finish();  // no keyframe reaches the loop closer afterwards
+  } catch (const std::exception& e) {
+    log_warn(std::string("local mapping stopped with an error: ") + e.what());
+  }
+  loop_closer_.reset();
   mapper_.reset();
 }
 
@@ -59,7 +68,10 @@ TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv:
   if (result.tracked) ++tracked_;
   if (result.keyframe) {
     ++keyframes_made_;
-    if (options_.synchronous_mapping) mapper_->wait_until_idle();
+    if (options_.synchronous_mapping) {
+      mapper_->wait_until_idle();
+      if (loop_closer_) loop_closer_->wait_until_idle();
+    }
   }
   return result;
 }
@@ -68,6 +80,7 @@ void StereoSlam::finish() {
   if (finished_) return;
   finished_ = true;
   mapper_->finish();
+  if (loop_closer_) loop_closer_->finish();
   tracker_->release_frames();
 }
 
@@ -99,6 +112,10 @@ SlamStats StereoSlam::stats() const {
   }
   s.tracking_ms = tracking_ms_;
   s.mapping = mapper_->stats();
+  if (loop_closer_) {
+    s.loop_closing = true;
+    s.loop = loop_closer_->stats();
+  }
   s.culling_scheme = options_.mapper.culling.scheme;
   s.keyframe_objects = atlas_.counters()->keyframes();
   s.mappoint_objects = atlas_.counters()->map_points();

@@ -8,7 +8,7 @@
 
 #include "core/io/settings.h"
 #include "core/map/atlas.h"
-#include "core/map/keyframe_index.h"
+#include "core/loop/loop_closer.h"
 #include "core/mapping/local_mapper.h"
 #include "core/slam/slam_stats.h"
 #include "core/tracking/stereo_frontend.h"
@@ -21,6 +21,8 @@ struct StereoSlamOptions {
   TrackerOptions tracker;  // th_depth_m and the keyframe interval are derived from the settings
   bool relocalization = true;  // when recently lost, relocalise against every map of the atlas
   LocalMapperOptions mapper;
+  bool loop_closing = true;  // place recognition, loop correction, global BA (not when localising)
+  LoopCloserOptions loop;
   // Wait for local mapping to finish each keyframe before the next frame: slower,
   // but the run is deterministic (tests, comparing culling schemes).
   bool synchronous_mapping = false;
@@ -53,18 +55,15 @@ class StereoSlam {
   std::vector<TimedPose> trajectory() const;
   SlamStats stats() const;
   const StereoFrontend& frontend() const { return frontend_; }
-  const KeyframeIndex& keyframe_index() const { return index_; }
 
  private:
   Atlas& atlas_;
   StereoSlamOptions options_;
   StereoFrontend frontend_;
   FrameCamera cam_;
-  // Place index over the atlas's keyframes (to move into the Atlas when several
-  // sessions share one), and the relocaliser built on it.
-  KeyframeIndex index_;
   std::unique_ptr<FrameRelocalizer> relocalizer_;
   std::unique_ptr<LocalMapper> mapper_;
+  std::unique_ptr<LoopCloser> loop_closer_;  // null when loop closing is off
   std::unique_ptr<Tracker> tracker_;
   bool finished_ = false;
   std::vector<double> tracking_ms_;

@@ -35,6 +35,8 @@ Tracker::Tracker(Atlas& atlas, const Vocabulary& vocabulary, KeyframeSink& sink,
     : atlas_(atlas), vocabulary_(vocabulary), sink_(sink), relocalizer_(relocalizer), cam_(std::move(cam)), T_b_c_(T_b_c), options_(options) {
   ORBATLAS_CHECK(cam_.camera != nullptr, "tracker needs a camera");
   ORBATLAS_CHECK(cam_.bf > 0.0, "the stereo tracker needs bf > 0");
+  ORBATLAS_CHECK(!options_.localization_only || relocalizer_ != nullptr,
+                 "localisation on stored maps needs a relocaliser");
 }
 
 TrackResult Tracker::track(Frame frame) {
@@ -50,11 +52,27 @@ TrackResult Tracker::track(Frame frame) {
   TrackResult result;
   result.t_ns = frame.t_ns;
 
-  if (state_ == TrackingState::kLost) start_new_map();
-  if (!map_) start_new_map();
+  const bool localizing = options_.localization_only;
+  if (!localizing && state_ == TrackingState::kLost) start_new_map();
+  if (!localizing && !map_) start_new_map();
 
   bool ok = false;
-  if (state_ == TrackingState::kNotInitialized) {
+  if (localizing && state_ != TrackingState::kOk && state_ != TrackingState::kRecentlyLost) {
+    // Not localised yet, or lost for good: look for the place in every stored map.
+    ok = recover(frame);
+    if (ok) {
+      last_recovery_index_ = frame_index_;
+      ok = track_local_map(frame);
+    }
+    if (ok) state_ = TrackingState::kOk;
+    if (ok) {
+      int inliers = 0;
+      for (std::size_t i = 0; i < frame.size(); ++i)
+        if (frame.map_points[i] && !frame.outlier[i]) ++inliers;
+      result.inliers = inliers;
+    }
+    velocity_.reset();
+  } else if (state_ == TrackingState::kNotInitialized) {
     ok = initialize(frame);
     if (ok) result.keyframe = true;
   } else {
@@ -71,7 +89,8 @@ TrackResult Tracker::track(Frame frame) {
     if (ok) {
       state_ = TrackingState::kOk;
     } else if (state_ == TrackingState::kOk) {
-      const bool keep = map_->keyframe_count() > static_cast<std::size_t>(options_.min_keyframes_to_keep_map);
+      const bool keep = localizing ||
+                        map_->keyframe_count() > static_cast<std::size_t>(options_.min_keyframes_to_keep_map);
       state_ = keep ? TrackingState::kRecentlyLost : TrackingState::kLost;
       lost_since_ns_ = frame.t_ns;
     } else if (seconds_between(lost_since_ns_, frame.t_ns) > options_.recently_lost_s) {
@@ -185,7 +204,7 @@ bool Tracker::recover(Frame& frame) {
     ensure_bow(frame);
     const auto found = relocalizer_->relocalize(frame);
     if (!found) return false;
-    if (found->map != map_->id()) {
+    if (!map_ || found->map != map_->id()) {
       auto map = atlas_.map(found->map);
       if (!map) return false;
       map_ = std::move(map);
@@ -297,7 +316,7 @@ bool Tracker::track_local_map(Frame& frame) {
 }
 
 bool Tracker::need_new_keyframe(const Frame& frame, int inliers) const {
-  if (!reference_) return false;
+  if (options_.localization_only || !reference_ || !sink_.accepting()) return false;
   const std::size_t n_kfs = map_->keyframe_count();
   const int min_obs = n_kfs <= 2 ? 1 : 2;  // keyframes; ORB-SLAM counts stereo observations twice (3 of 4)
   int ref_matches = 0;

@@ -31,6 +31,10 @@ struct TrackerOptions {
   double recently_lost_s = 5.0;           // then LOST and a new map
   int max_local_keyframes = 80;
   int min_keyframes_to_keep_map = 10;  // a map lost with fewer keyframes goes straight to LOST
+  // Localisation on stored maps: no keyframe and no map is ever made; the first
+  // frames, and every frame after tracking is lost, are relocalised against every
+  // map of the atlas (a relocaliser is required).
+  bool localization_only = false;
 };
 
 struct TrackResult {

@@ -1,0 +1,21 @@
+#pragma once
+// Bringing a finished background global bundle adjustment into the map (ORB-SLAM's
+// RunGlobalBundleAdjustment tail), with local mapping paused: keyframes and
+// points the solve covered take its result; keyframes made meanwhile follow their
+// spanning-tree parent's correction, points made meanwhile their reference
+// keyframe's.
+#include "core/map/map.h"
+#include "core/map/scale_pyramid.h"
+#include "core/optimization/global_bundle_adjustment.h"
+
+namespace orbatlas {
+
+struct GlobalAdjustmentMergeStats {
+  std::size_t keyframes_set = 0, keyframes_propagated = 0;
+  std::size_t points_set = 0, points_propagated = 0;
+};
+
+GlobalAdjustmentMergeStats merge_global_adjustment(Map& map, const GlobalBundleAdjustmentResult& result,
+                                                   const ScalePyramid& pyramid);
+
+}  // namespace orbatlas

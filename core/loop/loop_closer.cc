@@ -1,0 +1,177 @@
+#include "core/loop/loop_closer.h"
+
+#include <chrono>
+
+#include "core/common/error.h"
+#include "core/common/log.h"
+#include "core/loop/global_adjustment_merge.h"
+
+namespace orbatlas {
+namespace {
+
+double ms_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+// Pauses local mapping for the scope (resumes on every exit path).
+class MappingPause {
+ public:
+  explicit MappingPause(LocalMapper& mapper) : mapper_(mapper) { mapper_.pause(); }
+  ~MappingPause() { mapper_.resume(); }
+  MappingPause(const MappingPause&) = delete;
+  MappingPause& operator=(const MappingPause&) = delete;
+
+ private:
+  LocalMapper& mapper_;
+};
+
+}  // namespace
+
+LoopCloser::LoopCloser(Atlas& atlas, FrameCamera cam, LocalMapper& mapper, LoopCloserOptions options)
+    : atlas_(atlas),
+      cam_(std::move(cam)),
+      mapper_(mapper),
+      options_(std::move(options)),
+      recognizer_(atlas.keyframe_index(), cam_, options_.recognition),
+      queue_(options_.queue_capacity) {
+  mapper_.set_processed_listener([this](const std::shared_ptr<KeyFrame>& kf) { insert(kf); });
+  thread_ = std::thread([this] { run(); });
+}
+
+LoopCloser::~LoopCloser() {
+  try {
+    finish();
+  } catch (const std::exception& e) {
+    log_warn(std::string("loop closing stopped with an error: ") + e.what());
+  }
+}
+
+void LoopCloser::insert(const std::shared_ptr<KeyFrame>& keyframe) {
+  {
+    std::lock_guard lock(state_mutex_);
+    ++in_flight_;
+  }
+  if (!queue_.try_push(keyframe)) {
+    std::lock_guard lock(state_mutex_);
+    --in_flight_;
+    idle_cv_.notify_all();
+    std::lock_guard stats_lock(stats_mutex_);
+    ++stats_.keyframes_skipped;
+  }
+}
+
+void LoopCloser::wait_until_idle() {
+  std::unique_lock lock(state_mutex_);
+  idle_cv_.wait(lock, [&] { return in_flight_ == 0 && !global_running_; });
+  if (error_) std::rethrow_exception(error_);
+}
+
+void LoopCloser::finish() {
+  queue_.close();
+  if (thread_.joinable()) thread_.join();
+  if (global_thread_.joinable()) global_thread_.join();  // let it finish and merge
+  std::lock_guard lock(state_mutex_);
+  if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+}
+
+LoopClosingStats LoopCloser::stats() const {
+  std::lock_guard lock(stats_mutex_);
+  return stats_;
+}
+
+void LoopCloser::run() {
+  while (auto keyframe = queue_.pop()) {
+    try {
+      process(*keyframe);
+    } catch (...) {
+      std::lock_guard lock(state_mutex_);
+      if (!error_) error_ = std::current_exception();
+    }
+    keyframe->reset();
+    std::lock_guard lock(state_mutex_);
+    --in_flight_;
+    idle_cv_.notify_all();
+  }
+}
+
+void LoopCloser::process(const std::shared_ptr<KeyFrame>& keyframe) {
+  const auto start = std::chrono::steady_clock::now();
+  const PlaceRecognitionStep step = recognizer_.process(keyframe);
+  {
+    std::lock_guard lock(stats_mutex_);
+    ++stats_.keyframes;
+    stats_.place_recognition_ms.push_back(ms_since(start));
+    if (step.hypothesis) ++stats_.hypotheses;
+  }
+  if (step.match && step.match->same_map()) close_loop(*step.match);
+}
+
+void LoopCloser::close_loop(const PlaceMatch& loop) {
+  stop_global_adjustment();
+  const auto map = atlas_.map(loop.current->map_id());
+  if (!map) return;
+  LoopCorrectionStats correction;
+  {
+    std::lock_guard lock(correction_mutex_);
+    MappingPause pause(mapper_);
+    correction = correct_loop(*map, loop, cam_, options_.correction);
+  }
+  log_info("loop closed: keyframe " + std::to_string(loop.current->id()) + " with " +
+           std::to_string(loop.matched->id()) + " (" + std::to_string(loop.matches) + " matches), corrected by " +
+           std::to_string(correction.correction_m) + " m in " + std::to_string(correction.total_ms) + " ms");
+  {
+    std::lock_guard lock(stats_mutex_);
+    ClosedLoop closed;
+    closed.current = loop.current->id();
+    closed.matched = loop.matched->id();
+    closed.current_t_ns = loop.current->timestamp_ns();
+    closed.matched_t_ns = loop.matched->timestamp_ns();
+    closed.T_cur_m = loop.T_cur_m;
+    closed.matches = loop.matches;
+    closed.correction = correction;
+    stats_.loops.push_back(closed);
+  }
+  if (options_.global_bundle_adjustment) start_global_adjustment(map->id(), loop.current->id());
+}
+
+void LoopCloser::stop_global_adjustment() {
+  if (!global_thread_.joinable()) return;
+  stop_global_.store(true);
+  global_thread_.join();
+  stop_global_.store(false);
+}
+
+void LoopCloser::start_global_adjustment(MapId map_id, KeyframeId /*loop_keyframe*/) {
+  {
+    std::lock_guard lock(state_mutex_);
+    global_running_ = true;
+  }
+  global_thread_ = std::thread([this, map_id] {
+    try {
+      const auto map = atlas_.map(map_id);
+      if (map) {
+        const auto start = std::chrono::steady_clock::now();
+        const GlobalBundleAdjustmentResult result =
+            global_bundle_adjustment(*map, *cam_.camera, cam_.bf, options_.global, &stop_global_);
+        if (!result.stopped) {
+          std::lock_guard lock(correction_mutex_);
+          MappingPause pause(mapper_);
+          merge_global_adjustment(*map, result, cam_.pyramid);
+        }
+        GlobalAdjustmentRun run{result.keyframes, result.points, ms_since(start) * 1e-3, result.stopped};
+        log_info("global bundle adjustment: " + std::to_string(run.keyframes) + " keyframes, " +
+                 std::to_string(run.seconds) + " s" + (run.interrupted ? " (interrupted)" : ""));
+        std::lock_guard lock(stats_mutex_);
+        stats_.global_adjustments.push_back(run);
+      }
+    } catch (...) {
+      std::lock_guard lock(state_mutex_);
+      if (!error_) error_ = std::current_exception();
+    }
+    std::lock_guard lock(state_mutex_);
+    global_running_ = false;
+    idle_cv_.notify_all();
+  });
+}
+
+}  // namespace orbatlas

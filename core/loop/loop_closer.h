@@ -1,0 +1,106 @@
+#pragma once
+// The loop-closing worker (ORB-SLAM's LoopClosing thread) for one session: local
+// mapping hands it every processed keyframe through a bounded queue; it runs
+// place recognition, corrects verified loops with local mapping paused, and
+// starts a global bundle adjustment in a background thread, which a new loop
+// interrupts. The adjustment's result is merged into the map (again with local
+// mapping paused) together with what was created meanwhile. See docs/loop_closing.md.
+#include <atomic>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "core/common/bounded_queue.h"
+#include "core/loop/loop_correction.h"
+#include "core/loop/place_recognizer.h"
+#include "core/map/atlas.h"
+#include "core/mapping/local_mapper.h"
+#include "core/optimization/global_bundle_adjustment.h"
+
+namespace orbatlas {
+
+struct LoopCloserOptions {
+  std::size_t queue_capacity = 32;  // keyframes waiting for place recognition (more are skipped)
+  PlaceRecognitionOptions recognition;
+  LoopCorrectionOptions correction;
+  bool global_bundle_adjustment = true;
+  GlobalBundleAdjustmentOptions global;
+};
+
+struct ClosedLoop {
+  KeyframeId current = 0, matched = 0;
+  TimestampNs current_t_ns = 0, matched_t_ns = 0;
+  Pose3 T_cur_m;  // estimated relative camera pose (current <- matched)
+  int matches = 0;
+  LoopCorrectionStats correction;
+};
+
+struct GlobalAdjustmentRun {
+  std::size_t keyframes = 0, points = 0;
+  double seconds = 0.0;
+  bool interrupted = false;  // a new loop stopped it; its result was dropped
+};
+
+struct LoopClosingStats {
+  std::size_t keyframes = 0;          // run through place recognition
+  std::size_t keyframes_skipped = 0;  // the queue was full
+  std::size_t hypotheses = 0;         // geometric hypotheses that passed the guided search
+  std::vector<double> place_recognition_ms;  // per keyframe
+  std::vector<ClosedLoop> loops;
+  std::vector<GlobalAdjustmentRun> global_adjustments;
+};
+
+class LoopCloser {
+ public:
+  // `atlas`, the camera and `mapper` must outlive the loop closer. Registers
+  // itself as the mapper's processed-keyframe listener. The thread starts at once.
+  LoopCloser(Atlas& atlas, FrameCamera cam, LocalMapper& mapper, LoopCloserOptions options = {});
+  ~LoopCloser();  // finish()
+  LoopCloser(const LoopCloser&) = delete;
+  LoopCloser& operator=(const LoopCloser&) = delete;
+
+  // Non-blocking (called on the mapper thread): a full queue skips the keyframe.
+  void insert(const std::shared_ptr<KeyFrame>& keyframe);
+  // Waits until every inserted keyframe is processed and no global adjustment runs.
+  void wait_until_idle();
+  // Call after the mapper has finished: processes what is queued, waits for a
+  // running global adjustment and merges it, stops the threads. Idempotent;
+  // rethrows an error that stopped the worker.
+  void finish();
+
+  LoopClosingStats stats() const;
+
+ private:
+  void run();
+  void process(const std::shared_ptr<KeyFrame>& keyframe);
+  void close_loop(const PlaceMatch& loop);
+  void stop_global_adjustment();
+  void start_global_adjustment(MapId map, KeyframeId loop_keyframe);
+
+  Atlas& atlas_;
+  const FrameCamera cam_;
+  LocalMapper& mapper_;
+  const LoopCloserOptions options_;
+  PlaceRecognizer recognizer_;
+
+  BoundedQueue<std::shared_ptr<KeyFrame>> queue_;
+  std::mutex state_mutex_;
+  std::condition_variable idle_cv_;
+  std::size_t in_flight_ = 0;
+  bool global_running_ = false;
+  std::exception_ptr error_;
+
+  // One correction at a time touches the map with local mapping paused.
+  std::mutex correction_mutex_;
+  std::atomic<bool> stop_global_{false};
+  std::thread global_thread_;  // owned by the worker thread (started / joined there and in finish)
+
+  mutable std::mutex stats_mutex_;
+  LoopClosingStats stats_;
+
+  std::thread thread_;  // last
+};
+
+}  // namespace orbatlas

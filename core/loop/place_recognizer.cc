@@ -1,0 +1,272 @@
+#include "core/loop/place_recognizer.h"
+
+#include <algorithm>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "core/common/error.h"
+#include "core/loop/probe_frame.h"
+#include "core/tracking/projection_search.h"
+
+namespace orbatlas {
+namespace {
+
+std::unordered_set<KeyframeId> connected_ids(const KeyFrame& keyframe) {
+  std::unordered_set<KeyframeId> ids{keyframe.id()};
+  for (const auto& edge : keyframe.connections()) ids.insert(edge.keyframe);
+  return ids;
+}
+
+// The keyframe's own 3D point for a slot, in its camera frame: its map point if
+// it has one, else the stereo depth of the keypoint.
+std::optional<Eigen::Vector3d> own_point_c(const KeyFrame& keyframe, const Pose3& T_c_w, std::size_t slot) {
+  if (const auto mp = keyframe.map_point(slot); mp && !mp->is_bad()) return T_c_w * mp->p_w();
+  const float z = keyframe.depth(slot);
+  if (z <= 0.0f) return std::nullopt;
+  const Eigen::Vector3d& bearing = keyframe.keypoint(slot).bearing;
+  return bearing * (static_cast<double>(z) / bearing.z());
+}
+
+}  // namespace
+
+std::optional<Sim3Match> PlaceRecognizer::make_match(const KeyFrame& keyframe, const Pose3& T_a_w, std::size_t slot,
+                                                     const KeyFrame& matched, const Pose3& T_m_w,
+                                                     const MapPoint& point) const {
+  const auto p_a = own_point_c(keyframe, T_a_w, slot);
+  if (!p_a) return std::nullopt;
+  const Keypoint& ka = keyframe.keypoint(slot);
+  const Eigen::Vector3d p_m = T_m_w * point.p_w();
+  Eigen::Vector2d uv_m;
+  double sigma2_m = cam_.pyramid.sigma2(ka.level);
+  if (const auto slot_m = point.slot_in(matched.id())) {
+    const Keypoint& km = matched.keypoint(*slot_m);
+    uv_m = km.uv.cast<double>();
+    sigma2_m = cam_.pyramid.sigma2(km.level);
+  } else if (!(p_m.z() > 0.0) || !cam_.camera->project(p_m, &uv_m)) {
+    return std::nullopt;
+  }
+  return Sim3Match{*p_a, p_m, ka.uv.cast<double>(), uv_m, cam_.pyramid.sigma2(ka.level), sigma2_m};
+}
+
+PlaceRecognizer::PlaceRecognizer(const KeyframeIndex& index, FrameCamera cam, PlaceRecognitionOptions options)
+    : index_(index), cam_(std::move(cam)), options_(std::move(options)) {
+  ORBATLAS_CHECK(cam_.camera != nullptr, "place recognition needs a camera");
+}
+
+PlaceRecognitionStep PlaceRecognizer::process(const std::shared_ptr<KeyFrame>& keyframe) {
+  PlaceRecognitionStep step;
+  if (!keyframe || keyframe->is_bad()) return step;
+
+  if (pending_) {
+    // Verification carried over to a new keyframe, without the bag of words.
+    PlaceMatch& m = pending_->match;
+    const bool usable = m.current && !m.current->is_bad() && m.matched && !m.matched->is_bad() &&
+                        keyframe->map_id() == m.current->map_id();
+    if (usable) {
+      const Pose3 T_new_old = keyframe->T_w_c().inverse() * m.current->T_w_c();
+      const Pose3 T_c_w = T_new_old * m.T_c_w_corrected;
+      const int n = confirm(*keyframe, T_c_w, m);
+      step.best_matches = n;
+      if (n >= options_.verify_matches) {
+        ++m.verified_keyframes;
+        m.current = keyframe;
+        m.T_c_w_corrected = T_c_w;
+        m.T_cur_m = T_c_w * m.matched->T_w_c();
+        m.matches = n;
+        pending_->failures = 0;
+        if (m.verified_keyframes >= options_.verify_keyframes) {
+          step.match = std::move(m);
+          pending_.reset();
+          return step;
+        }
+      } else if (++pending_->failures >= options_.max_consecutive_failures) {
+        pending_.reset();
+      }
+      step.pending = pending_.has_value();
+      if (pending_) return step;
+    } else {
+      pending_.reset();
+    }
+  }
+
+  std::optional<PlaceMatch> m = detect(keyframe, step);
+  if (!m) return step;
+  step.hypothesis = true;
+  verify_with_covisibles(*m);
+  if (m->verified_keyframes >= options_.verify_keyframes) {
+    step.match = std::move(m);
+  } else {
+    pending_ = Hypothesis{std::move(*m), 0};
+    step.pending = true;
+  }
+  return step;
+}
+
+std::optional<PlaceMatch> PlaceRecognizer::detect(const std::shared_ptr<KeyFrame>& keyframe,
+                                                  PlaceRecognitionStep& step) {
+  if (keyframe->bow().empty()) return std::nullopt;
+  const auto exclude = connected_ids(*keyframe);
+  const auto results = index_.query(keyframe->bow(), options_.index_results, exclude);
+
+  // Same map only (other maps: merging). Score each result with its covisibility
+  // group (ORB-SLAM's accumulated score) and keep each group's best keyframe.
+  std::unordered_map<KeyframeId, double> score;
+  for (const auto& r : results)
+    if (r.keyframe->map_id() == keyframe->map_id()) score[r.keyframe->id()] = r.score;
+  struct Group {
+    std::shared_ptr<KeyFrame> best;
+    double accumulated = 0.0;
+  };
+  std::vector<Group> groups;
+  for (const auto& r : results) {
+    if (r.keyframe->map_id() != keyframe->map_id()) continue;
+    Group g{r.keyframe, r.score};
+    double best_score = r.score;
+    for (const auto& neighbour : r.keyframe->best_covisibles(10)) {
+      const auto it = score.find(neighbour->id());
+      if (it == score.end()) continue;
+      g.accumulated += it->second;
+      if (it->second > best_score) {
+        best_score = it->second;
+        g.best = neighbour;
+      }
+    }
+    groups.push_back(std::move(g));
+  }
+  std::sort(groups.begin(), groups.end(), [](const Group& a, const Group& b) {
+    return a.accumulated != b.accumulated ? a.accumulated > b.accumulated : a.best->id() < b.best->id();
+  });
+  std::vector<std::shared_ptr<KeyFrame>> candidates;
+  std::unordered_set<KeyframeId> taken;
+  for (const auto& g : groups) {
+    if (candidates.size() >= options_.candidates) break;
+    if (taken.insert(g.best->id()).second) candidates.push_back(g.best);
+  }
+  step.bow_candidates = !candidates.empty();
+
+  std::optional<PlaceMatch> best;
+  for (const auto& candidate : candidates) {
+    auto m = try_candidate(keyframe, candidate);
+    if (m && (!best || m->matches > best->matches)) best = std::move(m);
+  }
+  if (best) step.best_matches = best->matches;
+  return best;
+}
+
+std::optional<PlaceMatch> PlaceRecognizer::try_candidate(const std::shared_ptr<KeyFrame>& keyframe,
+                                                         const std::shared_ptr<KeyFrame>& candidate) {
+  const auto connected = connected_ids(*keyframe);
+  std::vector<std::shared_ptr<KeyFrame>> window{candidate};
+  for (auto& kf : candidate->best_covisibles(options_.window_covisibles))
+    if (kf->map_id() == keyframe->map_id() && !connected.count(kf->id())) window.push_back(std::move(kf));
+
+  // 1. Bag-of-words matches with every window keyframe; the one with most is K_m.
+  Frame probe = probe_frame(*keyframe);
+  std::shared_ptr<KeyFrame> matched;
+  int most = 0;
+  for (const auto& w : window) {
+    if (w->is_bad()) continue;
+    const int n = search_by_bow(*w, probe, options_.bow_ratio);
+    if (n > most) {
+      most = n;
+      matched = w;
+    }
+  }
+  if (!matched || associated_count(probe) < options_.min_bow_matches) return std::nullopt;
+
+  const Pose3 T_a_w = keyframe->T_w_c().inverse();
+  const Pose3 T_m_w = matched->T_w_c().inverse();
+  const Camera& camera = *cam_.camera;
+
+  // 2. Horn 3-point RANSAC (both reprojections scored; where K_m does not observe
+  // the window point, its image term compares with where K_m would see it).
+  std::vector<Sim3Match> ransac_matches;
+  std::unordered_set<MapPointId> used;
+  for (std::size_t i = 0; i < probe.size(); ++i) {
+    const auto& mp = probe.map_points[i];
+    if (!mp || mp->is_bad() || !used.insert(mp->id()).second) continue;
+    if (auto match = make_match(*keyframe, T_a_w, i, *matched, T_m_w, *mp)) ransac_matches.push_back(*match);
+  }
+  if (static_cast<int>(ransac_matches.size()) < options_.min_ransac_inliers) return std::nullopt;
+  Sim3SolverOptions so;
+  so.fix_scale = true;  // stereo: metric scale
+  so.min_inliers = options_.min_ransac_inliers;
+  so.seed = options_.seed + attempts_++;
+  const Sim3SolverResult ransac = solve_sim3_ransac(std::move(ransac_matches), camera, camera, so);
+  if (!ransac.success) return std::nullopt;
+  Pose3 T_a_m = ransac.S_1_2.to_pose3(1e-6);
+
+  // 3. Guided matching with every window point, refinement, then a narrower pass.
+  std::vector<std::shared_ptr<MapPoint>> window_points;
+  std::unordered_set<MapPointId> seen;
+  for (const auto& w : window)
+    for (auto& mp : w->map_points())
+      if (!mp->is_bad() && seen.insert(mp->id()).second) window_points.push_back(std::move(mp));
+
+  PlaceMatch m;
+  m.window = window;
+  m.window_points = std::move(window_points);
+  int matches = 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    const float th = pass == 0 ? options_.first_search_th : options_.second_search_th;
+    Frame guided = probe_frame(*keyframe);
+    const Pose3 T_c_w = T_a_m * T_m_w;
+    std::vector<ProjectedPoint> projected;
+    ProjectedPoint pp;
+    for (const auto& mp : m.window_points)
+      if (project_into_frame(*mp, T_c_w, cam_, &pp)) {
+        pp.point = mp;
+        projected.push_back(pp);
+      }
+    matches = search_projected_points(guided, projected, cam_, th, 0.9f);
+    const int needed = pass == 0 ? options_.min_projection_matches : options_.min_final_matches;
+    if (matches < needed) return std::nullopt;
+
+    std::vector<Sim3Match> refine_matches;
+    for (std::size_t i = 0; i < guided.size(); ++i) {
+      const auto& mp = guided.map_points[i];
+      if (!mp || mp->is_bad()) continue;
+      if (auto match = make_match(*keyframe, T_a_w, i, *matched, T_m_w, *mp)) refine_matches.push_back(*match);
+    }
+    Sim3RefinementOptions ro;
+    ro.fix_scale = true;
+    const Sim3RefinementResult refined = refine_sim3(Sim3(T_a_m), refine_matches, camera, camera, ro);
+    if (!refined.success || refined.inlier_count < options_.min_refined_inliers) return std::nullopt;
+    T_a_m = refined.S_1_2.to_pose3(1e-6);
+  }
+
+  m.current = keyframe;
+  m.detected_on = keyframe;
+  m.matched = matched;
+  m.T_cur_m = T_a_m;
+  m.T_c_w_corrected = T_a_m * T_m_w;
+  m.matches = matches;
+  m.verified_keyframes = 1;
+  return m;
+}
+
+int PlaceRecognizer::confirm(const KeyFrame& keyframe, const Pose3& T_c_w, const PlaceMatch& match) const {
+  Frame probe = probe_frame(keyframe);
+  std::vector<ProjectedPoint> projected;
+  ProjectedPoint pp;
+  for (const auto& mp : match.window_points)
+    if (!mp->is_bad() && project_into_frame(*mp, T_c_w, cam_, &pp)) {
+      pp.point = mp;
+      projected.push_back(pp);
+    }
+  return search_projected_points(probe, projected, cam_, options_.second_search_th, 0.9f);
+}
+
+void PlaceRecognizer::verify_with_covisibles(PlaceMatch& match) const {
+  std::unordered_set<KeyframeId> in_window;
+  for (const auto& w : match.window) in_window.insert(w->id());
+  const Pose3 T_w_a = match.current->T_w_c();
+  for (const auto& cov : match.current->best_covisibles(options_.verify_covisibles)) {
+    if (match.verified_keyframes >= options_.verify_keyframes) break;
+    if (cov->is_bad() || in_window.count(cov->id()) || cov->map_id() != match.current->map_id()) continue;
+    const Pose3 T_c_w = cov->T_w_c().inverse() * T_w_a * match.T_c_w_corrected;
+    if (confirm(*cov, T_c_w, match) >= options_.verify_matches) ++match.verified_keyframes;
+  }
+}
+
+}  // namespace orbatlas

@@ -1,0 +1,71 @@
+#pragma once
+// The bundle-adjustment problem shared by local and global bundle adjustment
+// (internal to orbatlas_optimization): a set of keyframes to optimise (the
+// window), the other keyframes observing the window's points (fixed: the
+// border), the points and their observations, with the Ceres parameter storage
+// (never resized once built: Ceres keeps pointers into it).
+#include <ceres/cost_function.h>
+#include <ceres/solver.h>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "core/camera/camera.h"
+#include "core/map/keyframe.h"
+#include "core/map/map_point.h"
+#include "core/optimization/pose_parameters.h"
+#include "core/optimization/stop_flag_callback.h"
+
+namespace orbatlas {
+
+struct BundleSettings {
+  double chi2_mono = 0.0, chi2_stereo = 0.0;    // outlier thresholds
+  double huber_mono = 0.0, huber_stereo = 0.0;  // robust kernel widths
+  std::vector<double> level_sigma2;             // per pyramid level
+  std::size_t dense_schur_max_keyframes = 40;   // DENSE_SCHUR up to this many free keyframes
+  int num_threads = 1;
+};
+
+struct BundleEdge {
+  std::size_t keyframe = 0;  // index into BundleProblem::keyframes
+  std::size_t point = 0;     // index into BundleProblem::points
+  std::size_t slot = 0;
+  bool stereo = false;
+  bool active = true;  // in the next stage's problem
+  std::unique_ptr<ceres::CostFunction> cost;
+};
+
+struct BundleProblem {
+  std::vector<std::shared_ptr<KeyFrame>> keyframes;  // window first, then the border
+  std::vector<std::uint8_t> fixed;                   // per keyframe
+  std::size_t window = 0;
+  std::vector<PoseParameters> poses;  // T_c_w per keyframe
+  std::vector<std::shared_ptr<MapPoint>> points;
+  std::vector<std::array<double, 3>> positions;
+  std::vector<BundleEdge> edges;
+
+  std::array<const double*, 3> parameters(const BundleEdge& e) const {
+    return {poses[e.keyframe].q.data(), poses[e.keyframe].t.data(), positions[e.point].data()};
+  }
+};
+
+// The window's keyframes (live, distinct), every point they observe, and every
+// observation of those points; observers outside the window join as fixed
+// border keyframes. Only the border is fixed: the caller fixes gauge keyframes.
+// Throws Error on a keypoint level without a sigma2.
+BundleProblem collect_bundle_problem(const std::vector<std::shared_ptr<KeyFrame>>& window, const Camera& camera,
+                                     double bf, const BundleSettings& settings);
+
+// Chi2 at the current estimates; nullopt when the point is behind the camera or
+// cannot be projected.
+std::optional<double> bundle_edge_chi2(const BundleProblem& problem, const BundleEdge& e);
+bool is_bundle_outlier(const BundleProblem& problem, const BundleEdge& e, const BundleSettings& settings);
+
+// One stage: a problem over the active edges, solved for `iterations`.
+ceres::Solver::Summary solve_bundle_stage(BundleProblem& problem, bool robust, int iterations,
+                                          const BundleSettings& settings, StopFlagCallback& callback);
+
+}  // namespace orbatlas

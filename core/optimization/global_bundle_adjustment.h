@@ -1,0 +1,48 @@
+#pragma once
+// ORB-SLAM's global bundle adjustment after a loop closure: every keyframe and
+// map point of a map, one keyframe fixed for the gauge, robust kernel. It runs
+// in the background while tracking and local mapping go on, so it does not
+// write into the map: it returns the optimised poses and positions together with
+// the keyframe poses it started from, and the caller merges them into the map
+// (with the keyframes and points created meanwhile) while mapping is paused.
+#include <Eigen/Core>
+#include <atomic>
+#include <cmath>
+#include <optional>
+#include <unordered_map>
+
+#include "core/camera/camera.h"
+#include "core/geometry/pose.h"
+#include "core/map/map.h"
+#include "core/optimization/chi2.h"
+#include "core/optimization/level_sigma.h"
+
+namespace orbatlas {
+
+struct GlobalBundleAdjustmentOptions {
+  int iterations = 10;  // with the Huber kernel, as ORB-SLAM's RunGlobalBundleAdjustment
+  double huber_mono = std::sqrt(kChi2Mono95);
+  double huber_stereo = std::sqrt(kChi2Stereo95);
+  std::vector<double> level_sigma2 = pyramid_level_sigma2();
+  // Fixed for the gauge; by default the map's oldest live keyframe.
+  std::optional<KeyframeId> origin;
+  int num_threads = 1;
+};
+
+struct GlobalBundleAdjustmentResult {
+  std::unordered_map<KeyframeId, Pose3> T_w_b_before;  // body poses the solve started from
+  std::unordered_map<KeyframeId, Pose3> T_w_b;         // optimised body poses
+  std::unordered_map<MapPointId, Eigen::Vector3d> p_w;  // optimised positions
+  std::size_t keyframes = 0, points = 0, observations = 0;
+  int iterations = 0;
+  bool stopped = false;  // interrupted by the stop flag: the result should be dropped
+  double time_ms = 0.0;
+};
+
+// Reads `map` through its snapshots (other threads may edit it meanwhile).
+// `stop` (may be null) is polled at every iteration.
+GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Camera& camera, double bf,
+                                                      const GlobalBundleAdjustmentOptions& options = {},
+                                                      const std::atomic<bool>* stop = nullptr);
+
+}  // namespace orbatlas
