@@ -22,7 +22,9 @@ struct RunArgs {
   bool compare_culling = false;
 };
 
-void print_summary(const DatasetRunReport& r) {
+}  // namespace
+
+void print_run_summary(const DatasetRunReport& r) {
   const auto t = percentiles(r.stats.tracking_ms);
   const auto m = percentiles(r.stats.mapping.keyframe_ms);
   std::printf("frames %zu, tracked %zu, lost %zu, skipped %zu; maps %zu, keyframes %zu, map points %zu\n",
@@ -48,10 +50,20 @@ void print_summary(const DatasetRunReport& r) {
       std::printf("; global BA %zu keyframes %.2f s%s", g.keyframes, g.seconds, g.interrupted ? " (interrupted)" : "");
     std::printf("\n");
   }
+  if (r.session) {
+    std::printf("atlas: %zu maps / %zu keyframes loaded in %.2f s; stored as session %llu", r.loaded_maps,
+                r.loaded_keyframes, r.atlas_load_s, static_cast<unsigned long long>(*r.session));
+    if (r.checkpoints) {
+      const auto c = percentiles(r.checkpoints->wall_ms);
+      std::printf(" by %llu checkpoints (%llu commits, %llu failures; ms p50 %.1f max %.1f, off the tracking thread)",
+                  static_cast<unsigned long long>(r.checkpoints->checkpoints),
+                  static_cast<unsigned long long>(r.checkpoints->commits),
+                  static_cast<unsigned long long>(r.checkpoints->failures), c.p50, c.max);
+    }
+    std::printf("\n");
+  }
   if (r.ate_rmse_m) std::printf("ATE RMSE (SE3, against the dataset's ground truth) %.4f m\n", *r.ate_rmse_m);
 }
-
-}  // namespace
 
 void register_run_command(CLI::App& app) {
   auto args = std::make_shared<RunArgs>();
@@ -71,6 +83,14 @@ void register_run_command(CLI::App& app) {
                 "Also run the other redundancy scheme at every culling decision and count disagreements");
   cmd->add_flag("--synchronous", args->run.slam.synchronous_mapping,
                 "Wait for local mapping after each keyframe (deterministic, slower)");
+  cmd->add_option("--atlas", args->run.atlas,
+                  "Atlas database: load its maps first, store this run as a new session (created if missing)");
+  cmd->add_option("--checkpoint-keyframes", args->run.checkpoints.every_keyframes,
+                  "With --atlas: checkpoint every N keyframes")
+      ->capture_default_str();
+  cmd->add_option("--checkpoint-seconds", args->run.checkpoints.every_seconds,
+                  "With --atlas: and at least every T seconds")
+      ->capture_default_str();
   cmd->add_flag("!--no-loop-closing", args->run.slam.loop_closing,
                 "No place recognition, loop correction or global bundle adjustment");
   cmd->add_flag("!--no-progress", args->run.show_progress, "Do not print progress");
@@ -92,10 +112,10 @@ void register_run_command(CLI::App& app) {
       out << report.to_json().dump(2) << "\n";
       ORBATLAS_CHECK(out.good(), "error writing " << args->stats);
     }
-    print_summary(report);
-    if (report.stats.maps > 1)
+    print_run_summary(report);
+    if (report.stats.maps > report.loaded_maps + 1)
       std::printf("note: tracking was lost and %zu maps were made; the trajectory mixes their frames\n",
-                  report.stats.maps);
+                  report.stats.maps - report.loaded_maps);
     std::printf("trajectory: %zu poses -> %s\n", report.trajectory.size(), args->out_trajectory.c_str());
   });
 }

@@ -3,6 +3,8 @@
 // and throws orbatlas::Error on failure (main prints it and exits with 1).
 #include <CLI/CLI.hpp>
 
+#include "core/slam/dataset_runner.h"
+
 namespace orbatlas::cli {
 
 void register_sim_command(CLI::App& app);
@@ -10,5 +12,9 @@ void register_eval_command(CLI::App& app);
 void register_bench_command(CLI::App& app);
 void register_vocab_command(CLI::App& app);
 void register_run_command(CLI::App& app);
+void register_localize_command(CLI::App& app);
+
+// The figures of `orbatlas run` / `orbatlas localize` (cmd_run.cc).
+void print_run_summary(const DatasetRunReport& report);
 
 }  // namespace orbatlas::cli

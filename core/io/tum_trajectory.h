@@ -3,6 +3,7 @@
 // Timestamps are read exactly to the nanosecond. Reading also accepts ORB-SLAM3's
 // output, whose first column is in nanoseconds ("1403636586363555584.000000"):
 // a timestamp column whose values exceed 1e12 is taken as nanoseconds.
+#include <cstdint>
 #include <filesystem>
 
 #include "core/geometry/trajectory.h"
@@ -15,6 +16,10 @@ Trajectory read_tum_trajectory(const std::filesystem::path& path);
 
 // Writes seconds with 9 decimals (exact), positions and quaternions with 9 digits.
 void write_tum_trajectory(const std::filesystem::path& path, const Trajectory& trajectory);
+// The same, with a comment line "# map <id>" before each run of poses of one map
+// (`maps` is index-aligned with the poses; readers skip comments).
+void write_tum_trajectory(const std::filesystem::path& path, const Trajectory& trajectory,
+                          const std::vector<std::uint64_t>& maps);
 
 // Reads ground truth in any of the forms `orbatlas eval --gt` takes: a TUM file,
 // an ASL ground-truth csv, or a dataset folder (its state_groundtruth_estimate0).

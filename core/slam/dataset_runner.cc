@@ -11,6 +11,7 @@
 #include "core/common/progress.h"
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
+#include "core/persistence/atlas_store.h"
 #include "core/vocabulary/default_vocabulary.h"
 
 namespace orbatlas {
@@ -33,6 +34,18 @@ nlohmann::json DatasetRunReport::to_json() const {
   j["peak_rss_mb"] = peak_rss_mb;
   j["wall_s"] = wall_s;
   if (ate_rmse_m) j["ate_rmse_m"] = *ate_rmse_m;
+  if (session) j["session"] = *session;
+  if (loaded_maps > 0 || session) {
+    j["atlas"] = {{"loaded_maps", loaded_maps}, {"loaded_keyframes", loaded_keyframes}, {"load_s", atlas_load_s}};
+  }
+  if (checkpoints) {
+    nlohmann::json c = {{"checkpoints", checkpoints->checkpoints},
+                        {"commits", checkpoints->commits},
+                        {"failures", checkpoints->failures},
+                        {"sequence", checkpoints->sequence},
+                        {"wall_ms", orbatlas::to_json_summary(checkpoints->wall_ms)}};
+    j["checkpoints"] = c;
+  }
   return j;
 }
 
@@ -54,8 +67,53 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
 
   const Vocabulary vocabulary =
       Vocabulary::load(options.vocabulary.empty() ? default_vocabulary_path() : options.vocabulary);
+  ORBATLAS_CHECK(!options.localize_only || !options.atlas.empty(), "localisation needs a stored atlas (--atlas)");
   Atlas atlas;
-  StereoSlam slam(atlas, settings, vocabulary, options.slam);
+  DatasetRunReport report;
+  std::optional<SessionInfo> session;
+  if (!options.atlas.empty()) {
+    const auto load_start = Clock::now();
+    if (options.localize_only) ORBATLAS_CHECK(std::filesystem::exists(options.atlas), options.atlas << " does not exist");
+    AtlasStore store = AtlasStore::open(options.atlas, vocabulary.hash());
+    const AtlasLoadReport loaded = store.load_atlas(atlas, &vocabulary);
+    atlas.index_all_keyframes();
+    report.loaded_maps = loaded.maps;
+    report.loaded_keyframes = loaded.keyframes;
+    report.atlas_load_s = std::chrono::duration<double>(Clock::now() - load_start).count();
+    log_info("atlas " + options.atlas.string() + ": " + std::to_string(loaded.maps) + " maps, " +
+             std::to_string(loaded.keyframes) + " keyframes, " + std::to_string(loaded.map_points) +
+             " map points loaded in " + std::to_string(report.atlas_load_s) + " s");
+    if (options.localize_only) {
+      ORBATLAS_DATA_CHECK(loaded.keyframes > 0, options.atlas << " holds no keyframe to localise against");
+    } else {
+      SessionInfo info;
+      for (const auto& stored : store.load_sessions()) info.id = std::max(info.id, stored.id);
+      ++info.id;
+      info.name = std::filesystem::absolute(options.dataset).lexically_normal().filename().string();
+      if (info.name.empty()) info.name = options.dataset.string();
+      info.sensor = settings.sensor;
+      info.created_ns = static_cast<TimestampNs>(
+          std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+              .count());
+      info.cameras.push_back(settings.camera0);
+      if (settings.camera1) info.cameras.push_back(*settings.camera1);
+      session = info;
+      report.session = info.id;
+    }
+  }
+  StereoSlamOptions slam_options = options.slam;
+  if (options.localize_only) {
+    slam_options.tracker.localization_only = true;
+    slam_options.relocalization = true;
+    slam_options.loop_closing = false;
+  }
+  StereoSlam slam(atlas, settings, vocabulary, slam_options);
+  std::unique_ptr<AtlasCheckpointer> checkpointer;
+  if (session) {
+    checkpointer = std::make_unique<AtlasCheckpointer>(
+        atlas, options.atlas, vocabulary.hash(), options.checkpoints,
+        CheckpointSession{*session, [&slam] { return slam.anchors(); }});
+  }
 
   // Loader thread: decodes images ahead of tracking (bounded: a few pairs).
   BoundedQueue<LoadedPair> loaded(4);
@@ -72,7 +130,6 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
     loaded.close();
   });
 
-  DatasetRunReport report;
   Progress progress("run", static_cast<std::int64_t>(frames.size()), options.show_progress);
   const auto wall_start = Clock::now();
   std::size_t index = 0;
@@ -88,7 +145,8 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
         ++report.skipped_frames;
       } else {
         try {
-          slam.process(pair->t_ns, pair->left, pair->right);
+          const TrackResult r = slam.process(pair->t_ns, pair->left, pair->right);
+          if (r.keyframe && checkpointer) checkpointer->notify_keyframe();
         } catch (const DataError& e) {
           log_warn(std::string("frame at ") + std::to_string(pair->t_ns) + " ns skipped: " + e.what());
           ++report.skipped_frames;
@@ -107,6 +165,13 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   loader.join();
   progress.finish();
   slam.finish();
+  if (checkpointer) {
+    checkpointer->stop();  // the final, durable checkpoint: every keyframe and the whole trajectory
+    report.checkpoints = checkpointer->stats();
+    if (report.checkpoints->failures > 0)
+      log_warn("atlas checkpoints failed " + std::to_string(report.checkpoints->failures) +
+               " times; last error: " + report.checkpoints->last_error);
+  }
   report.wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
 
   for (const TimedPose& p : slam.trajectory()) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/geometry/trajectory.h"
+#include "core/persistence/atlas_checkpointer.h"
 #include "core/slam/stereo_slam.h"
 
 namespace orbatlas {
@@ -22,6 +23,14 @@ struct DatasetRunOptions {
   double start_s = 0.0;                    // skip this much of the sequence
   std::optional<double> duration_s;        // and stop after this much
   bool realtime = false;  // feed frames at their timestamps; count the late ones
+  // Persistent atlas (docs/schema.md): the stored maps are loaded first (and
+  // indexed for relocalisation); a SLAM run is stored as a new session with its
+  // maps, by incremental checkpoints off the tracking thread and a final one.
+  std::filesystem::path atlas;
+  CheckpointOptions checkpoints;
+  // Localisation on the stored maps (needs `atlas`): no keyframe, no new map,
+  // nothing written; the trajectory holds the localised frames only.
+  bool localize_only = false;
   bool show_progress = true;
 };
 
@@ -34,6 +43,11 @@ struct DatasetRunReport {
   double peak_rss_mb = 0.0;
   double wall_s = 0.0;
   std::optional<double> ate_rmse_m;  // when the dataset has ground truth (SE3 alignment)
+  // With an atlas: what was loaded, the session stored, and the checkpoints.
+  std::size_t loaded_maps = 0, loaded_keyframes = 0;
+  double atlas_load_s = 0.0;
+  std::optional<SessionId> session;
+  std::optional<CheckpointStats> checkpoints;
   nlohmann::json to_json() const;    // SlamStats' keys + late_frames, peak_rss_mb, ...
 };
 

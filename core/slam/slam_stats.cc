@@ -39,6 +39,8 @@ double mean(const std::vector<double>& v) {
 
 }  // namespace
 
+nlohmann::json to_json_summary(const std::vector<double>& values) { return summary(values); }
+
 nlohmann::json to_json(const SlamStats& s) {
   nlohmann::json j;
   j["frames"] = s.frames;

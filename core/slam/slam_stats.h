@@ -16,6 +16,8 @@ struct Percentiles {
   std::size_t count = 0;
 };
 Percentiles percentiles(std::vector<double> values);
+// {p50, p95, max, mean, count} of the values.
+nlohmann::json to_json_summary(const std::vector<double>& values);
 
 struct SlamStats {
   std::size_t frames = 0, tracked = 0, lost = 0;  // lost: frames without a pose

@@ -65,7 +65,11 @@ TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv:
   const TrackResult result = tracker_->track(std::move(frame));
   tracking_ms_.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
   ++frames_;
-  if (result.tracked) ++tracked_;
+  if (result.tracked) {
+    ++tracked_;
+    std::lock_guard lock(anchors_mutex_);
+    anchors_.push_back(tracker_->anchors().back());
+  }
   if (result.keyframe) {
     ++keyframes_made_;
     if (options_.synchronous_mapping) {
@@ -95,6 +99,11 @@ std::vector<TimedPose> StereoSlam::trajectory() const {
     out.push_back({anchor.t_ns, anchor.map, *T_w_ref * anchor.T_ref_b});
   }
   return out;
+}
+
+std::vector<FrameAnchor> StereoSlam::anchors() const {
+  std::lock_guard lock(anchors_mutex_);
+  return anchors_;
 }
 
 SlamStats StereoSlam::stats() const {

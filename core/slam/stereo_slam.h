@@ -3,6 +3,7 @@
 // local mapping on its own, working on a map of an atlas the caller owns (so
 // several sessions and several atlases can live in one process).
 #include <memory>
+#include <mutex>
 #include <opencv2/core/mat.hpp>
 #include <vector>
 
@@ -53,6 +54,9 @@ class StereoSlam {
 
   // Every tracked frame's body pose, from its reference keyframe's current pose.
   std::vector<TimedPose> trajectory() const;
+  // The tracked frames' anchors so far; safe to call from any thread while
+  // frames are processed (a checkpoint thread storing the trajectory).
+  std::vector<FrameAnchor> anchors() const;
   SlamStats stats() const;
   const StereoFrontend& frontend() const { return frontend_; }
 
@@ -67,6 +71,8 @@ class StereoSlam {
   std::unique_ptr<Tracker> tracker_;
   bool finished_ = false;
   std::vector<double> tracking_ms_;
+  mutable std::mutex anchors_mutex_;
+  std::vector<FrameAnchor> anchors_;  // copy of the tracker's, for other threads
   std::size_t frames_ = 0, tracked_ = 0, keyframes_made_ = 0;
 };
 

@@ -1,0 +1,115 @@
+// The persistent atlas through the SLAM runner: a run stored with --atlas, a
+// second run appending a session and a map beside the first, and localisation
+// of new images of the same hall against the stored map (no keyframe added),
+// measured in the stored map's own frame.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include "core/common/data_paths.h"
+#include "core/persistence/atlas_store.h"
+#include "core/slam/dataset_runner.h"
+#include "core/vocabulary/default_vocabulary.h"
+#include "tests/slam_test_clip.h"
+
+namespace orbatlas {
+namespace {
+
+DatasetRunOptions options_for(const std::filesystem::path& dataset, const std::filesystem::path& atlas) {
+  DatasetRunOptions o;
+  o.settings = shipped_config_dir() / "euroc" / "stereo.yaml";
+  o.dataset = dataset;
+  o.atlas = atlas;
+  o.show_progress = false;
+  return o;
+}
+
+TEST(AtlasSessions, RunsAppendSessionsAndLocalizationTracksInTheStoredMapFrame) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
+  test::ClipCleanup cleanup{clip};
+  const auto dir = std::filesystem::temp_directory_path() / ("orbatlas_test_sessions_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  test::ClipCleanup cleanup_dir{dir};
+  const auto db = dir / "atlas.db";
+
+  // Session 1 builds a map; session 2 (same file) appends its own.
+  const DatasetRunReport first = run_stereo_dataset(options_for(clip, db));
+  ASSERT_TRUE(first.session.has_value());
+  ASSERT_TRUE(first.checkpoints.has_value());
+  EXPECT_EQ(first.checkpoints->failures, 0u);
+  EXPECT_GE(first.checkpoints->commits, 1u);
+  const DatasetRunReport second = run_stereo_dataset(options_for(clip, db));
+  EXPECT_EQ(second.loaded_maps, 1u);
+  EXPECT_EQ(second.loaded_keyframes, first.stats.keyframes);
+  ASSERT_TRUE(second.session.has_value());
+  EXPECT_EQ(*second.session, *first.session + 1);
+
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  MapId first_map = 0;
+  TimestampNs first_keyframe_t = 0;
+  {
+    AtlasStore store = AtlasStore::open(db, vocabulary.hash());
+    EXPECT_EQ(store.load_sessions().size(), 2u);
+    EXPECT_EQ(store.load_trajectory(*first.session).size(), first.trajectory.size());
+    EXPECT_EQ(store.load_trajectory(*second.session).size(), second.trajectory.size());
+    Atlas atlas;
+    const AtlasLoadReport loaded = store.load_atlas(atlas, &vocabulary);
+    EXPECT_EQ(loaded.maps, 2u);
+    EXPECT_EQ(loaded.keyframes, second.stats.keyframes);  // both maps, as the second run ended
+    const auto maps = atlas.maps();
+    ASSERT_EQ(maps.size(), 2u);
+    first_map = maps.front()->id();
+    first_keyframe_t = maps.front()->keyframes().front()->timestamp_ns();
+  }
+
+  // New images of the same places (other image noise, a shifted time window),
+  // localised against the stored maps: the database must not change.
+  const auto again = dir / "again";
+  sim::SimulationOptions so;
+  so.sequence = "MH_01";
+  so.out_dir = again;
+  so.start_s = 42.0;
+  so.duration_s = 6.0;
+  so.sensor_seed = 77;
+  so.show_progress = false;
+  sim::simulate_sequence(so);
+  const auto size_before = std::filesystem::file_size(db);
+  DatasetRunOptions lo = options_for(again, db);
+  lo.localize_only = true;
+  const DatasetRunReport loc = run_stereo_dataset(lo);
+  EXPECT_FALSE(loc.session.has_value());
+  EXPECT_EQ(loc.stats.keyframes_made, 0u);
+  EXPECT_EQ(std::filesystem::file_size(db), size_before);
+  const double fraction = static_cast<double>(loc.trajectory.size()) / static_cast<double>(loc.stats.frames);
+  EXPECT_GE(fraction, 0.9);
+
+  // In the stored map's frame: the map's origin is the body at its first keyframe,
+  // so ground truth maps into it through that pose (no alignment is fitted).
+  const EurocDataset dataset = test::stereo_dataset(again);
+  Trajectory gt;
+  for (const auto& s : dataset.ground_truth) gt.push_back({s.t_ns, s.T_w_b});
+  const EurocDataset original = test::stereo_dataset(clip);
+  Trajectory gt_original;
+  for (const auto& s : original.ground_truth) gt_original.push_back({s.t_ns, s.T_w_b});
+  const auto T_w_origin = pose_at(gt_original, first_keyframe_t, 50'000'000);
+  ASSERT_TRUE(T_w_origin.has_value());
+  double sum2 = 0.0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < loc.trajectory.size(); ++i) {
+    const auto T_w_b = pose_at(gt, loc.trajectory[i].t_ns, 50'000'000);
+    if (!T_w_b) continue;
+    const Pose3 expected = T_w_origin->inverse() * *T_w_b;
+    sum2 += (expected.t - loc.trajectory[i].pose.t).squaredNorm();
+    ++n;
+    EXPECT_TRUE(loc.trajectory_maps[i] == first_map || loc.trajectory_maps[i] == first_map + 1);
+  }
+  ASSERT_GT(n, 0u);
+  const double ate = std::sqrt(sum2 / static_cast<double>(n));
+  std::printf("localised %zu of %zu frames (%.1f%%), ATE in the map frame %.4f m\n", loc.trajectory.size(),
+              loc.stats.frames, 100.0 * fraction, ate);
+  EXPECT_LT(ate, 0.03);
+}
+
+}  // namespace
+}  // namespace orbatlas
