@@ -45,4 +45,13 @@ for s in seqs:
           f"{j['local_ba_ms']['p50']:>11.1f} {cull:>22} {j['keyframes']:>5} {j['mappoints']:>6} {j['peak_rss_mb']:>7.0f} {j['late_frames']:>5}")
     o = j["objects"]
     print(f"       objects: keyframes {o['keyframes']}, mappoints {o['mappoints']}")
+    lc = j.get("loop_closing")
+    if lc:
+        pr = lc["place_recognition_ms_per_kf"]
+        gba = ", ".join(f"{g['keyframes']} KFs {g['seconds']:.2f} s" + (" (interrupted)" if g["interrupted"] else "")
+                        for g in lc["global_ba"]) or "none"
+        corr = ", ".join(f"{l['correction_ms']:.0f} ms ({l['correction_m']:.3f} m, error {l.get('error_m', float('nan')):.3f} m)"
+                         for l in lc["loops"]) or "none"
+        print(f"       loops {j['loops']} (false {lc.get('false_loops', '?')}); place recognition ms/KF p50 "
+              f"{pr['p50']:.2f} p95 {pr['p95']:.2f}; hypotheses {lc['hypotheses']}; corrections: {corr}; global BA: {gba}")
 PY
