@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Long benchmark (not part of the test suite): relocalisation after a kidnapping on
+# full-length simulated sequences. For each sequence: a run with 3 s of frames
+# removed (from 60 s), and one with 2 s of frames from another part of the hall
+# spliced in (from 60 s, the frames of 30 s on). Prints how many frames after the
+# window tracking needed to relocalise (goal: within 10) and the ATE without the
+# window's frames (goal: <= 0.03 m).
+#   scripts/bench_kidnap.sh [MH_01 ...]      (data: $ORBATLAS_BENCH_DATA, as bench_slam.sh)
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+"$ROOT/scripts/setup.sh"
+BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
+OA="$BUILD_DIR/client/orbatlas"
+DATA="${ORBATLAS_BENCH_DATA:-$BUILD_DIR/bench_data}"
+OUT="$ROOT/out/bench_kidnap"
+mkdir -p "$DATA" "$OUT"
+SEQUENCES=("$@")
+[ ${#SEQUENCES[@]} -eq 0 ] && SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)
+
+for s in "${SEQUENCES[@]}"; do
+  if [ ! -f "$DATA/$s/mav0/cam1/data.csv" ]; then
+    rm -rf "$DATA/$s"
+    "$OA" sim --sequence "$s" --out "$DATA/$s"
+  fi
+  for mode in remove splice; do
+    d="$OUT/${s}_$mode"
+    rm -rf "$d"
+    if [ $mode = remove ]; then
+      /usr/bin/python3 "$ROOT/scripts/kidnap_dataset.py" "$DATA/$s" "$d" remove 60 3
+    else
+      /usr/bin/python3 "$ROOT/scripts/kidnap_dataset.py" "$DATA/$s" "$d" splice 60 2 30
+    fi
+    echo "== $s, $mode"
+    "$OA" run --config "$ROOT/config/euroc/stereo.yaml" --dataset "$d" --out-trajectory "$d.txt" \
+        --stats "$d.json" --no-progress | tail -n 4
+    /usr/bin/python3 - "$d" <<'PY'
+import json, sys
+d = sys.argv[1]
+k = json.load(open(f"{d}/kidnap.json"))
+w0, w1 = k["window_start_ns"], k["window_end_ns"]
+frames = [int(l.split(',')[0]) for l in open(f"{d}/mav0/cam0/data.csv") if l[0] != '#']
+tracked = set(int(round(float(l.split()[0]) * 1e9)) for l in open(f"{d}.txt") if l[0] != '#')
+after = [t for t in frames if t >= w1]
+n = next((i for i, t in enumerate(after) if t in tracked), None)
+with open(f"{d}.outside.txt", "w") as f:
+    for l in open(f"{d}.txt"):
+        if l[0] == '#' or not (w0 <= int(round(float(l.split()[0]) * 1e9)) < w1):
+            f.write(l)
+print(f"frames after the window before the first tracked one: {n} (goal <= 10)")
+PY
+    "$OA" eval --gt "$DATA/$s" --est "$d.outside.txt" --align se3 | grep -i "ate" | head -n 2
+  done
+done
