@@ -12,6 +12,7 @@
 #include "core/map/atlas.h"
 #include "core/map/map_point_update.h"
 #include "core/mapping/fusion.h"
+#include "core/mapping/local_mapper.h"
 #include "core/mapping/keyframe_culling.h"
 #include "core/mapping/triangulation.h"
 #include "core/slam/slam_stats.h"
@@ -306,6 +307,62 @@ TEST(SlamStats, PercentilesOfKnownValues) {
   EXPECT_DOUBLE_EQ(p.max, 100.0);
   EXPECT_DOUBLE_EQ(p.mean, 50.0);
   EXPECT_EQ(percentiles({}).count, 0u);
+}
+
+}  // namespace
+}  // namespace orbatlas
+
+namespace orbatlas {
+namespace {
+
+// Tracking adds a keyframe's observations before local mapping processes it, so
+// a newer keyframe waiting in the queue can be an older one's best covisible.
+// Parents are chosen among older keyframes only, so the spanning tree stays a
+// tree (a 2-cycle made culling fail on full MH_03).
+TEST(LocalMapping, SpanningTreeParentIsAnOlderKeyframe) {
+  const Scene s = make_scene(200, 11);
+  Atlas atlas;
+  auto map = atlas.create_map();
+  std::vector<std::size_t> idx[3];
+  std::shared_ptr<KeyFrame> kfs[3];
+  for (int k = 0; k < 3; ++k) kfs[k] = map->new_keyframe(keyframe_data(s, at(0.1 * k, 0, 0), &idx[k]));
+  auto slot_of = [](const std::vector<std::size_t>& v, std::size_t point) -> std::optional<std::size_t> {
+    const auto it = std::find(v.begin(), v.end(), point);
+    if (it == v.end()) return std::nullopt;
+    return static_cast<std::size_t>(it - v.begin());
+  };
+  // The origin and the middle keyframe share 20 points; the middle and the newest 60.
+  int shared01 = 0, shared12 = 0;
+  for (std::size_t p = 0; p < s.points.size(); ++p) {
+    const auto a = slot_of(idx[0], p), b = slot_of(idx[1], p), c = slot_of(idx[2], p);
+    const bool with_origin = shared01 < 20 && a && b;
+    const bool with_newest = !with_origin && shared12 < 60 && b && c;
+    if (!with_origin && !with_newest) continue;
+    MapPointData d;
+    d.p_w = s.points[p];
+    d.descriptor = s.descriptors[p];
+    auto mp = map->new_map_point(d);
+    kfs[1]->add_observation(*b, mp);
+    kfs[with_origin ? 0 : 2]->add_observation(with_origin ? *a : *c, mp);
+    mp->set_reference_keyframe(kfs[1]);
+    (with_origin ? shared01 : shared12)++;
+  }
+  ASSERT_EQ(shared01, 20);
+  ASSERT_EQ(shared12, 60);
+
+  LocalMapperOptions o;
+  o.run_bundle_adjustment = false;
+  o.run_culling = false;
+  LocalMapper mapper(atlas, s.cam(), o);
+  for (const auto& kf : kfs) {
+    mapper.insert(kf);
+    mapper.wait_until_idle();
+  }
+  mapper.finish();
+  EXPECT_EQ(kfs[0]->parent(), nullptr);  // the origin
+  EXPECT_EQ(kfs[1]->parent(), kfs[0]);   // not the newer kfs[2], its best covisible
+  ASSERT_NE(kfs[2]->parent(), nullptr);  // older: kfs[0] or kfs[1] (triangulation adds shared points)
+  EXPECT_LT(kfs[2]->parent()->id(), kfs[2]->id());
 }
 
 }  // namespace

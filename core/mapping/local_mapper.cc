@@ -1,6 +1,7 @@
 #include "core/mapping/local_mapper.h"
 
 #include <chrono>
+#include <limits>
 #include <unordered_set>
 
 #include "core/common/error.h"
@@ -181,8 +182,16 @@ void LocalMapper::complete_keyframe(const std::shared_ptr<KeyFrame>& keyframe) {
   }
   keyframe->update_connections();
   if (!keyframe->parent() && keyframe->id() != origins_.at(keyframe->map_id())) {
-    const auto best = keyframe->best_covisibles(1);
-    if (!best.empty()) keyframe->set_parent(best.front());
+    // The best covisible keyframe that is older: tracking adds a new keyframe's
+    // observations before local mapping processes it, so a newer, unprocessed
+    // keyframe can already be the best covisible, and taking it could close a
+    // cycle in the spanning tree (it would pick this one as its parent).
+    for (const auto& candidate : keyframe->best_covisibles(std::numeric_limits<std::size_t>::max())) {
+      if (candidate->id() < keyframe->id()) {
+        keyframe->set_parent(candidate);
+        break;
+      }
+    }
   }
 }
 
