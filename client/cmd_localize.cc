@@ -4,7 +4,6 @@
 // holds the localised frames only, in the frame of the map recognised, with
 // "# map <id>" lines (docs/cli.md).
 #include <cstdio>
-#include <fstream>
 #include <map>
 #include <memory>
 #include <string>
@@ -58,12 +57,7 @@ void register_localize_command(CLI::App& app) {
     j["localized_fraction"] =
         report.stats.frames > 0 ? static_cast<double>(report.trajectory.size()) / static_cast<double>(report.stats.frames)
                                 : 0.0;
-    if (!args->stats.empty()) {
-      std::ofstream out(args->stats);
-      ORBATLAS_CHECK(out, "cannot write " << args->stats);
-      out << j.dump(2) << "\n";
-      ORBATLAS_CHECK(out.good(), "error writing " << args->stats);
-    }
+    if (!args->stats.empty()) write_stats_file(args->stats, j);
     print_run_summary(report);
     std::printf("localised %zu of %zu frames (%.1f%%)", report.trajectory.size(), report.stats.frames,
                 100.0 * j["localized_fraction"].get<double>());

@@ -24,6 +24,13 @@ struct RunArgs {
 
 }  // namespace
 
+void write_stats_file(const std::string& path, const nlohmann::json& stats) {
+  std::ofstream out(path);
+  ORBATLAS_CHECK(out, "cannot write " << path);
+  out << stats.dump(2) << "\n";
+  ORBATLAS_CHECK(out.good(), "error writing " << path);
+}
+
 void print_run_summary(const DatasetRunReport& r) {
   const auto t = percentiles(r.stats.tracking_ms);
   const auto m = percentiles(r.stats.mapping.keyframe_ms);
@@ -106,12 +113,7 @@ void register_run_command(CLI::App& app) {
 
     const DatasetRunReport report = run_stereo_dataset(options);
     write_tum_trajectory(args->out_trajectory, report.trajectory);
-    if (!args->stats.empty()) {
-      std::ofstream out(args->stats);
-      ORBATLAS_CHECK(out, "cannot write " << args->stats);
-      out << report.to_json().dump(2) << "\n";
-      ORBATLAS_CHECK(out.good(), "error writing " << args->stats);
-    }
+    if (!args->stats.empty()) write_stats_file(args->stats, report.to_json());
     print_run_summary(report);
     if (report.stats.maps > report.loaded_maps + 1)
       std::printf("note: tracking was lost and %zu maps were made; the trajectory mixes their frames\n",

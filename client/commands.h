@@ -16,5 +16,7 @@ void register_localize_command(CLI::App& app);
 
 // The figures of `orbatlas run` / `orbatlas localize` (cmd_run.cc).
 void print_run_summary(const DatasetRunReport& report);
+// Writes the figures as indented JSON (throws Error when the file cannot be written).
+void write_stats_file(const std::string& path, const nlohmann::json& stats);
 
 }  // namespace orbatlas::cli

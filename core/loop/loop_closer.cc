@@ -3,15 +3,12 @@
 #include <chrono>
 
 #include "core/common/error.h"
+#include "core/common/stopwatch.h"
 #include "core/common/log.h"
 #include "core/loop/global_adjustment_merge.h"
 
 namespace orbatlas {
 namespace {
-
-double ms_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-}
 
 // Pauses local mapping for the scope (resumes on every exit path).
 class MappingPause {
@@ -131,7 +128,7 @@ void LoopCloser::close_loop(const PlaceMatch& loop) {
     closed.correction = correction;
     stats_.loops.push_back(closed);
   }
-  if (options_.global_bundle_adjustment) start_global_adjustment(map->id(), loop.current->id());
+  if (options_.global_bundle_adjustment) start_global_adjustment(map->id());
 }
 
 void LoopCloser::stop_global_adjustment() {
@@ -141,7 +138,7 @@ void LoopCloser::stop_global_adjustment() {
   stop_global_.store(false);
 }
 
-void LoopCloser::start_global_adjustment(MapId map_id, KeyframeId /*loop_keyframe*/) {
+void LoopCloser::start_global_adjustment(MapId map_id) {
   {
     std::lock_guard lock(state_mutex_);
     global_running_ = true;

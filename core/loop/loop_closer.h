@@ -77,7 +77,7 @@ class LoopCloser {
   void process(const std::shared_ptr<KeyFrame>& keyframe);
   void close_loop(const PlaceMatch& loop);
   void stop_global_adjustment();
-  void start_global_adjustment(MapId map, KeyframeId loop_keyframe);
+  void start_global_adjustment(MapId map);
 
   Atlas& atlas_;
   const FrameCamera cam_;

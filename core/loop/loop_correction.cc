@@ -7,16 +7,13 @@
 #include <unordered_set>
 
 #include "core/common/error.h"
+#include "core/common/stopwatch.h"
 #include "core/geometry/sim3_correction.h"
 #include "core/map/map_point_update.h"
 #include "core/mapping/fusion.h"
 
 namespace orbatlas {
 namespace {
-
-double ms_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-}
 
 void set_camera_pose(KeyFrame& kf, const Pose3& T_c_w) { kf.set_T_w_b(T_c_w.inverse() * kf.T_b_c().inverse()); }
 

@@ -146,7 +146,7 @@ std::optional<PlaceMatch> PlaceRecognizer::detect(const std::shared_ptr<KeyFrame
 
   std::optional<PlaceMatch> best;
   for (const auto& candidate : candidates) {
-    auto m = try_candidate(keyframe, candidate);
+    auto m = try_candidate(keyframe, candidate, exclude);
     if (m && (!best || m->matches > best->matches)) best = std::move(m);
   }
   if (best) step.best_matches = best->matches;
@@ -154,8 +154,8 @@ std::optional<PlaceMatch> PlaceRecognizer::detect(const std::shared_ptr<KeyFrame
 }
 
 std::optional<PlaceMatch> PlaceRecognizer::try_candidate(const std::shared_ptr<KeyFrame>& keyframe,
-                                                         const std::shared_ptr<KeyFrame>& candidate) {
-  const auto connected = connected_ids(*keyframe);
+                                                         const std::shared_ptr<KeyFrame>& candidate,
+                                                         const std::unordered_set<KeyframeId>& connected) {
   std::vector<std::shared_ptr<KeyFrame>> window{candidate};
   for (auto& kf : candidate->best_covisibles(options_.window_covisibles))
     if (kf->map_id() == keyframe->map_id() && !connected.count(kf->id())) window.push_back(std::move(kf));

@@ -15,6 +15,7 @@
 // Runs on one thread (the loop closer's); reads the map concurrently.
 #include <memory>
 #include <optional>
+#include <unordered_set>
 
 #include "core/loop/place_match.h"
 #include "core/map/keyframe_index.h"
@@ -66,8 +67,10 @@ class PlaceRecognizer {
   };
 
   std::optional<PlaceMatch> detect(const std::shared_ptr<KeyFrame>& keyframe, PlaceRecognitionStep& step);
+  // `connected`: the keyframe and its covisibles (left out of the window).
   std::optional<PlaceMatch> try_candidate(const std::shared_ptr<KeyFrame>& keyframe,
-                                          const std::shared_ptr<KeyFrame>& candidate);
+                                          const std::shared_ptr<KeyFrame>& candidate,
+                                          const std::unordered_set<KeyframeId>& connected);
   // The 3D-3D match of a keyframe slot with a window point, both in camera frames.
   std::optional<Sim3Match> make_match(const KeyFrame& keyframe, const Pose3& T_a_w, std::size_t slot,
                                       const KeyFrame& matched, const Pose3& T_m_w, const MapPoint& point) const;

@@ -5,6 +5,7 @@
 #include <unordered_set>
 
 #include "core/common/error.h"
+#include "core/common/stopwatch.h"
 #include "core/common/log.h"
 #include "core/map/map_point_update.h"
 #include "core/mapping/fusion.h"
@@ -12,10 +13,6 @@
 
 namespace orbatlas {
 namespace {
-
-double ms_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-}
 
 // ORB-SLAM's observation count: a stereo observation counts twice.
 int weighted_observations(const MapPoint& point) {

@@ -1,3 +1,4 @@
+#include "core/common/stopwatch.h"
 #include "core/optimization/global_bundle_adjustment.h"
 
 #include <algorithm>
@@ -52,7 +53,7 @@ GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Came
   result.keyframes = problem.window;
   result.points = problem.points.size();
   result.observations = problem.edges.size();
-  result.time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  result.time_ms = ms_since(start);
   return result;
 }
 

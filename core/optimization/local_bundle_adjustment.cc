@@ -1,3 +1,4 @@
+#include "core/common/stopwatch.h"
 #include "core/optimization/local_bundle_adjustment.h"
 
 #include <algorithm>
@@ -93,7 +94,7 @@ LocalBundleAdjustmentStats local_bundle_adjustment(Map& map, const std::shared_p
     }
   }
   write_back(lp);
-  stats.time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  stats.time_ms = ms_since(start);
   return stats;
 }
 
