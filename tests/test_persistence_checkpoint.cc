@@ -255,6 +255,60 @@ TEST(Checkpoint, SessionTrajectoryAndKeyframeSessions) {
       << failing.stats().last_error;
 }
 
+// The server's case: sessions join and leave a running checkpointer, their
+// keyframes interleave, each keeps its own trajectory.
+TEST(Checkpoint, SessionsJoinAndLeaveWithInterleavedKeyframes) {
+  TempDb db("checkpoint_sessions");
+  Atlas atlas;
+  build_atlas(atlas, test_vocabulary(), 12);
+  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), manual_only());
+  ASSERT_TRUE(checkpointer.checkpoint_now());  // the atlas alone, no session
+  std::mt19937_64 rng(31);
+  const auto map = atlas.active_map();
+  const KeyframeId anchor_kf = map->keyframes().front()->id();
+  const auto frames_of = [&](TimestampNs offset, int n) {
+    auto frames = std::make_shared<std::vector<FrameAnchor>>();
+    for (int i = 0; i < n; ++i) frames->push_back({offset + i * 50'000'000LL, map->id(), anchor_kf, random_pose(rng)});
+    return frames;
+  };
+  const auto a_frames = frames_of(0, 7), b_frames = frames_of(1'000'000, 4);
+  for (const auto& [id, frames] : {std::pair{SessionId{11}, a_frames}, std::pair{SessionId{12}, b_frames}}) {
+    CheckpointSession s;
+    s.info.id = id;
+    s.info.name = "client " + std::to_string(id);
+    s.trajectory = [frames] { return *frames; };  // owns what it reads
+    checkpointer.add_session(std::move(s));
+  }
+  std::vector<std::pair<KeyframeId, SessionId>> made;
+  for (int i = 0; i < 6; ++i) {
+    const SessionId by = i % 2 == 0 ? 11 : 12;
+    const auto kf = add_random_keyframe(*map, rng, &test_vocabulary(), 30, true);
+    checkpointer.notify_keyframe(by, kf->id());
+    made.emplace_back(kf->id(), by);
+  }
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  EXPECT_EQ(checkpointer.stats().last_rows.inserted, 2u + 6u + 7u + 4u);  // sessions, keyframes, frames
+  // Session 12 ends: its last frames are written once more, then it is forgotten.
+  b_frames->push_back({9'000'000'000LL, map->id(), anchor_kf, random_pose(rng)});
+  checkpointer.end_session(12);
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  EXPECT_EQ(checkpointer.stats().last_rows.inserted, 1u);
+  b_frames->push_back({9'500'000'000LL, map->id(), anchor_kf, random_pose(rng)});  // after the end: not stored
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  EXPECT_EQ(checkpointer.stats().last_rows.total(), 0u);
+  checkpointer.stop();
+
+  AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+  ASSERT_EQ(store.load_sessions().size(), 2u);
+  EXPECT_EQ(store.load_session(12)->name, "client 12");
+  EXPECT_EQ(store.load_trajectory(11).size(), 7u);
+  EXPECT_EQ(store.load_trajectory(12).size(), 5u);
+  Atlas loaded;
+  const AtlasLoadReport report = store.load_atlas(loaded, &test_vocabulary());
+  expect_atlas_eq(atlas, loaded, true);
+  for (const auto& [kf, session] : made) EXPECT_EQ(report.keyframe_sessions.at(kf), session) << "keyframe " << kf;
+}
+
 TEST(Checkpoint, KeyframeCountAndTimerTriggerCheckpoints) {
   TempDb db("checkpoint_triggers");
   Atlas atlas;

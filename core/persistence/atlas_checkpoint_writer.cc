@@ -13,32 +13,59 @@ AtlasCheckpointWriter::AtlasCheckpointWriter(const Atlas& atlas, AtlasStore stor
                                              std::optional<CheckpointSession> session)
     : atlas_(atlas),
       store_(std::move(store)),
-      session_(std::move(session)),
       // Ids only grow: every keyframe made from now on is the session's.
-      first_session_keyframe_(atlas.ids().peek(IdKind::keyframe)) {}
+      first_session_keyframe_(atlas.ids().peek(IdKind::keyframe)) {
+  if (session) {
+    claims_new_keyframes_ = session->info.id;
+    add_session(std::move(*session));
+  }
+}
 
 void AtlasCheckpointWriter::set_durable(bool durable) {
   store_.db_.exec(durable ? "PRAGMA synchronous = FULL" : "PRAGMA synchronous = NORMAL");
 }
 
-std::vector<AtlasCheckpointWriter::TrajectoryRow> AtlasCheckpointWriter::current_trajectory() const {
+void AtlasCheckpointWriter::add_session(CheckpointSession session) {
+  for (const SessionState& s : sessions_)
+    ORBATLAS_CHECK(s.session.info.id != session.info.id,
+                   store_.path().string() << ": session " << session.info.id << " is already checkpointed");
+  sessions_.push_back({std::move(session), false, false, {}});
+}
+
+void AtlasCheckpointWriter::end_session(SessionId id) {
+  for (SessionState& s : sessions_)
+    if (s.session.info.id == id) s.ending = true;
+}
+
+void AtlasCheckpointWriter::attribute_keyframe(KeyframeId keyframe, SessionId session) {
+  keyframe_sessions_[keyframe] = session;
+}
+
+std::optional<SessionId> AtlasCheckpointWriter::session_of(KeyframeId id) const {
+  if (const auto it = keyframe_sessions_.find(id); it != keyframe_sessions_.end()) return it->second;
+  if (claims_new_keyframes_ && id >= first_session_keyframe_) return *claims_new_keyframes_;
+  if (const auto it = stored_sessions_.find(id); it != stored_sessions_.end()) return it->second;
+  return std::nullopt;
+}
+
+std::vector<AtlasCheckpointWriter::TrajectoryRow> AtlasCheckpointWriter::current_trajectory(
+    const CheckpointSession& session) const {
   std::vector<TrajectoryRow> rows;
-  if (!session_ || !session_->trajectory) return rows;
-  for (const FrameAnchor& a : session_->trajectory())
+  if (!session.trajectory) return rows;
+  for (const FrameAnchor& a : session.trajectory())
     rows.push_back({a, RowHash().add(a.map).add(a.reference).add(a.T_ref_b).value()});
   std::sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) { return a.anchor.t_ns < b.anchor.t_ns; });
   const auto same_time = [](const auto& a, const auto& b) { return a.anchor.t_ns == b.anchor.t_ns; };
   const auto repeated = std::adjacent_find(rows.begin(), rows.end(), same_time);
-  ORBATLAS_CHECK(repeated == rows.end(), store_.path().string() << ": session " << session_->info.id
+  ORBATLAS_CHECK(repeated == rows.end(), store_.path().string() << ": session " << session.info.id
                                                                 << ": two frames at timestamp " << repeated->anchor.t_ns);
   return rows;
 }
 
-RowCounts AtlasCheckpointWriter::write_trajectory(AtlasRowWriter& writer, const std::vector<TrajectoryRow>& before,
-                                                  const std::vector<TrajectoryRow>& now) const {
+RowCounts AtlasCheckpointWriter::write_trajectory(AtlasRowWriter& writer, SessionId id,
+                                                  const std::vector<TrajectoryRow>& before,
+                                                  const std::vector<TrajectoryRow>& now) {
   RowCounts counts;
-  if (!session_) return counts;
-  const SessionId id = session_->info.id;
   auto a = before.begin(), b = now.begin();
   while (a != before.end() || b != now.end()) {
     if (b == now.end() || (a != before.end() && a->anchor.t_ns < b->anchor.t_ns)) {
@@ -68,13 +95,9 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   if (full) stored_sessions_ = AtlasRowWriter(db).stored_keyframe_sessions();
 
   // The snapshot is taken before the write lock, which is then held only for writing.
-  const SessionId session_id = session_ ? session_->info.id : 0;
-  AtlasRows rows = collect_atlas_rows(atlas_, [&](KeyframeId id) -> std::optional<SessionId> {
-    if (session_ && id >= first_session_keyframe_) return session_id;
-    if (const auto it = stored_sessions_.find(id); it != stored_sessions_.end()) return it->second;
-    return std::nullopt;
-  });
-  std::vector<TrajectoryRow> trajectory = current_trajectory();
+  AtlasRows rows = collect_atlas_rows(atlas_, [&](KeyframeId id) { return session_of(id); });
+  std::vector<std::vector<TrajectoryRow>> trajectories;
+  for (const SessionState& s : sessions_) trajectories.push_back(current_trajectory(s.session));
 
   const AtlasRows nothing;
   const std::vector<TrajectoryRow> no_frames;
@@ -85,18 +108,24 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   SqliteTransaction transaction(db);
   {
     AtlasRowWriter writer(db);  // its statements are finalized before COMMIT
-    if (full) {
-      if (session_) {
-        write_session_rows(db, session_->info);
-        writer.delete_session_trajectory(session_id);
+    for (std::size_t i = 0; i < sessions_.size(); ++i) {
+      const SessionState& s = sessions_[i];
+      const bool rewrite = full || !s.written;
+      if (rewrite) {
+        write_session_rows(db, s.session.info);
+        writer.delete_session_trajectory(s.session.info.id);
         ++result.rows.inserted;
       }
-      for (const MapId map : rows.maps) writer.delete_map_contents(map);
+      result.rows += write_trajectory(writer, s.session.info.id, rewrite ? no_frames : s.committed, trajectories[i]);
     }
+    if (full)
+      for (const MapId map : rows.maps) writer.delete_map_contents(map);
     result.rows += write_changed_rows(writer, before, rows, now);
-    result.rows += write_trajectory(writer, full ? no_frames : committed_trajectory_, trajectory);
     if (meta_changed(before, rows)) ++result.rows.updated;
-    if (result.rows.total() == 0) return result;  // rolls back an empty transaction: nothing touched the file
+    if (result.rows.total() == 0) {
+      std::erase_if(sessions_, [](const SessionState& s) { return s.ending; });  // nothing left to write for them
+      return result;  // rolls back an empty transaction: nothing touched the file
+    }
     result.sequence = writer.write_meta(*rows.meta, now);
   }
   transaction.commit();
@@ -104,7 +133,11 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   result.committed = true;
   rows.drop_objects();
   committed_ = std::move(rows);
-  committed_trajectory_ = std::move(trajectory);
+  for (std::size_t i = 0; i < sessions_.size(); ++i) {
+    sessions_[i].written = true;
+    sessions_[i].committed = std::move(trajectories[i]);
+  }
+  std::erase_if(sessions_, [](const SessionState& s) { return s.ending; });
   has_committed_ = true;
   return result;
 }

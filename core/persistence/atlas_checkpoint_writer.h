@@ -1,5 +1,6 @@
 #pragma once
-// One connection's checkpoints of an atlas (and of one session's trajectory).
+// One connection's checkpoints of an atlas and of the trajectories of the
+// sessions working on it (one for `orbatlas run`, several in the server).
 // Each checkpoint is one write transaction holding only the rows that are new or
 // changed since this writer's last commit, and deleting the rows of objects
 // culled since; it is told apart by the content hashes of the rows last
@@ -39,8 +40,20 @@ struct CheckpointResult {
 class AtlasCheckpointWriter {
  public:
   // `atlas` must outlive the writer. Keyframes with an id the atlas had not
-  // handed out yet at construction are recorded as made in `session`.
+  // handed out yet at construction are recorded as made in `session` (unless
+  // attributed to another session).
   AtlasCheckpointWriter(const Atlas& atlas, AtlasStore store, std::optional<CheckpointSession> session);
+
+  // A session whose row and trajectory the next checkpoints write (its
+  // trajectory function must stay callable until it has ended). Throws when a
+  // session with that id is already checkpointed.
+  void add_session(CheckpointSession session);
+  // The next successful checkpoint writes the session's trajectory one last
+  // time, then the writer forgets it (and its trajectory function).
+  void end_session(SessionId id);
+  // Records that a keyframe was made by a session (several sessions at once).
+  void attribute_keyframe(KeyframeId keyframe, SessionId session);
+  std::size_t session_count() const { return sessions_.size(); }
 
   // Throws Error / DataError on any failure; the database then holds the last
   // committed checkpoint and the next call writes everything changed since.
@@ -59,19 +72,28 @@ class AtlasCheckpointWriter {
     std::uint64_t hash = 0;
   };
 
-  std::vector<TrajectoryRow> current_trajectory() const;
-  RowCounts write_trajectory(AtlasRowWriter& writer, const std::vector<TrajectoryRow>& before,
-                             const std::vector<TrajectoryRow>& now) const;
+  struct SessionState {
+    CheckpointSession session;
+    bool written = false;  // its row is in the file
+    bool ending = false;   // forget it after the next successful checkpoint
+    std::vector<TrajectoryRow> committed;  // its trajectory rows in the file
+  };
+
+  std::vector<TrajectoryRow> current_trajectory(const CheckpointSession& session) const;
+  static RowCounts write_trajectory(AtlasRowWriter& writer, SessionId id, const std::vector<TrajectoryRow>& before,
+                                    const std::vector<TrajectoryRow>& now);
+  std::optional<SessionId> session_of(KeyframeId id) const;
 
   const Atlas& atlas_;
   AtlasStore store_;
-  std::optional<CheckpointSession> session_;
+  std::vector<SessionState> sessions_;
+  std::optional<SessionId> claims_new_keyframes_;  // the constructor's session
   KeyframeId first_session_keyframe_ = 0;
+  std::unordered_map<KeyframeId, SessionId> keyframe_sessions_;  // attribute_keyframe
   std::unordered_map<KeyframeId, SessionId> stored_sessions_;  // read by the first checkpoint
 
   bool has_committed_ = false;
   AtlasRows committed_;  // what the file holds for the atlas (objects dropped)
-  std::vector<TrajectoryRow> committed_trajectory_;
 };
 
 }  // namespace orbatlas

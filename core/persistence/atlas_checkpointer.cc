@@ -33,6 +33,39 @@ void AtlasCheckpointer::notify_keyframe() {
   wake_.notify_one();
 }
 
+void AtlasCheckpointer::notify_keyframe(SessionId session, KeyframeId keyframe) {
+  {
+    std::lock_guard lock(mutex_);
+    attributions_.emplace_back(keyframe, session);
+  }
+  notify_keyframe();
+}
+
+void AtlasCheckpointer::add_session(CheckpointSession session) {
+  std::lock_guard lock(mutex_);
+  added_sessions_.push_back(std::move(session));
+}
+
+void AtlasCheckpointer::end_session(SessionId id) {
+  std::lock_guard lock(mutex_);
+  ended_sessions_.push_back(id);
+}
+
+void AtlasCheckpointer::drain_requests() {
+  for (CheckpointSession& s : added_sessions_) {
+    try {
+      writer_.add_session(std::move(s));
+    } catch (const std::exception& e) {
+      log_warn(std::string("atlas checkpoints: ") + e.what());
+    }
+  }
+  added_sessions_.clear();
+  for (const SessionId id : ended_sessions_) writer_.end_session(id);
+  ended_sessions_.clear();
+  for (const auto& [keyframe, session] : attributions_) writer_.attribute_keyframe(keyframe, session);
+  attributions_.clear();
+}
+
 bool AtlasCheckpointer::checkpoint_now() {
   std::unique_lock lock(mutex_);
   if (stopping_ || finished_) return false;
@@ -76,6 +109,7 @@ void AtlasCheckpointer::run() {
     const bool final = stopping_;
     const std::uint64_t serving = requested_;  // every request so far was made before this checkpoint starts
     pending_keyframes_.store(0);
+    drain_requests();
     lock.unlock();
     const bool ok = checkpoint_once(final);
     lock.lock();

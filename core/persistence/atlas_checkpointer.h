@@ -56,6 +56,13 @@ class AtlasCheckpointer {
   // From any thread: counts a keyframe and wakes the worker when enough have
   // come. Takes the worker's mutex only for that wake-up, never across I/O.
   void notify_keyframe();
+  // The same, recording which session made the keyframe (several sessions).
+  void notify_keyframe(SessionId session, KeyframeId keyframe);
+  // From any thread: the next checkpoints write this session's row and
+  // trajectory; `session.trajectory` is called on the checkpoint thread until
+  // the checkpoint after end_session(id) has succeeded (let it own what it reads).
+  void add_session(CheckpointSession session);
+  void end_session(SessionId id);
   // Waits until a checkpoint that started after this call has finished. True
   // when it succeeded (committed, or found nothing changed), false when it
   // failed (see stats) or after stop().
@@ -68,6 +75,8 @@ class AtlasCheckpointer {
 
  private:
   void run();
+  // Hands the queued session requests to the writer (worker thread, under mutex_).
+  void drain_requests();
   // One checkpoint with every failure caught; updates the stats.
   bool checkpoint_once(bool final);
 
@@ -85,6 +94,10 @@ class AtlasCheckpointer {
   std::uint64_t served_ = 0;     // tickets whose checkpoint has finished
   std::uint64_t served_ok_ = 0;  // tickets whose checkpoint succeeded
   CheckpointStats stats_;
+  // Requests for the writer, handed over by the worker before each checkpoint.
+  std::vector<CheckpointSession> added_sessions_;
+  std::vector<SessionId> ended_sessions_;
+  std::vector<std::pair<KeyframeId, SessionId>> attributions_;
 
   std::mutex join_mutex_;  // stop() from several threads
   std::thread worker_;     // last: started once everything above exists

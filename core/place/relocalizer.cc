@@ -47,6 +47,7 @@ RelocalizationResult relocalize(Frame& frame, const Vocabulary& vocabulary, cons
   for (const auto& candidate : index.query(frame.bow, options.max_candidates)) {
     const auto& kf = candidate.keyframe;
     if (options.only_map && kf->map_id() != *options.only_map) continue;
+    if (options.may_enter && !options.may_enter(kf->map_id())) continue;
     ++result.candidates;
     clear_associations(frame);
     if (search_by_bow(*kf, frame, 0.75f) < options.min_bow_matches) continue;

@@ -4,6 +4,7 @@
 // candidates from the keyframe index, BoW matching, PnP-RANSAC on bearing vectors
 // (camera-model agnostic), pose-only optimisation, then a guided search in the
 // candidate's local map when too few inliers remain.
+#include <functional>
 #include <memory>
 #include <optional>
 
@@ -22,6 +23,9 @@ struct RelocalizationOptions {
   float guided_radius = 10.0f;
   PnpRansacOptions pnp;
   std::optional<MapId> only_map;  // restrict to one map
+  // When set, candidates of maps it refuses are skipped (the server keeps a
+  // session out of maps another live session is working in).
+  std::function<bool(MapId)> may_enter;
 };
 
 struct RelocalizationResult {

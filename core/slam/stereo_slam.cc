@@ -11,10 +11,13 @@ namespace {
 
 class IndexRelocalizer final : public FrameRelocalizer {
  public:
-  IndexRelocalizer(const Vocabulary& vocabulary, const KeyframeIndex& index, const FrameCamera& cam, Pose3 T_b_c)
-      : vocabulary_(vocabulary), index_(index), cam_(cam), T_b_c_(T_b_c) {}
+  IndexRelocalizer(const Vocabulary& vocabulary, const KeyframeIndex& index, const FrameCamera& cam, Pose3 T_b_c,
+                   std::function<bool(MapId)> may_enter)
+      : vocabulary_(vocabulary), index_(index), cam_(cam), T_b_c_(T_b_c) {
+    options_.may_enter = std::move(may_enter);
+  }
   std::optional<Relocalized> relocalize(Frame& frame) override {
-    const RelocalizationResult r = orbatlas::relocalize(frame, vocabulary_, index_, cam_, T_b_c_);
+    const RelocalizationResult r = orbatlas::relocalize(frame, vocabulary_, index_, cam_, T_b_c_, options_);
     if (!r.success) return std::nullopt;
     return Relocalized{r.map, r.keyframe};
   }
@@ -24,6 +27,7 @@ class IndexRelocalizer final : public FrameRelocalizer {
   const KeyframeIndex& index_;
   const FrameCamera cam_;
   const Pose3 T_b_c_;
+  RelocalizationOptions options_;
 };
 
 }  // namespace
@@ -38,7 +42,9 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
   options_.tracker.th_depth_m = settings.stereo_th_depth * frontend_.baseline();
   options_.tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));
   const Pose3 T_b_c = frontend_.calibration().T_b_c;
-  if (options_.relocalization) relocalizer_ = std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c);
+  if (options_.relocalization)
+    relocalizer_ = std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c,
+                                                      options_.may_enter_map);
   mapper_ = std::make_unique<LocalMapper>(atlas_, cam_, options_.mapper, &atlas_.keyframe_index());
   if (options_.loop_closing && !options_.tracker.localization_only)
     loop_closer_ = std::make_unique<LoopCloser>(atlas_, cam_, *mapper_, options_.loop);

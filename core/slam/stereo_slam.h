@@ -2,6 +2,7 @@
 // One stereo SLAM session: the front end, tracking on the caller's thread and
 // local mapping on its own, working on a map of an atlas the caller owns (so
 // several sessions and several atlases can live in one process).
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <opencv2/core/mat.hpp>
@@ -21,6 +22,8 @@ namespace orbatlas {
 struct StereoSlamOptions {
   TrackerOptions tracker;  // th_depth_m and the keyframe interval are derived from the settings
   bool relocalization = true;  // when recently lost, relocalise against every map of the atlas
+  // When set, relocalisation only enters maps it accepts (the server's map leases).
+  std::function<bool(MapId)> may_enter_map;
   LocalMapperOptions mapper;
   bool loop_closing = true;  // place recognition, loop correction, global BA (not when localising)
   LoopCloserOptions loop;

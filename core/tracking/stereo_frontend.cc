@@ -79,11 +79,31 @@ Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv
                                                right_extractor_.pyramid(), left_extractor_.scale_factors(), bf(), baseline());
   f.depth = std::move(depths.depth);
   f.u_right = std::move(depths.u_right);
+  finish_frame(f);
+  return f;
+}
+
+Frame StereoFrontend::make_left_frame(TimestampNs t_ns, const cv::Mat& left) {
+  const cv::Mat& l = as_gray(left, left_gray_, "left");
+  const CameraCalibration& c0 = rectifier_.rectified_left();
+  ORBATLAS_DATA_CHECK(l.cols == c0.width && l.rows == c0.height,
+                      "image of " << l.cols << "x" << l.rows << " pixels; the calibration says " << c0.width << "x"
+                                  << c0.height);
+  Frame f;
+  f.t_ns = t_ns;
+  rectifier_.rectify_left(l, left_rect_);
+  f.features = left_extractor_.extract(left_rect_);
+  f.depth.assign(f.size(), -1.0f);
+  f.u_right.assign(f.size(), -1.0f);
+  finish_frame(f);
+  return f;
+}
+
+void StereoFrontend::finish_frame(Frame& f) const {
   compute_keypoint_geometry(*camera_, f.features.keypoints);
   f.grid = FeatureGrid(f.features);
   f.map_points.assign(f.size(), nullptr);
   f.outlier.assign(f.size(), false);
-  return f;
 }
 
 }  // namespace orbatlas

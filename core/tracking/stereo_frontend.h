@@ -22,6 +22,9 @@ class StereoFrontend {
   // left/right: CV_8UC1 (or 3-channel, converted) of the calibrated size; throws
   // Error on empty images or a size that does not match the calibration.
   Frame make_frame(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
+  // The left image alone (relocalising a single image): no stereo depth, every
+  // keypoint a bearing only. Same checks as make_frame.
+  Frame make_left_frame(TimestampNs t_ns, const cv::Mat& left);
 
   // The rectified left camera tracking works with (pinhole, no distortion), its
   // pose in the body, and stereo constants.
@@ -32,6 +35,8 @@ class StereoFrontend {
   const OrbExtractor& extractor() const { return left_extractor_; }
 
  private:
+  void finish_frame(Frame& f) const;  // geometry, grid, empty associations
+
   bool parallel_;
   StereoRectifier rectifier_;
   std::unique_ptr<Camera> camera_;

@@ -74,7 +74,10 @@ TrackResult Tracker::track(Frame frame) {
     velocity_.reset();
   } else if (state_ == TrackingState::kNotInitialized) {
     ok = initialize(frame);
-    if (ok) result.keyframe = true;
+    if (ok) {
+      result.keyframe = true;
+      result.keyframe_id = reference_->id();
+    }
   } else {
     refresh_last_frame_pose();
     if (state_ == TrackingState::kOk) {
@@ -106,6 +109,7 @@ TrackResult Tracker::track(Frame frame) {
       if (need_new_keyframe(frame, inliers)) {
         create_keyframe(frame, false);
         result.keyframe = true;
+        result.keyframe_id = reference_->id();
       }
     } else {
       velocity_.reset();

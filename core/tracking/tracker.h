@@ -44,6 +44,7 @@ struct TrackResult {
   Pose3 T_w_b;           // valid when tracked, in map `map`
   MapId map = 0;
   bool keyframe = false;  // a keyframe was made from this frame
+  KeyframeId keyframe_id = 0;  // its id, when `keyframe`
   int inliers = 0;
 };
 
