@@ -2,13 +2,18 @@
 // without changing them (no keyframe, no new map): relocalisation across every
 // stored map to start and whenever tracking is lost, then tracking. The output
 // holds the localised frames only, in the frame of the map recognised, with
-// "# map <id>" lines (docs/cli.md).
+// "# map <id>" lines (docs/cli.md). With --server, one image (or stereo pair)
+// is sent to a running map server instead (POST /v1/localize) and its pose printed.
 #include <cstdio>
 #include <map>
 #include <memory>
 #include <string>
 
+#include <opencv2/imgcodecs.hpp>
+
+#include "client/api/server_client.h"
 #include "client/commands.h"
+#include "core/common/text_file.h"
 #include "core/common/error.h"
 #include "core/io/tum_trajectory.h"
 #include "core/slam/dataset_runner.h"
@@ -20,25 +25,65 @@ struct LocalizeArgs {
   DatasetRunOptions run;
   std::string config, dataset, out_trajectory, stats, vocabulary, atlas;
   double start_s = 0.0, duration_s = 0.0;
+  // --server mode
+  std::string server, token, image, image_right;
+  std::optional<std::uint64_t> map;
 };
+
+void localize_on_server(const LocalizeArgs& args) {
+  ORBATLAS_CHECK(!args.image.empty(), "localize --server needs --image LEFT.png (and --image-right for a stereo pair)");
+  const cv::Mat left = cv::imread(args.image, cv::IMREAD_GRAYSCALE);
+  ORBATLAS_CHECK(!left.empty(), "cannot read image " << args.image);
+  cv::Mat right;
+  if (!args.image_right.empty()) {
+    right = cv::imread(args.image_right, cv::IMREAD_GRAYSCALE);
+    ORBATLAS_CHECK(!right.empty(), "cannot read image " << args.image_right);
+  }
+  ServerClient client(args.server, args.token);
+  // A local YAML file travels inline; anything else is a config name the server knows.
+  const bool is_file = std::filesystem::is_regular_file(args.config);
+  const auto reply = client.localize(is_file ? std::string() : args.config, left, right, args.map, ImageEncoding::kPng,
+                                     is_file ? read_text_file(args.config) : std::string());
+  if (!reply.at("recognised").get<bool>()) {
+    std::printf("not recognised: %s (%zu candidates, %.1f ms)\n", reply.value("reason", "").c_str(),
+                reply.value("candidates", std::size_t{0}), reply.value("ms", 0.0));
+    throw Error("the place was not recognised");
+  }
+  const auto& t = reply.at("T_w_b").at("t");
+  const auto& q = reply.at("T_w_b").at("q");
+  std::printf("map %llu: T_w_b t = [%.4f %.4f %.4f] q = [%.5f %.5f %.5f %.5f] (%d inliers, %.1f ms)\n",
+              static_cast<unsigned long long>(reply.at("map").get<std::uint64_t>()), t[0].get<double>(),
+              t[1].get<double>(), t[2].get<double>(), q[0].get<double>(), q[1].get<double>(), q[2].get<double>(),
+              q[3].get<double>(), reply.at("inliers").get<int>(), reply.at("ms").get<double>());
+}
 
 }  // namespace
 
 void register_localize_command(CLI::App& app) {
   auto args = std::make_shared<LocalizeArgs>();
   auto* cmd = app.add_subcommand("localize", "Localise a stereo dataset against the maps of a stored atlas");
-  cmd->add_option("--atlas", args->atlas, "Atlas database (orbatlas run --atlas)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--config", args->config, "ORB-SLAM3-style settings, e.g. config/euroc/stereo.yaml")->required();
-  cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)")->required();
-  cmd->add_option("--out-trajectory", args->out_trajectory,
-                  "Localised poses (TUM, body frame, map frame; '# map <id>' lines)")
+  cmd->add_option("--atlas", args->atlas, "Atlas database (orbatlas run --atlas)")->check(CLI::ExistingFile);
+  cmd->add_option("--config", args->config,
+                  "ORB-SLAM3-style settings, e.g. config/euroc/stereo.yaml (with --server: also a config name, "
+                  "e.g. euroc/stereo)")
       ->required();
+  cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)");
+  cmd->add_option("--out-trajectory", args->out_trajectory,
+                  "Localised poses (TUM, body frame, map frame; '# map <id>' lines)");
+  cmd->add_option("--server", args->server, "Ask a running map server instead, e.g. http://127.0.0.1:8080");
+  cmd->add_option("--token", args->token, "Bearer token of the server")->envname("ORBATLAS_TOKEN");
+  cmd->add_option("--image", args->image, "With --server: the (left) image to localise");
+  cmd->add_option("--image-right", args->image_right, "With --server: the right image of a stereo pair");
+  cmd->add_option("--map", args->map, "With --server: only this map");
   cmd->add_option("--stats", args->stats, "Write run figures as JSON here");
   cmd->add_option("--vocabulary", args->vocabulary, "Vocabulary file (default: the shipped one)");
   cmd->add_option("--start", args->start_s, "Seconds of the sequence to skip")->capture_default_str();
   cmd->add_option("--duration", args->duration_s, "Seconds to run (default: to the end)");
   cmd->add_flag("!--no-progress", args->run.show_progress, "Do not print progress");
   cmd->callback([args]() {
+    if (!args->server.empty()) return localize_on_server(*args);
+    ORBATLAS_CHECK(!args->atlas.empty() && !args->dataset.empty() && !args->out_trajectory.empty(),
+                   "localize needs --atlas, --dataset and --out-trajectory (or --server and --image)");
     DatasetRunOptions options = args->run;
     options.settings = args->config;
     options.dataset = args->dataset;

@@ -13,6 +13,8 @@ void register_bench_command(CLI::App& app);
 void register_vocab_command(CLI::App& app);
 void register_run_command(CLI::App& app);
 void register_localize_command(CLI::App& app);
+// stream, sessions, maps (cmd_remote.cc): clients of a running map server.
+void register_remote_commands(CLI::App& app);
 
 // The figures of `orbatlas run` / `orbatlas localize` (cmd_run.cc).
 void print_run_summary(const DatasetRunReport& report);

@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   orbatlas::cli::register_vocab_command(app);
   orbatlas::cli::register_run_command(app);
   orbatlas::cli::register_localize_command(app);
+  orbatlas::cli::register_remote_commands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

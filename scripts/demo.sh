@@ -1,28 +1,69 @@
 #!/usr/bin/env bash
-# The main job on its embedded default: build, render a Machine Hall clip along
-# the real MH_01 trajectory, run stereo SLAM on it and score it against the ground
-# truth, and score the reference system's (ORB-SLAM3) real MH_01 output the same way.
-# Everything is written to out/demo/.
+# The main job on its embedded default: build, render two Machine Hall sessions
+# along the real MH_01 and MH_02 trajectories, start the map server on a fresh
+# atlas, stream both sessions to it over HTTP, list the maps, print each session's
+# ATE against the ground truth, restart the server to show the atlas persisted,
+# localise a single image against it, and score the reference system's
+# (ORB-SLAM3) real MH_01 output with the same evaluator. Outputs go to out/demo/.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$ROOT/scripts/setup.sh"
 BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
 OA="$BUILD_DIR/client/orbatlas"
+SERVER="$BUILD_DIR/server/orbatlas-server"
 OUT="$ROOT/out/demo"
 rm -rf "$OUT" && mkdir -p "$OUT"
 GT="$ROOT/data/euroc/groundtruth/MH_01_easy.txt.gz"
+SERVER_PID=""
+stop_server() {
+  if [ -n "$SERVER_PID" ] && kill -0 "$SERVER_PID" 2>/dev/null; then
+    kill -TERM "$SERVER_PID" && wait "$SERVER_PID" || true
+  fi
+  SERVER_PID=""
+}
+trap stop_server EXIT
+start_server() {
+  rm -f "$OUT/port"
+  "$SERVER" --db "$OUT/atlas.db" --listen 127.0.0.1:0 --port-file "$OUT/port" 2>>"$OUT/server.log" &
+  SERVER_PID=$!
+  for _ in $(seq 1 300); do [ -s "$OUT/port" ] && break; sleep 0.1; done
+  [ -s "$OUT/port" ] || { echo "the server did not start; see $OUT/server.log"; exit 1; }
+  export ORBATLAS_SERVER="http://127.0.0.1:$(cat "$OUT/port")"
+  echo "   server $ORBATLAS_SERVER (pid $SERVER_PID, log $OUT/server.log)"
+}
 
-echo "== 1. Simulate 20 s of MH_01 (from 40 s in) (stereo + IMU + ground truth, EuRoC ASL layout)"
+echo "== 1. Simulate two sessions: 20 s of MH_01 and 20 s of MH_02 (stereo + IMU + ground truth, EuRoC ASL)"
 "$OA" sim --sequence MH_01 --start 40 --duration 20 --out "$OUT/MH_01_clip"
+"$OA" sim --sequence MH_02 --start 30 --duration 20 --out "$OUT/MH_02_clip"
 
-echo "== 2. Stereo SLAM on the clip (tracking + local mapping)"
-"$OA" run --config "$ROOT/config/euroc/stereo.yaml" --dataset "$OUT/MH_01_clip" \
-     --out-trajectory "$OUT/slam_trajectory.txt" --stats "$OUT/slam_stats.json"
+echo "== 2. Start the map server on a fresh atlas ($OUT/atlas.db)"
+start_server
 
-echo "== 3. The SLAM trajectory against the clip's ground truth"
-"$OA" eval --gt "$OUT/MH_01_clip" --est "$OUT/slam_trajectory.txt" --align se3 --plot "$OUT/slam_top_view.png"
+echo "== 3. Stream both sessions over HTTP (tracking, local mapping and loop closing in the server)"
+"$OA" stream --dataset "$OUT/MH_01_clip" --name MH_01 --stats "$OUT/session_MH_01.json" \
+     --out-trajectory "$OUT/session_MH_01.txt"
+"$OA" stream --dataset "$OUT/MH_02_clip" --name MH_02 --stats "$OUT/session_MH_02.json" \
+     --out-trajectory "$OUT/session_MH_02.txt"
 
-echo "== 4. ORB-SLAM3 v1.0 monocular-inertial on real MH_01, scored by orbatlas eval"
+echo "== 4. The atlas: sessions and maps"
+"$OA" sessions
+"$OA" maps
+
+echo "== 5. Restart the server: the atlas is still there; localise one image of MH_01 against it"
+stop_server
+start_server
+"$OA" maps
+FRAME="$(ls "$OUT/MH_01_clip/mav0/cam0/data" | sed -n 150p)"
+"$OA" localize --config euroc/stereo --server "$ORBATLAS_SERVER" --image "$OUT/MH_01_clip/mav0/cam0/data/$FRAME"
+stop_server
+
+echo "== 6. Each session's ATE (orbatlas eval against the clip's ground truth)"
+for S in MH_01 MH_02; do
+  echo "-- $S"
+  "$OA" eval --gt "$OUT/${S}_clip" --est "$OUT/session_$S.txt" --align se3 --plot "$OUT/session_${S}_top_view.png"
+done
+
+echo "== 7. ORB-SLAM3 v1.0 monocular-inertial on real MH_01, scored by the same evaluator"
 "$OA" eval --gt "$GT" --est "$ROOT/data/euroc/peer_trajectories/orbslam3_MH01_monoi_frames.txt.gz" \
      --align se3 --plot "$OUT/orbslam3_MH01_top_view.png"
 

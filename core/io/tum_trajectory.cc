@@ -114,24 +114,31 @@ void write_tum_trajectory(const fs::path& path, const Trajectory& trajectory) {
   write_tum_trajectory(path, trajectory, {});
 }
 
-void write_tum_trajectory(const fs::path& path, const Trajectory& trajectory, const std::vector<std::uint64_t>& maps) {
-  check_strictly_increasing(trajectory, "write_tum_trajectory");
+std::string format_tum_trajectory(const Trajectory& trajectory, const std::vector<std::uint64_t>& maps) {
+  check_strictly_increasing(trajectory, "format_tum_trajectory");
   if (!maps.empty() && maps.size() != trajectory.size())
-    throw Error("write_tum_trajectory: " + std::to_string(maps.size()) + " map ids for " +
+    throw Error("format_tum_trajectory: " + std::to_string(maps.size()) + " map ids for " +
                 std::to_string(trajectory.size()) + " poses");
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw Error("cannot create " + path.string());
-  out << "# timestamp[s] tx ty tz qx qy qz qw\n";
+  std::string out = "# timestamp[s] tx ty tz qx qy qz qw\n";
   char buf[256];
   for (std::size_t i = 0; i < trajectory.size(); ++i) {
     const StampedPose& s = trajectory[i];
-    if (!maps.empty() && (i == 0 || maps[i] != maps[i - 1])) out << "# map " << maps[i] << "\n";
+    if (!maps.empty() && (i == 0 || maps[i] != maps[i - 1])) out += "# map " + std::to_string(maps[i]) + "\n";
     const Eigen::Vector3d& p = s.pose.t;
     const Eigen::Quaterniond& q = s.pose.q;
     std::snprintf(buf, sizeof buf, " %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", p.x(), p.y(), p.z(), q.x(), q.y(),
                   q.z(), q.w());
-    out << format_seconds_exact(s.t_ns) << buf;
+    out += format_seconds_exact(s.t_ns);
+    out += buf;
   }
+  return out;
+}
+
+void write_tum_trajectory(const fs::path& path, const Trajectory& trajectory, const std::vector<std::uint64_t>& maps) {
+  const std::string text = format_tum_trajectory(trajectory, maps);
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw Error("cannot create " + path.string());
+  out << text;
   out.close();
   if (!out) throw Error("cannot write " + path.string());
 }

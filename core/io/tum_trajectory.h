@@ -5,6 +5,7 @@
 // a timestamp column whose values exceed 1e12 is taken as nanoseconds.
 #include <cstdint>
 #include <filesystem>
+#include <string>
 
 #include "core/geometry/trajectory.h"
 
@@ -20,6 +21,9 @@ void write_tum_trajectory(const std::filesystem::path& path, const Trajectory& t
 // (`maps` is index-aligned with the poses; readers skip comments).
 void write_tum_trajectory(const std::filesystem::path& path, const Trajectory& trajectory,
                           const std::vector<std::uint64_t>& maps);
+
+// The text write_tum_trajectory writes (the server's trajectory route).
+std::string format_tum_trajectory(const Trajectory& trajectory, const std::vector<std::uint64_t>& maps = {});
 
 // Reads ground truth in any of the forms `orbatlas eval --gt` takes: a TUM file,
 // an ASL ground-truth csv, or a dataset folder (its state_groundtruth_estimate0).

@@ -1,0 +1,46 @@
+#pragma once
+// Streams a recorded EuRoC ASL sequence to the map server as a live session
+// (what `orbatlas stream` does): images are read ahead by a loader thread, each
+// stereo pair is posted at the sensor rate times `rate` (0: as fast as the server
+// answers), the session is finished (stored), and its final trajectory fetched
+// and, with ground truth, evaluated.
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "client/api/server_client.h"
+#include "core/geometry/trajectory.h"
+
+namespace orbatlas {
+
+struct StreamOptions {
+  std::filesystem::path dataset;
+  std::string config = "euroc/stereo";
+  std::string name;  // default: the dataset folder's name
+  double rate = 0.0;  // 1: real time; 2: twice as fast; 0: no pacing
+  ImageEncoding encoding = ImageEncoding::kRaw;
+  double start_s = 0.0;
+  std::optional<double> duration_s;
+  bool show_progress = true;
+};
+
+struct StreamReport {
+  std::uint64_t session = 0;
+  std::size_t frames = 0, tracked = 0, rejected = 0, keyframes = 0;
+  std::vector<double> tracking_ms;    // the server's tracking time per frame
+  std::vector<double> server_ms;      // the server's time per request (parsing, decoding, tracking)
+  std::vector<double> round_trip_ms;  // seen by the client (encoding, transfer, server)
+  double wall_s = 0.0;
+  Trajectory trajectory;  // the server's final trajectory (after the session finished)
+  std::vector<std::uint64_t> trajectory_maps;
+  std::optional<double> ate_rmse_m;  // when the dataset has ground truth (SE3 alignment)
+  nlohmann::json finish_status;
+  double fps() const { return wall_s > 0 ? static_cast<double>(frames) / wall_s : 0.0; }
+};
+
+// Throws Error when the dataset cannot be read or the server refuses the
+// session; frames the server refuses as bad input are counted (`rejected`).
+StreamReport stream_dataset(ServerClient& client, const StreamOptions& options);
+
+}  // namespace orbatlas

@@ -1,0 +1,161 @@
+#include "client/api/server_client.h"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/archive/tar_writer.h"
+
+// Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
+#include <httplib.h>
+
+namespace orbatlas {
+namespace {
+
+using json = nlohmann::json;
+
+std::string image_bytes(const cv::Mat& image, ImageEncoding encoding) {
+  ORBATLAS_CHECK(!image.empty() && image.type() == CV_8UC1, "the client sends 8-bit grey images");
+  if (encoding == ImageEncoding::kPng) {
+    std::vector<unsigned char> png;
+    ORBATLAS_CHECK(cv::imencode(".png", image, png, {cv::IMWRITE_PNG_COMPRESSION, 1}), "cannot encode a PNG");
+    return std::string(png.begin(), png.end());
+  }
+  const cv::Mat dense = image.isContinuous() ? image : image.clone();
+  return std::string(reinterpret_cast<const char*>(dense.data), dense.total());
+}
+
+void add_image(httplib::MultipartFormDataItems& items, const char* name, const cv::Mat& image, ImageEncoding encoding) {
+  items.push_back({name, image_bytes(image, encoding), std::string(name) + (encoding == ImageEncoding::kPng ? ".png" : ".raw"),
+                   encoding == ImageEncoding::kPng ? "image/png" : "application/octet-stream"});
+}
+
+void add_raw_size(httplib::MultipartFormDataItems& items, const cv::Mat& image, ImageEncoding encoding) {
+  if (encoding != ImageEncoding::kRaw) return;
+  items.push_back({"width", std::to_string(image.cols), "", ""});
+  items.push_back({"height", std::to_string(image.rows), "", ""});
+}
+
+std::string url_encode(const std::string& text) {
+  std::string out;
+  for (const unsigned char c : text) {
+    if (std::isalnum(c) || c == '-' || c == '_' || c == '.' || c == '~' || c == '/') {
+      out += static_cast<char>(c);
+    } else {
+      char buf[4];
+      std::snprintf(buf, sizeof buf, "%%%02X", c);
+      out += buf;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+void throw_server_error(int status, const std::string& body) {
+  std::string code = "http_error", message = body.substr(0, 300);
+  try {
+    const json j = json::parse(body);
+    code = j.at("error").at("code").get<std::string>();
+    message = j.at("error").at("message").get<std::string>();
+  } catch (const std::exception&) {
+  }
+  throw ServerError(status, code, message);
+}
+
+ServerClient::ServerClient(const std::string& url, std::string token)
+    : url_(url), token_(std::move(token)), client_(std::make_unique<httplib::Client>(url)) {
+  ORBATLAS_CHECK(client_->is_valid(), "not a server URL: '" << url << "' (e.g. http://127.0.0.1:8080)");
+  client_->set_keep_alive(true);
+  client_->set_tcp_nodelay(true);  // no 40 ms delayed-ACK stalls between a request's packets
+  client_->set_connection_timeout(5);
+  client_->set_read_timeout(300);  // finishing a long session waits for mapping and a durable checkpoint
+  client_->set_write_timeout(60);
+  if (!token_.empty()) client_->set_bearer_token_auth(token_);
+}
+
+ServerClient::~ServerClient() = default;
+
+httplib::Client& ServerClient::http() { return *client_; }
+
+namespace {
+
+const httplib::Response& checked(const httplib::Result& result, const std::string& url, const std::string& what) {
+  if (!result) throw Error("cannot reach the server at " + url + " (" + what + "): " + httplib::to_string(result.error()));
+  if (result->status >= 400) throw_server_error(result->status, result->body);
+  return *result;
+}
+
+}  // namespace
+
+json ServerClient::get_json(const std::string& path) { return json::parse(checked(client_->Get(path), url_, path).body); }
+
+std::string ServerClient::get_text(const std::string& path) { return checked(client_->Get(path), url_, path).body; }
+
+json ServerClient::post_json(const std::string& path, const json& body) {
+  return json::parse(checked(client_->Post(path, body.dump(), "application/json"), url_, path).body);
+}
+
+std::uint64_t ServerClient::create_session(const std::string& config, const std::string& name) {
+  json body = {{"config", config}};
+  if (!name.empty()) body["name"] = name;
+  return post_json("/v1/sessions", body).at("id").get<std::uint64_t>();
+}
+
+json ServerClient::post_frame(std::uint64_t session, std::int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
+                              ImageEncoding encoding) {
+  httplib::MultipartFormDataItems items;
+  items.push_back({"t_ns", std::to_string(t_ns), "", ""});
+  add_image(items, "left", left, encoding);
+  add_image(items, "right", right, encoding);
+  add_raw_size(items, left, encoding);
+  const std::string path = "/v1/sessions/" + std::to_string(session) + "/frames";
+  return json::parse(checked(client_->Post(path, items), url_, path).body);
+}
+
+json ServerClient::finish_session(std::uint64_t session) {
+  return post_json("/v1/sessions/" + std::to_string(session) + "/finish", json::object());
+}
+
+std::string ServerClient::trajectory_tum(std::uint64_t session) {
+  return get_text("/v1/sessions/" + std::to_string(session) + "/trajectory");
+}
+
+json ServerClient::localize(const std::string& config, const cv::Mat& left, const cv::Mat& right,
+                            std::optional<std::uint64_t> map, ImageEncoding encoding, const std::string& settings_yaml) {
+  httplib::MultipartFormDataItems items;
+  if (!config.empty()) items.push_back({"config", config, "", ""});
+  if (!settings_yaml.empty()) items.push_back({"settings_yaml", settings_yaml, "", ""});
+  if (map) items.push_back({"map", std::to_string(*map), "", ""});
+  add_image(items, right.empty() ? "image" : "left", left, encoding);
+  if (!right.empty()) add_image(items, "right", right, encoding);
+  add_raw_size(items, left, encoding);
+  return json::parse(checked(client_->Post("/v1/localize", items), url_, "/v1/localize").body);
+}
+
+std::uint64_t ServerClient::upload(const std::filesystem::path& dataset, const std::string& config,
+                                  const std::string& name,
+                                  const std::function<void(std::uint64_t, std::uint64_t)>& progress) {
+  ORBATLAS_CHECK(std::filesystem::is_directory(dataset / "mav0"), dataset << " holds no mav0/ folder (EuRoC ASL)");
+  const std::uint64_t total = directory_tar_size(dataset);
+  std::string path = "/v1/uploads?config=" + url_encode(config);
+  if (!name.empty()) path += "&name=" + url_encode(name);
+  std::string failure;
+  const auto result = client_->Post(
+      path, static_cast<std::size_t>(total),
+      [&](std::size_t offset, std::size_t, httplib::DataSink& sink) {
+        if (offset != 0) return false;  // everything is written by the first call
+        try {
+          write_directory_tar(dataset, [&](const char* data, std::size_t n) {
+            if (!sink.write(data, n)) throw Error("the connection closed while uploading");
+          }, progress);
+        } catch (const std::exception& e) {
+          failure = e.what();
+          return false;
+        }
+        return true;
+      },
+      "application/x-tar");
+  if (!failure.empty()) throw Error("upload of " + dataset.string() + " failed: " + failure);
+  return json::parse(checked(result, url_, "/v1/uploads").body).at("job").get<std::uint64_t>();
+}
+
+}  // namespace orbatlas

@@ -1,0 +1,82 @@
+#pragma once
+// A client of the map server's HTTP API v1 (docs/api.md), used by the
+// `orbatlas stream|upload|localize --server|sessions|maps|jobs` commands and the
+// end-to-end tests. One connection, kept alive; not thread-safe (one client per
+// thread). Errors: ServerError for a reply with an error status (its JSON code
+// and message), Error when the server cannot be reached.
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <opencv2/core/mat.hpp>
+#include <optional>
+#include <string>
+
+#include "core/common/error.h"
+
+namespace httplib {
+class Client;
+}
+
+namespace orbatlas {
+
+class ServerError : public Error {
+ public:
+  ServerError(int status, std::string code, const std::string& message)
+      : Error("server replied " + std::to_string(status) + " (" + code + "): " + message),
+        status_(status),
+        code_(std::move(code)) {}
+  int status() const { return status_; }
+  const std::string& code() const { return code_; }
+
+ private:
+  int status_;
+  std::string code_;
+};
+
+enum class ImageEncoding { kRaw, kPng };  // raw: 8-bit pixels as they are (no decoding on the server)
+
+class ServerClient {
+ public:
+  // url: "http://127.0.0.1:8080" (https needs a build with OpenSSL, as Debian's).
+  explicit ServerClient(const std::string& url, std::string token = {});
+  ~ServerClient();
+  ServerClient(const ServerClient&) = delete;
+  ServerClient& operator=(const ServerClient&) = delete;
+
+  nlohmann::json get_json(const std::string& path);
+  std::string get_text(const std::string& path);
+  nlohmann::json post_json(const std::string& path, const nlohmann::json& body);
+
+  // POST /v1/sessions with a config name; returns the session id.
+  std::uint64_t create_session(const std::string& config, const std::string& name = {});
+  // POST /v1/sessions/{id}/frames; the reply (pose, state, map, timings).
+  nlohmann::json post_frame(std::uint64_t session, std::int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
+                            ImageEncoding encoding = ImageEncoding::kRaw);
+  nlohmann::json finish_session(std::uint64_t session);
+  std::string trajectory_tum(std::uint64_t session);
+  // POST /v1/localize: a single image when `right` is empty. The settings are a
+  // config name the server knows, or (config empty) the text of a YAML file.
+  nlohmann::json localize(const std::string& config, const cv::Mat& left, const cv::Mat& right = {},
+                          std::optional<std::uint64_t> map = std::nullopt, ImageEncoding encoding = ImageEncoding::kPng,
+                          const std::string& settings_yaml = {});
+
+  // POST /v1/uploads: streams `dataset` (a folder holding mav0/) as a tar; returns
+  // the job id. `progress(bytes_sent, bytes_total)` is called as it goes.
+  std::uint64_t upload(const std::filesystem::path& dataset, const std::string& config, const std::string& name = {},
+                       const std::function<void(std::uint64_t, std::uint64_t)>& progress = {});
+
+  const std::string& url() const { return url_; }
+  httplib::Client& http();  // for uploads and tests
+
+ private:
+  std::string url_;
+  std::string token_;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+// The body of a reply with an error status as a ServerError (thrown).
+[[noreturn]] void throw_server_error(int status, const std::string& body);
+
+}  // namespace orbatlas

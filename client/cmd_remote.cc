@@ -1,0 +1,201 @@
+// Commands that talk to a running map server (docs/api.md): `orbatlas stream`
+// (a recorded sequence as a live session), `orbatlas upload` (a recording run by
+// the server), `orbatlas sessions|maps|jobs`.
+#include <chrono>
+#include <cstdio>
+#include <thread>
+#include <memory>
+#include <set>
+#include <string>
+
+#include "client/api/dataset_streamer.h"
+#include "client/commands.h"
+#include "core/common/progress.h"
+#include "core/io/tum_trajectory.h"
+#include "core/slam/slam_stats.h"
+
+namespace orbatlas::cli {
+namespace {
+
+struct ServerArgs {
+  std::string server = "http://127.0.0.1:8080";
+  std::string token;
+};
+
+void add_server_options(CLI::App* cmd, ServerArgs& args) {
+  cmd->add_option("--server", args.server, "Map server URL")->envname("ORBATLAS_SERVER")->capture_default_str();
+  cmd->add_option("--token", args.token, "Bearer token of the server")->envname("ORBATLAS_TOKEN");
+}
+
+struct StreamArgs {
+  ServerArgs server;
+  StreamOptions stream;
+  std::string dataset, encoding = "raw", out_trajectory, stats;
+  double duration_s = 0.0;
+};
+
+nlohmann::json stream_json(const StreamReport& r) {
+  std::vector<double> server_overhead, client_overhead;
+  for (std::size_t i = 0; i < r.tracking_ms.size(); ++i) {
+    server_overhead.push_back(r.server_ms[i] - r.tracking_ms[i]);
+    client_overhead.push_back(r.round_trip_ms[i] - r.tracking_ms[i]);
+  }
+  nlohmann::json j = {{"session", r.session},
+                      {"frames", r.frames},
+                      {"tracked", r.tracked},
+                      {"rejected", r.rejected},
+                      {"keyframes", r.keyframes},
+                      {"wall_s", r.wall_s},
+                      {"fps", r.fps()},
+                      {"tracking_ms", to_json_summary(r.tracking_ms)},
+                      {"server_ms", to_json_summary(r.server_ms)},
+                      {"round_trip_ms", to_json_summary(r.round_trip_ms)},
+                      {"server_overhead_ms", to_json_summary(server_overhead)},
+                      {"client_overhead_ms", to_json_summary(client_overhead)}};
+  std::set<std::uint64_t> maps(r.trajectory_maps.begin(), r.trajectory_maps.end());
+  j["maps"] = maps;
+  if (r.ate_rmse_m) j["ate_rmse_m"] = *r.ate_rmse_m;
+  return j;
+}
+
+void print_stream_summary(const nlohmann::json& j) {
+  const auto p = [&](const char* key, const char* q) { return j[key][q].get<double>(); };
+  std::printf("session %llu: %zu frames sent, %zu tracked, %zu refused, %zu keyframes, %.1f frames/s\n",
+              static_cast<unsigned long long>(j["session"].get<std::uint64_t>()), j["frames"].get<std::size_t>(),
+              j["tracked"].get<std::size_t>(), j["rejected"].get<std::size_t>(), j["keyframes"].get<std::size_t>(),
+              j["fps"].get<double>());
+  if (j["frames"].get<std::size_t>() > 0) {
+    std::printf("  tracking p50 %.1f / p95 %.1f ms; round trip p50 %.1f / p95 %.1f ms\n", p("tracking_ms", "p50"),
+                p("tracking_ms", "p95"), p("round_trip_ms", "p50"), p("round_trip_ms", "p95"));
+    std::printf("  added by the server (request - tracking) p50 %.2f / p95 %.2f ms; by HTTP and the client p50 %.2f ms\n",
+                p("server_overhead_ms", "p50"), p("server_overhead_ms", "p95"), p("client_overhead_ms", "p50"));
+  }
+  std::string maps;
+  for (const auto& m : j["maps"]) maps += (maps.empty() ? "" : ", ") + std::to_string(m.get<std::uint64_t>());
+  std::printf("  maps: %s\n", maps.empty() ? "none" : maps.c_str());
+  if (j.contains("ate_rmse_m")) std::printf("  ATE %.4f m (RMSE, SE3-aligned to the ground truth)\n", j["ate_rmse_m"].get<double>());
+}
+
+void register_stream(CLI::App& app) {
+  auto args = std::make_shared<StreamArgs>();
+  auto* cmd = app.add_subcommand("stream", "Stream a recorded stereo sequence to a map server as a live session");
+  add_server_options(cmd, args->server);
+  cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--config", args->stream.config, "Config name on the server")->capture_default_str();
+  cmd->add_option("--name", args->stream.name, "Session name (default: the dataset folder's name)");
+  cmd->add_option("--rate", args->stream.rate, "1: at the sensor rate, 2: twice as fast, 0: as fast as the server answers")
+      ->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd->add_option("--encoding", args->encoding, "Images as 'raw' 8-bit pixels or 'png'")->capture_default_str()
+      ->check(CLI::IsMember({"raw", "png"}));
+  cmd->add_option("--start", args->stream.start_s, "Seconds of the sequence to skip")->capture_default_str();
+  cmd->add_option("--duration", args->duration_s, "Seconds to stream (default: to the end)");
+  cmd->add_option("--out-trajectory", args->out_trajectory, "Write the session's final trajectory (TUM) here");
+  cmd->add_option("--stats", args->stats, "Write the figures as JSON here");
+  cmd->add_flag("!--no-progress", args->stream.show_progress, "Do not print progress");
+  cmd->callback([args] {
+    StreamOptions options = args->stream;
+    options.dataset = args->dataset;
+    options.encoding = args->encoding == "png" ? ImageEncoding::kPng : ImageEncoding::kRaw;
+    if (args->duration_s > 0) options.duration_s = args->duration_s;
+    ServerClient client(args->server.server, args->server.token);
+    const StreamReport report = stream_dataset(client, options);
+    if (!args->out_trajectory.empty())
+      write_tum_trajectory(args->out_trajectory, report.trajectory, report.trajectory_maps);
+    const nlohmann::json j = stream_json(report);
+    if (!args->stats.empty()) write_stats_file(args->stats, j);
+    print_stream_summary(j);
+  });
+}
+
+struct UploadArgs {
+  ServerArgs server;
+  std::string dataset, config = "euroc/stereo", name;
+  bool wait = true, progress = true;
+};
+
+void register_upload(CLI::App& app) {
+  auto args = std::make_shared<UploadArgs>();
+  auto* cmd = app.add_subcommand("upload", "Upload a recorded EuRoC ASL sequence; the server runs it as a stored session");
+  add_server_options(cmd, args->server);
+  cmd->add_option("--dataset", args->dataset, "Folder holding mav0/")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--config", args->config, "Config name on the server")->capture_default_str();
+  cmd->add_option("--name", args->name, "Session name");
+  cmd->add_flag("!--no-wait", args->wait, "Return once uploaded (do not follow the job)");
+  cmd->add_flag("!--no-progress", args->progress, "Do not print progress");
+  cmd->callback([args] {
+    ServerClient client(args->server.server, args->server.token);
+    std::unique_ptr<Progress> sending;
+    std::int64_t sent_mb = 0;
+    const auto show = [&](std::uint64_t done, std::uint64_t total) {
+      if (!args->progress) return;
+      if (!sending) sending = std::make_unique<Progress>("upload MB", static_cast<std::int64_t>(total >> 20), true);
+      const auto mb = static_cast<std::int64_t>(done >> 20);
+      sending->advance(mb - sent_mb);
+      sent_mb = mb;
+    };
+    const std::uint64_t job = client.upload(args->dataset, args->config, args->name, show);
+    if (sending) sending->finish();
+    std::printf("job %llu queued\n", static_cast<unsigned long long>(job));
+    if (!args->wait) return;
+    nlohmann::json status;
+    Progress running("job " + std::to_string(job) + " frames", 0, args->progress);
+    std::int64_t shown = 0;
+    while (true) {
+      status = client.get_json("/v1/jobs/" + std::to_string(job));
+      const std::string state = status["state"];
+      const auto done = status["frames_done"].get<std::int64_t>();
+      running.advance(done - shown);
+      shown = done;
+      if (state == "done" || state == "failed" || state == "cancelled") break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    }
+    running.finish();
+    if (status["state"] != "done") throw Error("job " + std::to_string(job) + " " + status["state"].get<std::string>() +
+                                               ": " + status.value("error", std::string("(no reason given)")));
+    std::printf("job %llu done: session %llu, %zu of %zu frames tracked, %zu refused",
+                static_cast<unsigned long long>(job), static_cast<unsigned long long>(status["session"].get<std::uint64_t>()),
+                status["tracked"].get<std::size_t>(), status["frames_total"].get<std::size_t>(),
+                status["rejected"].get<std::size_t>());
+    if (status.contains("ate_rmse_m")) std::printf(", ATE %.4f m", status["ate_rmse_m"].get<double>());
+    std::printf("\n");
+  });
+}
+
+void register_listing(CLI::App& app, const char* name, const char* help, const char* path, const char* key) {
+  auto args = std::make_shared<ServerArgs>();
+  auto json_out = std::make_shared<bool>(false);
+  auto* cmd = app.add_subcommand(name, help);
+  add_server_options(cmd, *args);
+  cmd->add_flag("--json", *json_out, "Print the server's JSON reply");
+  const std::string route = path, list_key = key;
+  cmd->callback([args, json_out, route, list_key] {
+    ServerClient client(args->server, args->token);
+    const nlohmann::json reply = client.get_json(route);
+    if (*json_out) {
+      std::printf("%s\n", reply.dump(2).c_str());
+      return;
+    }
+    for (const auto& item : reply.at(list_key)) {
+      std::string line = list_key.substr(0, list_key.size() - 1) + " " + std::to_string(item["id"].get<std::uint64_t>());
+      for (const auto& [k, v] : item.items()) {
+        if (k == "id" || v.is_object() || v.is_array()) continue;
+        line += "  " + k + "=" + (v.is_string() ? v.get<std::string>() : v.dump());
+      }
+      std::printf("%s\n", line.c_str());
+    }
+    if (reply.at(list_key).empty()) std::printf("no %s\n", list_key.c_str());
+  });
+}
+
+}  // namespace
+
+void register_remote_commands(CLI::App& app) {
+  register_stream(app);
+  register_listing(app, "sessions", "List the sessions of a map server (live, finished and stored)", "/v1/sessions",
+                   "sessions");
+  register_listing(app, "maps", "List the maps of a map server's atlas", "/v1/maps", "maps");
+  register_listing(app, "jobs", "List the upload jobs of a map server", "/v1/jobs", "jobs");
+  register_upload(app);
+}
+
+}  // namespace orbatlas::cli

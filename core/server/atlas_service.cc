@@ -1,0 +1,397 @@
+#include "core/server/atlas_service.h"
+
+#include <chrono>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <unistd.h>
+
+#include "core/common/data_paths.h"
+#include "core/common/log.h"
+#include "core/io/tum_trajectory.h"
+#include "core/persistence/atlas_store.h"
+#include "core/place/relocalizer.h"
+#include "core/server/api_error.h"
+#include "core/tracking/stereo_frontend.h"
+#include "core/vocabulary/default_vocabulary.h"
+
+namespace orbatlas {
+namespace {
+
+namespace fs = std::filesystem;
+
+TimestampNs unix_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+std::uintmax_t file_size_or_zero(const fs::path& path) {
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  return ec ? 0 : size;
+}
+
+}  // namespace
+
+// The frontend and camera a localisation request needs, per configuration.
+struct AtlasService::LocalizerContext {
+  explicit LocalizerContext(const SlamSettings& settings) : frontend(settings, false) {
+    cam.camera = &frontend.camera();
+    cam.bf = frontend.bf();
+    cam.pyramid.scale_factor = settings.orb.scale_factor;
+    cam.pyramid.n_levels = settings.orb.n_levels;
+  }
+  std::mutex mutex;  // a frontend has scratch buffers: one request at a time per configuration
+  StereoFrontend frontend;
+  FrameCamera cam;
+};
+
+AtlasService::AtlasService(AtlasServiceOptions options)
+    : options_(std::move(options)),
+      vocabulary_(Vocabulary::load(options_.vocabulary.empty() ? default_vocabulary_path() : options_.vocabulary)) {
+  ORBATLAS_CHECK(!options_.db.empty(), "the server needs a database path (--db)");
+  const auto start = std::chrono::steady_clock::now();
+  {
+    AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());
+    const AtlasLoadReport loaded = store.load_atlas(atlas_, &vocabulary_);
+    atlas_.index_all_keyframes();
+    for (const auto& map : atlas_.maps()) leases_.add_free(map->id());
+    for (const SessionInfo& info : store.load_sessions()) {
+      sessions_[info.id] = std::make_shared<LiveSession>(info, store.load_trajectory(info.id));
+      next_session_ = std::max(next_session_, info.id + 1);
+    }
+    log_info("atlas " + options_.db.string() + ": " + std::to_string(loaded.maps) + " maps, " +
+             std::to_string(loaded.keyframes) + " keyframes, " + std::to_string(loaded.map_points) + " map points, " +
+             std::to_string(sessions_.size()) + " sessions loaded in " +
+             std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()) + " s");
+  }
+  checkpointer_ = std::make_unique<AtlasCheckpointer>(atlas_, options_.db, vocabulary_.hash(), options_.checkpoints);
+}
+
+AtlasService::~AtlasService() {
+  try {
+    shutdown();
+  } catch (const std::exception& e) {
+    log_warn(std::string("server shutdown: ") + e.what());
+  }
+}
+
+AtlasService::LoadedSettings AtlasService::load_settings(const SettingsSource& source) const {
+  if (!source.config.empty() && !source.settings_yaml.empty())
+    throw_bad_request("give either 'config' or 'settings_yaml', not both");
+  if (source.config.empty() && source.settings_yaml.empty())
+    throw_bad_request("a configuration is needed: 'config' (a name such as \"euroc/stereo\") or 'settings_yaml'");
+  try {
+    if (!source.config.empty()) {
+      static const std::regex kName("[A-Za-z0-9_\\-]+(/[A-Za-z0-9_\\-]+)*");
+      if (!std::regex_match(source.config, kName))
+        throw_bad_request("config name '" + source.config + "' is not of the form \"euroc/stereo\"");
+      const fs::path dir = options_.config_dir.empty() ? shipped_config_dir() : options_.config_dir;
+      const fs::path file = dir / (source.config + ".yaml");
+      if (!fs::is_regular_file(file)) throw_not_found("no config named '" + source.config + "'");
+      return {read_settings(file), source.config};
+    }
+    // cv::FileStorage reads files: the text goes through a private temporary one.
+    const fs::path file = fs::temp_directory_path() / ("orbatlas-settings-" + std::to_string(::getpid()) + "-" +
+                                                       std::to_string(temp_files_.fetch_add(1)) + ".yaml");
+    {
+      std::ofstream out(file, std::ios::binary);
+      out << source.settings_yaml;
+      if (!out) throw Error("cannot write " + file.string());
+    }
+    struct Remove {
+      fs::path p;
+      ~Remove() {
+        std::error_code ec;
+        fs::remove(p, ec);
+      }
+    } remove{file};
+    return {read_settings(file), "inline"};
+  } catch (const ApiError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw ApiError(400, "bad_config", std::string("unusable settings: ") + e.what());
+  }
+}
+
+SessionId AtlasService::create_session(const SessionRequest& request) {
+  const auto sensor = parse_sensor_type(request.sensor);
+  if (!sensor) throw_bad_request("unknown sensor '" + request.sensor + "' (stereo, stereo_inertial, mono, mono_inertial)");
+  if (*sensor != SensorType::kStereo && *sensor != SensorType::kStereoInertial)
+    throw ApiError(422, "unsupported_sensor",
+                   "sensor '" + request.sensor + "' is not served yet: sessions are stereo (stereo_inertial is tracked visually)");
+  const LoadedSettings loaded = load_settings(request.settings);
+  if (!loaded.settings.is_stereo())
+    throw ApiError(400, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
+
+  SessionId id = 0;
+  {
+    std::lock_guard lock(mutex_);
+    if (shut_down_) throw ApiError(503, "shutting_down", "the server is shutting down");
+    std::size_t live = 0;
+    for (const auto& [_, s] : sessions_) live += s->state() == SessionState::kActive ? 1 : 0;
+    if (live >= options_.max_live_sessions)
+      throw ApiError(503, "too_many_sessions", std::to_string(live) + " sessions are live; the limit is " +
+                                                   std::to_string(options_.max_live_sessions) + " (finish one first)");
+    id = next_session_++;
+  }
+  SessionInfo info;
+  info.id = id;
+  info.name = request.name.empty() ? "session " + std::to_string(id) : request.name;
+  info.sensor = *sensor;
+  info.created_ns = unix_now_ns();
+  info.cameras.push_back(loaded.settings.camera0);
+  if (loaded.settings.camera1) info.cameras.push_back(*loaded.settings.camera1);
+
+  StereoSlamOptions slam_options = options_.slam;
+  slam_options.may_enter_map = [this, id](MapId map) { return leases_.claim(id, map); };
+  std::unique_ptr<StereoSlam> slam;
+  try {
+    slam = std::make_unique<StereoSlam>(atlas_, loaded.settings, vocabulary_, slam_options);
+  } catch (const std::exception& e) {
+    throw ApiError(400, "bad_config", std::string("cannot start a stereo session with these settings: ") + e.what());
+  }
+  auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam));
+  {
+    std::lock_guard lock(mutex_);
+    sessions_[id] = live;
+  }
+  // The checkpoint thread reads the frames through its own reference.
+  checkpointer_->add_session(CheckpointSession{info, [live] { return live->anchors(); }});
+  ++sessions_created_;
+  log_info("session " + std::to_string(id) + " started (" + info.name + ", config " + loaded.label + ")");
+  return id;
+}
+
+std::shared_ptr<LiveSession> AtlasService::session(SessionId id) const {
+  std::lock_guard lock(mutex_);
+  const auto it = sessions_.find(id);
+  if (it == sessions_.end()) throw_not_found("no session " + std::to_string(id));
+  return it->second;
+}
+
+std::vector<std::shared_ptr<LiveSession>> AtlasService::sessions() const {
+  std::lock_guard lock(mutex_);
+  std::vector<std::shared_ptr<LiveSession>> out;
+  for (const auto& [_, s] : sessions_) out.push_back(s);
+  return out;
+}
+
+void AtlasService::end_session_storage(SessionId id) {
+  leases_.release_all(id);
+  checkpointer_->end_session(id);
+}
+
+FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
+  const auto live = session(id);
+  FrameReply reply;
+  reply.session = id;
+  try {
+    const FrameOutcome out = live->process(t_ns, left, right);
+    reply.result = out.result;
+    reply.tracking_ms = out.tracking_ms;
+  } catch (const ApiError& e) {
+    if (e.code() == "session_failed") end_session_storage(id);
+    throw;
+  } catch (const DataError&) {
+    ++frames_rejected_;
+    throw;
+  }
+  leases_.settle(id, reply.result.tracked ? std::optional<MapId>(reply.result.map) : std::nullopt);
+  if (reply.result.keyframe) checkpointer_->notify_keyframe(id, reply.result.keyframe_id);
+  ++frames_;
+  tracking_latency_.record(reply.tracking_ms);
+  return reply;
+}
+
+std::size_t AtlasService::add_imu(SessionId id, const std::vector<ImuSample>& samples) {
+  return session(id)->add_imu(samples, options_.max_imu_gap_s);
+}
+
+nlohmann::json AtlasService::finish_session(SessionId id) {
+  const auto live = session(id);
+  if (live->state() == SessionState::kStored)
+    throw_conflict("session " + std::to_string(id) + " was stored by an earlier run; there is nothing to finish");
+  const bool ended = live->finish();
+  if (ended) {
+    end_session_storage(id);
+    // The session's last frames and keyframes are on disk before the reply.
+    if (!checkpointer_->checkpoint_now())
+      throw ApiError(500, "storage_failed",
+                     "session " + std::to_string(id) + " ended but could not be stored yet: " +
+                         checkpointer_->stats().last_error + " (the server keeps retrying)");
+  }
+  return live->status();
+}
+
+std::pair<Trajectory, std::vector<std::uint64_t>> AtlasService::trajectory(SessionId id) const {
+  const auto live = session(id);
+  std::pair<Trajectory, std::vector<std::uint64_t>> out;
+  for (const FrameAnchor& a : live->anchors()) {
+    const auto map = atlas_.map(a.map);
+    if (!map) continue;
+    const auto T_w_ref = map->keyframe_pose(a.reference);
+    if (!T_w_ref) continue;
+    out.first.push_back({a.t_ns, *T_w_ref * a.T_ref_b});
+    out.second.push_back(a.map);
+  }
+  return out;
+}
+
+nlohmann::json AtlasService::maps_json() const {
+  nlohmann::json maps = nlohmann::json::array();
+  for (const auto& map : atlas_.maps()) maps.push_back(map_json(map->id()));
+  return maps;
+}
+
+nlohmann::json AtlasService::map_json(MapId id) const {
+  const auto map = atlas_.map(id);
+  if (!map) throw_not_found("no map " + std::to_string(id));
+  nlohmann::json j = {{"id", id}, {"keyframes", map->keyframe_count()}, {"map_points", map->map_point_count()}};
+  if (const auto holder = leases_.holder(id)) j["live_session"] = *holder;
+  const auto points = map->map_points();
+  if (!points.empty()) {
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+    for (const auto& p : points) {
+      lo = lo.cwiseMin(p->p_w());
+      hi = hi.cwiseMax(p->p_w());
+    }
+    j["bounds_m"] = {{"min", {lo.x(), lo.y(), lo.z()}}, {"max", {hi.x(), hi.y(), hi.z()}}};
+  }
+  return j;
+}
+
+std::string AtlasService::map_points_ply(MapId id) const {
+  const auto map = atlas_.map(id);
+  if (!map) throw_not_found("no map " + std::to_string(id));
+  std::vector<Eigen::Vector3d> points;
+  for (const auto& p : map->map_points())
+    if (!p->is_bad()) points.push_back(p->p_w());
+  std::ostringstream out;
+  out << "ply\nformat ascii 1.0\ncomment orbatlas map " << id << " (world frame of the map, metres)\n"
+      << "element vertex " << points.size() << "\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+  char line[96];
+  for (const auto& p : points) {
+    std::snprintf(line, sizeof line, "%.5f %.5f %.5f\n", p.x(), p.y(), p.z());
+    out << line;
+  }
+  return out.str();
+}
+
+AtlasService::LocalizerContext& AtlasService::localizer_for(const SettingsSource& source) {
+  const std::string key = source.config.empty() ? "yaml:" + source.settings_yaml : "config:" + source.config;
+  std::lock_guard lock(localizers_mutex_);
+  auto& slot = localizers_[key];
+  if (!slot) {
+    const LoadedSettings loaded = load_settings(source);
+    if (!loaded.settings.is_stereo())
+      throw ApiError(400, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
+    try {
+      slot = std::make_unique<LocalizerContext>(loaded.settings);
+    } catch (const std::exception& e) {
+      localizers_.erase(key);
+      throw ApiError(400, "bad_config", std::string("unusable settings: ") + e.what());
+    }
+  }
+  return *slot;
+}
+
+LocalizeReply AtlasService::localize(const LocalizeRequest& request) {
+  const auto start = std::chrono::steady_clock::now();
+  if (request.map && !atlas_.map(*request.map)) throw_not_found("no map " + std::to_string(*request.map));
+  LocalizerContext& context = localizer_for(request.settings);
+  LocalizeReply reply;
+  {
+    std::lock_guard lock(context.mutex);
+    Frame frame = request.right.empty() ? context.frontend.make_left_frame(0, request.left)
+                                        : context.frontend.make_frame(0, request.left, request.right);
+    RelocalizationOptions options;
+    options.only_map = request.map;
+    const RelocalizationResult r = relocalize(frame, vocabulary_, atlas_.keyframe_index(), context.cam,
+                                              context.frontend.calibration().T_b_c, options);
+    reply.recognised = r.success;
+    reply.map = r.map;
+    reply.T_w_b = r.T_w_b;
+    reply.inliers = r.inliers;
+    reply.candidates = r.candidates;
+  }
+  reply.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  ++localize_requests_;
+  if (reply.recognised) ++localize_recognised_;
+  localize_latency_.record(reply.ms);
+  return reply;
+}
+
+nlohmann::json AtlasService::health() const {
+  std::lock_guard lock(mutex_);
+  std::size_t live = 0;
+  for (const auto& [_, s] : sessions_) live += s->state() == SessionState::kActive ? 1 : 0;
+  return {{"status", shut_down_ ? "shutting_down" : "ok"}, {"live_sessions", live}, {"maps", atlas_.maps().size()}};
+}
+
+std::string AtlasService::metrics_text() const {
+  std::size_t live = 0, stored = 0;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& [_, s] : sessions_) {
+      const SessionState st = s->state();
+      live += st == SessionState::kActive ? 1 : 0;
+      stored += st == SessionState::kActive ? 0 : 1;
+    }
+  }
+  std::size_t keyframes = 0, points = 0;
+  const auto maps = atlas_.maps();
+  for (const auto& m : maps) {
+    keyframes += m->keyframe_count();
+    points += m->map_point_count();
+  }
+  const CheckpointStats checkpoints = checkpointer_->stats();
+  std::ostringstream out;
+  const auto gauge = [&](const char* name, const char* help, const char* type, double value) {
+    out << "# HELP " << name << " " << help << "\n# TYPE " << name << " " << type << "\n" << name << " " << value << "\n";
+  };
+  gauge("orbatlas_sessions_live", "Sessions taking frames.", "gauge", static_cast<double>(live));
+  gauge("orbatlas_sessions_ended", "Sessions finished, failed or stored by earlier runs.", "gauge", static_cast<double>(stored));
+  gauge("orbatlas_sessions_created_total", "Sessions created since the server started.", "counter",
+        static_cast<double>(sessions_created_.load()));
+  gauge("orbatlas_frames_total", "Frames processed.", "counter", static_cast<double>(frames_.load()));
+  gauge("orbatlas_frames_rejected_total", "Frames refused as bad input.", "counter", static_cast<double>(frames_rejected_.load()));
+  out << tracking_latency_.prometheus("orbatlas_tracking_latency_seconds", "Time to track one frame (features included).");
+  gauge("orbatlas_maps", "Maps in the atlas.", "gauge", static_cast<double>(maps.size()));
+  gauge("orbatlas_keyframes", "Keyframes in the atlas.", "gauge", static_cast<double>(keyframes));
+  gauge("orbatlas_map_points", "Map points in the atlas.", "gauge", static_cast<double>(points));
+  gauge("orbatlas_database_bytes", "Size of the atlas database with its write-ahead log.", "gauge",
+        static_cast<double>(file_size_or_zero(options_.db) + file_size_or_zero(options_.db.string() + "-wal")));
+  gauge("orbatlas_checkpoints_total", "Checkpoints completed.", "counter", static_cast<double>(checkpoints.checkpoints));
+  gauge("orbatlas_checkpoint_failures_total", "Checkpoints that failed (retried).", "counter",
+        static_cast<double>(checkpoints.failures));
+  gauge("orbatlas_localize_requests_total", "Localisation requests.", "counter", static_cast<double>(localize_requests_.load()));
+  gauge("orbatlas_localize_recognised_total", "Localisation requests that recognised the place.", "counter",
+        static_cast<double>(localize_recognised_.load()));
+  out << localize_latency_.prometheus("orbatlas_localize_latency_seconds", "Time to answer a localisation request.");
+  return out.str();
+}
+
+void AtlasService::shutdown() {
+  std::vector<std::shared_ptr<LiveSession>> live;
+  {
+    std::lock_guard lock(mutex_);
+    if (shut_down_) return;
+    shut_down_ = true;
+    for (const auto& [_, s] : sessions_)
+      if (s->state() == SessionState::kActive) live.push_back(s);
+  }
+  for (const auto& s : live) {
+    try {
+      if (s->finish()) log_info("session " + std::to_string(s->id()) + " finished by the shutdown");
+    } catch (const std::exception& e) {
+      log_warn(e.what());
+    }
+    end_session_storage(s->id());
+  }
+  checkpointer_->stop();  // the final, durable checkpoint
+  const CheckpointStats stats = checkpointer_->stats();
+  if (stats.failures > 0) log_warn("atlas checkpoints failed " + std::to_string(stats.failures) + " times; last: " + stats.last_error);
+}
+
+}  // namespace orbatlas

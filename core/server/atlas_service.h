@@ -1,0 +1,140 @@
+#pragma once
+// The map server's state, without HTTP (docs/server.md): the atlas loaded from
+// its database, the vocabulary, the live and stored sessions, map leases, the
+// incremental checkpointer and the localisation service. Every method is
+// thread-safe; the HTTP layer (http_api.h) only parses requests and formats
+// replies. Errors are ApiError (status + code), DataError (bad input: 422) or
+// Error (500).
+#include <atomic>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/geometry/trajectory.h"
+#include "core/map/atlas.h"
+#include "core/persistence/atlas_checkpointer.h"
+#include "core/server/latency_histogram.h"
+#include "core/server/live_session.h"
+#include "core/server/map_leases.h"
+#include "core/vocabulary/vocabulary.h"
+
+namespace orbatlas {
+
+struct AtlasServiceOptions {
+  std::filesystem::path db;          // created when missing
+  std::filesystem::path config_dir;  // named configs: <config_dir>/<name>.yaml; empty: the shipped ones
+  std::filesystem::path vocabulary;  // empty: the shipped one
+  CheckpointOptions checkpoints;
+  StereoSlamOptions slam;
+  std::size_t max_live_sessions = 8;
+  double max_imu_gap_s = 0.05;  // EuRoC's IMU runs at 200 Hz: 10 samples missing
+};
+
+// Settings of a new session or of a localisation request: a config name
+// ("euroc/stereo") or the text of an ORB-SLAM3-style YAML file.
+struct SettingsSource {
+  std::string config;
+  std::string settings_yaml;
+};
+
+struct SessionRequest {
+  std::string name;
+  std::string sensor = "stereo";
+  SettingsSource settings;
+};
+
+struct FrameReply {
+  SessionId session = 0;
+  TrackResult result;
+  double tracking_ms = 0.0;
+};
+
+struct LocalizeRequest {
+  SettingsSource settings;
+  cv::Mat left, right;  // right may be empty: a single image
+  std::optional<MapId> map;
+};
+
+struct LocalizeReply {
+  bool recognised = false;
+  MapId map = 0;
+  Pose3 T_w_b;
+  int inliers = 0;
+  std::size_t candidates = 0;
+  double ms = 0.0;
+};
+
+class AtlasService {
+ public:
+  // Loads the atlas (Error when the database is refused: another vocabulary, a
+  // newer schema, not a database) and starts the checkpointer.
+  explicit AtlasService(AtlasServiceOptions options);
+  ~AtlasService();  // shutdown()
+  AtlasService(const AtlasService&) = delete;
+  AtlasService& operator=(const AtlasService&) = delete;
+
+  SessionId create_session(const SessionRequest& request);
+  // ApiError when the settings cannot be used (uploads check before receiving).
+  void check_settings(const SettingsSource& source) const { load_settings(source); }
+  std::shared_ptr<LiveSession> session(SessionId id) const;  // ApiError 404
+  std::vector<std::shared_ptr<LiveSession>> sessions() const;  // by id
+  FrameReply process_frame(SessionId id, TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
+  std::size_t add_imu(SessionId id, const std::vector<ImuSample>& samples);
+  // Ends the session and stores it (a durable checkpoint); idempotent for a
+  // finished session, ApiError 409 for a stored one. Returns its status.
+  nlohmann::json finish_session(SessionId id);
+  // The session's frames in their maps' frames (poses follow later corrections).
+  std::pair<Trajectory, std::vector<std::uint64_t>> trajectory(SessionId id) const;
+
+  nlohmann::json maps_json() const;
+  nlohmann::json map_json(MapId id) const;  // ApiError 404
+  std::string map_points_ply(MapId id) const;
+
+  LocalizeReply localize(const LocalizeRequest& request);
+
+  std::string metrics_text() const;  // Prometheus exposition format
+  nlohmann::json health() const;
+  // Finishes every live session, writes the final durable checkpoint. Idempotent.
+  void shutdown();
+
+  Atlas& atlas() { return atlas_; }
+  const Vocabulary& vocabulary() const { return vocabulary_; }
+  const std::filesystem::path& db_path() const { return options_.db; }
+
+ private:
+  struct LoadedSettings {
+    SlamSettings settings;
+    std::string label;  // the config name, or "inline"
+  };
+  struct LocalizerContext;
+
+  LoadedSettings load_settings(const SettingsSource& source) const;
+  LocalizerContext& localizer_for(const SettingsSource& source);
+  void end_session_storage(SessionId id);  // leases and checkpoints after a session ended
+
+  const AtlasServiceOptions options_;
+  const Vocabulary vocabulary_;
+  Atlas atlas_;
+  MapLeases leases_;
+  std::unique_ptr<AtlasCheckpointer> checkpointer_;
+
+  mutable std::mutex mutex_;  // guards sessions_, next_session_, shut_down_
+  std::map<SessionId, std::shared_ptr<LiveSession>> sessions_;
+  SessionId next_session_ = 1;
+  bool shut_down_ = false;
+
+  std::mutex localizers_mutex_;
+  std::map<std::string, std::unique_ptr<LocalizerContext>> localizers_;
+
+  LatencyHistogram tracking_latency_, localize_latency_;
+  std::atomic<std::uint64_t> sessions_created_{0}, frames_{0}, frames_rejected_{0}, localize_requests_{0},
+      localize_recognised_{0};
+  mutable std::atomic<std::uint64_t> temp_files_{0};  // names of inline-settings files
+};
+
+}  // namespace orbatlas

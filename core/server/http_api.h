@@ -1,0 +1,29 @@
+#pragma once
+// HTTP API v1 of the map server (docs/api.md): routes on a cpp-httplib server
+// calling an AtlasService. Every error is a 4xx/5xx reply with the JSON body
+// {"error": {"code": "...", "message": "..."}}.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+namespace httplib {
+class Server;
+}
+
+namespace orbatlas {
+
+class AtlasService;
+class UploadJobs;
+
+struct HttpApiOptions {
+  std::string token;  // non-empty: every route but /healthz needs "Authorization: Bearer <token>"
+  std::size_t max_body_bytes = 64u << 20;  // frames, localisation, JSON
+  std::uint64_t max_upload_bytes = 32ull << 30;  // POST /v1/uploads (the server's payload limit must allow it)
+  bool log_requests = false;               // one line per request on stderr
+};
+
+// `service` and `jobs` must outlive `server`; without `jobs` uploads are refused (503).
+void install_http_api(httplib::Server& server, AtlasService& service, const HttpApiOptions& options,
+                      UploadJobs* jobs = nullptr);
+
+}  // namespace orbatlas

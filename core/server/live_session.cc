@@ -1,0 +1,156 @@
+#include "core/server/live_session.h"
+
+#include <chrono>
+#include <cmath>
+
+#include "core/common/log.h"
+#include "core/server/api_error.h"
+#include "core/slam/slam_stats.h"
+
+namespace orbatlas {
+
+const char* session_state_name(SessionState state) {
+  switch (state) {
+    case SessionState::kActive: return "active";
+    case SessionState::kFinished: return "finished";
+    case SessionState::kFailed: return "failed";
+    case SessionState::kStored: return "stored";
+  }
+  return "?";
+}
+
+
+LiveSession::LiveSession(SessionInfo info, std::string config, std::unique_ptr<StereoSlam> slam)
+    : info_(std::move(info)), config_(std::move(config)), slam_(std::move(slam)), state_(SessionState::kActive) {}
+
+LiveSession::LiveSession(SessionInfo info, std::vector<FrameAnchor> anchors)
+    : info_(std::move(info)), state_(SessionState::kStored), final_anchors_(std::move(anchors)) {
+  frames_ = tracked_ = final_anchors_.size();
+}
+
+LiveSession::~LiveSession() {
+  try {
+    finish();
+  } catch (const std::exception& e) {
+    log_warn("session " + std::to_string(info_.id) + ": " + e.what());
+  }
+}
+
+SessionState LiveSession::state() const {
+  std::lock_guard lock(mutex_);
+  return state_;
+}
+
+void LiveSession::fail(const std::string& why) {
+  state_ = SessionState::kFailed;
+  error_ = why;
+  log_warn("session " + std::to_string(info_.id) + " failed: " + why);
+  if (slam_) {
+    final_anchors_ = slam_->anchors();
+    try {
+      slam_.reset();  // stops its threads; the maps stay in the atlas
+    } catch (...) {
+    }
+  }
+}
+
+FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
+  std::lock_guard lock(mutex_);
+  if (state_ != SessionState::kActive)
+    throw_conflict("session " + std::to_string(info_.id) + " is " + session_state_name(state_) +
+                   (error_.empty() ? "" : " (" + error_ + ")") + "; it takes no more frames");
+  if (last_frame_t_ && t_ns <= *last_frame_t_) {
+    ++rejected_frames_;
+    throw DataError("frame timestamp " + std::to_string(t_ns) + " ns is not after the previous frame's (" +
+                    std::to_string(*last_frame_t_) + " ns)");
+  }
+  FrameOutcome out;
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    out.result = slam_->process(t_ns, left, right);
+  } catch (const DataError&) {
+    ++rejected_frames_;
+    throw;
+  } catch (const std::exception& e) {
+    fail(e.what());
+    throw ApiError(500, "session_failed", "session " + std::to_string(info_.id) + " failed: " + e.what());
+  }
+  out.tracking_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  last_frame_t_ = t_ns;
+  ++frames_;
+  if (out.result.tracked) ++tracked_;
+  if (out.result.keyframe) ++keyframes_;
+  tracking_ms_.push_back(out.tracking_ms);
+  last_ = out.result;
+  return out;
+}
+
+std::size_t LiveSession::add_imu(const std::vector<ImuSample>& samples, double max_gap_s) {
+  std::lock_guard lock(mutex_);
+  if (state_ != SessionState::kActive)
+    throw_conflict("session " + std::to_string(info_.id) + " is " + session_state_name(state_) + "; it takes no IMU");
+  std::optional<TimestampNs> previous = last_imu_t_;
+  const auto max_gap_ns = static_cast<TimestampNs>(max_gap_s * 1e9);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const ImuSample& s = samples[i];
+    if (!s.gyro.allFinite() || !s.accel.allFinite())
+      throw DataError("IMU sample " + std::to_string(i) + " has a value that is not a finite number");
+    if (previous && s.t_ns <= *previous)
+      throw DataError("IMU sample " + std::to_string(i) + " at " + std::to_string(s.t_ns) +
+                      " ns is not after the previous sample (" + std::to_string(*previous) + " ns)");
+    if (previous && s.t_ns - *previous > max_gap_ns)
+      throw DataError("IMU gap of " + std::to_string((s.t_ns - *previous) / 1'000'000) + " ms before sample " +
+                      std::to_string(i) + " (the limit is " + std::to_string(max_gap_ns / 1'000'000) + " ms)");
+    previous = s.t_ns;
+  }
+  last_imu_t_ = previous;
+  imu_samples_ += samples.size();
+  return samples.size();
+}
+
+bool LiveSession::finish() {
+  std::lock_guard lock(mutex_);
+  if (state_ != SessionState::kActive) return false;
+  try {
+    slam_->finish();
+    final_stats_ = to_json(slam_->stats());
+    final_anchors_ = slam_->anchors();
+    slam_.reset();
+    state_ = SessionState::kFinished;
+  } catch (const std::exception& e) {
+    fail(e.what());
+    throw ApiError(500, "session_failed", "session " + std::to_string(info_.id) + " failed while finishing: " + e.what());
+  }
+  return true;
+}
+
+std::vector<FrameAnchor> LiveSession::anchors() const {
+  std::lock_guard lock(mutex_);
+  return slam_ ? slam_->anchors() : final_anchors_;
+}
+
+nlohmann::json LiveSession::status() const {
+  std::lock_guard lock(mutex_);
+  nlohmann::json j = {{"id", info_.id},
+                      {"name", info_.name},
+                      {"state", session_state_name(state_)},
+                      {"sensor", sensor_type_name(info_.sensor)},
+                      {"frames", frames_},
+                      {"tracked", tracked_},
+                      {"keyframes", keyframes_},
+                      {"rejected_frames", rejected_frames_},
+                      {"imu_samples", imu_samples_}};
+  if (!config_.empty()) j["config"] = config_;
+  if (!error_.empty()) j["error"] = error_;
+  if (last_) {
+    j["map"] = last_->map;
+    j["last_frame"] = {{"t_ns", last_->t_ns}, {"tracked", last_->tracked}};
+  }
+  if (!tracking_ms_.empty()) j["tracking_ms"] = to_json_summary(tracking_ms_);
+  if (!final_stats_.is_null()) {
+    j["slam"] = {{"relocalizations", final_stats_.value("relocalizations", 0)}, {"loops", final_stats_.value("loops", 0)}};
+  }
+  return j;
+}
+
+}  // namespace orbatlas

@@ -1,0 +1,74 @@
+#pragma once
+// One client session of the server: its own SLAM (tracking on the request's
+// thread, local mapping and loop closing on their own), serialised per session,
+// with what the API reports about it. A session from an earlier run of the
+// server (read from the database) is a LiveSession without SLAM, state "stored".
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/io/euroc_types.h"
+#include "core/map/frame_anchor.h"
+#include "core/persistence/session_info.h"
+#include "core/slam/stereo_slam.h"
+
+namespace orbatlas {
+
+enum class SessionState { kActive, kFinished, kFailed, kStored };
+const char* session_state_name(SessionState state);
+
+struct FrameOutcome {
+  TrackResult result;
+  double tracking_ms = 0.0;  // inside StereoSlam::process (features + tracking)
+};
+
+class LiveSession {
+ public:
+  LiveSession(SessionInfo info, std::string config, std::unique_ptr<StereoSlam> slam);
+  // A stored session: its frames only.
+  LiveSession(SessionInfo info, std::vector<FrameAnchor> anchors);
+  ~LiveSession();
+  LiveSession(const LiveSession&) = delete;
+  LiveSession& operator=(const LiveSession&) = delete;
+
+  SessionId id() const { return info_.id; }
+  const SessionInfo& info() const { return info_; }
+  SessionState state() const;
+
+  // One stereo pair. ApiError 409 when the session is not active; DataError for
+  // a bad frame (timestamp not after the previous one, wrong size...): the
+  // session goes on. Any other failure of tracking or mapping fails the session
+  // (state "failed", ApiError 500 naming the cause); the server goes on.
+  FrameOutcome process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
+  // A batch of IMU samples, checked (finite, strictly increasing across
+  // batches, no gap over `max_gap_s`) and counted; DataError otherwise, and then
+  // none of the batch is taken. Stereo tracking does not use them yet.
+  std::size_t add_imu(const std::vector<ImuSample>& samples, double max_gap_s);
+  // Lets mapping finish what is queued, stops it and drops the SLAM objects
+  // (the frames' anchors stay). Idempotent; false when it was not active.
+  bool finish();
+
+  std::vector<FrameAnchor> anchors() const;  // thread-safe
+  nlohmann::json status() const;             // GET /v1/sessions/{id}
+
+ private:
+  void fail(const std::string& why);  // under mutex_
+
+  const SessionInfo info_;
+  const std::string config_;
+  mutable std::mutex mutex_;  // serialises frames, IMU and finish
+  std::unique_ptr<StereoSlam> slam_;
+  SessionState state_;
+  std::string error_;
+  std::vector<FrameAnchor> final_anchors_;  // once the SLAM objects are gone
+  std::optional<TimestampNs> last_frame_t_, last_imu_t_;
+  std::size_t frames_ = 0, tracked_ = 0, keyframes_ = 0, rejected_frames_ = 0, imu_samples_ = 0;
+  std::optional<TrackResult> last_;
+  std::vector<double> tracking_ms_;
+  nlohmann::json final_stats_;  // SLAM statistics captured by finish()
+};
+
+}  // namespace orbatlas

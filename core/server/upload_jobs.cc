@@ -1,0 +1,208 @@
+#include "core/server/upload_jobs.h"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/archive/tar_reader.h"
+#include "core/common/log.h"
+#include "core/eval/evaluate.h"
+#include "core/io/euroc_reader.h"
+#include "core/server/api_error.h"
+
+namespace orbatlas {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The folder holding mav0/: the archive's root or its only top-level folder.
+fs::path dataset_root(const fs::path& extracted) {
+  if (fs::is_directory(extracted / "mav0")) return extracted;
+  std::vector<fs::path> dirs;
+  for (const auto& e : fs::directory_iterator(extracted))
+    if (e.is_directory()) dirs.push_back(e.path());
+  if (dirs.size() == 1 && fs::is_directory(dirs[0] / "mav0")) return dirs[0];
+  throw DataError("the archive holds no EuRoC ASL folder (mav0/ at its root or in its only folder)");
+}
+
+struct RemoveOnExit {
+  fs::path path;
+  ~RemoveOnExit() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+}  // namespace
+
+UploadJobs::UploadJobs(AtlasService& service, UploadJobOptions options)
+    : service_(service), options_(std::move(options)), queue_(std::max<std::size_t>(1, options_.max_queued)) {
+  ORBATLAS_CHECK(!options_.work_dir.empty(), "uploads need a work folder");
+  fs::create_directories(options_.work_dir);
+  for (std::size_t i = 0; i < std::max<std::size_t>(1, options_.workers); ++i) workers_.emplace_back([this] { work(); });
+}
+
+UploadJobs::~UploadJobs() { stop(); }
+
+void UploadJobs::stop() {
+  stopping_ = true;
+  queue_.close();
+  for (auto& w : workers_)
+    if (w.joinable()) w.join();
+  std::lock_guard lock(mutex_);
+  for (auto& [_, job] : jobs_) {
+    if (job.state == "queued") {
+      job.state = "cancelled";
+      job.error = "the server stopped before this job started";
+      std::error_code ec;
+      fs::remove(job.archive, ec);
+    }
+  }
+}
+
+fs::path UploadJobs::new_upload_path() {
+  std::lock_guard lock(mutex_);
+  return options_.work_dir / ("upload-" + std::to_string(next_upload_++) + ".tar");
+}
+
+JobId UploadJobs::submit(const fs::path& archive, SessionRequest request) {
+  JobId id = 0;
+  {
+    std::lock_guard lock(mutex_);
+    id = next_job_++;
+    Job job;
+    job.id = id;
+    job.request = std::move(request);
+    job.archive = archive;
+    std::error_code ec;
+    job.archive_bytes = fs::file_size(archive, ec);
+    jobs_[id] = std::move(job);
+  }
+  if (!queue_.try_push(id)) {
+    std::lock_guard lock(mutex_);
+    jobs_.erase(id);
+    std::error_code ec;
+    fs::remove(archive, ec);
+    throw ApiError(503, "busy", "the upload queue is full (" + std::to_string(options_.max_queued) + " jobs); retry later");
+  }
+  return id;
+}
+
+void UploadJobs::update(JobId id, const std::function<void(Job&)>& change) {
+  std::lock_guard lock(mutex_);
+  change(jobs_.at(id));
+}
+
+void UploadJobs::work() {
+  while (auto id = queue_.pop()) {
+    try {
+      run(*id);
+    } catch (const std::exception& e) {
+      log_warn("upload job " + std::to_string(*id) + " failed: " + e.what());
+      update(*id, [&](Job& j) {
+        j.state = "failed";
+        j.error = e.what();
+      });
+    }
+  }
+}
+
+void UploadJobs::run(JobId id) {
+  fs::path archive;
+  SessionRequest request;
+  update(id, [&](Job& j) {
+    j.state = "extracting";
+    archive = j.archive;
+    request = j.request;
+  });
+  const fs::path folder = options_.work_dir / ("job-" + std::to_string(id));
+  const RemoveOnExit remove_folder{folder}, remove_archive{archive};
+  extract_tar(archive, folder);
+  std::error_code ec;
+  fs::remove(archive, ec);
+  const fs::path root = dataset_root(folder);
+  EurocReadOptions read_options;
+  read_options.require_cam1 = true;
+  const EurocDataset dataset = read_euroc_dataset(root, read_options);
+  const std::vector<StereoFrame> frames = pair_stereo_frames(dataset);
+  ORBATLAS_DATA_CHECK(!frames.empty(), "the recording has no stereo frames");
+  if (request.name.empty()) request.name = "upload " + std::to_string(id);
+  const SessionId session = service_.create_session(request);
+  update(id, [&](Job& j) {
+    j.state = "running";
+    j.session = session;
+    j.frames_total = frames.size();
+  });
+  std::size_t tracked = 0, rejected = 0;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (stopping_) break;  // the service's shutdown finishes and stores the session
+    const cv::Mat left = cv::imread(frames[i].left.string(), cv::IMREAD_GRAYSCALE);
+    const cv::Mat right = cv::imread(frames[i].right.string(), cv::IMREAD_GRAYSCALE);
+    try {
+      ORBATLAS_DATA_CHECK(!left.empty() && !right.empty(), "cannot read the images at " << frames[i].t_ns);
+      if (service_.process_frame(session, frames[i].t_ns, left, right).result.tracked) ++tracked;
+    } catch (const DataError& e) {
+      ++rejected;
+      log_warn("upload job " + std::to_string(id) + ": frame skipped: " + e.what());
+    }
+    update(id, [&](Job& j) {
+      j.frames_done = i + 1;
+      j.tracked = tracked;
+      j.rejected = rejected;
+    });
+  }
+  service_.finish_session(session);
+  std::optional<double> ate;
+  if (!dataset.ground_truth.empty()) {
+    Trajectory gt;
+    for (const auto& s : dataset.ground_truth) gt.push_back({s.t_ns, s.T_w_b});
+    const auto [trajectory, maps] = service_.trajectory(session);
+    try {
+      if (trajectory.size() >= 3) ate = evaluate_trajectory(trajectory, gt).ate.rmse;
+    } catch (const Error& e) {
+      log_warn("upload job " + std::to_string(id) + ": no ATE: " + e.what());
+    }
+  }
+  update(id, [&](Job& j) {
+    j.state = stopping_ ? "cancelled" : "done";
+    if (stopping_) j.error = "the server stopped; the frames processed so far are stored";
+    j.ate_rmse_m = ate;
+  });
+}
+
+nlohmann::json UploadJobs::to_json(const Job& job) {
+  nlohmann::json j = {{"id", job.id},
+                      {"state", job.state},
+                      {"name", job.request.name},
+                      {"archive_bytes", job.archive_bytes},
+                      {"frames_total", job.frames_total},
+                      {"frames_done", job.frames_done},
+                      {"tracked", job.tracked},
+                      {"rejected", job.rejected},
+                      {"progress", job.frames_total ? static_cast<double>(job.frames_done) / job.frames_total : 0.0}};
+  if (job.session) j["session"] = *job.session;
+  if (job.ate_rmse_m) j["ate_rmse_m"] = *job.ate_rmse_m;
+  if (!job.error.empty()) j["error"] = job.error;
+  return j;
+}
+
+nlohmann::json UploadJobs::job_json(JobId id) const {
+  std::lock_guard lock(mutex_);
+  const auto it = jobs_.find(id);
+  if (it == jobs_.end()) throw_not_found("no job " + std::to_string(id));
+  return to_json(it->second);
+}
+
+nlohmann::json UploadJobs::jobs_json() const {
+  std::lock_guard lock(mutex_);
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& [_, job] : jobs_) list.push_back(to_json(job));
+  return list;
+}
+
+std::size_t UploadJobs::count(const std::string& state) const {
+  std::lock_guard lock(mutex_);
+  std::size_t n = 0;
+  for (const auto& [_, job] : jobs_) n += job.state == state ? 1 : 0;
+  return n;
+}
+
+}  // namespace orbatlas

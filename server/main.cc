@@ -1,0 +1,128 @@
+// orbatlas-server: loads an atlas database, serves the HTTP API v1 on it,
+// checkpoints while running, and on SIGTERM / SIGINT stops taking requests,
+// finishes the live sessions and writes a final durable checkpoint.
+#include <signal.h>
+
+#include <CLI/CLI.hpp>
+#include <fstream>
+#include <iostream>
+#include <thread>
+
+#include "core/common/error.h"
+#include "core/common/log.h"
+#include "core/server/atlas_service.h"
+#include "core/server/http_api.h"
+#include "core/server/upload_jobs.h"
+
+// Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
+#include <httplib.h>
+
+namespace {
+
+struct Listen {
+  std::string host = "127.0.0.1";
+  int port = 8080;
+};
+
+Listen parse_listen(const std::string& text) {
+  const auto colon = text.rfind(':');
+  ORBATLAS_CHECK(colon != std::string::npos && colon > 0, "--listen takes HOST:PORT, got '" << text << "'");
+  Listen l;
+  l.host = text.substr(0, colon);
+  try {
+    std::size_t used = 0;
+    l.port = std::stoi(text.substr(colon + 1), &used);
+    ORBATLAS_CHECK(used == text.size() - colon - 1, "");
+  } catch (const std::exception&) {
+    throw orbatlas::Error("--listen: bad port in '" + text + "'");
+  }
+  ORBATLAS_CHECK(l.port >= 0 && l.port <= 65535, "--listen: port " << l.port << " is out of range");
+  return l;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"orbatlas map server: stereo SLAM sessions, a persistent atlas and relocalisation over HTTP"};
+  orbatlas::AtlasServiceOptions service_options;
+  std::string listen_text = "127.0.0.1:8080";
+  std::string token;
+  std::string port_file;
+  std::size_t max_body_mb = 64;
+  std::uint64_t max_upload_gb = 32;
+  orbatlas::UploadJobOptions job_options;
+  int threads = 8;
+  bool log_requests = false;
+  app.add_option("--db", service_options.db, "Atlas database (SQLite; created when missing)")->required();
+  app.add_option("--listen", listen_text, "HOST:PORT to listen on (port 0: any free port)")->capture_default_str();
+  app.add_option("--token", token, "Require 'Authorization: Bearer TOKEN' on every route but /healthz");
+  app.add_option("--workers", job_options.workers, "Background workers processing uploaded recordings")
+      ->capture_default_str()->check(CLI::Range(1, 64));
+  app.add_option("--max-sessions", service_options.max_live_sessions,
+                 "Live sessions at most (each has its own mapping threads)")->capture_default_str();
+  app.add_option("--max-upload-gb", max_upload_gb, "Largest upload")->capture_default_str();
+  app.add_option("--threads", threads, "HTTP worker threads")->capture_default_str()->check(CLI::Range(2, 256));
+  app.add_option("--max-body-mb", max_body_mb, "Largest request body (frames, localisation)")->capture_default_str();
+  app.add_option("--config-dir", service_options.config_dir, "Folder of named configs (default: the shipped ones)");
+  app.add_option("--vocabulary", service_options.vocabulary, "ORB vocabulary (default: the shipped one)");
+  app.add_option("--checkpoint-keyframes", service_options.checkpoints.every_keyframes,
+                 "Checkpoint after this many new keyframes")->capture_default_str();
+  app.add_option("--checkpoint-seconds", service_options.checkpoints.every_seconds,
+                 "and at least this often")->capture_default_str();
+  app.add_option("--port-file", port_file, "Write the port listened on to this file once listening (tests, scripts)");
+  app.add_flag("--log-requests", log_requests, "One log line per request");
+  CLI11_PARSE(app, argc, argv);
+
+  // Signals go to one thread that asks the server to stop (no handler state).
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  try {
+    const Listen listen = parse_listen(listen_text);
+    orbatlas::AtlasService service(service_options);
+    job_options.work_dir = service_options.db.string() + ".work";
+    orbatlas::UploadJobs jobs(service, job_options);
+    httplib::Server server;
+    server.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<std::size_t>(threads)); };
+    server.set_payload_max_length(max_upload_gb << 30);  // other routes: max_body_bytes, checked per request
+    server.set_tcp_nodelay(true);
+    orbatlas::HttpApiOptions api_options;
+    api_options.token = token;
+    api_options.max_body_bytes = max_body_mb << 20;
+    api_options.max_upload_bytes = max_upload_gb << 30;
+    api_options.log_requests = log_requests;
+    orbatlas::install_http_api(server, service, api_options, &jobs);
+
+    const int port = listen.port == 0 ? server.bind_to_any_port(listen.host) : (server.bind_to_port(listen.host, listen.port) ? listen.port : -1);
+    ORBATLAS_CHECK(port > 0, "cannot listen on " << listen.host << ":" << listen.port << " (in use, or not an address of this machine)");
+    if (!port_file.empty()) {
+      std::ofstream out(port_file);
+      out << port << "\n";
+    }
+    orbatlas::log_info("listening on http://" + listen.host + ":" + std::to_string(port) +
+                       (token.empty() ? "" : " (bearer token required)"));
+
+    std::thread signal_thread([&] {
+      int received = 0;
+      sigwait(&signals, &received);
+      orbatlas::log_info(std::string("signal ") + (received == SIGINT ? "SIGINT" : "SIGTERM") +
+                         ": stopping (live sessions are finished and stored)");
+      server.stop();
+    });
+    server.listen_after_bind();
+    // listen_after_bind returned: either the signal thread stopped it, or it failed.
+    if (server.is_running()) server.stop();
+    pthread_kill(signal_thread.native_handle(), SIGTERM);  // wakes sigwait if no signal came
+    signal_thread.join();
+    jobs.stop();  // a running upload ends at its next frame; its session is stored below
+    service.shutdown();
+    orbatlas::log_info("atlas stored; bye");
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "orbatlas-server: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,75 @@
+#pragma once
+// An in-process map server on a free loopback port for the HTTP tests: the
+// service, the API and a thread running the listener. Destroying it stops the
+// listener and shuts the service down (final checkpoint), as SIGTERM does.
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <thread>
+#include <unistd.h>
+
+#include "core/server/atlas_service.h"
+#include "core/server/http_api.h"
+#include "core/server/upload_jobs.h"
+
+// Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
+#include <httplib.h>
+
+namespace orbatlas::test {
+
+inline AtlasServiceOptions server_options(const std::filesystem::path& db) {
+  AtlasServiceOptions o;
+  o.db = db;
+  return o;
+}
+
+class TestServer {
+ public:
+  explicit TestServer(AtlasServiceOptions service_options, HttpApiOptions api = {})
+      : service_(std::make_unique<AtlasService>(std::move(service_options))),
+        jobs_(std::make_unique<UploadJobs>(*service_, UploadJobOptions{service_->db_path().string() + ".work", 1, 4})) {
+    http_.set_payload_max_length(api.max_body_bytes * 4);
+    http_.set_tcp_nodelay(true);
+    install_http_api(http_, *service_, api, jobs_.get());
+    port_ = http_.bind_to_any_port("127.0.0.1");
+    thread_ = std::thread([this] { http_.listen_after_bind(); });
+    for (int i = 0; i < 500 && !http_.is_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ~TestServer() {
+    http_.stop();
+    thread_.join();
+    jobs_->stop();
+    service_->shutdown();
+  }
+  TestServer(const TestServer&) = delete;
+  TestServer& operator=(const TestServer&) = delete;
+
+  std::string url() const { return "http://127.0.0.1:" + std::to_string(port_); }
+  AtlasService& service() { return *service_; }
+
+ private:
+  std::unique_ptr<AtlasService> service_;
+  std::unique_ptr<UploadJobs> jobs_;
+  httplib::Server http_;
+  int port_ = 0;
+  std::thread thread_;
+};
+
+// A fresh database path under /tmp, removed with its WAL files at the end.
+struct TempDbPath {
+  std::filesystem::path path;
+  explicit TempDbPath(const std::string& name)
+      : path(std::filesystem::temp_directory_path() /
+             ("orbatlas_test_server_" + name + "_" + std::to_string(::getpid()) + ".db")) {
+    clean();
+  }
+  ~TempDbPath() { clean(); }
+  void clean() const {
+    std::error_code ec;
+    for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(path.string() + suffix, ec);
+    std::filesystem::remove_all(path.string() + ".work", ec);
+  }
+};
+
+}  // namespace orbatlas::test

@@ -1,0 +1,210 @@
+// The map server end to end on loopback: a streamed clip matches the offline
+// run, survives a restart, and its frames localise against the stored map;
+// three sessions stream at once.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <future>
+#include <thread>
+#include <set>
+#include <opencv2/imgcodecs.hpp>
+
+#include "client/api/dataset_streamer.h"
+#include "core/common/data_paths.h"
+#include "core/server/pose_json.h"
+#include "core/slam/dataset_runner.h"
+#include "core/slam/slam_stats.h"
+#include "tests/server_test_fixture.h"
+#include "tests/slam_test_clip.h"
+
+namespace orbatlas {
+namespace {
+
+StreamOptions stream_options(const std::filesystem::path& clip) {
+  StreamOptions o;
+  o.dataset = clip;
+  o.show_progress = false;
+  return o;
+}
+
+std::optional<Pose3> pose_at_time(const Trajectory& t, TimestampNs t_ns) {
+  for (const auto& p : t)
+    if (p.t_ns == t_ns) return p.pose;
+  return std::nullopt;
+}
+
+TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
+  test::ClipCleanup cleanup{clip};
+  DatasetRunOptions offline_options;
+  offline_options.settings = shipped_config_dir() / "euroc" / "stereo.yaml";
+  offline_options.dataset = clip;
+  offline_options.show_progress = false;
+  const DatasetRunReport offline = run_stereo_dataset(offline_options);
+  ASSERT_TRUE(offline.ate_rmse_m.has_value());
+
+  test::TempDbPath db("e2e");
+  StreamReport streamed;
+  nlohmann::json maps_before;
+  {
+    test::TestServer server(test::server_options(db.path));
+    ServerClient client(server.url());
+    streamed = stream_dataset(client, stream_options(clip));
+    maps_before = client.get_json("/v1/maps");
+    const auto status = client.get_json("/v1/sessions/" + std::to_string(streamed.session));
+    EXPECT_EQ(status["state"], "finished");
+    EXPECT_EQ(status["frames"].get<std::size_t>(), 201u);
+  }
+  EXPECT_EQ(streamed.frames, 201u);
+  EXPECT_EQ(streamed.rejected, 0u);
+  EXPECT_EQ(streamed.tracked, streamed.frames);
+  ASSERT_EQ(streamed.trajectory.size(), offline.trajectory.size());
+  ASSERT_TRUE(streamed.ate_rmse_m.has_value());
+  EXPECT_LT(*streamed.ate_rmse_m, 0.03);
+  // Local mapping runs concurrently in both, so they are not bit-identical;
+  // both start at the identity and must agree to within a centimetre or two.
+  double worst = 0.0;
+  for (const auto& p : offline.trajectory) {
+    const auto s = pose_at_time(streamed.trajectory, p.t_ns);
+    ASSERT_TRUE(s.has_value()) << p.t_ns;
+    worst = std::max(worst, (s->t - p.pose.t).norm());
+  }
+  EXPECT_LT(worst, 0.03);
+  EXPECT_NEAR(*streamed.ate_rmse_m, *offline.ate_rmse_m, 0.01);
+  std::printf("offline ATE %.4f m, streamed ATE %.4f m, largest position difference %.4f m, %.1f frames/s, "
+              "tracking p50 %.1f ms, server p50 %.1f ms, round trip p50 %.1f ms\n",
+              *offline.ate_rmse_m, *streamed.ate_rmse_m, worst, streamed.fps(), percentiles(streamed.tracking_ms).p50,
+              percentiles(streamed.server_ms).p50, percentiles(streamed.round_trip_ms).p50);
+
+  // Restart on the same database: the map and the session are still there.
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  const auto maps_after = client.get_json("/v1/maps");
+  ASSERT_EQ(maps_after["maps"].size(), 1u);
+  EXPECT_EQ(maps_after["maps"][0]["keyframes"], maps_before["maps"][0]["keyframes"]);
+  EXPECT_EQ(maps_after["maps"][0]["map_points"], maps_before["maps"][0]["map_points"]);
+  const auto session = client.get_json("/v1/sessions/" + std::to_string(streamed.session));
+  EXPECT_EQ(session["state"], "stored");
+  std::vector<std::uint64_t> ignored;
+  const std::string tum = client.trajectory_tum(streamed.session);
+  EXPECT_EQ(std::count(tum.begin(), tum.end(), '\n'), static_cast<long>(streamed.trajectory.size()) + 2);  // header, "# map"
+
+  // A frame of the clip localises against the stored map, as a pair and as a single image.
+  const auto frames = test::stereo_frames(clip);
+  const StereoFrame& f = frames[120];
+  const cv::Mat left = cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE);
+  const cv::Mat right = cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE);
+  const auto expected = pose_at_time(streamed.trajectory, f.t_ns);
+  ASSERT_TRUE(expected.has_value());
+  for (const bool pair : {true, false}) {
+    const auto reply = client.localize("euroc/stereo", left, pair ? right : cv::Mat());
+    ASSERT_TRUE(reply["recognised"].get<bool>()) << reply.dump();
+    EXPECT_EQ(reply["map"], maps_after["maps"][0]["id"]);
+    const Pose3 T_w_b = pose_from_json(reply["T_w_b"]);
+    EXPECT_LT((T_w_b.t - expected->t).norm(), 0.02) << (pair ? "stereo pair" : "single image");
+    EXPECT_LT(rotation_distance(T_w_b, *expected) * 180.0 / M_PI, 0.5);
+    EXPECT_GE(reply["inliers"].get<int>(), 50);
+  }
+  // An image of nothing the atlas holds is "not recognised", not an error.
+  const cv::Mat blank(left.rows, left.cols, CV_8UC1, cv::Scalar(128));
+  const auto none = client.localize("euroc/stereo", blank);
+  EXPECT_FALSE(none["recognised"].get<bool>());
+  EXPECT_TRUE(none.contains("reason"));
+}
+
+TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
+  const std::array<std::filesystem::path, 3> clips = {test::simulated_clip("MH_01", 40.0, 4.0),
+                                                      test::simulated_clip("MH_02", 30.0, 4.0),
+                                                      test::simulated_clip("MH_03", 30.0, 4.0)};
+  const test::ClipCleanup cleanups[] = {{clips[0]}, {clips[1]}, {clips[2]}};
+  test::TempDbPath db("three");
+  test::TestServer server(test::server_options(db.path));
+  std::vector<std::future<StreamReport>> running;
+  for (const auto& clip : clips) {
+    running.push_back(std::async(std::launch::async, [&server, clip] {
+      ServerClient client(server.url());  // one client (connection) per thread
+      return stream_dataset(client, stream_options(clip));
+    }));
+  }
+  std::set<std::uint64_t> sessions, maps;
+  for (auto& r : running) {
+    const StreamReport report = r.get();
+    EXPECT_EQ(report.rejected, 0u);
+    EXPECT_EQ(report.tracked, report.frames);
+    EXPECT_GE(report.frames, 80u);
+    ASSERT_TRUE(report.ate_rmse_m.has_value());
+    EXPECT_LT(*report.ate_rmse_m, 0.03);
+    sessions.insert(report.session);
+    maps.insert(report.trajectory_maps.begin(), report.trajectory_maps.end());
+    std::printf("session %llu: %zu frames, ATE %.4f m, %.1f frames/s\n", static_cast<unsigned long long>(report.session),
+                report.frames, *report.ate_rmse_m, report.fps());
+  }
+  EXPECT_EQ(sessions.size(), 3u);
+  EXPECT_EQ(maps.size(), 3u);  // each live session works in a map of its own
+  ServerClient client(server.url());
+  EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 3u);
+  const std::string metrics = client.get_text("/metrics");
+  EXPECT_NE(metrics.find("orbatlas_sessions_created_total 3"), std::string::npos) << metrics;
+}
+
+nlohmann::json wait_for_job(ServerClient& client, std::uint64_t job) {
+  for (int i = 0; i < 1200; ++i) {
+    const auto status = client.get_json("/v1/jobs/" + std::to_string(job));
+    const std::string state = status["state"];
+    if (state == "done" || state == "failed" || state == "cancelled") return status;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return client.get_json("/v1/jobs/" + std::to_string(job));
+}
+
+TEST(ServerUploads, RecordingBecomesAStoredSessionAndBadArchivesFailTheirJobOnly) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 3.0);
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath db("upload");
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  std::uint64_t last_progress = 0, total = 0;
+  const std::uint64_t job = client.upload(clip, "euroc/stereo", "recorded MH_01", [&](std::uint64_t done, std::uint64_t all) {
+    EXPECT_GE(done, last_progress);
+    last_progress = done;
+    total = all;
+  });
+  EXPECT_EQ(last_progress, total);
+  const auto status = wait_for_job(client, job);
+  ASSERT_EQ(status["state"], "done") << status.dump();
+  EXPECT_EQ(status["frames_done"], status["frames_total"]);
+  EXPECT_EQ(status["tracked"], status["frames_total"]);
+  EXPECT_GE(status["frames_total"].get<int>(), 60);
+  ASSERT_TRUE(status.contains("ate_rmse_m"));
+  EXPECT_LT(status["ate_rmse_m"].get<double>(), 0.03);
+  const auto session = client.get_json("/v1/sessions/" + std::to_string(status["session"].get<std::uint64_t>()));
+  EXPECT_EQ(session["state"], "finished");
+  EXPECT_EQ(session["name"], "recorded MH_01");
+  EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
+  // The work folder is cleaned up after the job.
+  EXPECT_TRUE(std::filesystem::is_empty(db.path.string() + ".work"));
+
+  // Not a tar: the job fails and says why; the server and the stored map stay.
+  const auto not_tar = client.http().Post("/v1/uploads?config=euroc/stereo", std::string(3000, 'x'), "application/x-tar");
+  ASSERT_TRUE(not_tar);
+  ASSERT_EQ(not_tar->status, 202);
+  const auto failed = wait_for_job(client, nlohmann::json::parse(not_tar->body)["job"].get<std::uint64_t>());
+  EXPECT_EQ(failed["state"], "failed");
+  EXPECT_NE(failed["error"].get<std::string>().find("not a tar"), std::string::npos) << failed.dump();
+  // Unknown config: refused before the body is taken; empty upload; unknown job.
+  const auto bad_config = client.http().Post("/v1/uploads?config=no/such", std::string(10, 'x'), "application/x-tar");
+  ASSERT_TRUE(bad_config);
+  EXPECT_EQ(bad_config->status, 404);
+  const auto empty = client.http().Post("/v1/uploads", "", "application/x-tar");
+  ASSERT_TRUE(empty);
+  EXPECT_EQ(empty->status, 400);
+  const auto no_job = client.http().Get("/v1/jobs/77");
+  ASSERT_TRUE(no_job);
+  EXPECT_EQ(no_job->status, 404);
+  EXPECT_EQ(client.get_json("/v1/jobs")["jobs"].size(), 2u);
+  EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
+  EXPECT_EQ(client.get_json("/healthz")["status"], "ok");
+}
+
+}  // namespace
+}  // namespace orbatlas

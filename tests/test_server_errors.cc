@@ -1,0 +1,200 @@
+// Every route's error paths: each bad request gets the right 4xx with a JSON
+// error body, the server stays up, and the stored data does not change.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "client/api/server_client.h"
+#include "core/persistence/atlas_store.h"
+#include "tests/server_test_fixture.h"
+#include "tests/slam_test_clip.h"
+
+namespace orbatlas {
+namespace {
+
+using json = nlohmann::json;
+
+struct Reply {
+  int status = 0;
+  std::string code;
+};
+
+Reply classify(const httplib::Result& r) {
+  if (!r) return {-1, "no reply: " + httplib::to_string(r.error())};
+  if (r->status < 400) return {r->status, ""};
+  try {
+    return {r->status, json::parse(r->body).at("error").at("code").get<std::string>()};
+  } catch (const std::exception&) {
+    return {r->status, "(not a JSON error body: '" + r->body.substr(0, 80) + "')"};
+  }
+}
+
+#define EXPECT_REPLY(result, status_, code_)               \
+  do {                                                     \
+    const Reply got = classify(result);                    \
+    EXPECT_EQ(got.status, status_) << got.code;            \
+    EXPECT_EQ(got.code, code_) << "status " << got.status; \
+  } while (0)
+
+std::string png_of(const cv::Mat& image) {
+  std::vector<unsigned char> bytes;
+  cv::imencode(".png", image, bytes);
+  return std::string(bytes.begin(), bytes.end());
+}
+
+httplib::MultipartFormDataItems frame_form(const std::string& t_ns, const std::string& left, const std::string& right) {
+  return {{"t_ns", t_ns, "", ""}, {"left", left, "l.png", "image/png"}, {"right", right, "r.png", "image/png"}};
+}
+
+// The state a client can see; it must be the same before and after the bad requests.
+json visible_state(ServerClient& client) {
+  json s = client.get_json("/v1/sessions");
+  for (auto& session : s["sessions"]) session.erase("tracking_ms");
+  return {{"sessions", s}, {"maps", client.get_json("/v1/maps")}};
+}
+
+TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 1.0);
+  test::ClipCleanup cleanup{clip};
+  const auto frames = test::stereo_frames(clip);
+  const std::string left = png_of(cv::imread(frames[0].left.string(), cv::IMREAD_GRAYSCALE));
+  const std::string right = png_of(cv::imread(frames[0].right.string(), cv::IMREAD_GRAYSCALE));
+  test::TempDbPath db("errors");
+  HttpApiOptions api;
+  api.max_body_bytes = 4u << 20;
+  test::TestServer server(test::server_options(db.path), api);
+  ServerClient client(server.url());
+  httplib::Client& http = client.http();
+
+  // One session with a few good frames, so that there is state to protect.
+  const std::uint64_t id = client.create_session("euroc/stereo", "guarded");
+  for (std::size_t i = 0; i < 5; ++i) {
+    const auto reply = client.post_frame(id, frames[i].t_ns, cv::imread(frames[i].left.string(), cv::IMREAD_GRAYSCALE),
+                                         cv::imread(frames[i].right.string(), cv::IMREAD_GRAYSCALE));
+    ASSERT_TRUE(reply["tracked"].get<bool>());
+  }
+  const std::string sid = "/v1/sessions/" + std::to_string(id);
+  const std::string next_t = std::to_string(frames[5].t_ns);
+  const json before = visible_state(client);
+
+  // POST /v1/sessions
+  EXPECT_REPLY(http.Post("/v1/sessions", "{not json", "application/json"), 400, "bad_json");
+  EXPECT_REPLY(http.Post("/v1/sessions", "[1,2]", "application/json"), 400, "bad_request");
+  EXPECT_REPLY(http.Post("/v1/sessions", "{}", "application/json"), 400, "bad_request");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": 5})", "application/json"), 400, "bad_request");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "nope/none"})", "application/json"), 404, "not_found");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "../../etc/passwd"})", "application/json"), 400, "bad_request");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/mono"})", "application/json"), 400, "bad_config");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/stereo", "sensor": "sonar"})", "application/json"), 400,
+               "bad_request");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/stereo", "sensor": "mono"})", "application/json"), 422,
+               "unsupported_sensor");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"settings_yaml": "%YAML:1.0\nCamera1.fx: [oops"})", "application/json"),
+               400, "bad_config");
+  // GET /v1/sessions/{id}
+  EXPECT_REPLY(http.Get("/v1/sessions/999"), 404, "not_found");
+  EXPECT_REPLY(http.Get("/v1/sessions/99999999999999999999999"), 404, "not_found");
+  EXPECT_REPLY(http.Get("/v1/sessions/abc"), 404, "not_found");
+  // POST /v1/sessions/{id}/frames
+  EXPECT_REPLY(http.Post("/v1/sessions/999/frames", frame_form(next_t, left, right)), 404, "not_found");
+  EXPECT_REPLY(http.Post(sid + "/frames", "{}", "application/json"), 400, "bad_request");
+  EXPECT_REPLY(http.Post(sid + "/frames", frame_form("soon", left, right)), 400, "bad_request");
+  EXPECT_REPLY(http.Post(sid + "/frames", httplib::MultipartFormDataItems{{"t_ns", next_t, "", ""}}), 400, "bad_request");
+  EXPECT_REPLY(http.Post(sid + "/frames", frame_form(std::to_string(frames[2].t_ns), left, right)), 422, "bad_input");
+  EXPECT_REPLY(http.Post(sid + "/frames", frame_form(next_t, left.substr(0, left.size() / 2), right)), 422, "bad_input");
+  EXPECT_REPLY(http.Post(sid + "/frames", frame_form(next_t, "hello", right)), 422, "bad_input");
+  const std::string small = png_of(cv::Mat(240, 376, CV_8UC1, cv::Scalar(9)));
+  EXPECT_REPLY(http.Post(sid + "/frames", frame_form(next_t, small, small)), 422, "bad_input");
+  const std::string deep = png_of(cv::Mat(480, 752, CV_16UC1, cv::Scalar(900)));
+  EXPECT_REPLY(http.Post(sid + "/frames", frame_form(next_t, deep, deep)), 422, "bad_input");
+  auto raw_form = frame_form(next_t, std::string(100, '\1'), std::string(100, '\1'));
+  raw_form.push_back({"width", "752", "", ""});
+  raw_form.push_back({"height", "480", "", ""});
+  EXPECT_REPLY(http.Post(sid + "/frames", raw_form), 422, "bad_input");
+  EXPECT_REPLY(http.Post(sid + "/frames", frame_form(next_t, std::string(5u << 20, 'x'), right)), 413, "too_large");
+  // POST /v1/sessions/{id}/imu
+  EXPECT_REPLY(http.Post("/v1/sessions/999/imu", R"({"samples": []})", "application/json"), 404, "not_found");
+  EXPECT_REPLY(http.Post(sid + "/imu", "{", "application/json"), 400, "bad_json");
+  EXPECT_REPLY(http.Post(sid + "/imu", R"({"samples": [[1, 2, 3]]})", "application/json"), 400, "bad_request");
+  EXPECT_REPLY(http.Post(sid + "/imu", R"({"samples": [[10, 0,0,0, 0,0,9.8], [5, 0,0,0, 0,0,9.8]]})", "application/json"),
+               422, "bad_input");
+  EXPECT_REPLY(http.Post(sid + "/imu", R"({"samples": [[0, 0,0,0, 0,0,9.8], [900000000, 0,0,0, 0,0,9.8]]})",
+                         "application/json"),
+               422, "bad_input");
+  // GET /v1/sessions/{id}/trajectory, POST /v1/sessions/{id}/finish
+  EXPECT_REPLY(http.Get("/v1/sessions/999/trajectory"), 404, "not_found");
+  EXPECT_REPLY(http.Post("/v1/sessions/999/finish", "{}", "application/json"), 404, "not_found");
+  // Maps
+  EXPECT_REPLY(http.Get("/v1/maps/999"), 404, "not_found");
+  EXPECT_REPLY(http.Get("/v1/maps/999/points.ply"), 404, "not_found");
+  // POST /v1/localize
+  EXPECT_REPLY(http.Post("/v1/localize", "{}", "application/json"), 400, "bad_request");
+  EXPECT_REPLY(http.Post("/v1/localize", httplib::MultipartFormDataItems{{"config", "euroc/stereo", "", ""}}), 400,
+               "bad_request");
+  EXPECT_REPLY(http.Post("/v1/localize", httplib::MultipartFormDataItems{{"image", left, "l.png", "image/png"}}), 400,
+               "bad_request");
+  EXPECT_REPLY(http.Post("/v1/localize", httplib::MultipartFormDataItems{{"config", "euroc/stereo", "", ""},
+                                                                          {"image", "garbage", "l.png", "image/png"}}),
+               422, "bad_input");
+  EXPECT_REPLY(http.Post("/v1/localize", httplib::MultipartFormDataItems{{"config", "euroc/stereo", "", ""},
+                                                                          {"map", "77", "", ""},
+                                                                          {"image", left, "l.png", "image/png"}}),
+               404, "not_found");
+  // No such route; wrong method.
+  EXPECT_REPLY(http.Get("/v2/everything"), 404, "not_found");
+  EXPECT_REPLY(http.Delete(sid), 404, "not_found");
+
+  // Alive, and nothing changed: the same sessions, frames and maps.
+  EXPECT_EQ(client.get_json("/healthz")["status"], "ok");
+  EXPECT_EQ(visible_state(client)["maps"], before["maps"]);
+  const json after_sessions = visible_state(client)["sessions"];
+  ASSERT_EQ(after_sessions["sessions"].size(), 1u);
+  EXPECT_EQ(after_sessions["sessions"][0]["frames"], before["sessions"]["sessions"][0]["frames"]);
+  EXPECT_EQ(after_sessions["sessions"][0]["keyframes"], before["sessions"]["sessions"][0]["keyframes"]);
+  EXPECT_EQ(after_sessions["sessions"][0]["imu_samples"], 0);
+  // The session goes on after all that: the next good frame tracks.
+  const auto good = client.post_frame(id, frames[5].t_ns, cv::imread(frames[5].left.string(), cv::IMREAD_GRAYSCALE),
+                                      cv::imread(frames[5].right.string(), cv::IMREAD_GRAYSCALE));
+  EXPECT_TRUE(good["tracked"].get<bool>());
+  // Finished: no more frames (409), finishing again is fine.
+  client.finish_session(id);
+  EXPECT_REPLY(http.Post(sid + "/frames", frame_form(std::to_string(frames[6].t_ns), left, right)), 409, "conflict");
+  EXPECT_REPLY(http.Post(sid + "/finish", "{}", "application/json"), 200, "");
+}
+
+TEST(ServerErrors, TokenIsRequiredAndChecked) {
+  test::TempDbPath db("token");
+  HttpApiOptions api;
+  api.token = "s3cret";
+  test::TestServer server(test::server_options(db.path), api);
+  {
+    ServerClient anonymous(server.url());
+    EXPECT_REPLY(anonymous.http().Get("/v1/sessions"), 401, "unauthorized");
+    EXPECT_REPLY(anonymous.http().Post("/v1/sessions", R"({"config": "euroc/stereo"})", "application/json"), 401,
+                 "unauthorized");
+    EXPECT_REPLY(anonymous.http().Get("/metrics"), 401, "unauthorized");
+    EXPECT_REPLY(anonymous.http().Get("/healthz"), 200, "");  // health checks need no token
+  }
+  ServerClient wrong(server.url(), "s3cres");
+  EXPECT_REPLY(wrong.http().Get("/v1/maps"), 401, "unauthorized");
+  ServerClient right(server.url(), "s3cret");
+  EXPECT_EQ(right.get_json("/v1/sessions")["sessions"].size(), 0u);  // nothing was created by the refused requests
+  EXPECT_REPLY(right.http().Get("/v1/maps"), 200, "");
+}
+
+TEST(ServerErrors, DatabaseOfAnotherVocabularyIsRefusedAndKept) {
+  test::TempDbPath db("vocab");
+  // A database made for another vocabulary: the server refuses to open it.
+  { AtlasStore::open(db.path, std::string(64, 'a')); }
+  const auto size = std::filesystem::file_size(db.path);
+  try {
+    AtlasService service(test::server_options(db.path));
+    FAIL() << "a database from another vocabulary was opened";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("vocabulary"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(std::filesystem::file_size(db.path), size);
+}
+
+}  // namespace
+}  // namespace orbatlas

@@ -1,0 +1,102 @@
+// The server's small parts with exact answers: map leases, request images,
+// the latency histogram, pose JSON.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/common/error.h"
+#include "core/server/image_decode.h"
+#include "core/server/latency_histogram.h"
+#include "core/server/map_leases.h"
+#include "core/server/pose_json.h"
+
+namespace orbatlas {
+namespace {
+
+TEST(MapLeases, SessionsNeverShareAMap) {
+  MapLeases leases;
+  leases.add_free(1);
+  leases.add_free(2);
+  // Session 10 tries maps 1 and 2 while relocalising and tracks in 2.
+  EXPECT_TRUE(leases.claim(10, 1));
+  EXPECT_TRUE(leases.claim(10, 2));
+  EXPECT_FALSE(leases.claim(11, 2));  // held (tentatively) by 10
+  leases.settle(10, 2);
+  EXPECT_EQ(leases.holder(2), 10u);
+  EXPECT_FALSE(leases.holder(1).has_value());  // the tentative claim was given back
+  EXPECT_TRUE(leases.claim(11, 1));
+  EXPECT_FALSE(leases.claim(11, 2));
+  leases.settle(11, 1);
+  // A map a session creates (never free) is its own; nobody else may enter it.
+  leases.settle(11, 7);
+  EXPECT_EQ(leases.holder(7), 11u);
+  EXPECT_FALSE(leases.claim(10, 7));
+  EXPECT_FALSE(leases.claim(10, 8));  // unknown: some live session's new map
+  EXPECT_EQ(leases.held_by(11), (std::vector<MapId>{1, 7}));
+  // Lost (no map this frame): held maps stay held.
+  leases.settle(11, std::nullopt);
+  EXPECT_EQ(leases.held_by(11), (std::vector<MapId>{1, 7}));
+  leases.release_all(11);
+  EXPECT_TRUE(leases.held_by(11).empty());
+  EXPECT_TRUE(leases.claim(10, 7));  // free after the session finished
+  EXPECT_TRUE(leases.claim(10, 1));
+}
+
+TEST(RequestImage, DecodesPngAndRawAndRefusesTheRest) {
+  cv::Mat image(6, 8, CV_8UC1);
+  for (int i = 0; i < image.rows * image.cols; ++i) image.data[i] = static_cast<unsigned char>(i * 5);
+  std::vector<unsigned char> png;
+  ASSERT_TRUE(cv::imencode(".png", image, png));
+  const std::string png_bytes(png.begin(), png.end());
+  const cv::Mat decoded = decode_request_image(png_bytes, std::nullopt, "left image");
+  EXPECT_EQ(cv::norm(decoded, image, cv::NORM_INF), 0.0);
+  const std::string raw(reinterpret_cast<const char*>(image.data), image.total());
+  const cv::Mat from_raw = decode_request_image(raw, RawImageSize{8, 6}, "left image");
+  EXPECT_EQ(cv::norm(from_raw, image, cv::NORM_INF), 0.0);
+
+  const auto message = [](auto&& f) {
+    try {
+      f();
+    } catch (const DataError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no DataError");
+  };
+  EXPECT_NE(message([&] { decode_request_image(raw, std::nullopt, "left image"); }).find("'width' and 'height'"),
+            std::string::npos);
+  EXPECT_NE(message([&] { decode_request_image(raw, RawImageSize{8, 7}, "left image"); }).find("48 bytes"),
+            std::string::npos);
+  EXPECT_NE(message([&] { decode_request_image(png_bytes.substr(0, 30), std::nullopt, "left image"); }).find("corrupt"),
+            std::string::npos);
+  EXPECT_NE(message([&] { decode_request_image("", std::nullopt, "right image"); }).find("right image is empty"),
+            std::string::npos);
+  cv::Mat deep(4, 4, CV_16UC1, cv::Scalar(1000));
+  ASSERT_TRUE(cv::imencode(".png", deep, png));
+  EXPECT_NE(message([&] { decode_request_image(std::string(png.begin(), png.end()), std::nullopt, "x"); }).find("8-bit"),
+            std::string::npos);
+}
+
+TEST(LatencyHistogram, CumulativeBucketsAndPercentiles) {
+  LatencyHistogram h;
+  for (const double ms : {0.5, 3.0, 3.0, 40.0, 5000.0}) h.record(ms);
+  EXPECT_EQ(h.count(), 5u);
+  const std::string text = h.prometheus("x_seconds", "test");
+  EXPECT_NE(text.find("x_seconds_bucket{le=\"0.001\"} 1\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("x_seconds_bucket{le=\"0.005\"} 3\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("x_seconds_bucket{le=\"0.05\"} 4\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("x_seconds_bucket{le=\"+Inf\"} 5\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("x_seconds_count 5\n"), std::string::npos) << text;
+  EXPECT_DOUBLE_EQ(h.percentile(50), 3.0);
+  EXPECT_DOUBLE_EQ(h.percentile(100), 5000.0);
+}
+
+TEST(PoseJson, RoundTrip) {
+  const Pose3 pose(Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized())),
+                   Eigen::Vector3d(1.5, -2, 0.25));
+  const Pose3 back = pose_from_json(pose_to_json(pose));
+  EXPECT_LT((back.t - pose.t).norm(), 1e-12);
+  EXPECT_LT(rotation_distance(back, pose), 1e-12);
+}
+
+}  // namespace
+}  // namespace orbatlas
