@@ -53,6 +53,13 @@ TEST(RequestImage, DecodesPngAndRawAndRefusesTheRest) {
   const std::string raw(reinterpret_cast<const char*>(image.data), image.total());
   const cv::Mat from_raw = decode_request_image(raw, RawImageSize{8, 6}, "left image");
   EXPECT_EQ(cv::norm(from_raw, image, cv::NORM_INF), 0.0);
+  // Raw pixels that begin like a bitmap file ("BM") are still raw pixels.
+  std::string bm = raw;
+  bm[0] = 'B';
+  bm[1] = 'M';
+  const cv::Mat from_bm = decode_request_image(bm, RawImageSize{8, 6}, "left image");
+  EXPECT_EQ(from_bm.at<unsigned char>(0, 0), 'B');
+  EXPECT_EQ(cv::norm(from_bm.colRange(2, 8), image.colRange(2, 8), cv::NORM_INF), 0.0);
 
   const auto message = [](auto&& f) {
     try {

@@ -19,7 +19,10 @@ bool looks_encoded(std::string_view bytes) {
 
 cv::Mat decode_request_image(std::string_view bytes, const std::optional<RawImageSize>& raw, const std::string& what) {
   ORBATLAS_DATA_CHECK(!bytes.empty(), what << " is empty");
-  if (looks_encoded(bytes)) {
+  // Raw pixels when the size says so: their first bytes may look like a file signature.
+  const bool raw_sized = raw && raw->width > 0 && raw->height > 0 &&
+                         bytes.size() == static_cast<std::size_t>(raw->width) * static_cast<std::size_t>(raw->height);
+  if (!raw_sized && looks_encoded(bytes)) {
     const cv::Mat buffer(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
     cv::Mat image;
     try {

@@ -1,7 +1,8 @@
 #pragma once
 // Images in API requests: an encoded file (PNG, JPEG, PGM: whatever OpenCV
 // decodes) or raw 8-bit grey pixels with their width and height. Throws
-// DataError naming `what` ("left image") on anything else.
+// DataError naming `what` ("left image") on anything else. With a raw size whose
+// pixel count matches the bytes, the bytes are pixels (whatever they begin with).
 #include <opencv2/core/mat.hpp>
 #include <optional>
 #include <string>
