@@ -4,6 +4,7 @@
 // holds the localised frames only, in the frame of the map recognised, with
 // "# map <id>" lines (docs/cli.md). With --server, one image (or stereo pair)
 // is sent to a running map server instead (POST /v1/localize) and its pose printed.
+#include <chrono>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -14,6 +15,9 @@
 #include "client/api/server_client.h"
 #include "client/commands.h"
 #include "core/common/text_file.h"
+#include "core/io/euroc_reader.h"
+#include "core/server/pose_json.h"
+#include "core/slam/slam_stats.h"
 #include "core/common/error.h"
 #include "core/io/tum_trajectory.h"
 #include "core/slam/dataset_runner.h"
@@ -28,7 +32,48 @@ struct LocalizeArgs {
   // --server mode
   std::string server, token, image, image_right;
   std::optional<std::uint64_t> map;
+  std::size_t every = 10;
 };
+
+// --server with --dataset: every N-th frame's left image (a single image, as a
+// phone would send) is localised; prints how many were recognised and the
+// request latency, and writes the poses (TUM, '# map' lines) when asked.
+void localize_dataset_on_server(const LocalizeArgs& args) {
+  EurocReadOptions read_options;
+  read_options.require_cam1 = false;
+  const EurocDataset dataset = read_euroc_dataset(args.dataset, read_options);
+  ORBATLAS_CHECK(!dataset.cameras.empty() && !dataset.cameras[0].frames.empty(), args.dataset << " has no cam0 images");
+  const std::vector<ImageFrame>& images = dataset.cameras[0].frames;
+  ServerClient client(args.server, args.token);
+  const bool is_file = std::filesystem::is_regular_file(args.config);
+  const std::string yaml = is_file ? read_text_file(args.config) : std::string();
+  Trajectory poses;
+  std::vector<std::uint64_t> maps;
+  std::vector<double> ms, server_ms;
+  std::size_t asked = 0;
+  for (std::size_t i = 0; i < images.size(); i += std::max<std::size_t>(1, args.every)) {
+    const cv::Mat left = cv::imread(images[i].path.string(), cv::IMREAD_GRAYSCALE);
+    if (left.empty()) continue;
+    ++asked;
+    const auto start = std::chrono::steady_clock::now();
+    const auto reply = client.localize(is_file ? std::string() : args.config, left, cv::Mat(), args.map,
+                                       ImageEncoding::kPng, yaml);
+    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+    server_ms.push_back(reply.at("ms").get<double>());
+    if (!reply.at("recognised").get<bool>()) continue;
+    poses.push_back({images[i].t_ns, pose_from_json(reply.at("T_w_b"))});
+    maps.push_back(reply.at("map").get<std::uint64_t>());
+  }
+  ORBATLAS_CHECK(asked > 0, "no readable image in " << args.dataset);
+  const Percentiles p = percentiles(ms), ps = percentiles(server_ms);
+  std::printf("recognised %zu of %zu images (%.1f%%); POST /v1/localize p50 %.1f / p95 %.1f ms (in the server p50 %.1f / p95 %.1f ms)\n",
+              poses.size(), asked, 100.0 * static_cast<double>(poses.size()) / static_cast<double>(asked), p.p50, p.p95,
+              ps.p50, ps.p95);
+  if (!args.out_trajectory.empty()) write_tum_trajectory(args.out_trajectory, poses, maps);
+  if (!args.stats.empty())
+    write_stats_file(args.stats, {{"asked", asked}, {"recognised", poses.size()}, {"request_ms", to_json_summary(ms)},
+                                  {"server_ms", to_json_summary(server_ms)}});
+}
 
 void localize_on_server(const LocalizeArgs& args) {
   ORBATLAS_CHECK(!args.image.empty(), "localize --server needs --image LEFT.png (and --image-right for a stereo pair)");
@@ -80,7 +125,9 @@ void register_localize_command(CLI::App& app) {
   cmd->add_option("--start", args->start_s, "Seconds of the sequence to skip")->capture_default_str();
   cmd->add_option("--duration", args->duration_s, "Seconds to run (default: to the end)");
   cmd->add_flag("!--no-progress", args->run.show_progress, "Do not print progress");
+  cmd->add_option("--every", args->every, "With --server and --dataset: localise every N-th frame")->capture_default_str();
   cmd->callback([args]() {
+    if (!args->server.empty() && !args->dataset.empty()) return localize_dataset_on_server(*args);
     if (!args->server.empty()) return localize_on_server(*args);
     ORBATLAS_CHECK(!args->atlas.empty() && !args->dataset.empty() && !args->out_trajectory.empty(),
                    "localize needs --atlas, --dataset and --out-trajectory (or --server and --image)");
