@@ -85,7 +85,6 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   EXPECT_EQ(maps_after["maps"][0]["map_points"], maps_before["maps"][0]["map_points"]);
   const auto session = client.get_json("/v1/sessions/" + std::to_string(streamed.session));
   EXPECT_EQ(session["state"], "stored");
-  std::vector<std::uint64_t> ignored;
   const std::string tum = client.trajectory_tum(streamed.session);
   EXPECT_EQ(std::count(tum.begin(), tum.end(), '\n'), static_cast<long>(streamed.trajectory.size()) + 2);  // header, "# map"
 

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <string>
 #include <string_view>
 
@@ -195,6 +196,16 @@ std::vector<StereoFrame> pair_stereo_frames(const EurocDataset& dataset, Timesta
     }
   }
   return pairs;
+}
+
+void keep_time_window(std::vector<StereoFrame>& frames, double start_s, std::optional<double> duration_s,
+                      const std::filesystem::path& dataset) {
+  ORBATLAS_CHECK(!frames.empty(), dataset << " has no stereo frames");
+  const TimestampNs from = frames.front().t_ns + static_cast<TimestampNs>(start_s * 1e9);
+  const TimestampNs to =
+      duration_s ? from + static_cast<TimestampNs>(*duration_s * 1e9) : std::numeric_limits<TimestampNs>::max();
+  std::erase_if(frames, [&](const StereoFrame& f) { return f.t_ns < from || f.t_ns >= to; });
+  ORBATLAS_CHECK(!frames.empty(), "no frame of " << dataset << " lies in the chosen time window");
 }
 
 }  // namespace orbatlas

@@ -1,5 +1,6 @@
 #pragma once
 #include <filesystem>
+#include <optional>
 
 #include "core/io/euroc_types.h"
 
@@ -23,6 +24,10 @@ struct StereoFrame {
   std::filesystem::path left, right;
 };
 std::vector<StereoFrame> pair_stereo_frames(const EurocDataset& dataset, TimestampNs tolerance_ns = 1000);
+// Keeps the frames from `start_s` after the first one, for `duration_s` (all
+// when absent). Throws Error when none is left (the message names `dataset`).
+void keep_time_window(std::vector<StereoFrame>& frames, double start_s, std::optional<double> duration_s,
+                      const std::filesystem::path& dataset);
 
 // The ground-truth trajectory of state_groundtruth_estimate0/data.csv, or of a
 // standalone ASL ground-truth csv file.

@@ -72,14 +72,15 @@ std::vector<std::string> first_csv_fields(const fs::path& path) {
   return {};
 }
 
+
+}  // namespace
+
 Trajectory from_ground_truth_states(const std::vector<GroundTruthState>& states) {
   Trajectory trajectory;
   trajectory.reserve(states.size());
   for (const GroundTruthState& s : states) trajectory.push_back(StampedPose{s.t_ns, s.T_w_b});
   return trajectory;
 }
-
-}  // namespace
 
 Trajectory read_tum_trajectory(const fs::path& path) {
   Trajectory trajectory;

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "core/geometry/trajectory.h"
+#include "core/io/euroc_types.h"
 
 namespace orbatlas {
 
@@ -24,6 +25,9 @@ void write_tum_trajectory(const std::filesystem::path& path, const Trajectory& t
 
 // The text write_tum_trajectory writes (the server's trajectory route).
 std::string format_tum_trajectory(const Trajectory& trajectory, const std::vector<std::uint64_t>& maps = {});
+
+// Body poses of ground-truth states (a dataset's state_groundtruth_estimate0).
+Trajectory from_ground_truth_states(const std::vector<GroundTruthState>& states);
 
 // Reads ground truth in any of the forms `orbatlas eval --gt` takes: a TUM file,
 // an ASL ground-truth csv, or a dataset folder (its state_groundtruth_estimate0).

@@ -54,4 +54,12 @@ std::size_t Atlas::index_all_keyframes() {
   return index_.size();
 }
 
+std::optional<Pose3> Atlas::frame_pose(const FrameAnchor& anchor) const {
+  const auto m = map(anchor.map);
+  if (!m) return std::nullopt;
+  const auto T_w_ref = m->keyframe_pose(anchor.reference);
+  if (!T_w_ref) return std::nullopt;
+  return *T_w_ref * anchor.T_ref_b;
+}
+
 }  // namespace orbatlas

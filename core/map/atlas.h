@@ -4,8 +4,10 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <vector>
 
+#include "core/map/frame_anchor.h"
 #include "core/map/id_allocator.h"
 #include "core/map/keyframe_index.h"
 #include "core/map/map.h"
@@ -29,6 +31,10 @@ class Atlas {
   std::shared_ptr<Map> active_map() const;  // null before the first create_map
   std::shared_ptr<Map> map(MapId id) const;  // null if absent
   std::vector<std::shared_ptr<Map>> maps() const;  // by id
+  // A tracked frame's body pose now: its reference keyframe's current pose (it
+  // follows corrections; culled references resolve through their parents)
+  // times the stored offset. Null when the map or keyframe is unknown.
+  std::optional<Pose3> frame_pose(const FrameAnchor& anchor) const;
 
   IdAllocator& ids() { return *ids_; }
   const IdAllocator& ids() const { return *ids_; }  // for peek() (saving an atlas)

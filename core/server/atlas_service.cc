@@ -228,12 +228,10 @@ std::pair<Trajectory, std::vector<std::uint64_t>> AtlasService::trajectory(Sessi
   const auto live = session(id);
   std::pair<Trajectory, std::vector<std::uint64_t>> out;
   for (const FrameAnchor& a : live->anchors()) {
-    const auto map = atlas_.map(a.map);
-    if (!map) continue;
-    const auto T_w_ref = map->keyframe_pose(a.reference);
-    if (!T_w_ref) continue;
-    out.first.push_back({a.t_ns, *T_w_ref * a.T_ref_b});
-    out.second.push_back(a.map);
+    if (const auto pose = atlas_.frame_pose(a)) {
+      out.first.push_back({a.t_ns, *pose});
+      out.second.push_back(a.map);
+    }
   }
   return out;
 }
@@ -278,37 +276,37 @@ std::string AtlasService::map_points_ply(MapId id) const {
   return out.str();
 }
 
-AtlasService::LocalizerContext& AtlasService::localizer_for(const SettingsSource& source) {
+std::shared_ptr<AtlasService::LocalizerContext> AtlasService::localizer_for(const SettingsSource& source) {
   const std::string key = source.config.empty() ? "yaml:" + source.settings_yaml : "config:" + source.config;
   std::lock_guard lock(localizers_mutex_);
-  auto& slot = localizers_[key];
-  if (!slot) {
-    const LoadedSettings loaded = load_settings(source);
-    if (!loaded.settings.is_stereo())
-      throw ApiError(400, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
-    try {
-      slot = std::make_unique<LocalizerContext>(loaded.settings);
-    } catch (const std::exception& e) {
-      localizers_.erase(key);
-      throw ApiError(400, "bad_config", std::string("unusable settings: ") + e.what());
-    }
+  if (const auto it = localizers_.find(key); it != localizers_.end()) return it->second;
+  const LoadedSettings loaded = load_settings(source);
+  if (!loaded.settings.is_stereo())
+    throw ApiError(400, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
+  std::shared_ptr<LocalizerContext> context;
+  try {
+    context = std::make_shared<LocalizerContext>(loaded.settings);
+  } catch (const std::exception& e) {
+    throw ApiError(400, "bad_config", std::string("unusable settings: ") + e.what());
   }
-  return *slot;
+  if (localizers_.size() >= kMaxLocalizers) localizers_.erase(localizers_.begin());
+  localizers_[key] = context;
+  return context;
 }
 
 LocalizeReply AtlasService::localize(const LocalizeRequest& request) {
   const auto start = std::chrono::steady_clock::now();
   if (request.map && !atlas_.map(*request.map)) throw_not_found("no map " + std::to_string(*request.map));
-  LocalizerContext& context = localizer_for(request.settings);
+  const std::shared_ptr<LocalizerContext> context = localizer_for(request.settings);
   LocalizeReply reply;
   {
-    std::lock_guard lock(context.mutex);
-    Frame frame = request.right.empty() ? context.frontend.make_left_frame(0, request.left)
-                                        : context.frontend.make_frame(0, request.left, request.right);
+    std::lock_guard lock(context->mutex);
+    Frame frame = request.right.empty() ? context->frontend.make_left_frame(0, request.left)
+                                        : context->frontend.make_frame(0, request.left, request.right);
     RelocalizationOptions options;
     options.only_map = request.map;
-    const RelocalizationResult r = relocalize(frame, vocabulary_, atlas_.keyframe_index(), context.cam,
-                                              context.frontend.calibration().T_b_c, options);
+    const RelocalizationResult r = relocalize(frame, vocabulary_, atlas_.keyframe_index(), context->cam,
+                                              context->frontend.calibration().T_b_c, options);
     reply.recognised = r.success;
     reply.map = r.map;
     reply.T_w_b = r.T_w_b;

@@ -114,7 +114,7 @@ class AtlasService {
   struct LocalizerContext;
 
   LoadedSettings load_settings(const SettingsSource& source) const;
-  LocalizerContext& localizer_for(const SettingsSource& source);
+  std::shared_ptr<LocalizerContext> localizer_for(const SettingsSource& source);
   void end_session_storage(SessionId id);  // leases and checkpoints after a session ended
 
   const AtlasServiceOptions options_;
@@ -129,7 +129,10 @@ class AtlasService {
   bool shut_down_ = false;
 
   std::mutex localizers_mutex_;
-  std::map<std::string, std::unique_ptr<LocalizerContext>> localizers_;
+  // One per configuration seen, at most kMaxLocalizers (inline settings vary:
+  // an old one is dropped; a request still using it keeps it alive).
+  static constexpr std::size_t kMaxLocalizers = 8;
+  std::map<std::string, std::shared_ptr<LocalizerContext>> localizers_;
 
   LatencyHistogram tracking_latency_, localize_latency_;
   std::atomic<std::uint64_t> sessions_created_{0}, frames_{0}, frames_rejected_{0}, localize_requests_{0},

@@ -1,11 +1,9 @@
 #pragma once
-// A Prometheus-style cumulative histogram of latencies in milliseconds, plus the
-// raw samples' percentiles for reports. Thread-safe.
+// A Prometheus-style cumulative histogram of latencies in milliseconds. Thread-safe.
 #include <array>
 #include <cstdint>
 #include <mutex>
 #include <string>
-#include <vector>
 
 namespace orbatlas {
 
@@ -17,16 +15,12 @@ class LatencyHistogram {
   // `name`_bucket{le=...}, `name`_sum (seconds), `name`_count, with HELP/TYPE lines.
   std::string prometheus(const std::string& name, const std::string& help) const;
   std::uint64_t count() const;
-  // p-th percentile (0..100) of the last samples kept (up to 100,000); 0 when empty.
-  double percentile(double p) const;
 
  private:
   mutable std::mutex mutex_;
   std::array<std::uint64_t, kBucketsMs.size()> buckets_{};
   std::uint64_t count_ = 0;
   double sum_ms_ = 0.0;
-  std::vector<double> recent_;  // ring of samples for percentiles
-  std::size_t next_ = 0;
 };
 
 }  // namespace orbatlas

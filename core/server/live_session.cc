@@ -47,10 +47,7 @@ void LiveSession::fail(const std::string& why) {
   log_warn("session " + std::to_string(info_.id) + " failed: " + why);
   if (slam_) {
     final_anchors_ = slam_->anchors();
-    try {
-      slam_.reset();  // stops its threads; the maps stay in the atlas
-    } catch (...) {
-    }
+    slam_.reset();  // stops its threads (errors are logged there); the maps stay in the atlas
   }
 }
 

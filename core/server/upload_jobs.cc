@@ -6,6 +6,7 @@
 #include "core/common/log.h"
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
+#include "core/io/tum_trajectory.h"
 #include "core/server/api_error.h"
 
 namespace orbatlas {
@@ -152,11 +153,9 @@ void UploadJobs::run(JobId id) {
   service_.finish_session(session);
   std::optional<double> ate;
   if (!dataset.ground_truth.empty()) {
-    Trajectory gt;
-    for (const auto& s : dataset.ground_truth) gt.push_back({s.t_ns, s.T_w_b});
     const auto [trajectory, maps] = service_.trajectory(session);
     try {
-      if (trajectory.size() >= 3) ate = evaluate_trajectory(trajectory, gt).ate.rmse;
+      if (trajectory.size() >= 3) ate = evaluate_trajectory(trajectory, from_ground_truth_states(dataset.ground_truth)).ate.rmse;
     } catch (const Error& e) {
       log_warn("upload job " + std::to_string(id) + ": no ATE: " + e.what());
     }

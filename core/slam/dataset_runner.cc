@@ -1,27 +1,21 @@
 #include "core/slam/dataset_runner.h"
 
 #include <chrono>
-#include <opencv2/imgcodecs.hpp>
 #include <thread>
 
-#include "core/common/bounded_queue.h"
 #include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/common/process_memory.h"
 #include "core/common/progress.h"
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
+#include "core/io/stereo_pair_loader.h"
+#include "core/io/tum_trajectory.h"
 #include "core/persistence/atlas_store.h"
 #include "core/vocabulary/default_vocabulary.h"
 
 namespace orbatlas {
 namespace {
-
-struct LoadedPair {
-  TimestampNs t_ns = 0;
-  cv::Mat left, right;
-  std::string error;  // non-empty when the images could not be read
-};
 
 using Clock = std::chrono::steady_clock;
 
@@ -57,13 +51,7 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   const EurocDataset dataset = read_euroc_dataset(options.dataset, read_options);
   for (const auto& w : dataset.warnings) log_warn(w);
   std::vector<StereoFrame> frames = pair_stereo_frames(dataset);
-  ORBATLAS_CHECK(!frames.empty(), options.dataset << " has no stereo frames");
-  const TimestampNs t0 = frames.front().t_ns;
-  const TimestampNs from = t0 + static_cast<TimestampNs>(options.start_s * 1e9);
-  const TimestampNs to = options.duration_s ? from + static_cast<TimestampNs>(*options.duration_s * 1e9)
-                                            : std::numeric_limits<TimestampNs>::max();
-  std::erase_if(frames, [&](const StereoFrame& f) { return f.t_ns < from || f.t_ns >= to; });
-  ORBATLAS_CHECK(!frames.empty(), "no frame of " << options.dataset << " lies in the chosen time window");
+  keep_time_window(frames, options.start_s, options.duration_s, options.dataset);
 
   const Vocabulary vocabulary =
       Vocabulary::load(options.vocabulary.empty() ? default_vocabulary_path() : options.vocabulary);
@@ -115,54 +103,34 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
         CheckpointSession{*session, [&slam] { return slam.anchors(); }});
   }
 
-  // Loader thread: decodes images ahead of tracking (bounded: a few pairs).
-  BoundedQueue<LoadedPair> loaded(4);
-  std::thread loader([&] {
-    for (const StereoFrame& f : frames) {
-      LoadedPair pair;
-      pair.t_ns = f.t_ns;
-      pair.left = cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE);
-      pair.right = cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE);
-      if (pair.left.empty()) pair.error = "cannot read image " + f.left.string();
-      else if (pair.right.empty()) pair.error = "cannot read image " + f.right.string();
-      if (!loaded.push(std::move(pair))) return;
-    }
-    loaded.close();
-  });
+  StereoPairLoader loaded(frames);  // decodes images ahead of tracking
 
   Progress progress("run", static_cast<std::int64_t>(frames.size()), options.show_progress);
   const auto wall_start = Clock::now();
   std::size_t index = 0;
-  try {
-    while (auto pair = loaded.pop()) {
-      const TimestampNs next_t = index + 1 < frames.size() ? frames[index + 1].t_ns : pair->t_ns;
-      ++index;
-      if (options.realtime) {
-        std::this_thread::sleep_until(wall_start + std::chrono::nanoseconds(pair->t_ns - frames.front().t_ns));
-      }
-      if (!pair->error.empty()) {
-        log_warn(pair->error + " (frame skipped)");
-        ++report.skipped_frames;
-      } else {
-        try {
-          const TrackResult r = slam.process(pair->t_ns, pair->left, pair->right);
-          if (r.keyframe && checkpointer) checkpointer->notify_keyframe();
-        } catch (const DataError& e) {
-          log_warn(std::string("frame at ") + std::to_string(pair->t_ns) + " ns skipped: " + e.what());
-          ++report.skipped_frames;
-        }
-      }
-      if (options.realtime && index < frames.size() &&
-          Clock::now() > wall_start + std::chrono::nanoseconds(next_t - frames.front().t_ns))
-        ++report.late_frames;
-      progress.advance();
+  while (auto pair = loaded.next()) {
+    const TimestampNs next_t = index + 1 < frames.size() ? frames[index + 1].t_ns : pair->t_ns;
+    ++index;
+    if (options.realtime) {
+      std::this_thread::sleep_until(wall_start + std::chrono::nanoseconds(pair->t_ns - frames.front().t_ns));
     }
-  } catch (...) {
-    loaded.close();
-    loader.join();
-    throw;
+    if (!pair->error.empty()) {
+      log_warn(pair->error + " (frame skipped)");
+      ++report.skipped_frames;
+    } else {
+      try {
+        const TrackResult r = slam.process(pair->t_ns, pair->left, pair->right);
+        if (r.keyframe && checkpointer) checkpointer->notify_keyframe();
+      } catch (const DataError& e) {
+        log_warn(std::string("frame at ") + std::to_string(pair->t_ns) + " ns skipped: " + e.what());
+        ++report.skipped_frames;
+      }
+    }
+    if (options.realtime && index < frames.size() &&
+        Clock::now() > wall_start + std::chrono::nanoseconds(next_t - frames.front().t_ns))
+      ++report.late_frames;
+    progress.advance();
   }
-  loader.join();
   progress.finish();
   slam.finish();
   if (checkpointer) {
@@ -181,9 +149,7 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   report.stats = slam.stats();
   report.peak_rss_mb = peak_rss_mb();
   if (!dataset.ground_truth.empty() && report.trajectory.size() >= 3) {
-    Trajectory gt;
-    gt.reserve(dataset.ground_truth.size());
-    for (const auto& s : dataset.ground_truth) gt.push_back({s.t_ns, s.T_w_b});
+    const Trajectory gt = from_ground_truth_states(dataset.ground_truth);
     try {
       report.ate_rmse_m = evaluate_trajectory(report.trajectory, gt).ate.rmse;
     } catch (const Error& e) {

@@ -97,13 +97,8 @@ void StereoSlam::finish() {
 std::vector<TimedPose> StereoSlam::trajectory() const {
   std::vector<TimedPose> out;
   out.reserve(tracker_->anchors().size());
-  for (const auto& anchor : tracker_->anchors()) {
-    const auto map = atlas_.map(anchor.map);
-    if (!map) continue;
-    const auto T_w_ref = map->keyframe_pose(anchor.reference);
-    if (!T_w_ref) continue;
-    out.push_back({anchor.t_ns, anchor.map, *T_w_ref * anchor.T_ref_b});
-  }
+  for (const auto& anchor : tracker_->anchors())
+    if (const auto pose = atlas_.frame_pose(anchor)) out.push_back({anchor.t_ns, anchor.map, *pose});
   return out;
 }
 

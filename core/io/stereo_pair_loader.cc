@@ -1,0 +1,28 @@
+#include "core/io/stereo_pair_loader.h"
+
+#include <opencv2/imgcodecs.hpp>
+
+namespace orbatlas {
+
+StereoPairLoader::StereoPairLoader(std::vector<StereoFrame> frames, std::size_t capacity)
+    : frames_(std::move(frames)), queue_(capacity) {
+  thread_ = std::thread([this] {
+    for (const StereoFrame& f : frames_) {
+      LoadedStereoPair pair;
+      pair.t_ns = f.t_ns;
+      pair.left = cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE);
+      pair.right = cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE);
+      if (pair.left.empty()) pair.error = "cannot read image " + f.left.string();
+      else if (pair.right.empty()) pair.error = "cannot read image " + f.right.string();
+      if (!queue_.push(std::move(pair))) return;  // closed: the consumer stopped
+    }
+    queue_.close();
+  });
+}
+
+StereoPairLoader::~StereoPairLoader() {
+  queue_.close();
+  thread_.join();
+}
+
+}  // namespace orbatlas

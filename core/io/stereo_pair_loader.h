@@ -1,0 +1,38 @@
+#pragma once
+// Decodes the stereo pairs of a recording ahead of their consumer, on a thread
+// of its own, into a bounded queue (a few pairs: memory stays flat). Used by
+// `orbatlas run` (dataset_runner) and `orbatlas stream` (dataset_streamer).
+#include <opencv2/core/mat.hpp>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/common/bounded_queue.h"
+#include "core/io/euroc_reader.h"
+
+namespace orbatlas {
+
+struct LoadedStereoPair {
+  TimestampNs t_ns = 0;
+  cv::Mat left, right;  // 8-bit grey
+  std::string error;    // non-empty when an image could not be read (the pair is then empty)
+};
+
+class StereoPairLoader {
+ public:
+  explicit StereoPairLoader(std::vector<StereoFrame> frames, std::size_t capacity = 4);
+  ~StereoPairLoader();  // stops the thread (pairs not taken are dropped)
+  StereoPairLoader(const StereoPairLoader&) = delete;
+  StereoPairLoader& operator=(const StereoPairLoader&) = delete;
+
+  // The next pair in order; nullopt after the last one.
+  std::optional<LoadedStereoPair> next() { return queue_.pop(); }
+
+ private:
+  const std::vector<StereoFrame> frames_;
+  BoundedQueue<LoadedStereoPair> queue_;
+  std::thread thread_;  // last: started once the queue exists
+};
+
+}  // namespace orbatlas
