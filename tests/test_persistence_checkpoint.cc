@@ -383,5 +383,76 @@ TEST(Checkpoint, ConcurrentEditsNeverBreakACheckpoint) {
   expect_file_holds(db.path(), atlas);
 }
 
+// A merge (Map::absorb + Atlas::remove_map): the source map's objects move into
+// the target with their poses transformed; an incremental checkpoint moves
+// their rows and deletes the source map, a full save of a merged atlas deletes
+// the stored rows of the map it no longer has; both load equal.
+TEST(Checkpoint, MergedMapMovesItsRowsAndLeavesTheFile) {
+  TempDb db("checkpoint_merge");
+  Atlas atlas;
+  build_atlas(atlas, test_vocabulary(), 33);
+  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), manual_only());
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+
+  const auto maps = atlas.maps();
+  ASSERT_GE(maps.size(), 2u);
+  const auto target = maps[0], source = maps[1];
+  ASSERT_GT(source->keyframe_count(), 0u);
+  const MapId source_id = source->id();
+  const std::size_t target_kfs = target->keyframe_count(), source_kfs = source->keyframe_count();
+  const std::size_t target_points = target->map_point_count(), source_points = source->map_point_count();
+  const auto culled_before = source->culled_keyframes();
+  const Pose3 T(Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, -0.3, 0.9).normalized())),
+                Eigen::Vector3d(4.0, -2.0, 0.5));
+  const auto kf = source->keyframes().front();
+  const auto mp = source->map_points().front();
+  const Pose3 kf_before = kf->T_w_b();
+  const Eigen::Vector3d p_before = mp->p_w(), n_before = mp->normal();
+
+  {
+    const auto whole = atlas.lock_maps_exclusive();
+    const Map::AbsorbCounts moved = target->absorb(*source, T);
+    EXPECT_EQ(moved.keyframes, source_kfs);
+    EXPECT_EQ(moved.map_points, source_points);
+    EXPECT_EQ(moved.culled_keyframes, culled_before.size());
+    EXPECT_NE(atlas.remove_map(source_id), nullptr);
+  }
+  EXPECT_EQ(atlas.map(source_id), nullptr);
+  EXPECT_EQ(target->keyframe_count(), target_kfs + source_kfs);
+  EXPECT_EQ(target->map_point_count(), target_points + source_points);
+  EXPECT_EQ(source->keyframe_count(), 0u);
+  EXPECT_EQ(kf->map_id(), target->id());
+  EXPECT_EQ(mp->map_id(), target->id());
+  EXPECT_LT(translation_distance(kf->T_w_b(), T * kf_before), 1e-12);
+  EXPECT_LT(rotation_distance(kf->T_w_b(), T * kf_before), 1e-12);
+  EXPECT_LT((mp->p_w() - T * p_before).norm(), 1e-12);
+  EXPECT_LT((mp->normal() - T.q * n_before).norm(), 1e-12);
+  // A frame anchored to a moved keyframe resolves in the target map now.
+  const auto located = atlas.locate_frame(FrameAnchor{0, source_id, kf->id(), Pose3()});
+  ASSERT_TRUE(located.has_value());
+  EXPECT_EQ(located->first, target->id());
+  EXPECT_EQ(atlas.map_holding(kf->id()), target->id());
+  for (const auto& c : culled_before) {
+    const auto pose = target->keyframe_pose(c.id);
+    ASSERT_TRUE(pose.has_value()) << "culled keyframe " << c.id;
+  }
+
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  expect_file_holds(db.path(), atlas);
+  EXPECT_EQ(AtlasStore::open(db.path(), test_vocabulary().hash()).stored_map_ids().size(), atlas.maps().size());
+
+  // A full save of the merged atlas into a file that still has both maps.
+  TempDb other("checkpoint_merge_full");
+  {
+    Atlas before;
+    build_atlas(before, test_vocabulary(), 33);
+    AtlasStore::open(other.path(), test_vocabulary().hash()).save_atlas(before);
+  }
+  AtlasStore store = AtlasStore::open(other.path(), test_vocabulary().hash());
+  store.save_atlas(atlas);
+  EXPECT_EQ(store.stored_map_ids().size(), atlas.maps().size());
+  expect_file_holds(other.path(), atlas);
+}
+
 }  // namespace
 }  // namespace orbatlas

@@ -106,20 +106,23 @@ std::optional<PlaceMatch> PlaceRecognizer::detect(const std::shared_ptr<KeyFrame
                                                   PlaceRecognitionStep& step) {
   if (keyframe->bow().empty()) return std::nullopt;
   const auto exclude = connected_ids(*keyframe);
-  const auto results = index_.query(keyframe->bow(), options_.index_results, exclude);
+  const MapId own = keyframe->map_id();
+  const KeyframeIndex::Filter in_scope = [&](const KeyFrame& kf) {
+    if (options_.scope == PlaceScope::kSameMap) return kf.map_id() == own;
+    return kf.map_id() != own && (!options_.may_use_map || options_.may_use_map(kf.map_id()));
+  };
+  const auto results = index_.query(keyframe->bow(), options_.index_results, exclude, in_scope);
 
-  // Same map only (other maps: merging). Score each result with its covisibility
-  // group (ORB-SLAM's accumulated score) and keep each group's best keyframe.
+  // Score each result with its covisibility group (ORB-SLAM's accumulated
+  // score) and keep each group's best keyframe.
   std::unordered_map<KeyframeId, double> score;
-  for (const auto& r : results)
-    if (r.keyframe->map_id() == keyframe->map_id()) score[r.keyframe->id()] = r.score;
+  for (const auto& r : results) score[r.keyframe->id()] = r.score;
   struct Group {
     std::shared_ptr<KeyFrame> best;
     double accumulated = 0.0;
   };
   std::vector<Group> groups;
   for (const auto& r : results) {
-    if (r.keyframe->map_id() != keyframe->map_id()) continue;
     Group g{r.keyframe, r.score};
     double best_score = r.score;
     for (const auto& neighbour : r.keyframe->best_covisibles(10)) {
@@ -158,7 +161,7 @@ std::optional<PlaceMatch> PlaceRecognizer::try_candidate(const std::shared_ptr<K
                                                          const std::unordered_set<KeyframeId>& connected) {
   std::vector<std::shared_ptr<KeyFrame>> window{candidate};
   for (auto& kf : candidate->best_covisibles(options_.window_covisibles))
-    if (kf->map_id() == keyframe->map_id() && !connected.count(kf->id())) window.push_back(std::move(kf));
+    if (kf->map_id() == candidate->map_id() && !connected.count(kf->id())) window.push_back(std::move(kf));
 
   // 1. Bag-of-words matches with every window keyframe; the one with most is K_m.
   Frame probe = probe_frame(*keyframe);

@@ -1,7 +1,8 @@
 #pragma once
 // ORB-SLAM3's place recognition for keyframes that local mapping has processed
 // (docs/loop_closing.md):
-//  1. the bag-of-words index gives the best candidates of the same map, excluding
+//  1. the bag-of-words index gives the best candidates of the same map (loops) or
+//     of other maps (merges, PlaceScope), excluding
 //     the keyframe's covisibles, grouped by covisibility (top 3 groups);
 //  2. a local window: each candidate and its best covisibles, with their points;
 //  3. BoW matches keyframe <-> window, Horn 3-point RANSAC (SE3: stereo scale is
@@ -13,6 +14,7 @@
 //     three keyframes agree, later keyframes continue the verification without
 //     the bag of words, until three agree or two in a row fail.
 // Runs on one thread (the loop closer's); reads the map concurrently.
+#include <functional>
 #include <memory>
 #include <optional>
 #include <unordered_set>
@@ -26,7 +28,15 @@
 
 namespace orbatlas {
 
+// Where the recogniser looks: the keyframe's own map (loop closing) or the
+// other maps of the atlas (map merging).
+enum class PlaceScope { kSameMap, kOtherMaps };
+
 struct PlaceRecognitionOptions {
+  PlaceScope scope = PlaceScope::kSameMap;
+  // kOtherMaps: the maps candidates may come from (called under the index's
+  // lock: it must not block); empty accepts every other map.
+  std::function<bool(MapId)> may_use_map;
   std::size_t candidates = 3;        // covisibility groups tried
   std::size_t index_results = 20;    // BoW results the groups are formed from
   std::size_t window_covisibles = 10;  // ORB-SLAM3's local window

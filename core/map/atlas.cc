@@ -55,11 +55,40 @@ std::size_t Atlas::index_all_keyframes() {
 }
 
 std::optional<Pose3> Atlas::frame_pose(const FrameAnchor& anchor) const {
-  const auto m = map(anchor.map);
-  if (!m) return std::nullopt;
-  const auto T_w_ref = m->keyframe_pose(anchor.reference);
-  if (!T_w_ref) return std::nullopt;
-  return *T_w_ref * anchor.T_ref_b;
+  const auto located = locate_frame(anchor);
+  if (!located) return std::nullopt;
+  return located->second;
+}
+
+std::optional<std::pair<MapId, Pose3>> Atlas::locate_frame(const FrameAnchor& anchor) const {
+  if (const auto m = map(anchor.map))
+    if (const auto T_w_ref = m->keyframe_pose(anchor.reference)) return std::pair{m->id(), *T_w_ref * anchor.T_ref_b};
+  // A merge moved the reference keyframe into another map.
+  for (const auto& m : maps())
+    if (const auto T_w_ref = m->keyframe_pose(anchor.reference)) return std::pair{m->id(), *T_w_ref * anchor.T_ref_b};
+  return std::nullopt;
+}
+
+std::optional<MapId> Atlas::map_holding(KeyframeId keyframe) const {
+  for (const auto& m : maps())
+    if (m->keyframe_pose(keyframe)) return m->id();
+  return std::nullopt;
+}
+
+std::shared_ptr<Map> Atlas::remove_map(MapId id) {
+  std::lock_guard lock(mutex_);
+  const auto it = maps_.find(id);
+  if (it == maps_.end()) return nullptr;
+  auto removed = std::move(it->second);
+  maps_.erase(it);
+  removed_.push_back(id);
+  if (active_ == removed) active_.reset();
+  return removed;
+}
+
+std::vector<MapId> Atlas::removed_maps() const {
+  std::lock_guard lock(mutex_);
+  return removed_;
 }
 
 }  // namespace orbatlas

@@ -5,6 +5,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <shared_mutex>
 #include <vector>
 
 #include "core/map/frame_anchor.h"
@@ -31,10 +32,28 @@ class Atlas {
   std::shared_ptr<Map> active_map() const;  // null before the first create_map
   std::shared_ptr<Map> map(MapId id) const;  // null if absent
   std::vector<std::shared_ptr<Map>> maps() const;  // by id
+  // Takes a map out of the atlas (after a merge emptied it); null if absent.
+  // The active map becomes none when it was this one.
+  std::shared_ptr<Map> remove_map(MapId id);
+  // Every map removed so far (a full save deletes their stored rows).
+  std::vector<MapId> removed_maps() const;
+  // The map now holding a keyframe id, alive or culled (merges move keyframes
+  // between maps); none when no map knows it.
+  std::optional<MapId> map_holding(KeyframeId keyframe) const;
   // A tracked frame's body pose now: its reference keyframe's current pose (it
   // follows corrections; culled references resolve through their parents)
-  // times the stored offset. Null when the map or keyframe is unknown.
+  // times the stored offset. When a merge moved the reference into another
+  // map, the pose is in that map's world (see map_holding). Null when no map
+  // knows the keyframe.
   std::optional<Pose3> frame_pose(const FrameAnchor& anchor) const;
+  // The same with the map the frame is in now.
+  std::optional<std::pair<MapId, Pose3>> locate_frame(const FrameAnchor& anchor) const;
+
+  // Edits that span maps (a merge) hold this exclusively; readers that must see
+  // every map whole (a checkpoint collecting rows) hold it shared. Outermost
+  // lock: taken before any map's or object's lock.
+  std::unique_lock<std::shared_mutex> lock_maps_exclusive() { return std::unique_lock(maps_edit_mutex_); }
+  std::shared_lock<std::shared_mutex> lock_maps_shared() const { return std::shared_lock(maps_edit_mutex_); }
 
   IdAllocator& ids() { return *ids_; }
   const IdAllocator& ids() const { return *ids_; }  // for peek() (saving an atlas)
@@ -52,8 +71,10 @@ class Atlas {
  private:
   const std::shared_ptr<IdAllocator> ids_;
   const std::shared_ptr<ObjectCounters> counters_;
+  mutable std::shared_mutex maps_edit_mutex_;
   mutable std::mutex mutex_;  // guards maps_ and active_; no other lock is taken under it
   std::map<MapId, std::shared_ptr<Map>> maps_;
+  std::vector<MapId> removed_;
   std::shared_ptr<Map> active_;
   KeyframeIndex index_;  // has its own lock
 };

@@ -37,7 +37,8 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
 
   // --- immutable ---
   KeyframeId id() const { return id_; }
-  MapId map_id() const { return map_id_; }
+  // The map holding it; changes only when a merge moves it (Map::absorb).
+  MapId map_id() const { return map_id_.load(); }
   std::int64_t timestamp_ns() const { return data_.timestamp_ns; }
   const ImageFeatures& features() const { return data_.features; }
   std::size_t slot_count() const { return data_.features.keypoints.size(); }
@@ -119,7 +120,7 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
 
   LifetimeToken token_;  // first member: destroyed last (see object_counters.h)
   const KeyframeId id_;
-  const MapId map_id_;
+  std::atomic<MapId> map_id_;  // set by Map::absorb
   const KeyFrameData data_;  // data_.T_w_b is only the initial pose; T_w_b_ is current
   const std::shared_ptr<std::atomic<int>> redundant_;
   std::atomic<bool> bad_{false};

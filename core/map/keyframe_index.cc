@@ -21,15 +21,19 @@ std::size_t KeyframeIndex::size() const {
 }
 
 std::vector<IndexCandidate> KeyframeIndex::query(const BowVector& bow, std::size_t max_results,
-                                                 const std::unordered_set<KeyframeId>& exclude) const {
+                                                 const std::unordered_set<KeyframeId>& exclude,
+                                                 const Filter& accept) const {
   std::vector<IndexCandidate> out;
   std::lock_guard lock(mutex_);
-  // Ask for a few more than needed: some may have been culled meanwhile.
-  for (const auto& match : database_.query(bow, max_results + 8, exclude)) {
+  // Ask for a few more than needed: some may have been culled meanwhile (with
+  // a filter: for every scored keyframe).
+  const std::size_t ask = accept ? keyframes_.size() : max_results + 8;
+  for (const auto& match : database_.query(bow, ask, exclude)) {
     const auto it = keyframes_.find(match.keyframe);
     if (it == keyframes_.end()) continue;
     auto kf = it->second.lock();
     if (!kf || kf->is_bad()) continue;
+    if (accept && !accept(*kf)) continue;
     out.push_back({std::move(kf), match.score});
     if (out.size() >= max_results) break;
   }

@@ -4,6 +4,7 @@
 // mutex so that local mapping can add and remove keyframes while tracking (and
 // later loop closing) queries it. Culled keyframes are erased by whoever culls
 // them; a keyframe freed before that is skipped by queries.
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <unordered_map>
@@ -26,9 +27,13 @@ class KeyframeIndex {
   void erase(KeyframeId id);
   std::size_t size() const;
 
-  // Live keyframes by L1 score, best first, at most max_results.
+  // Live keyframes by L1 score, best first, at most max_results. With
+  // `accept`, only keyframes it accepts count (e.g. those of other maps), so
+  // that others scoring higher cannot crowd them out.
+  using Filter = std::function<bool(const KeyFrame&)>;
   std::vector<IndexCandidate> query(const BowVector& bow, std::size_t max_results,
-                                    const std::unordered_set<KeyframeId>& exclude = {}) const;
+                                    const std::unordered_set<KeyframeId>& exclude = {},
+                                    const Filter& accept = {}) const;
 
  private:
   mutable std::mutex mutex_;

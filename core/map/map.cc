@@ -125,4 +125,39 @@ void Map::restore_culled_keyframes(const std::vector<CulledKeyframe>& culled) {
   }
 }
 
+Map::AbsorbCounts Map::absorb(Map& source, const Pose3& T_this_source) {
+  ORBATLAS_CHECK(&source != this, "map " << id_ << " cannot absorb itself");
+  std::scoped_lock structure(structure_mutex_, source.structure_mutex_);
+  std::unordered_map<KeyframeId, std::shared_ptr<KeyFrame>> keyframes;
+  std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> points;
+  std::unordered_map<KeyframeId, CulledAnchor> culled;
+  {
+    std::lock_guard lock(source.objects_mutex_);
+    keyframes.swap(source.keyframes_);
+    points.swap(source.map_points_);
+    culled.swap(source.culled_anchors_);
+  }
+  const Eigen::Quaterniond R = T_this_source.q;
+  for (const auto& [id, kf] : keyframes) {
+    kf->set_T_w_b(T_this_source * kf->T_w_b());
+    kf->map_id_.store(id_);
+  }
+  for (const auto& [id, mp] : points) {
+    mp->set_p_w(T_this_source * mp->p_w());
+    mp->set_normal(R * mp->normal());
+    mp->map_id_.store(id_);
+  }
+  for (auto& [id, anchor] : culled)
+    if (!anchor.parent) anchor.T_parent_b = T_this_source * anchor.T_parent_b;  // a root: its world pose
+
+  AbsorbCounts counts{keyframes.size(), points.size(), culled.size()};
+  std::lock_guard lock(objects_mutex_);
+  for (auto& [id, kf] : keyframes)
+    ORBATLAS_CHECK(keyframes_.try_emplace(id, std::move(kf)).second, "map " << id_ << ": keyframe id " << id << " already present");
+  for (auto& [id, mp] : points)
+    ORBATLAS_CHECK(map_points_.try_emplace(id, std::move(mp)).second, "map " << id_ << ": map point id " << id << " already present");
+  for (auto& [id, anchor] : culled) culled_anchors_.insert_or_assign(id, anchor);
+  return counts;
+}
+
 }  // namespace orbatlas

@@ -67,6 +67,18 @@ class Map {
   // this map or already has an anchor; parents are not checked (they may come later).
   void restore_culled_keyframes(const std::vector<CulledKeyframe>& culled);
 
+  // Moves every keyframe, map point and culled keyframe's anchor of `source`
+  // into this map (merging two maps), expressed in this map's world: keyframe
+  // poses, points and their viewing directions are transformed by
+  // T_this_source; relations between the objects are untouched. `source` is
+  // left empty. Both maps' structural edits wait meanwhile; the caller makes
+  // sure nobody tracks or maps in either map (server: map leases). Throws when
+  // source is this map.
+  struct AbsorbCounts {
+    std::size_t keyframes = 0, map_points = 0, culled_keyframes = 0;
+  };
+  AbsorbCounts absorb(Map& source, const Pose3& T_this_source);
+
   const std::shared_ptr<ObjectCounters>& counters() const { return counters_; }
 
  private:

@@ -41,7 +41,8 @@ class MapPoint {
   MapPoint& operator=(const MapPoint&) = delete;
 
   MapPointId id() const { return id_; }
-  MapId map_id() const { return map_id_; }
+  // The map holding it; changes only when a merge moves it (Map::absorb).
+  MapId map_id() const { return map_id_.load(); }
   bool is_bad() const { return bad_.load(); }
 
   Eigen::Vector3d p_w() const;
@@ -77,7 +78,7 @@ class MapPoint {
 
  private:
   friend class KeyFrame;  // attach / detach under the keyframe's lock
-  friend class Map;       // mark_bad when culling
+  friend class Map;       // mark_bad when culling, map_id_ when merging
 
   MapPoint(MapPointId id, MapId map, MapPointData data, std::shared_ptr<ObjectCounters> counters);
 
@@ -89,7 +90,7 @@ class MapPoint {
 
   LifetimeToken token_;  // first member: destroyed last (see object_counters.h)
   const MapPointId id_;
-  const MapId map_id_;
+  std::atomic<MapId> map_id_;  // set by Map::absorb
   std::atomic<bool> bad_{false};
   std::atomic<int> visible_{1}, found_{1};
 

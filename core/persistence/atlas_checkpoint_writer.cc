@@ -119,7 +119,11 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
       result.rows += write_trajectory(writer, s.session.info.id, rewrite ? no_frames : s.committed, trajectories[i]);
     }
     if (full)
+      {
+      // Maps merged into others since loading go; other stored maps stay.
+      for (const MapId map : atlas_.removed_maps()) writer.delete_map(map);
       for (const MapId map : rows.maps) writer.delete_map_contents(map);
+    }
     result.rows += write_changed_rows(writer, before, rows, now);
     if (meta_changed(before, rows)) ++result.rows.updated;
     if (result.rows.total() == 0) {

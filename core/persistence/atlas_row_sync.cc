@@ -50,6 +50,7 @@ class RowSync {
     delete_objects();
     write_objects();
     write_links();
+    delete_gone_maps();
     return counts_;
   }
 
@@ -59,6 +60,16 @@ class RowSync {
       if (std::binary_search(before_.maps.begin(), before_.maps.end(), map)) continue;
       w_.upsert_map(map, saved_ns);
       ++counts_.inserted;
+    }
+  }
+
+  // Last: a map merged into another has had its objects moved (their rows
+  // updated above); whatever its row still owns goes with it.
+  void delete_gone_maps() {
+    for (const MapId map : before_.maps) {
+      if (std::binary_search(now_.maps.begin(), now_.maps.end(), map)) continue;
+      w_.delete_map(map);
+      ++counts_.deleted;
     }
   }
 

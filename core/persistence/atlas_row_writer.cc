@@ -41,6 +41,7 @@ AtlasRowWriter::AtlasRowWriter(SqliteDb& db)
       // keyframes go (which cascades to covisibility and loop edges).
       delete_points_of_map_(db.prepare("DELETE FROM map_points WHERE map_id = ?1")),
       delete_keyframes_of_map_(db.prepare("DELETE FROM keyframes WHERE map_id = ?1")),
+      delete_map_(db.prepare("DELETE FROM maps WHERE id = ?1")),
       upsert_map_(db.prepare("INSERT INTO maps(id, saved_ns) VALUES (?1, ?2) "
                              "ON CONFLICT(id) DO UPDATE SET saved_ns = excluded.saved_ns")),
       insert_keyframe_(db.prepare(
@@ -50,7 +51,7 @@ AtlasRowWriter::AtlasRowWriter(SqliteDb& db)
       // The mutable columns only: the features blob (most of the bytes) is never rewritten.
       update_keyframe_(db.prepare(
           "UPDATE keyframes SET qw = ?2, qx = ?3, qy = ?4, qz = ?5, tx = ?6, ty = ?7, tz = ?8, parent_id = ?9, "
-          "session_id = coalesce(?10, session_id) WHERE id = ?1")),
+          "session_id = coalesce(?10, session_id), map_id = ?11 WHERE id = ?1")),
       delete_keyframe_(db.prepare("DELETE FROM keyframes WHERE id = ?1")),
       upsert_point_(db.prepare(
           "INSERT INTO map_points(id, map_id, x, y, z, nx, ny, nz, min_distance, max_distance, descriptor, "
@@ -104,6 +105,12 @@ void AtlasRowWriter::delete_map_contents(MapId map) {
   }
 }
 
+void AtlasRowWriter::delete_map(MapId map) {
+  delete_map_contents(map);
+  delete_map_.bind_int64(1, sql_id(map));
+  run_once(delete_map_);
+}
+
 void AtlasRowWriter::upsert_map(MapId map, TimestampNs saved_ns) {
   upsert_map_.bind_int64(1, sql_id(map)).bind_int64(2, saved_ns);
   run_once(upsert_map_);
@@ -129,6 +136,7 @@ void AtlasRowWriter::update_keyframe(const KeyframeRow& row) {
   bind_pose(s, 2, row.T_w_b);
   bind_optional_id(s, 9, row.parent);
   bind_optional_id(s, 10, row.session);
+  s.bind_int64(11, sql_id(row.map));
   run_once(s);
 }
 

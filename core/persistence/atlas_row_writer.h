@@ -26,9 +26,11 @@ class AtlasRowWriter {
   // cascading to observations and graph edges. The maps row stays.
   void delete_map_contents(MapId map);
   void upsert_map(MapId map, TimestampNs saved_ns);
+  // A map merged into another: its remaining contents and its maps row.
+  void delete_map(MapId map);
 
   void insert_keyframe(const KeyframeRow& row);  // every column; row.keyframe must be set
-  void update_keyframe(const KeyframeRow& row);  // pose and parent (and the session, if the row has one)
+  void update_keyframe(const KeyframeRow& row);  // map, pose and parent (and the session, if the row has one)
   void delete_keyframe(KeyframeId id);
   void upsert_map_point(const MapPointRow& row);
   void delete_map_point(MapPointId id);
@@ -52,7 +54,7 @@ class AtlasRowWriter {
 
  private:
   const std::string file_;
-  SqliteStatement stored_sessions_, delete_culled_of_map_, delete_points_of_map_, delete_keyframes_of_map_,
+  SqliteStatement stored_sessions_, delete_map_, delete_culled_of_map_, delete_points_of_map_, delete_keyframes_of_map_,
       upsert_map_, insert_keyframe_, update_keyframe_, delete_keyframe_, upsert_point_, delete_point_, upsert_culled_,
       delete_culled_, insert_observation_, delete_observation_, upsert_covisibility_, delete_covisibility_,
       insert_loop_edge_, delete_loop_edge_, upsert_trajectory_, delete_trajectory_, delete_session_trajectory_, write_meta_, read_sequence_;

@@ -105,6 +105,7 @@ void AtlasRows::drop_objects() {
 
 AtlasRows collect_atlas_rows(const Atlas& atlas, const KeyframeSessionOf& session_of) {
   AtlasRows rows;
+  const auto whole = atlas.lock_maps_shared();  // no merge half-way
   // The active map before the list: it is then one of the listed maps.
   const auto active = atlas.active_map();
   MapRowCollector collector(rows, session_of);

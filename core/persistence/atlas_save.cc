@@ -1,6 +1,8 @@
 // AtlasStore::save_atlas: every map of the atlas replaces its stored rows, in one
 // write transaction (all or nothing). The rows are those a checkpoint writes
 // (atlas_rows.h), written by the same code with nothing to compare against.
+#include <algorithm>
+
 #include "core/persistence/atlas_row_sync.h"
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/wall_clock.h"
@@ -19,7 +21,11 @@ void AtlasStore::save_atlas(const Atlas& atlas, const AtlasSaveOptions& options)
       if (const auto it = stored.find(id); it != stored.end()) return it->second;
       return std::nullopt;
     });
-    for (const MapId map : rows.maps) writer.delete_map_contents(map);
+    {
+      // Maps merged into others since loading go; other stored maps stay.
+      for (const MapId map : atlas.removed_maps()) writer.delete_map(map);
+      for (const MapId map : rows.maps) writer.delete_map_contents(map);
+    }
     write_changed_rows(writer, AtlasRows{}, rows, now);
     writer.write_meta(*rows.meta, now);
   }

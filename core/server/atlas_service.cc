@@ -57,7 +57,11 @@ AtlasService::AtlasService(AtlasServiceOptions options)
     atlas_.index_all_keyframes();
     for (const auto& map : atlas_.maps()) leases_.add_free(map->id());
     for (const SessionInfo& info : store.load_sessions()) {
-      sessions_[info.id] = std::make_shared<LiveSession>(info, store.load_trajectory(info.id));
+      auto anchors = store.load_trajectory(info.id);
+      // The rig each stored map was made with (for merging): its sessions' cameras.
+      for (const FrameAnchor& a : anchors)
+        if (const auto map = atlas_.map_holding(a.reference)) map_rigs_.try_emplace(*map, info.cameras);
+      sessions_[info.id] = std::make_shared<LiveSession>(info, std::move(anchors));
       next_session_ = std::max(next_session_, info.id + 1);
     }
     log_info("atlas " + options_.db.string() + ": " + std::to_string(loaded.maps) + " maps, " +
@@ -66,6 +70,10 @@ AtlasService::AtlasService(AtlasServiceOptions options)
              std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()) + " s");
   }
   checkpointer_ = std::make_unique<AtlasCheckpointer>(atlas_, options_.db, vocabulary_.hash(), options_.checkpoints);
+  if (options_.merge_maps)
+    merger_ = std::make_unique<MapMergeWorker>(
+        atlas_, leases_, [this](MapId a, MapId b) { return rigs_match(a, b); },
+        [this](const MergeRecord& r) { merged(r); }, options_.merging);
 }
 
 AtlasService::~AtlasService() {
@@ -155,6 +163,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   {
     std::lock_guard lock(mutex_);
     sessions_[id] = live;
+    session_settings_[id] = request.settings;
   }
   // The checkpoint thread reads the frames through its own reference.
   checkpointer_->add_session(CheckpointSession{info, [live] { return live->anchors(); }});
@@ -177,9 +186,95 @@ std::vector<std::shared_ptr<LiveSession>> AtlasService::sessions() const {
   return out;
 }
 
-void AtlasService::end_session_storage(SessionId id) {
+std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
+  const std::vector<MapId> held = leases_.held_by(id);
+  {
+    const auto live = session(id);
+    std::lock_guard lock(rigs_mutex_);
+    for (const MapId map : held) map_rigs_.try_emplace(map, live->info().cameras);
+  }
   leases_.release_all(id);
   checkpointer_->end_session(id);
+  return held;
+}
+
+void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
+  if (!merger_ || maps.empty()) return;
+  SettingsSource settings;
+  {
+    std::lock_guard lock(mutex_);
+    const auto it = session_settings_.find(id);
+    if (it == session_settings_.end() || shut_down_) return;
+    settings = it->second;
+  }
+  std::shared_ptr<LocalizerContext> context;
+  try {
+    context = localizer_for(settings);
+  } catch (const std::exception& e) {
+    log_warn("session " + std::to_string(id) + ": no merging (" + e.what() + ")");
+    return;
+  }
+  // The camera shares the context's ownership: it lives while a request holds it.
+  const std::shared_ptr<const FrameCamera> cam(context, &context->cam);
+  for (const MapId map : maps) merger_->submit(MergeRequest{map, cam});
+}
+
+bool AtlasService::rigs_match(MapId source, MapId target) const {
+  std::lock_guard lock(rigs_mutex_);
+  const auto a = map_rigs_.find(source), b = map_rigs_.find(target);
+  if (a == map_rigs_.end() || b == map_rigs_.end() || a->second.size() != b->second.size()) return false;
+  for (std::size_t i = 0; i < a->second.size(); ++i) {
+    const CameraCalibration &x = a->second[i], &y = b->second[i];
+    const bool same = x.model == y.model && x.width == y.width && x.height == y.height && x.fx == y.fx &&
+                      x.fy == y.fy && x.cx == y.cx && x.cy == y.cy && x.distortion == y.distortion &&
+                      translation_distance(x.T_b_c, y.T_b_c) < 1e-6 && rotation_distance(x.T_b_c, y.T_b_c) < 1e-6;
+    if (!same) return false;
+  }
+  return true;
+}
+
+void AtlasService::merged(const MergeRecord& record) {
+  {
+    std::lock_guard lock(rigs_mutex_);
+    map_rigs_.erase(record.merge.source);
+  }
+  if (!checkpointer_->checkpoint_now())
+    log_warn("the merge of map " + std::to_string(record.merge.source) + " is not stored yet: " +
+             checkpointer_->stats().last_error + " (retried at the next checkpoint)");
+}
+
+nlohmann::json AtlasService::merges_json() const {
+  nlohmann::json out = {{"enabled", merger_ != nullptr}, {"pending", 0}, {"merges", nlohmann::json::array()}};
+  if (!merger_) return out;
+  const MapMergeWorkerStats stats = merger_->stats();
+  out["pending"] = stats.pending;
+  out["requests"] = stats.requests;
+  out["skipped"] = stats.skipped;
+  out["maps_searched"] = stats.maps_searched;
+  out["keyframes_searched"] = stats.keyframes_searched;
+  if (!stats.last_error.empty()) out["last_error"] = stats.last_error;
+  for (const MergeRecord& r : stats.merges)
+    out["merges"].push_back({{"source_map", r.merge.source},
+                             {"target_map", r.merge.target},
+                             {"keyframe", r.current},
+                             {"matched_keyframe", r.matched},
+                             {"matches", r.matches},
+                             {"verified_keyframes", r.verified_keyframes},
+                             {"keyframes_searched", r.keyframes_searched},
+                             {"search_ms", r.search_ms},
+                             {"keyframes_moved", r.merge.keyframes_moved},
+                             {"map_points_moved", r.merge.points_moved},
+                             {"points_fused", r.merge.points_merged},
+                             {"observations_added", r.merge.observations_fused},
+                             {"merge_ms", r.merge.ms},
+                             {"global_ba", {{"keyframes", r.ba_keyframes},
+                                            {"seconds", r.ba_seconds},
+                                            {"interrupted", r.ba_interrupted}}}});
+  return out;
+}
+
+void AtlasService::wait_for_merges() {
+  if (merger_) merger_->wait_until_idle();
 }
 
 FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
@@ -214,12 +309,13 @@ nlohmann::json AtlasService::finish_session(SessionId id) {
     throw_conflict("session " + std::to_string(id) + " was stored by an earlier run; there is nothing to finish");
   const bool ended = live->finish();
   if (ended) {
-    end_session_storage(id);
+    const std::vector<MapId> held = end_session_storage(id);
     // The session's last frames and keyframes are on disk before the reply.
     if (!checkpointer_->checkpoint_now())
       throw ApiError(500, "storage_failed",
                      "session " + std::to_string(id) + " ended but could not be stored yet: " +
                          checkpointer_->stats().last_error + " (the server keeps retrying)");
+    submit_merges(id, held);
   }
   return live->status();
 }
@@ -228,9 +324,9 @@ std::pair<Trajectory, std::vector<std::uint64_t>> AtlasService::trajectory(Sessi
   const auto live = session(id);
   std::pair<Trajectory, std::vector<std::uint64_t>> out;
   for (const FrameAnchor& a : live->anchors()) {
-    if (const auto pose = atlas_.frame_pose(a)) {
-      out.first.push_back({a.t_ns, *pose});
-      out.second.push_back(a.map);
+    if (const auto located = atlas_.locate_frame(a)) {
+      out.first.push_back({a.t_ns, located->second});
+      out.second.push_back(located->first);  // the map it is in now (after merges)
     }
   }
   return out;
@@ -324,7 +420,10 @@ nlohmann::json AtlasService::health() const {
   std::lock_guard lock(mutex_);
   std::size_t live = 0;
   for (const auto& [_, s] : sessions_) live += s->state() == SessionState::kActive ? 1 : 0;
-  return {{"status", shut_down_ ? "shutting_down" : "ok"}, {"live_sessions", live}, {"maps", atlas_.maps().size()}};
+  return {{"status", shut_down_ ? "shutting_down" : "ok"},
+          {"live_sessions", live},
+          {"maps", atlas_.maps().size()},
+          {"merges_pending", merger_ ? merger_->stats().pending : 0}};
 }
 
 std::string AtlasService::metrics_text() const {
@@ -367,6 +466,13 @@ std::string AtlasService::metrics_text() const {
   gauge("orbatlas_localize_recognised_total", "Localisation requests that recognised the place.", "counter",
         static_cast<double>(localize_recognised_.load()));
   out << localize_latency_.prometheus("orbatlas_localize_latency_seconds", "Time to answer a localisation request.");
+  if (merger_) {
+    const MapMergeWorkerStats merging = merger_->stats();
+    gauge("orbatlas_map_merges_total", "Maps merged into another map since the server started.", "counter",
+          static_cast<double>(merging.merges.size()));
+    gauge("orbatlas_map_merge_pending", "Maps waiting for (or in) the merging worker.", "gauge",
+          static_cast<double>(merging.pending));
+  }
   return out.str();
 }
 
@@ -379,6 +485,9 @@ void AtlasService::shutdown() {
     for (const auto& [_, s] : sessions_)
       if (s->state() == SessionState::kActive) live.push_back(s);
   }
+  // Merging stops first (a running global adjustment is interrupted; a merge
+  // already made is in the final checkpoint); the sessions below submit none.
+  if (merger_) merger_->stop();
   for (const auto& s : live) {
     try {
       if (s->finish()) log_info("session " + std::to_string(s->id()) + " finished by the shutdown");

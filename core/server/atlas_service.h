@@ -21,6 +21,7 @@
 #include "core/server/latency_histogram.h"
 #include "core/server/live_session.h"
 #include "core/server/map_leases.h"
+#include "core/server/map_merge_worker.h"
 #include "core/vocabulary/vocabulary.h"
 
 namespace orbatlas {
@@ -33,6 +34,10 @@ struct AtlasServiceOptions {
   StereoSlamOptions slam;
   std::size_t max_live_sessions = 8;
   double max_imu_gap_s = 0.05;  // EuRoC's IMU runs at 200 Hz: 10 samples missing
+  // A finished session's maps are handed to the server-wide merging worker,
+  // which merges them into a map of the atlas they share a place with.
+  bool merge_maps = true;
+  MapMergeWorkerOptions merging;
 };
 
 // Settings of a new session or of a localisation request: a config name
@@ -94,6 +99,10 @@ class AtlasService {
   nlohmann::json maps_json() const;
   nlohmann::json map_json(MapId id) const;  // ApiError 404
   std::string map_points_ply(MapId id) const;
+  // GET /v1/merges: the merging worker's queue and the merges done.
+  nlohmann::json merges_json() const;
+  // Waits until the merging worker has nothing queued or running.
+  void wait_for_merges();
 
   LocalizeReply localize(const LocalizeRequest& request);
 
@@ -115,7 +124,13 @@ class AtlasService {
 
   LoadedSettings load_settings(const SettingsSource& source) const;
   std::shared_ptr<LocalizerContext> localizer_for(const SettingsSource& source);
-  void end_session_storage(SessionId id);  // leases and checkpoints after a session ended
+  // Leases and checkpoints after a session ended; returns the maps it held.
+  std::vector<MapId> end_session_storage(SessionId id);
+  // Hands a finished session's maps to the merging worker.
+  void submit_merges(SessionId id, const std::vector<MapId>& maps);
+  // May two maps be merged (made with one camera rig)?
+  bool rigs_match(MapId source, MapId target) const;
+  void merged(const MergeRecord& record);  // on the worker thread
 
   const AtlasServiceOptions options_;
   const Vocabulary vocabulary_;
@@ -125,6 +140,7 @@ class AtlasService {
 
   mutable std::mutex mutex_;  // guards sessions_, next_session_, shut_down_
   std::map<SessionId, std::shared_ptr<LiveSession>> sessions_;
+  std::map<SessionId, SettingsSource> session_settings_;  // of this run's sessions
   SessionId next_session_ = 1;
   bool shut_down_ = false;
 
@@ -133,6 +149,11 @@ class AtlasService {
   // an old one is dropped; a request still using it keeps it alive).
   static constexpr std::size_t kMaxLocalizers = 8;
   std::map<std::string, std::shared_ptr<LocalizerContext>> localizers_;
+
+  mutable std::mutex rigs_mutex_;  // a leaf lock (the merging worker asks under the index's lock)
+  std::map<MapId, std::vector<CameraCalibration>> map_rigs_;  // the camera rig each map was made with
+
+  std::unique_ptr<MapMergeWorker> merger_;  // null when merging is off
 
   LatencyHistogram tracking_latency_, localize_latency_;
   std::atomic<std::uint64_t> sessions_created_{0}, frames_{0}, frames_rejected_{0}, localize_requests_{0},

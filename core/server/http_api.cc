@@ -196,6 +196,7 @@ void install_map_routes(httplib::Server& server, AtlasService& service) {
   server.Get(R"(/v1/maps/(\d+))", guarded([&service](const Request& req, Response& res) {
     reply_json(res, service.map_json(id_from(req, 1, "map")));
   }));
+  server.Get("/v1/merges", guarded([&service](const Request&, Response& res) { reply_json(res, service.merges_json()); }));
   server.Get(R"(/v1/maps/(\d+)/points\.ply)", guarded([&service](const Request& req, Response& res) {
     res.set_content(service.map_points_ply(id_from(req, 1, "map")), "application/ply");
   }));

@@ -53,6 +53,12 @@ void MapLeases::release_all(SessionId session) {
   }
 }
 
+void MapLeases::forget(MapId map) {
+  std::lock_guard lock(mutex_);
+  free_.erase(map);
+  leases_.erase(map);
+}
+
 std::optional<SessionId> MapLeases::holder(MapId map) const {
   std::lock_guard lock(mutex_);
   const auto it = leases_.find(map);

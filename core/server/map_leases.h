@@ -30,6 +30,8 @@ class MapLeases {
   void settle(SessionId session, std::optional<MapId> tracked_in);
   // The session finished: every map it held is free.
   void release_all(SessionId session);
+  // The map is gone (merged into another): nobody can hold or claim it.
+  void forget(MapId map);
   std::optional<SessionId> holder(MapId map) const;
   std::vector<MapId> held_by(SessionId session) const;
 

@@ -1,0 +1,81 @@
+#include "core/loop/map_merge.h"
+
+#include <chrono>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "core/common/error.h"
+#include "core/common/stopwatch.h"
+#include "core/mapping/fusion.h"
+
+namespace orbatlas {
+namespace {
+
+// `current` becomes the root of its spanning tree (the path to the old root is
+// reversed), then a child of `matched`.
+void join_spanning_trees(const std::shared_ptr<KeyFrame>& current, const std::shared_ptr<KeyFrame>& matched) {
+  std::vector<std::shared_ptr<KeyFrame>> path{current};
+  std::unordered_set<KeyframeId> seen{current->id()};
+  while (auto parent = path.back()->parent()) {
+    if (!seen.insert(parent->id()).second) break;  // a cycle would be a bug elsewhere; do not loop
+    path.push_back(std::move(parent));
+  }
+  for (std::size_t i = path.size() - 1; i >= 1; --i) path[i]->set_parent(path[i - 1]);
+  current->set_parent(matched);
+}
+
+}  // namespace
+
+MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamera& cam,
+                         const MapMergeOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  const auto& current = match.current;
+  const auto& matched = match.matched;
+  ORBATLAS_CHECK(current && matched, "map merge needs both keyframes");
+  ORBATLAS_CHECK(!match.same_map(), "map merge: keyframes " << current->id() << " and " << matched->id()
+                                                            << " are in one map (a loop, not a merge)");
+  const auto whole = atlas.lock_maps_exclusive();
+  const auto source = atlas.map(current->map_id());
+  const auto target = atlas.map(matched->map_id());
+  ORBATLAS_CHECK(source && target, "map merge: map " << current->map_id() << " or " << matched->map_id()
+                                                     << " is not in the atlas");
+  MapMergeStats stats;
+  stats.source = source->id();
+  stats.target = target->id();
+
+  // 1. Move the source map into the target's world. The match says where the
+  // current camera is in the target's world.
+  const Pose3 T_ws_c = current->T_w_c();
+  const Pose3 T_wt_ws = match.T_c_w_corrected.inverse() * T_ws_c.inverse();
+  const Map::AbsorbCounts moved = target->absorb(*source, T_wt_ws);
+  atlas.remove_map(source->id());
+  stats.keyframes_moved = moved.keyframes;
+  stats.points_moved = moved.map_points;
+
+  // 2. One spanning tree.
+  join_spanning_trees(current, matched);
+
+  // 3. Fuse the matched window's points into the current keyframe's group.
+  std::vector<std::shared_ptr<KeyFrame>> group{current};
+  for (auto& kf : current->best_covisibles(20)) group.push_back(std::move(kf));
+  std::unordered_map<KeyframeId, std::unordered_set<KeyframeId>> previous;
+  for (const auto& kf : group)
+    for (const auto& edge : kf->connections()) previous[kf->id()].insert(edge.keyframe);
+  for (const auto& kf : group) {
+    if (kf->is_bad()) continue;
+    const FusionStats f = fuse_into_keyframe(*target, kf, match.window_points, cam, options.fusion_th);
+    stats.observations_fused += static_cast<std::size_t>(f.added);
+    stats.points_merged += static_cast<std::size_t>(f.merged);
+  }
+  for (const auto& kf : group) {
+    if (kf->is_bad()) continue;
+    kf->update_connections();
+    for (const auto& edge : kf->connections())
+      if (!previous[kf->id()].count(edge.keyframe)) ++stats.new_links;
+  }
+  current->add_loop_edge(matched);
+  stats.ms = ms_since(start);
+  return stats;
+}
+
+}  // namespace orbatlas

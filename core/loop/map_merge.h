@@ -1,0 +1,36 @@
+#pragma once
+// Merging two maps of the atlas that place recognition found to share a place
+// (ORB-SLAM3's map merging, for stereo maps, whose scale is known):
+//  1. the source map (the one holding `current`) is moved whole into the
+//     target map (holding `matched`), every pose and point transformed by the
+//     rigid transform the place match measured; the source map leaves the atlas;
+//  2. the spanning trees are joined: the path from `current` to its old root
+//     is reversed and `current` becomes a child of `matched`;
+//  3. the matched window's points are fused into `current` and its covisible
+//     keyframes (duplicates merged, new observations), which links the two
+//     parts by covisibility, plus a loop edge current <-> matched.
+// A global bundle adjustment afterwards (the caller's choice) refines the
+// joined map. Holds the atlas's maps lock exclusively while it edits; the
+// caller makes sure no tracking or mapping works in either map.
+#include "core/loop/place_match.h"
+#include "core/map/atlas.h"
+#include "core/tracking/frame_camera.h"
+
+namespace orbatlas {
+
+struct MapMergeOptions {
+  float fusion_th = 4.0f;  // ORB-SLAM's SearchAndFuse radius (pixels x scale)
+};
+
+struct MapMergeStats {
+  MapId source = 0, target = 0;
+  std::size_t keyframes_moved = 0, points_moved = 0;
+  std::size_t observations_fused = 0, points_merged = 0, new_links = 0;
+  double ms = 0.0;
+};
+
+// Throws Error when the match is within one map or a map is missing.
+MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamera& cam,
+                         const MapMergeOptions& options = {});
+
+}  // namespace orbatlas

@@ -1,0 +1,143 @@
+#include "core/server/map_merge_worker.h"
+
+#include <chrono>
+
+#include "core/common/log.h"
+#include "core/common/stopwatch.h"
+#include "core/loop/global_adjustment_merge.h"
+
+namespace orbatlas {
+
+MapMergeWorker::MapMergeWorker(Atlas& atlas, MapLeases& leases, MayMerge may_merge, OnMerged on_merged,
+                               MapMergeWorkerOptions options)
+    : atlas_(atlas),
+      leases_(leases),
+      may_merge_(std::move(may_merge)),
+      on_merged_(std::move(on_merged)),
+      options_(std::move(options)),
+      queue_(options_.queue_capacity) {
+  thread_ = std::thread([this] { run(); });
+}
+
+MapMergeWorker::~MapMergeWorker() { stop(); }
+
+bool MapMergeWorker::submit(MergeRequest request) {
+  std::unique_lock lock(mutex_);
+  ++stats_.requests;
+  ++stats_.pending;
+  lock.unlock();
+  if (!stopping_.load() && queue_.try_push(std::move(request))) return true;
+  lock.lock();
+  --stats_.pending;
+  ++stats_.skipped;
+  idle_.notify_all();
+  log_warn("map merging: a request was dropped (queue full or stopping)");
+  return false;
+}
+
+void MapMergeWorker::wait_until_idle() {
+  std::unique_lock lock(mutex_);
+  idle_.wait(lock, [&] { return stats_.pending == 0; });
+}
+
+void MapMergeWorker::stop() {
+  stopping_.store(true);
+  queue_.close();
+  if (thread_.joinable()) thread_.join();
+}
+
+MapMergeWorkerStats MapMergeWorker::stats() const {
+  std::lock_guard lock(mutex_);
+  return stats_;
+}
+
+void MapMergeWorker::run() {
+  while (auto request = queue_.pop()) {
+    if (!stopping_.load()) {
+      try {
+        process(*request);
+      } catch (const std::exception& e) {
+        log_warn(std::string("map merging failed: ") + e.what());
+        std::lock_guard lock(mutex_);
+        stats_.last_error = e.what();
+      }
+    }
+    leases_.release_all(kMergeWorkerLease);
+    std::lock_guard lock(mutex_);
+    --stats_.pending;
+    idle_.notify_all();
+  }
+}
+
+void MapMergeWorker::process(const MergeRequest& request) {
+  const auto source = atlas_.map(request.map);
+  if (!source || !request.cam || !request.cam->camera) return;  // merged away meanwhile
+  if (!leases_.claim(kMergeWorkerLease, source->id())) return;  // a session works in it again
+  const auto search_start = std::chrono::steady_clock::now();
+
+  PlaceRecognitionOptions recognition = options_.recognition;
+  recognition.scope = PlaceScope::kOtherMaps;
+  const MapId source_id = source->id();
+  recognition.may_use_map = [this, source_id](MapId target) {
+    const auto holder = leases_.holder(target);
+    return (!holder || *holder == kMergeWorkerLease) && (!may_merge_ || may_merge_(source_id, target));
+  };
+  PlaceRecognizer recognizer(atlas_.keyframe_index(), *request.cam, recognition);
+
+  std::optional<PlaceMatch> match;
+  std::size_t searched = 0;
+  for (const auto& kf : source->keyframes()) {
+    if (stopping_.load()) return;
+    ++searched;
+    PlaceRecognitionStep step = recognizer.process(kf);
+    if (step.match) {
+      match = std::move(step.match);
+      break;
+    }
+  }
+  {
+    std::lock_guard lock(mutex_);
+    ++stats_.maps_searched;
+    stats_.keyframes_searched += searched;
+  }
+  if (!match) {
+    log_info("map merging: map " + std::to_string(source_id) + " (" + std::to_string(searched) +
+             " keyframes searched) shares no verified place with another map");
+    return;
+  }
+  const MapId target_id = match->matched->map_id();
+  if (!leases_.claim(kMergeWorkerLease, target_id)) return;  // a session entered it just now
+
+  MergeRecord record;
+  record.current = match->current->id();
+  record.matched = match->matched->id();
+  record.matches = match->matches;
+  record.verified_keyframes = match->verified_keyframes;
+  record.search_ms = ms_since(search_start);
+  record.keyframes_searched = searched;
+  record.merge = merge_maps(atlas_, *match, *request.cam, options_.merge);
+  leases_.forget(source_id);
+  log_info("map merging: map " + std::to_string(source_id) + " merged into map " + std::to_string(target_id) +
+           " (keyframe " + std::to_string(record.current) + " ~ " + std::to_string(record.matched) + ", " +
+           std::to_string(record.matches) + " matches, " + std::to_string(record.merge.keyframes_moved) +
+           " keyframes moved, " + std::to_string(record.merge.points_merged) + " points fused)");
+
+  if (options_.global_bundle_adjustment) {
+    if (const auto map = atlas_.map(target_id)) {
+      const auto ba_start = std::chrono::steady_clock::now();
+      const GlobalBundleAdjustmentResult result =
+          global_bundle_adjustment(*map, *request.cam->camera, request.cam->bf, options_.global, &stopping_);
+      if (!result.stopped) merge_global_adjustment(*map, result, request.cam->pyramid);
+      record.ba_keyframes = result.keyframes;
+      record.ba_seconds = ms_since(ba_start) * 1e-3;
+      record.ba_interrupted = result.stopped;
+    }
+  }
+  {
+    std::lock_guard lock(mutex_);
+    stats_.merges.push_back(record);
+  }
+  if (on_merged_) on_merged_(record);
+}
+
+}  // namespace orbatlas

@@ -1,0 +1,109 @@
+#pragma once
+// The server-wide map-merging worker (docs/server.md): when a session finishes,
+// its maps are handed over here; one thread looks for a place they share with
+// another map of the atlas (place recognition over every map, PlaceScope::
+// kOtherMaps), and when one is verified merges the session's map into the other
+// (core/loop/map_merge.h), then refines the joined map with a global bundle
+// adjustment that stop() interrupts. While it works on two maps it holds their
+// leases, so no session relocalises into them meanwhile; maps held by live
+// sessions are never candidates. Bounded queue: a full queue skips the request
+// (logged and counted).
+#include <atomic>
+#include <condition_variable>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "core/common/bounded_queue.h"
+#include "core/loop/map_merge.h"
+#include "core/loop/place_recognizer.h"
+#include "core/map/atlas.h"
+#include "core/optimization/global_bundle_adjustment.h"
+#include "core/server/map_leases.h"
+
+namespace orbatlas {
+
+// The lease holder name of the worker (never a session id handed out).
+inline constexpr SessionId kMergeWorkerLease = std::numeric_limits<SessionId>::max();
+
+struct MapMergeWorkerOptions {
+  std::size_t queue_capacity = 16;
+  PlaceRecognitionOptions recognition;  // scope is forced to PlaceScope::kOtherMaps
+  MapMergeOptions merge;
+  bool global_bundle_adjustment = true;
+  GlobalBundleAdjustmentOptions global;
+};
+
+struct MergeRequest {
+  MapId map = 0;
+  // The camera the map's keyframes were made with (shared: it keeps its owner alive).
+  std::shared_ptr<const FrameCamera> cam;
+};
+
+struct MergeRecord {
+  MapMergeStats merge;  // source, target, what moved and was fused
+  KeyframeId current = 0, matched = 0;
+  int matches = 0, verified_keyframes = 0;
+  double search_ms = 0.0;              // place recognition until the match
+  std::size_t keyframes_searched = 0;  // of the source map
+  std::size_t ba_keyframes = 0;
+  double ba_seconds = 0.0;
+  bool ba_interrupted = false;
+};
+
+struct MapMergeWorkerStats {
+  std::size_t requests = 0, skipped = 0;      // handed in / dropped (queue full, stopped)
+  std::size_t maps_searched = 0, keyframes_searched = 0;
+  std::vector<MergeRecord> merges;
+  std::size_t pending = 0;  // queued or in progress
+  std::string last_error;
+};
+
+class MapMergeWorker {
+ public:
+  // May `source` be merged with `target`? (same camera rig...). Called under
+  // the keyframe index's lock: it must not block.
+  using MayMerge = std::function<bool(MapId source, MapId target)>;
+  // After each merge, on the worker thread (the service stores it).
+  using OnMerged = std::function<void(const MergeRecord&)>;
+
+  // `atlas` and `leases` must outlive the worker; the thread starts at once.
+  MapMergeWorker(Atlas& atlas, MapLeases& leases, MayMerge may_merge, OnMerged on_merged,
+                 MapMergeWorkerOptions options = {});
+  ~MapMergeWorker();  // stop()
+  MapMergeWorker(const MapMergeWorker&) = delete;
+  MapMergeWorker& operator=(const MapMergeWorker&) = delete;
+
+  // Non-blocking; false when the queue is full or the worker stopped.
+  bool submit(MergeRequest request);
+  // Waits until every submitted request is done.
+  void wait_until_idle();
+  // Interrupts the search and a running global adjustment, drops what is
+  // queued, joins the thread. Idempotent.
+  void stop();
+
+  MapMergeWorkerStats stats() const;
+
+ private:
+  void run();
+  void process(const MergeRequest& request);
+
+  Atlas& atlas_;
+  MapLeases& leases_;
+  const MayMerge may_merge_;
+  const OnMerged on_merged_;
+  const MapMergeWorkerOptions options_;
+
+  BoundedQueue<MergeRequest> queue_;
+  std::atomic<bool> stopping_{false};
+  mutable std::mutex mutex_;  // guards stats_
+  std::condition_variable idle_;
+  MapMergeWorkerStats stats_;
+
+  std::thread thread_;  // last
+};
+
+}  // namespace orbatlas

@@ -1,0 +1,143 @@
+// Map merging on two simulated sessions whose paths through the Machine Hall
+// overlap (MH_01 from 46 s and MH_02 from 38 s both fly from the take-off spot
+// towards the middle of the hall): each session builds its own map in its own
+// frame; place recognition over the second map's keyframes, looking in the
+// other maps, finds the shared place; the merge moves the second map into the
+// first one's world. Checked against the ground truth, which puts both
+// recordings in one world frame: after the merge both trajectories fit it with
+// ONE rigid alignment (before it, they do not).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/common/data_paths.h"
+#include "core/eval/evaluate.h"
+#include "core/loop/global_adjustment_merge.h"
+#include "core/loop/map_merge.h"
+#include "core/loop/place_recognizer.h"
+#include "core/slam/stereo_slam.h"
+#include "core/vocabulary/default_vocabulary.h"
+#include "tests/slam_test_clip.h"
+
+namespace orbatlas {
+namespace {
+
+struct Session {
+  std::vector<FrameAnchor> anchors;
+  Trajectory ground_truth;
+  MapId map = 0;
+};
+
+Session run_session(Atlas& atlas, const std::filesystem::path& clip, const SlamSettings& settings,
+                    const Vocabulary& vocabulary) {
+  const EurocDataset dataset = test::stereo_dataset(clip);
+  Session s;
+  for (const auto& g : dataset.ground_truth) s.ground_truth.push_back({g.t_ns, g.T_w_b});
+  StereoSlamOptions o;
+  o.synchronous_mapping = true;                   // deterministic
+  o.may_enter_map = [](MapId) { return false; };  // each session keeps to its own map
+  StereoSlam slam(atlas, settings, vocabulary, o);
+  for (const auto& f : pair_stereo_frames(dataset))
+    slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                 cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+  slam.finish();
+  s.anchors = slam.anchors();
+  EXPECT_FALSE(s.anchors.empty());
+  if (!s.anchors.empty()) s.map = s.anchors.back().map;
+  return s;
+}
+
+// Both sessions' frames, as the atlas places them now, against both ground truths.
+double joint_ate(const Atlas& atlas, const std::vector<const Session*>& sessions) {
+  Trajectory estimate, gt;
+  for (const Session* s : sessions) {
+    for (const auto& a : s->anchors)
+      if (const auto pose = atlas.frame_pose(a)) estimate.push_back({a.t_ns, *pose});
+    gt.insert(gt.end(), s->ground_truth.begin(), s->ground_truth.end());
+  }
+  const auto by_time = [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; };
+  std::sort(estimate.begin(), estimate.end(), by_time);
+  std::sort(gt.begin(), gt.end(), by_time);
+  return evaluate_trajectory(estimate, gt).ate.rmse;
+}
+
+TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {
+  const auto clip_a = test::simulated_clip("MH_01", 46.0, 8.0);
+  test::ClipCleanup cleanup_a{clip_a};
+  const auto clip_b = test::simulated_clip("MH_02", 38.0, 8.0);
+  test::ClipCleanup cleanup_b{clip_b};
+  const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+
+  Atlas atlas;
+  const Session a = run_session(atlas, clip_a, settings, vocabulary);
+  const Session b = run_session(atlas, clip_b, settings, vocabulary);
+  ASSERT_EQ(atlas.maps().size(), 2u);
+  ASSERT_NE(a.map, b.map);
+  const std::size_t keyframes = atlas.map(a.map)->keyframe_count() + atlas.map(b.map)->keyframe_count();
+  const double ate_apart = joint_ate(atlas, {&a, &b});
+
+  // The camera the maps were made with.
+  StereoFrontend frontend(settings, false);
+  FrameCamera cam;
+  cam.camera = &frontend.camera();
+  cam.bf = frontend.bf();
+  cam.pyramid.scale_factor = settings.orb.scale_factor;
+  cam.pyramid.n_levels = settings.orb.n_levels;
+
+  // A recogniser that may not use map A finds nothing.
+  PlaceRecognitionOptions ro;
+  ro.scope = PlaceScope::kOtherMaps;
+  {
+    PlaceRecognitionOptions none = ro;
+    none.may_use_map = [](MapId) { return false; };
+    PlaceRecognizer refused(atlas.keyframe_index(), cam, none);
+    for (const auto& kf : atlas.map(b.map)->keyframes()) EXPECT_FALSE(refused.process(kf).match.has_value());
+  }
+
+  PlaceRecognizer recognizer(atlas.keyframe_index(), cam, ro);
+  std::optional<PlaceMatch> match;
+  std::size_t searched = 0;
+  for (const auto& kf : atlas.map(b.map)->keyframes()) {
+    ++searched;
+    if (auto step = recognizer.process(kf); step.match) {
+      match = std::move(step.match);
+      break;
+    }
+  }
+  ASSERT_TRUE(match.has_value()) << "the shared starting place was not recognised";
+  EXPECT_EQ(match->current->map_id(), b.map);
+  EXPECT_EQ(match->matched->map_id(), a.map);
+  EXPECT_GE(match->verified_keyframes, 3);
+
+  const MapMergeStats merged = merge_maps(atlas, *match, cam);
+  std::printf("merge after %zu keyframes searched: keyframe %llu ~ %llu, %d matches; %zu keyframes and %zu points "
+              "moved, %zu points fused, %zu new links, %.1f ms\n",
+              searched, static_cast<unsigned long long>(match->current->id()),
+              static_cast<unsigned long long>(match->matched->id()), match->matches, merged.keyframes_moved,
+              merged.points_moved, merged.points_merged, merged.new_links, merged.ms);
+  ASSERT_EQ(atlas.maps().size(), 1u);
+  EXPECT_EQ(atlas.maps().front()->id(), a.map);
+  EXPECT_EQ(atlas.maps().front()->keyframe_count(), keyframes);
+  EXPECT_GT(merged.new_links, 0u);
+  // One spanning tree: every keyframe reaches the map's root.
+  std::size_t roots = 0;
+  for (const auto& kf : atlas.maps().front()->keyframes()) roots += kf->parent() ? 0 : 1;
+  EXPECT_EQ(roots, 1u);
+
+  const double ate_merged = joint_ate(atlas, {&a, &b});
+  Map& map = *atlas.maps().front();
+  const GlobalBundleAdjustmentResult ba = global_bundle_adjustment(map, *cam.camera, cam.bf);
+  merge_global_adjustment(map, ba, cam.pyramid);
+  const double ate_refined = joint_ate(atlas, {&a, &b});
+  std::printf("joint ATE of both sessions under one alignment: apart %.3f m, merged %.4f m, after global BA %.4f m "
+              "(%zu keyframes)\n",
+              ate_apart, ate_merged, ate_refined, ba.keyframes);
+  EXPECT_GT(ate_apart, 0.1);  // two maps, two frames: one alignment cannot fit both
+  EXPECT_LT(ate_merged, 0.03);
+  EXPECT_LT(ate_refined, 0.03);
+}
+
+}  // namespace
+}  // namespace orbatlas
