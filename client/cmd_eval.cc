@@ -1,4 +1,5 @@
 // `orbatlas eval`: ATE / RPE of an estimated trajectory against ground truth.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -17,8 +18,8 @@ namespace orbatlas::cli {
 namespace {
 
 struct EvalArgs {
-  std::string gt;
-  std::string est;
+  std::vector<std::string> gt;   // several: sessions in one world frame, joined
+  std::vector<std::string> est;
   std::string align = "se3";
   double max_gap_s = 0.1;
   bool json = false;
@@ -40,9 +41,15 @@ nlohmann::ordered_json to_json(const EvalResult& r) {
           {"gt_poses", r.gt_poses}};
 }
 
+std::string joined(const std::vector<std::string>& paths) {
+  std::string out;
+  for (const auto& p : paths) out += (out.empty() ? "" : " + ") + p;
+  return out;
+}
+
 void print_human(const EvalArgs& args, const EvalResult& r) {
   char buf[512];
-  std::cout << "orbatlas eval: " << args.est << "\n  vs ground truth " << args.gt << "\n";
+  std::cout << "orbatlas eval: " << joined(args.est) << "\n  vs ground truth " << joined(args.gt) << "\n";
   std::snprintf(buf, sizeof buf,
                 "  alignment      %s, scale %.6f\n"
                 "  matched poses  %zu of %zu estimated (ground truth: %zu poses)\n"
@@ -63,17 +70,35 @@ void write_plot(const EvalArgs& args, const Trajectory& est, const Trajectory& g
   plot.estimate_label = "estimate (" + std::string(align_mode_name(r.align)) + ")";
   char title[256];
   std::snprintf(title, sizeof title, "%s   ATE RMSE %.4f m (%s)   %zu poses",
-                std::filesystem::path(args.est).filename().string().c_str(), r.ate.rmse, align_mode_name(r.align),
+                (args.est.size() == 1 ? std::filesystem::path(args.est.front()).filename().string()
+                                        : std::to_string(args.est.size()) + " trajectories")
+                    .c_str(), r.ate.rmse, align_mode_name(r.align),
                 r.matched);
   plot.title = title;
   write_trajectory_plot(args.plot, plot);
 }
 
+// Several trajectories (sessions in one world frame) as one, in time order;
+// recordings that overlap in time cannot be joined.
+Trajectory read_joined(const std::vector<std::string>& paths) {
+  Trajectory all;
+  for (const auto& p : paths) {
+    const Trajectory t = read_any_ground_truth(p);
+    all.insert(all.end(), t.begin(), t.end());
+  }
+  std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; });
+  for (std::size_t i = 1; i < all.size(); ++i)
+    ORBATLAS_CHECK(all[i].t_ns > all[i - 1].t_ns,
+                   joined(paths) << ": the trajectories overlap in time (two poses at " << all[i].t_ns
+                                 << " ns); only recordings made at different times can be joined");
+  return all;
+}
+
 void run_eval(const EvalArgs& args) {
-  const Trajectory gt = read_any_ground_truth(args.gt);
-  const Trajectory est = read_any_ground_truth(args.est);  // TUM usually; an ASL csv or dataset also works
-  ORBATLAS_CHECK(!est.empty(), args.est << ": no poses");
-  ORBATLAS_CHECK(!gt.empty(), args.gt << ": no poses");
+  const Trajectory gt = read_joined(args.gt);
+  const Trajectory est = read_joined(args.est);  // TUM usually; an ASL csv or dataset also works
+  ORBATLAS_CHECK(!est.empty(), joined(args.est) << ": no poses");
+  ORBATLAS_CHECK(!gt.empty(), joined(args.gt) << ": no poses");
 
   EvalOptions options;
   const auto mode = parse_align_mode(args.align);
@@ -99,9 +124,11 @@ void register_eval_command(CLI::App& app) {
   auto args = std::make_shared<EvalArgs>();
   CLI::App* cmd = app.add_subcommand("eval", "Evaluate an estimated trajectory against ground truth (ATE, RPE)");
   cmd->add_option("--gt", args->gt,
-                  "Ground truth: TUM file, ASL state_groundtruth_estimate0 csv, or EuRoC dataset folder")
+                  "Ground truth: TUM file, ASL state_groundtruth_estimate0 csv, or EuRoC dataset folder. Repeat it "
+                  "(and --est) for several sessions in one world frame: they are joined in time order and aligned "
+                  "with ONE transform")
       ->required();
-  cmd->add_option("--est", args->est, "Estimated trajectory: TUM (seconds or ORB-SLAM3 nanoseconds), or an ASL csv or dataset folder")
+  cmd->add_option("--est", args->est, "Estimated trajectory: TUM (seconds or ORB-SLAM3 nanoseconds), or an ASL csv or dataset folder (repeatable)")
       ->required()
       ->check(CLI::ExistingPath);
   cmd->add_option("--align", args->align, "Alignment before ATE: se3 (rigid), sim3 (with scale) or none")

@@ -1,6 +1,6 @@
 // Commands that talk to a running map server (docs/api.md): `orbatlas stream`
 // (a recorded sequence as a live session), `orbatlas upload` (a recording run by
-// the server), `orbatlas sessions|maps|jobs`.
+// the server), `orbatlas sessions|maps|jobs|merges`, `orbatlas trajectory`.
 #include <chrono>
 #include <cstdio>
 #include <thread>
@@ -187,9 +187,82 @@ void register_listing(CLI::App& app, const char* name, const char* help, const c
   });
 }
 
+void print_merges(const nlohmann::json& reply) {
+  for (const auto& m : reply.at("merges")) {
+    std::printf("map %llu merged into map %llu: keyframe %llu ~ %llu, %d matches (%d keyframes agree), %zu keyframes "
+                "and %zu points moved, %zu points fused; search %.0f ms, merge %.1f ms, global BA %zu keyframes %.2f s%s\n",
+                m["source_map"].get<unsigned long long>(), m["target_map"].get<unsigned long long>(),
+                m["keyframe"].get<unsigned long long>(), m["matched_keyframe"].get<unsigned long long>(),
+                m["matches"].get<int>(), m["verified_keyframes"].get<int>(), m["keyframes_moved"].get<std::size_t>(),
+                m["map_points_moved"].get<std::size_t>(), m["points_fused"].get<std::size_t>(),
+                m["search_ms"].get<double>(), m["merge_ms"].get<double>(),
+                m["global_ba"]["keyframes"].get<std::size_t>(), m["global_ba"]["seconds"].get<double>(),
+                m["global_ba"]["interrupted"].get<bool>() ? " (interrupted)" : "");
+  }
+  if (reply.at("merges").empty()) std::printf("no merges\n");
+  if (reply.value("pending", std::size_t{0}) > 0)
+    std::printf("%zu map(s) waiting for the merging worker\n", reply["pending"].get<std::size_t>());
+}
+
+void register_merges(CLI::App& app) {
+  auto args = std::make_shared<ServerArgs>();
+  auto json_out = std::make_shared<bool>(false);
+  auto wait_s = std::make_shared<double>(0.0);
+  auto* cmd = app.add_subcommand("merges", "List the map merges of a map server (the server-wide merging worker)");
+  add_server_options(cmd, *args);
+  cmd->add_flag("--json", *json_out, "Print the server's JSON reply");
+  cmd->add_option("--wait", *wait_s, "First wait up to this many seconds until no map waits for the merging worker")
+      ->check(CLI::NonNegativeNumber);
+  cmd->callback([args, json_out, wait_s] {
+    ServerClient client(args->server, args->token);
+    nlohmann::json reply = client.get_json("/v1/merges");
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(*wait_s);
+    bool told = false;
+    while (reply.value("pending", std::size_t{0}) > 0 && std::chrono::steady_clock::now() < deadline) {
+      if (!told && !*json_out) std::printf("waiting for the merging worker (%zu map(s))...\n", reply["pending"].get<std::size_t>());
+      told = true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+      reply = client.get_json("/v1/merges");
+    }
+    if (*json_out) {
+      std::printf("%s\n", reply.dump(2).c_str());
+    } else {
+      print_merges(reply);
+    }
+  });
+}
+
+void register_trajectory(CLI::App& app) {
+  auto args = std::make_shared<ServerArgs>();
+  auto session = std::make_shared<std::uint64_t>(0);
+  auto out = std::make_shared<std::string>();
+  auto* cmd = app.add_subcommand("trajectory", "Download a session's trajectory (TUM; poses as the atlas holds them now)");
+  add_server_options(cmd, *args);
+  cmd->add_option("--session", *session, "Session id")->required();
+  cmd->add_option("--out", *out, "Write it to this file (default: print it)");
+  cmd->callback([args, session, out] {
+    ServerClient client(args->server, args->token);
+    const std::string text = client.trajectory_tum(*session);
+    if (out->empty()) {
+      std::fwrite(text.data(), 1, text.size(), stdout);
+      return;
+    }
+    std::vector<std::uint64_t> maps;
+    const Trajectory t = parse_tum_trajectory(text, "session " + std::to_string(*session), &maps);
+    write_tum_trajectory(*out, t, maps);
+    const std::set<std::uint64_t> distinct(maps.begin(), maps.end());
+    std::string in;
+    for (const auto m : distinct) in += (in.empty() ? "" : ", ") + std::to_string(m);
+    std::printf("session %llu: %zu poses in map %s -> %s\n", static_cast<unsigned long long>(*session), t.size(),
+                in.c_str(), out->c_str());
+  });
+}
+
 }  // namespace
 
 void register_remote_commands(CLI::App& app) {
+  register_merges(app);
+  register_trajectory(app);
   register_stream(app);
   register_listing(app, "sessions", "List the sessions of a map server (live, finished and stored)", "/v1/sessions",
                    "sessions");

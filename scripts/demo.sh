@@ -45,7 +45,9 @@ echo "== 3. Stream both sessions over HTTP (tracking, local mapping and loop clo
 "$OA" stream --dataset "$OUT/MH_02_clip" --name MH_02 --stats "$OUT/session_MH_02.json" \
      --out-trajectory "$OUT/session_MH_02.txt"
 
-echo "== 4. The atlas: sessions and maps"
+echo "== 4. The server-wide merging worker: the sessions crossed the same part of the hall, so the second"
+echo "      session's map is merged into the first (place recognition across maps, merge, global BA)"
+"$OA" merges --wait 600
 "$OA" sessions
 "$OA" maps
 
@@ -55,13 +57,21 @@ start_server
 "$OA" maps
 FRAME="$(ls "$OUT/MH_01_clip/mav0/cam0/data" | sed -n 150p)"
 "$OA" localize --config euroc/stereo --server "$ORBATLAS_SERVER" --image "$OUT/MH_01_clip/mav0/cam0/data/$FRAME"
+for S in MH_01 MH_02; do
+  ID="$(sed -n 's/^  "session": \([0-9]*\),*$/\1/p' "$OUT/session_$S.json")"
+  "$OA" trajectory --session "$ID" --out "$OUT/session_${S}_merged.txt"
+done
 stop_server
 
 echo "== 6. Each session's ATE (orbatlas eval against the clip's ground truth)"
 for S in MH_01 MH_02; do
   echo "-- $S"
-  "$OA" eval --gt "$OUT/${S}_clip" --est "$OUT/session_$S.txt" --align se3 --plot "$OUT/session_${S}_top_view.png"
+  "$OA" eval --gt "$OUT/${S}_clip" --est "$OUT/session_${S}_merged.txt" --align se3 --plot "$OUT/session_${S}_top_view.png"
 done
+echo "-- both sessions together, under ONE alignment (the ground truths share a world frame: this"
+echo "   measures how well the merge put the two sessions into one map)"
+"$OA" eval --gt "$OUT/MH_01_clip" --gt "$OUT/MH_02_clip" --est "$OUT/session_MH_01_merged.txt" \
+     --est "$OUT/session_MH_02_merged.txt" --align se3 --plot "$OUT/sessions_joint_top_view.png"
 
 echo "== 7. ORB-SLAM3 v1.0 monocular-inertial on real MH_01, scored by the same evaluator"
 "$OA" eval --gt "$GT" --est "$ROOT/data/euroc/peer_trajectories/orbslam3_MH01_monoi_frames.txt.gz" \

@@ -11,6 +11,8 @@
 
 #include "client/api/dataset_streamer.h"
 #include "core/common/data_paths.h"
+#include "core/eval/evaluate.h"
+#include "core/io/tum_trajectory.h"
 #include "core/server/pose_json.h"
 #include "core/slam/dataset_runner.h"
 #include "core/slam/slam_stats.h"
@@ -117,7 +119,9 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
                                                       test::simulated_clip("MH_03", 30.0, 4.0)};
   const test::ClipCleanup cleanups[] = {{clips[0]}, {clips[1]}, {clips[2]}};
   test::TempDbPath db("three");
-  test::TestServer server(test::server_options(db.path));
+  AtlasServiceOptions options = test::server_options(db.path);
+  options.merge_maps = false;  // concurrency here; merging has its own test
+  test::TestServer server(options);
   std::vector<std::future<StreamReport>> running;
   for (const auto& clip : clips) {
     running.push_back(std::async(std::launch::async, [&server, clip] {
@@ -203,6 +207,85 @@ TEST(ServerUploads, RecordingBecomesAStoredSessionAndBadArchivesFailTheirJobOnly
   EXPECT_EQ(client.get_json("/v1/jobs")["jobs"].size(), 2u);
   EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
   EXPECT_EQ(client.get_json("/healthz")["status"], "ok");
+}
+
+// Both sessions' frames as the server returns them, against both ground truths
+// under ONE alignment (the recordings share the ground-truth world frame).
+double joint_ate(ServerClient& client, const std::vector<std::uint64_t>& sessions,
+                 const std::vector<std::filesystem::path>& clips, std::set<std::uint64_t>* maps) {
+  Trajectory estimate, gt;
+  for (std::size_t i = 0; i < sessions.size(); ++i) {
+    std::vector<std::uint64_t> in_maps;
+    const Trajectory poses = parse_tum_trajectory(client.trajectory_tum(sessions[i]), "trajectory", &in_maps);
+    estimate.insert(estimate.end(), poses.begin(), poses.end());
+    maps->insert(in_maps.begin(), in_maps.end());
+    for (const auto& g : test::stereo_dataset(clips[i]).ground_truth) gt.push_back({g.t_ns, g.T_w_b});
+  }
+  const auto by_time = [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; };
+  std::sort(estimate.begin(), estimate.end(), by_time);
+  std::sort(gt.begin(), gt.end(), by_time);
+  return evaluate_trajectory(estimate, gt).ate.rmse;
+}
+
+nlohmann::json wait_for_merges(ServerClient& client) {
+  for (int i = 0; i < 1200; ++i) {
+    const auto merges = client.get_json("/v1/merges");
+    if (merges["pending"].get<std::size_t>() == 0) return merges;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return client.get_json("/v1/merges");
+}
+
+// Two sessions over one part of the hall (MH_01 from 46 s, MH_02 from 38 s):
+// each streams into a map of its own; when the second finishes, the server's
+// merging worker recognises the shared place and merges its map into the
+// first. Both trajectories then come back in one map and fit the ground truth
+// under one alignment, also after a restart.
+TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
+  const std::vector<std::filesystem::path> clips = {test::simulated_clip("MH_01", 46.0, 8.0),
+                                                    test::simulated_clip("MH_02", 38.0, 8.0)};
+  const test::ClipCleanup cleanups[] = {{clips[0]}, {clips[1]}};
+  test::TempDbPath db("merge");
+  std::vector<std::uint64_t> sessions, stream_maps;
+  double ate_live = 0.0;
+  {
+    test::TestServer server(test::server_options(db.path));
+    ServerClient client(server.url());
+    for (const auto& clip : clips) {
+      const StreamReport report = stream_dataset(client, stream_options(clip));
+      EXPECT_EQ(report.tracked, report.frames);
+      sessions.push_back(report.session);
+      ASSERT_FALSE(report.trajectory_maps.empty());
+      stream_maps.push_back(report.trajectory_maps.front());
+    }
+    const auto merges = wait_for_merges(client);
+    ASSERT_EQ(merges["merges"].size(), 1u) << merges.dump(2);
+    const auto& merge = merges["merges"][0];
+    std::printf("merge: %s\n", merge.dump().c_str());
+    EXPECT_EQ(merge["source_map"], stream_maps[1]);
+    EXPECT_EQ(merge["target_map"], stream_maps[0]);
+    EXPECT_GE(merge["matches"].get<int>(), 80);
+    EXPECT_FALSE(merge["global_ba"]["interrupted"].get<bool>());
+    const auto maps = client.get_json("/v1/maps")["maps"];
+    ASSERT_EQ(maps.size(), 1u);
+    EXPECT_EQ(maps[0]["id"], stream_maps[0]);
+    std::set<std::uint64_t> in_maps;
+    ate_live = joint_ate(client, sessions, clips, &in_maps);
+    EXPECT_EQ(in_maps, std::set<std::uint64_t>{stream_maps[0]});
+    EXPECT_LT(ate_live, 0.03);
+    // The second session's status names the map it is in now.
+    EXPECT_EQ(client.get_json("/v1/sessions/" + std::to_string(sessions[1]))["map"], stream_maps[0]);
+    EXPECT_NE(client.get_text("/metrics").find("orbatlas_map_merges_total 1"), std::string::npos);
+  }
+  // Restart: one map, both trajectories in it, the same fit.
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
+  std::set<std::uint64_t> in_maps;
+  const double ate_restarted = joint_ate(client, sessions, clips, &in_maps);
+  EXPECT_EQ(in_maps, std::set<std::uint64_t>{stream_maps[0]});
+  EXPECT_NEAR(ate_restarted, ate_live, 1e-4);
+  std::printf("joint ATE of both sessions in the merged map: %.4f m (after restart %.4f m)\n", ate_live, ate_restarted);
 }
 
 }  // namespace

@@ -127,6 +127,9 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
   // Maps
   EXPECT_REPLY(http.Get("/v1/maps/999"), 404, "not_found");
   EXPECT_REPLY(http.Get("/v1/maps/999/points.ply"), 404, "not_found");
+  // Merges: read-only
+  EXPECT_REPLY(http.Post("/v1/merges", "{}", "application/json"), 404, "not_found");
+  EXPECT_REPLY(http.Delete("/v1/merges"), 404, "not_found");
   // POST /v1/localize
   EXPECT_REPLY(http.Post("/v1/localize", "{}", "application/json"), 400, "bad_request");
   EXPECT_REPLY(http.Post("/v1/localize", httplib::MultipartFormDataItems{{"config", "euroc/stereo", "", ""}}), 400,
@@ -173,6 +176,7 @@ TEST(ServerErrors, TokenIsRequiredAndChecked) {
     EXPECT_REPLY(anonymous.http().Post("/v1/sessions", R"({"config": "euroc/stereo"})", "application/json"), 401,
                  "unauthorized");
     EXPECT_REPLY(anonymous.http().Get("/metrics"), 401, "unauthorized");
+    EXPECT_REPLY(anonymous.http().Get("/v1/merges"), 401, "unauthorized");
     EXPECT_REPLY(anonymous.http().Get("/healthz"), 200, "");  // health checks need no token
   }
   ServerClient wrong(server.url(), "s3cres");

@@ -21,39 +21,6 @@ double ms_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
-// The server's TUM text as a trajectory (through a temporary file: one parser).
-Trajectory parse_tum_text(const std::string& text, std::vector<std::uint64_t>& maps) {
-  const auto path = std::filesystem::temp_directory_path() /
-                    ("orbatlas-stream-" + std::to_string(::getpid()) + "-" +
-                     std::to_string(Clock::now().time_since_epoch().count()) + ".txt");
-  {
-    std::ofstream out(path, std::ios::binary);
-    out << text;
-  }
-  Trajectory t;
-  try {
-    t = read_tum_trajectory(path);
-  } catch (...) {
-    std::filesystem::remove(path);
-    throw;
-  }
-  std::filesystem::remove(path);
-  // "# map <id>" lines precede each run of poses of one map.
-  std::size_t pos = 0;
-  std::uint64_t current = 0;
-  while (pos < text.size()) {
-    std::size_t end = text.find('\n', pos);
-    if (end == std::string::npos) end = text.size();
-    const std::string line = text.substr(pos, end - pos);
-    if (line.rfind("# map ", 0) == 0) {
-      current = std::stoull(line.substr(6));
-    } else if (!line.empty() && line[0] != '#') {
-      maps.push_back(current);
-    }
-    pos = end + 1;
-  }
-  return t;
-}
 
 }  // namespace
 
@@ -103,7 +70,7 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   report.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
   progress.finish();
   report.finish_status = client.finish_session(report.session);
-  report.trajectory = parse_tum_text(client.trajectory_tum(report.session), report.trajectory_maps);
+  report.trajectory = parse_tum_trajectory(client.trajectory_tum(report.session), "the server's trajectory of session " + std::to_string(report.session), &report.trajectory_maps);
   if (!dataset.ground_truth.empty() && report.trajectory.size() >= 3) {
     try {
       report.ate_rmse_m = evaluate_trajectory(report.trajectory, from_ground_truth_states(dataset.ground_truth)).ate.rmse;

@@ -82,34 +82,47 @@ Trajectory from_ground_truth_states(const std::vector<GroundTruthState>& states)
   return trajectory;
 }
 
-Trajectory read_tum_trajectory(const fs::path& path) {
+Trajectory parse_tum_trajectory(const std::string& text, const fs::path& source, std::vector<std::uint64_t>* maps) {
   Trajectory trajectory;
-  std::size_t previous_line = 0;
-  for_each_line(path, [&](const TextLine& line) {
-    if (is_comment_or_blank(line.text)) return;
-    const auto f = split_fields(line.text, " \t,", true);
+  std::size_t previous_line = 0, number = 0, pos = 0;
+  std::uint64_t map = 0;
+  while (pos < text.size()) {
+    std::size_t end = text.find('\n', pos);
+    if (end == std::string::npos) end = text.size();
+    std::string_view line(text.data() + pos, end - pos);
+    pos = end + 1;
+    ++number;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    if (line.rfind("# map ", 0) == 0) {
+      map = static_cast<std::uint64_t>(parse_int64(trim(line.substr(6)), source, number));
+      continue;
+    }
+    if (is_comment_or_blank(line)) continue;
+    const auto f = split_fields(line, " \t,", true);
     if (f.size() != 8)
-      fail_at(path, line.number,
-              "expected 8 fields 't tx ty tz qx qy qz qw', found " + std::to_string(f.size()));
+      fail_at(source, number, "expected 8 fields 't tx ty tz qx qy qz qw', found " + std::to_string(f.size()));
     const auto t = parse_tum_timestamp(f[0]);
-    if (!t) fail_at(path, line.number, "bad timestamp '" + std::string(f[0]) + "'");
+    if (!t) fail_at(source, number, "bad timestamp '" + std::string(f[0]) + "'");
     double v[7];
     for (std::size_t i = 0; i < 7; ++i) {
-      v[i] = parse_double(f[i + 1], path, line.number);
-      if (!std::isfinite(v[i])) fail_at(path, line.number, "non-finite value '" + std::string(f[i + 1]) + "'");
+      v[i] = parse_double(f[i + 1], source, number);
+      if (!std::isfinite(v[i])) fail_at(source, number, "non-finite value '" + std::string(f[i + 1]) + "'");
     }
     const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);  // file order: qx qy qz qw
     if (std::abs(q.norm() - 1.0) > 1e-3)
-      fail_at(path, line.number, "quaternion is not unit (|q| = " + std::to_string(q.norm()) + ")");
+      fail_at(source, number, "quaternion is not unit (|q| = " + std::to_string(q.norm()) + ")");
     if (!trajectory.empty() && *t <= trajectory.back().t_ns)
-      fail_at(path, line.number,
+      fail_at(source, number,
               "timestamp " + format_seconds_exact(*t) + " is not after " +
                   format_seconds_exact(trajectory.back().t_ns) + " (line " + std::to_string(previous_line) + ")");
-    previous_line = line.number;
+    previous_line = number;
     trajectory.push_back(StampedPose{*t, Pose3(q, Eigen::Vector3d(v[0], v[1], v[2]))});
-  });
+    if (maps) maps->push_back(map);
+  }
   return trajectory;
 }
+
+Trajectory read_tum_trajectory(const fs::path& path) { return parse_tum_trajectory(read_text_file(path), path); }
 
 void write_tum_trajectory(const fs::path& path, const Trajectory& trajectory) {
   write_tum_trajectory(path, trajectory, {});

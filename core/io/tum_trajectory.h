@@ -15,6 +15,10 @@ namespace orbatlas {
 // Throws DataError (file:line) on malformed lines, non-unit quaternions (|q| off by
 // more than 1e-3), or timestamps that are not strictly increasing.
 Trajectory read_tum_trajectory(const std::filesystem::path& path);
+// The same from text (`source` names it in errors). With `maps`, each pose's map
+// id from the "# map <id>" line before its run (0 before any) is appended.
+Trajectory parse_tum_trajectory(const std::string& text, const std::filesystem::path& source,
+                                std::vector<std::uint64_t>* maps = nullptr);
 
 // Writes seconds with 9 decimals (exact), positions and quaternions with 9 digits.
 void write_tum_trajectory(const std::filesystem::path& path, const Trajectory& trajectory);

@@ -186,6 +186,17 @@ std::vector<std::shared_ptr<LiveSession>> AtlasService::sessions() const {
   return out;
 }
 
+nlohmann::json AtlasService::session_status(SessionId id) const {
+  const auto live = session(id);
+  nlohmann::json j = live->status();
+  if (j.contains("map") && !atlas_.map(j["map"].get<MapId>())) {
+    const auto anchors = live->anchors();
+    if (!anchors.empty())
+      if (const auto located = atlas_.locate_frame(anchors.back())) j["map"] = located->first;
+  }
+  return j;
+}
+
 std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
   const std::vector<MapId> held = leases_.held_by(id);
   {

@@ -88,6 +88,9 @@ class AtlasService {
   void check_settings(const SettingsSource& source) const { load_settings(source); }
   std::shared_ptr<LiveSession> session(SessionId id) const;  // ApiError 404
   std::vector<std::shared_ptr<LiveSession>> sessions() const;  // by id
+  // GET /v1/sessions/{id}: LiveSession::status with "map" the map the session's
+  // last frame is in now (a merge may have moved it). ApiError 404.
+  nlohmann::json session_status(SessionId id) const;
   FrameReply process_frame(SessionId id, TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
   std::size_t add_imu(SessionId id, const std::vector<ImuSample>& samples);
   // Ends the session and stores it (a durable checkpoint); idempotent for a

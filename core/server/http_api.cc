@@ -107,7 +107,7 @@ void require_multipart(const Request& req, const char* fields) {
 
 json session_list(const AtlasService& service) {
   json list = json::array();
-  for (const auto& s : service.sessions()) list.push_back(s->status());
+  for (const auto& s : service.sessions()) list.push_back(service.session_status(s->id()));
   return {{"sessions", list}};
 }
 
@@ -129,11 +129,11 @@ void install_session_routes(httplib::Server& server, AtlasService& service) {
     request.settings.config = optional_string(body, "config");
     request.settings.settings_yaml = optional_string(body, "settings_yaml");
     const SessionId id = service.create_session(request);
-    reply_json(res, {{"id", id}, {"session", service.session(id)->status()}}, 201);
+    reply_json(res, {{"id", id}, {"session", service.session_status(id)}}, 201);
   }));
   server.Get("/v1/sessions", guarded([&service](const Request&, Response& res) { reply_json(res, session_list(service)); }));
   server.Get(R"(/v1/sessions/(\d+))", guarded([&service](const Request& req, Response& res) {
-    reply_json(res, service.session(id_from(req, 1, "session"))->status());
+    reply_json(res, service.session_status(id_from(req, 1, "session")));
   }));
   server.Post(R"(/v1/sessions/(\d+)/frames)", guarded([&service](const Request& req, Response& res) {
     const auto start = std::chrono::steady_clock::now();
