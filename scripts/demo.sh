@@ -45,8 +45,9 @@ echo "== 3. Stream both sessions over HTTP (tracking, local mapping and loop clo
 "$OA" stream --dataset "$OUT/MH_02_clip" --name MH_02 --stats "$OUT/session_MH_02.json" \
      --out-trajectory "$OUT/session_MH_02.txt"
 
-echo "== 4. The server-wide merging worker: the sessions crossed the same part of the hall, so the second"
-echo "      session's map is merged into the first (place recognition across maps, merge, global BA)"
+echo "== 4. One map for both sessions: they cross the same part of the hall. A new session's first frame is"
+echo "      looked up in the stored maps (recognised: it tracks in that map from the start); otherwise the"
+echo "      server-wide merging worker merges its map into the other when it finishes (then global BA)"
 "$OA" merges --wait 600
 "$OA" sessions
 "$OA" maps

@@ -240,7 +240,8 @@ nlohmann::json wait_for_merges(ServerClient& client) {
 // each streams into a map of its own; when the second finishes, the server's
 // merging worker recognises the shared place and merges its map into the
 // first. Both trajectories then come back in one map and fit the ground truth
-// under one alignment, also after a restart.
+// under one alignment, also after a restart. A later session over the same place
+// starts in that map.
 TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
   const std::vector<std::filesystem::path> clips = {test::simulated_clip("MH_01", 46.0, 8.0),
                                                     test::simulated_clip("MH_02", 38.0, 8.0)};
@@ -249,7 +250,9 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
   std::vector<std::uint64_t> sessions, stream_maps;
   double ate_live = 0.0;
   {
-    test::TestServer server(test::server_options(db.path));
+    AtlasServiceOptions options = test::server_options(db.path);
+    options.start_in_stored_maps = false;  // the second session makes a map of its own: the merge joins them
+    test::TestServer server(options);
     ServerClient client(server.url());
     for (const auto& clip : clips) {
       const StreamReport report = stream_dataset(client, stream_options(clip));
@@ -286,6 +289,30 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
   EXPECT_EQ(in_maps, std::set<std::uint64_t>{stream_maps[0]});
   EXPECT_NEAR(ate_restarted, ate_live, 1e-4);
   std::printf("joint ATE of both sessions in the merged map: %.4f m (after restart %.4f m)\n", ate_live, ate_restarted);
+
+  // A new session over a known place starts in the stored map (its frame, no
+  // map of its own): the second clip streamed again lands where it was.
+  const StreamReport again = stream_dataset(client, stream_options(clips[1]));
+  EXPECT_EQ(again.tracked, again.frames);
+  EXPECT_EQ(std::set<std::uint64_t>(again.trajectory_maps.begin(), again.trajectory_maps.end()),
+            std::set<std::uint64_t>{stream_maps[0]});
+  EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
+  std::vector<std::uint64_t> unused;
+  const Trajectory before = parse_tum_trajectory(client.trajectory_tum(sessions[1]), "session 2", &unused);
+  double worst = 0.0;
+  std::size_t compared = 0;
+  for (std::size_t i = 0, j = 0; i < again.trajectory.size(); ++i) {
+    while (j < before.size() && before[j].t_ns < again.trajectory[i].t_ns) ++j;
+    if (j == before.size() || before[j].t_ns != again.trajectory[i].t_ns) continue;
+    worst = std::max(worst, (before[j].pose.t - again.trajectory[i].pose.t).norm());
+    ++compared;
+  }
+  std::printf("the clip again, started in the stored map: %zu poses compared, largest difference %.4f m\n", compared,
+              worst);
+  EXPECT_GE(compared, again.trajectory.size() * 9 / 10);
+  EXPECT_LT(worst, 0.03);
+  wait_for_merges(client);
+  EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
 }
 
 }  // namespace

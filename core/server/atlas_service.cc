@@ -153,6 +153,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
 
   StereoSlamOptions slam_options = options_.slam;
   slam_options.may_enter_map = [this, id](MapId map) { return leases_.claim(id, map); };
+  slam_options.tracker.start_in_stored_map = options_.start_in_stored_maps;
   std::unique_ptr<StereoSlam> slam;
   try {
     slam = std::make_unique<StereoSlam>(atlas_, loaded.settings, vocabulary_, slam_options);

@@ -37,6 +37,9 @@ struct AtlasServiceOptions {
   // A finished session's maps are handed to the server-wide merging worker,
   // which merges them into a map of the atlas they share a place with.
   bool merge_maps = true;
+  // A new session first looks for its place in the free stored maps: found, it
+  // tracks in that map's frame from its first frame (TrackerOptions::start_in_stored_map).
+  bool start_in_stored_maps = true;
   MapMergeWorkerOptions merging;
 };
 

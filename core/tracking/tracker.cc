@@ -18,6 +18,13 @@ constexpr int kMinBowMatches = 15;
 
 double seconds_between(TimestampNs a, TimestampNs b) { return static_cast<double>(b - a) * 1e-9; }
 
+int count_inliers(const Frame& frame) {
+  int inliers = 0;
+  for (std::size_t i = 0; i < frame.size(); ++i)
+    if (frame.map_points[i] && !frame.outlier[i]) ++inliers;
+  return inliers;
+}
+
 }  // namespace
 
 const char* tracking_state_name(TrackingState state) {
@@ -53,11 +60,31 @@ TrackResult Tracker::track(Frame frame) {
   result.t_ns = frame.t_ns;
 
   const bool localizing = options_.localization_only;
+  bool ok = false;
+  bool joined_stored_map = false;
+  if (!localizing && !map_ && options_.start_in_stored_map && relocalizer_) {
+    // The session's first frame: is this a place a stored map knows?
+    joined_stored_map = recover(frame) && track_local_map(frame);
+    if (joined_stored_map) {
+      ok = true;
+      state_ = TrackingState::kOk;
+      last_recovery_index_ = frame_index_;
+      velocity_.reset();
+      const int inliers = count_inliers(frame);
+      result.inliers = inliers;
+    } else {
+      map_.reset();  // not recognised (or not confirmed): a map of its own below
+      reference_.reset();
+      last_keyframe_.reset();
+      local_keyframes_.clear();
+    }
+  }
   if (!localizing && state_ == TrackingState::kLost) start_new_map();
   if (!localizing && !map_) start_new_map();
 
-  bool ok = false;
-  if (localizing && state_ != TrackingState::kOk && state_ != TrackingState::kRecentlyLost) {
+  if (joined_stored_map) {
+    // tracked above
+  } else if (localizing && state_ != TrackingState::kOk && state_ != TrackingState::kRecentlyLost) {
     // Not localised yet, or lost for good: look for the place in every stored map.
     ok = recover(frame);
     if (ok) {
@@ -66,9 +93,7 @@ TrackResult Tracker::track(Frame frame) {
     }
     if (ok) state_ = TrackingState::kOk;
     if (ok) {
-      int inliers = 0;
-      for (std::size_t i = 0; i < frame.size(); ++i)
-        if (frame.map_points[i] && !frame.outlier[i]) ++inliers;
+      const int inliers = count_inliers(frame);
       result.inliers = inliers;
     }
     velocity_.reset();
@@ -101,9 +126,7 @@ TrackResult Tracker::track(Frame frame) {
     }
 
     if (ok) {
-      int inliers = 0;
-      for (std::size_t i = 0; i < frame.size(); ++i)
-        if (frame.map_points[i] && !frame.outlier[i]) ++inliers;
+      const int inliers = count_inliers(frame);
       result.inliers = inliers;
       if (last_ && last_->has_pose) velocity_ = last_->T_w_b.inverse() * frame.T_w_b;
       if (need_new_keyframe(frame, inliers)) {

@@ -35,6 +35,11 @@ struct TrackerOptions {
   // frames, and every frame after tracking is lost, are relocalised against every
   // map of the atlas (a relocaliser is required).
   bool localization_only = false;
+  // A new session's first frame is first relocalised against the stored maps
+  // (a relocaliser is required): when the place is recognised the session
+  // tracks in that map, in its frame, and makes no map of its own; otherwise a
+  // new map starts as usual (and may be merged later).
+  bool start_in_stored_map = false;
 };
 
 struct TrackResult {
