@@ -292,6 +292,7 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
 
   // A new session over a known place starts in the stored map (its frame, no
   // map of its own): the second clip streamed again lands where it was.
+  const std::size_t searched_before = client.get_json("/v1/merges")["keyframes_searched"].get<std::size_t>();
   const StreamReport again = stream_dataset(client, stream_options(clips[1]));
   EXPECT_EQ(again.tracked, again.frames);
   EXPECT_EQ(std::set<std::uint64_t>(again.trajectory_maps.begin(), again.trajectory_maps.end()),
@@ -311,7 +312,9 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
               worst);
   EXPECT_GE(compared, again.trajectory.size() * 9 / 10);
   EXPECT_LT(worst, 0.03);
-  wait_for_merges(client);
+  // The merging worker searched only the keyframes this session made.
+  const auto merges = wait_for_merges(client);
+  EXPECT_LE(merges["keyframes_searched"].get<std::size_t>(), searched_before + again.keyframes);
   EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
 }
 

@@ -164,7 +164,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   {
     std::lock_guard lock(mutex_);
     sessions_[id] = live;
-    session_settings_[id] = request.settings;
+    session_starts_[id] = {request.settings, atlas_.ids().peek(IdKind::keyframe)};
   }
   // The checkpoint thread reads the frames through its own reference.
   checkpointer_->add_session(CheckpointSession{info, [live] { return live->anchors(); }});
@@ -212,23 +212,23 @@ std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
 
 void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
   if (!merger_ || maps.empty()) return;
-  SettingsSource settings;
+  SessionStart start;
   {
     std::lock_guard lock(mutex_);
-    const auto it = session_settings_.find(id);
-    if (it == session_settings_.end() || shut_down_) return;
-    settings = it->second;
+    const auto it = session_starts_.find(id);
+    if (it == session_starts_.end() || shut_down_) return;
+    start = it->second;
   }
   std::shared_ptr<LocalizerContext> context;
   try {
-    context = localizer_for(settings);
+    context = localizer_for(start.settings);
   } catch (const std::exception& e) {
     log_warn("session " + std::to_string(id) + ": no merging (" + e.what() + ")");
     return;
   }
   // The camera shares the context's ownership: it lives while a request holds it.
   const std::shared_ptr<const FrameCamera> cam(context, &context->cam);
-  for (const MapId map : maps) merger_->submit(MergeRequest{map, cam});
+  for (const MapId map : maps) merger_->submit(MergeRequest{map, cam, start.first_keyframe});
 }
 
 bool AtlasService::rigs_match(MapId source, MapId target) const {

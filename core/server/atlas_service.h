@@ -146,7 +146,11 @@ class AtlasService {
 
   mutable std::mutex mutex_;  // guards sessions_, next_session_, shut_down_
   std::map<SessionId, std::shared_ptr<LiveSession>> sessions_;
-  std::map<SessionId, SettingsSource> session_settings_;  // of this run's sessions
+  struct SessionStart {
+    SettingsSource settings;
+    KeyframeId first_keyframe = 0;  // keyframe ids from here on are this session's or later ones
+  };
+  std::map<SessionId, SessionStart> session_starts_;  // of this run's sessions
   SessionId next_session_ = 1;
   bool shut_down_ = false;
 

@@ -88,6 +88,7 @@ void MapMergeWorker::process(const MergeRequest& request) {
   std::size_t searched = 0;
   for (const auto& kf : source->keyframes()) {
     if (stopping_.load()) return;
+    if (kf->id() < request.first_keyframe) continue;
     ++searched;
     PlaceRecognitionStep step = recognizer.process(kf);
     if (step.match) {

@@ -41,6 +41,10 @@ struct MergeRequest {
   MapId map = 0;
   // The camera the map's keyframes were made with (shared: it keeps its owner alive).
   std::shared_ptr<const FrameCamera> cam;
+  // Only keyframes with this id or above are searched (ids grow atlas-wide: the
+  // keyframes the finished session made), so that a session that worked in a
+  // large stored map does not make the worker search all of it again.
+  KeyframeId first_keyframe = 0;
 };
 
 struct MergeRecord {
