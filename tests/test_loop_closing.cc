@@ -6,7 +6,8 @@
 // what a long excursion leaves behind — half-way, the part of the map after the
 // first 3 s is moved (drift) and stops sharing points with the start — and
 // checks that the revisit is recognised as a loop, that the correction is about
-// the injected drift and that the trajectory ends within 3 cm.
+// the injected drift and that the trajectory ends within 3 cm. Loop closing runs
+// on a shared worker thread, as in the server (test_slam runs it on its own).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -68,6 +69,8 @@ TEST(LoopClosing, InjectedDriftIsDetectedAndCorrectedOnRevisit) {
   Atlas atlas;
   StereoSlamOptions o;
   o.synchronous_mapping = true;  // deterministic, and the map is quiet between frames
+  // Loop closing on a thread shared with other sessions, as in the server.
+  o.loop.shared_worker = std::make_shared<SerialWorker>(8);
   StereoSlam slam(atlas, settings, vocabulary, o);
 
   const TimestampNs t0 = frames.front().t_ns;

@@ -32,7 +32,7 @@ LoopCloser::LoopCloser(Atlas& atlas, FrameCamera cam, LocalMapper& mapper, LoopC
       recognizer_(atlas.keyframe_index(), cam_, options_.recognition),
       queue_(options_.queue_capacity) {
   mapper_.set_processed_listener([this](const std::shared_ptr<KeyFrame>& kf) { insert(kf); });
-  thread_ = std::thread([this] { run(); });
+  if (!options_.shared_worker) thread_ = std::thread([this] { run(); });
 }
 
 LoopCloser::~LoopCloser() {
@@ -46,9 +46,13 @@ LoopCloser::~LoopCloser() {
 void LoopCloser::insert(const std::shared_ptr<KeyFrame>& keyframe) {
   {
     std::lock_guard lock(state_mutex_);
+    if (closed_) return;
     ++in_flight_;
   }
-  if (!queue_.try_push(keyframe)) {
+  const bool queued = options_.shared_worker
+                          ? options_.shared_worker->try_post([this, keyframe] { run_one(keyframe); })
+                          : queue_.try_push(keyframe);
+  if (!queued) {
     std::lock_guard lock(state_mutex_);
     --in_flight_;
     idle_cv_.notify_all();
@@ -66,6 +70,13 @@ void LoopCloser::wait_until_idle() {
 void LoopCloser::finish() {
   queue_.close();
   if (thread_.joinable()) thread_.join();
+  {
+    // On a shared worker: wait for this closer's keyframes still queued there
+    // (the worker drains its queue even when stopping).
+    std::unique_lock lock(state_mutex_);
+    closed_ = true;
+    idle_cv_.wait(lock, [&] { return in_flight_ == 0; });
+  }
   if (global_thread_.joinable()) global_thread_.join();  // let it finish and merge
   std::lock_guard lock(state_mutex_);
   if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
@@ -77,18 +88,19 @@ LoopClosingStats LoopCloser::stats() const {
 }
 
 void LoopCloser::run() {
-  while (auto keyframe = queue_.pop()) {
-    try {
-      process(*keyframe);
-    } catch (...) {
-      std::lock_guard lock(state_mutex_);
-      if (!error_) error_ = std::current_exception();
-    }
-    keyframe->reset();
+  while (auto keyframe = queue_.pop()) run_one(*keyframe);
+}
+
+void LoopCloser::run_one(const std::shared_ptr<KeyFrame>& keyframe) {
+  try {
+    process(keyframe);
+  } catch (...) {
     std::lock_guard lock(state_mutex_);
-    --in_flight_;
-    idle_cv_.notify_all();
+    if (!error_) error_ = std::current_exception();
   }
+  std::lock_guard lock(state_mutex_);
+  --in_flight_;
+  idle_cv_.notify_all();
 }
 
 void LoopCloser::process(const std::shared_ptr<KeyFrame>& keyframe) {

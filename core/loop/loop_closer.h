@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/common/bounded_queue.h"
+#include "core/common/serial_worker.h"
 #include "core/loop/loop_correction.h"
 #include "core/loop/place_recognizer.h"
 #include "core/map/atlas.h"
@@ -23,6 +24,10 @@ namespace orbatlas {
 
 struct LoopCloserOptions {
   std::size_t queue_capacity = 32;  // keyframes waiting for place recognition (more are skipped)
+  // When set, place recognition and loop correction run on this thread shared
+  // with other sessions (the server: one for all), not on a thread of the
+  // closer's own; its bounded queue then decides what is skipped.
+  std::shared_ptr<SerialWorker> shared_worker;
   PlaceRecognitionOptions recognition;
   LoopCorrectionOptions correction;
   bool global_bundle_adjustment = true;
@@ -74,6 +79,7 @@ class LoopCloser {
 
  private:
   void run();
+  void run_one(const std::shared_ptr<KeyFrame>& keyframe);  // one keyframe, errors kept; in_flight_ - 1
   void process(const std::shared_ptr<KeyFrame>& keyframe);
   void close_loop(const PlaceMatch& loop);
   void stop_global_adjustment();
@@ -89,6 +95,7 @@ class LoopCloser {
   std::mutex state_mutex_;
   std::condition_variable idle_cv_;
   std::size_t in_flight_ = 0;
+  bool closed_ = false;  // finish() began: no more keyframes (shared worker)
   bool global_running_ = false;
   std::exception_ptr error_;
 

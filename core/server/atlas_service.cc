@@ -48,7 +48,8 @@ struct AtlasService::LocalizerContext {
 
 AtlasService::AtlasService(AtlasServiceOptions options)
     : options_(std::move(options)),
-      vocabulary_(Vocabulary::load(options_.vocabulary.empty() ? default_vocabulary_path() : options_.vocabulary)) {
+      vocabulary_(Vocabulary::load(options_.vocabulary.empty() ? default_vocabulary_path() : options_.vocabulary)),
+      loop_worker_(std::make_shared<SerialWorker>(std::max<std::size_t>(options_.loop_queue, 1))) {
   ORBATLAS_CHECK(!options_.db.empty(), "the server needs a database path (--db)");
   const auto start = std::chrono::steady_clock::now();
   {
@@ -154,6 +155,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   StereoSlamOptions slam_options = options_.slam;
   slam_options.may_enter_map = [this, id](MapId map) { return leases_.claim(id, map); };
   slam_options.tracker.start_in_stored_map = options_.start_in_stored_maps;
+  slam_options.loop.shared_worker = loop_worker_;
   std::unique_ptr<StereoSlam> slam;
   try {
     slam = std::make_unique<StereoSlam>(atlas_, loaded.settings, vocabulary_, slam_options);
@@ -508,6 +510,7 @@ void AtlasService::shutdown() {
     }
     end_session_storage(s->id());
   }
+  loop_worker_->stop();    // every session's loop closing has finished above
   checkpointer_->stop();  // the final, durable checkpoint
   const CheckpointStats stats = checkpointer_->stats();
   if (stats.failures > 0) log_warn("atlas checkpoints failed " + std::to_string(stats.failures) + " times; last: " + stats.last_error);

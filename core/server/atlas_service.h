@@ -40,6 +40,10 @@ struct AtlasServiceOptions {
   // A new session first looks for its place in the free stored maps: found, it
   // tracks in that map's frame from its first frame (TrackerOptions::start_in_stored_map).
   bool start_in_stored_maps = true;
+  // Loop closing (place recognition and correction in a session's own map) runs
+  // on one server-wide thread for every session, with a queue this long
+  // (a full queue skips a keyframe, counted in the session's loop statistics).
+  std::size_t loop_queue = 64;
   MapMergeWorkerOptions merging;
 };
 
@@ -143,6 +147,9 @@ class AtlasService {
   Atlas atlas_;
   MapLeases leases_;
   std::unique_ptr<AtlasCheckpointer> checkpointer_;
+
+  // The server-wide loop-closing thread (before sessions_: destroyed after them).
+  const std::shared_ptr<SerialWorker> loop_worker_;
 
   mutable std::mutex mutex_;  // guards sessions_, next_session_, shut_down_
   std::map<SessionId, std::shared_ptr<LiveSession>> sessions_;

@@ -1,0 +1,28 @@
+#include "core/common/serial_worker.h"
+
+#include "core/common/log.h"
+
+namespace orbatlas {
+
+SerialWorker::SerialWorker(std::size_t capacity) : queue_(capacity) {
+  thread_ = std::thread([this] {
+    while (auto task = queue_.pop()) {
+      try {
+        (*task)();
+      } catch (const std::exception& e) {
+        log_warn(std::string("a background task failed: ") + e.what());
+      }
+    }
+  });
+}
+
+SerialWorker::~SerialWorker() { stop(); }
+
+bool SerialWorker::try_post(std::function<void()> task) { return queue_.try_push(std::move(task)); }
+
+void SerialWorker::stop() {
+  queue_.close();
+  if (thread_.joinable() && thread_.get_id() != std::this_thread::get_id()) thread_.join();
+}
+
+}  // namespace orbatlas
