@@ -101,6 +101,8 @@ void register_run_command(CLI::App& app) {
   cmd->add_flag("!--no-loop-closing", args->run.slam.loop_closing,
                 "No place recognition, loop correction or global bundle adjustment");
   cmd->add_flag("!--no-progress", args->run.show_progress, "Do not print progress");
+  cmd->add_flag("--final-ba", args->run.slam.final_global_ba,
+                "After the last frame, one global bundle adjustment over the session's maps (offline refinement)");
   cmd->callback([args]() {
     DatasetRunOptions options = args->run;
     options.settings = args->config;

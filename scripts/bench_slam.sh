@@ -2,7 +2,8 @@
 # Long benchmark (not part of the test suite): stereo SLAM on full-length simulated
 # Machine Hall sequences. Renders each sequence once (about 80 s and 1.7 GB each,
 # kept in $ORBATLAS_BENCH_DATA, default build/bench_data), runs `orbatlas run` with
-# --stats, scores it with `orbatlas eval`, and prints one line per sequence.
+# --stats and --final-ba (one global BA after the last frame), scores it with
+# `orbatlas eval`, and prints one line per sequence.
 #   scripts/bench_slam.sh                    # MH_01..MH_05
 #   scripts/bench_slam.sh MH_01 MH_03        # some of them
 #   REALTIME=1 scripts/bench_slam.sh MH_01   # frames fed at 20 Hz, late frames counted
@@ -16,7 +17,7 @@ OUT="$ROOT/out/bench_slam"
 mkdir -p "$DATA" "$OUT"
 SEQUENCES=("$@")
 [ ${#SEQUENCES[@]} -eq 0 ] && SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)
-EXTRA=(--compare-culling)
+EXTRA=(--compare-culling --final-ba)
 [ "${REALTIME:-0}" = "1" ] && EXTRA+=(--realtime)
 
 for s in "${SEQUENCES[@]}"; do

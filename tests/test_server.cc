@@ -263,6 +263,10 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
     }
     const auto merges = wait_for_merges(client);
     ASSERT_EQ(merges["merges"].size(), 1u) << merges.dump(2);
+    // The first session's map, alone in the atlas when it finished, was refined by a global BA.
+    ASSERT_EQ(merges["refinements"].size(), 1u) << merges.dump(2);
+    EXPECT_EQ(merges["refinements"][0]["map"], stream_maps[0]);
+    EXPECT_GT(merges["refinements"][0]["keyframes"].get<int>(), 0);
     const auto& merge = merges["merges"][0];
     std::printf("merge: %s\n", merge.dump().c_str());
     EXPECT_EQ(merge["source_map"], stream_maps[1]);
@@ -308,13 +312,17 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
     worst = std::max(worst, (before[j].pose.t - again.trajectory[i].pose.t).norm());
     ++compared;
   }
-  std::printf("the clip again, started in the stored map: %zu poses compared, largest difference %.4f m\n", compared,
-              worst);
+  std::printf("the clip again, started in the stored map: %zu poses compared, largest difference %.4f m, %zu keyframes "
+              "made\n",
+              compared, worst, again.keyframes);
   EXPECT_GE(compared, again.trajectory.size() * 9 / 10);
   EXPECT_LT(worst, 0.03);
   // The merging worker searched only the keyframes this session made.
   const auto merges = wait_for_merges(client);
   EXPECT_LE(merges["keyframes_searched"].get<std::size_t>(), searched_before + again.keyframes);
+  // Map 0 is refined again when this session extended it (a session that only
+  // tracked in it, making no keyframe, leaves it as it was).
+  EXPECT_EQ(merges["refinements"].size(), again.keyframes > 0 ? 1u : 0u) << again.keyframes << " keyframes";
   EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
 }
 

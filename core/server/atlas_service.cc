@@ -267,6 +267,10 @@ nlohmann::json AtlasService::merges_json() const {
   out["maps_searched"] = stats.maps_searched;
   out["keyframes_searched"] = stats.keyframes_searched;
   if (!stats.last_error.empty()) out["last_error"] = stats.last_error;
+  out["refinements"] = nlohmann::json::array();
+  for (const MapRefinement& r : stats.refinements)
+    out["refinements"].push_back(
+        {{"map", r.map}, {"keyframes", r.keyframes}, {"seconds", r.seconds}, {"interrupted", r.interrupted}});
   for (const MergeRecord& r : stats.merges)
     out["merges"].push_back({{"source_map", r.merge.source},
                              {"target_map", r.merge.target},

@@ -104,6 +104,14 @@ void MapMergeWorker::process(const MergeRequest& request) {
   if (!match) {
     log_info("map merging: map " + std::to_string(source_id) + " (" + std::to_string(searched) +
              " keyframes searched) shares no verified place with another map");
+    if (options_.global_bundle_adjustment && options_.refine_unmerged && searched > 0 && !stopping_.load()) {
+      MapRefinement refinement{source_id};
+      const GlobalBundleAdjustmentResult result = refine(*source, *request.cam, &refinement.seconds);
+      refinement.keyframes = result.keyframes;
+      refinement.interrupted = result.stopped;
+      std::lock_guard lock(mutex_);
+      stats_.refinements.push_back(refinement);
+    }
     return;
   }
   const MapId target_id = match->matched->map_id();
@@ -125,12 +133,8 @@ void MapMergeWorker::process(const MergeRequest& request) {
 
   if (options_.global_bundle_adjustment) {
     if (const auto map = atlas_.map(target_id)) {
-      const auto ba_start = std::chrono::steady_clock::now();
-      const GlobalBundleAdjustmentResult result =
-          global_bundle_adjustment(*map, *request.cam->camera, request.cam->bf, options_.global, &stopping_);
-      if (!result.stopped) merge_global_adjustment(*map, result, request.cam->pyramid);
+      const GlobalBundleAdjustmentResult result = refine(*map, *request.cam, &record.ba_seconds);
       record.ba_keyframes = result.keyframes;
-      record.ba_seconds = ms_since(ba_start) * 1e-3;
       record.ba_interrupted = result.stopped;
     }
   }
@@ -139,6 +143,15 @@ void MapMergeWorker::process(const MergeRequest& request) {
     stats_.merges.push_back(record);
   }
   if (on_merged_) on_merged_(record);
+}
+
+GlobalBundleAdjustmentResult MapMergeWorker::refine(Map& map, const FrameCamera& cam, double* seconds) {
+  const auto start = std::chrono::steady_clock::now();
+  const GlobalBundleAdjustmentResult result =
+      global_bundle_adjustment(map, *cam.camera, cam.bf, options_.global, &stopping_);
+  if (!result.stopped) merge_global_adjustment(map, result, cam.pyramid);
+  *seconds = ms_since(start) * 1e-3;
+  return result;
 }
 
 }  // namespace orbatlas

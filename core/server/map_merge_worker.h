@@ -4,7 +4,8 @@
 // another map of the atlas (place recognition over every map, PlaceScope::
 // kOtherMaps), and when one is verified merges the session's map into the other
 // (core/loop/map_merge.h), then refines the joined map with a global bundle
-// adjustment that stop() interrupts. While it works on two maps it holds their
+// adjustment that stop() interrupts; a map that shares no place with another is
+// refined by a global bundle adjustment too. While it works on two maps it holds their
 // leases, so no session relocalises into them meanwhile; maps held by live
 // sessions are never candidates. Bounded queue: a full queue skips the request
 // (logged and counted).
@@ -33,7 +34,10 @@ struct MapMergeWorkerOptions {
   std::size_t queue_capacity = 16;
   PlaceRecognitionOptions recognition;  // scope is forced to PlaceScope::kOtherMaps
   MapMergeOptions merge;
-  bool global_bundle_adjustment = true;
+  bool global_bundle_adjustment = true;  // after a merge, and (below) on a map not merged
+  // A finished session's map that shares no place with another is still refined
+  // by one global BA (every constraint the session found, jointly).
+  bool refine_unmerged = true;
   GlobalBundleAdjustmentOptions global;
 };
 
@@ -58,8 +62,16 @@ struct MergeRecord {
   bool ba_interrupted = false;
 };
 
+struct MapRefinement {
+  MapId map = 0;
+  std::size_t keyframes = 0;
+  double seconds = 0.0;
+  bool interrupted = false;
+};
+
 struct MapMergeWorkerStats {
   std::size_t requests = 0, skipped = 0;      // handed in / dropped (queue full, stopped)
+  std::vector<MapRefinement> refinements;     // global BAs of maps not merged
   std::size_t maps_searched = 0, keyframes_searched = 0;
   std::vector<MergeRecord> merges;
   std::size_t pending = 0;  // queued or in progress
@@ -94,6 +106,8 @@ class MapMergeWorker {
  private:
   void run();
   void process(const MergeRequest& request);
+  // One global BA of `map` with the request's camera (stop() interrupts it).
+  GlobalBundleAdjustmentResult refine(Map& map, const FrameCamera& cam, double* seconds);
 
   Atlas& atlas_;
   MapLeases& leases_;

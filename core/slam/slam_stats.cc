@@ -69,6 +69,7 @@ nlohmann::json to_json(const SlamStats& s) {
   j["points_fused"] = s.mapping.points_fused;
   j["recent_points_culled"] = s.mapping.recent_points_culled;
   j["loops"] = s.loop.loops.size();
+  if (s.final_ba_keyframes > 0) j["final_global_ba"] = {{"keyframes", s.final_ba_keyframes}, {"seconds", s.final_ba_s}};
   if (s.loop_closing) {
     nlohmann::json lc;
     lc["keyframes"] = s.loop.keyframes;

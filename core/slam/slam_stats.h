@@ -34,6 +34,9 @@ struct SlamStats {
   std::vector<double> loop_error_m, loop_error_deg;
   CullingScheme culling_scheme = CullingScheme::kIncremental;
   CounterSnapshot keyframe_objects, mappoint_objects;
+  // The final global BA (StereoSlamOptions::final_global_ba), when it ran.
+  std::size_t final_ba_keyframes = 0;
+  double final_ba_s = 0.0;
 };
 
 // Keys: frames, tracked, lost, maps, keyframes, mappoints, tracking_ms{p50,p95,max,mean},
@@ -42,7 +45,7 @@ struct SlamStats {
 // culling_disagreements, culled_keyframes, points_triangulated, points_fused,
 // objects{keyframes,mappoints}{created,culled,alive,reclaimed}, loops,
 // loop_closing{place_recognition_ms_per_kf, loop_correction_ms, loops[],
-// global_ba[], false_loops}.
+// global_ba[], false_loops}, final_global_ba{keyframes, seconds} (when it ran).
 inline constexpr double kFalseLoopM = 0.2, kFalseLoopDeg = 5.0;
 nlohmann::json to_json(const SlamStats& stats);
 

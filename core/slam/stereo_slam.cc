@@ -1,9 +1,11 @@
 #include "core/slam/stereo_slam.h"
 
 #include <chrono>
+#include <set>
 
 #include "core/common/error.h"
 #include "core/common/log.h"
+#include "core/loop/global_adjustment_merge.h"
 #include "core/place/relocalizer.h"
 
 namespace orbatlas {
@@ -92,6 +94,21 @@ void StereoSlam::finish() {
   mapper_->finish();
   if (loop_closer_) loop_closer_->finish();
   tracker_->release_frames();
+  if (options_.final_global_ba && !options_.tracker.localization_only) {
+    // Nothing else edits these maps now: mapping and loop closing have stopped.
+    std::set<MapId> maps;
+    for (const auto& anchor : tracker_->anchors()) maps.insert(anchor.map);
+    const auto start = std::chrono::steady_clock::now();
+    for (const MapId id : maps) {
+      const auto map = atlas_.map(id);
+      if (!map || map->keyframe_count() < 2) continue;
+      const GlobalBundleAdjustmentResult result =
+          global_bundle_adjustment(*map, *cam_.camera, cam_.bf, options_.final_ba);
+      merge_global_adjustment(*map, result, cam_.pyramid);
+      final_ba_keyframes_ += result.keyframes;
+    }
+    final_ba_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
 }
 
 std::vector<TimedPose> StereoSlam::trajectory() const {
@@ -111,6 +128,8 @@ SlamStats StereoSlam::stats() const {
   SlamStats s;
   s.frames = frames_;
   s.relocalizations = tracker_->relocalizations();
+  s.final_ba_keyframes = final_ba_keyframes_;
+  s.final_ba_s = final_ba_s_;
   s.tracked = tracked_;
   s.lost = frames_ - tracked_;
   s.keyframes_made = keyframes_made_;

@@ -30,6 +30,11 @@ struct StereoSlamOptions {
   // Wait for local mapping to finish each keyframe before the next frame: slower,
   // but the run is deterministic (tests, comparing culling schemes).
   bool synchronous_mapping = false;
+  // After the last frame, one global bundle adjustment over every map the
+  // session tracked in (offline runs: every covisibility constraint the run
+  // found, refined jointly; frames follow through their keyframes).
+  bool final_global_ba = false;
+  GlobalBundleAdjustmentOptions final_ba;
 };
 
 struct TimedPose {
@@ -73,6 +78,8 @@ class StereoSlam {
   std::unique_ptr<LoopCloser> loop_closer_;  // null when loop closing is off
   std::unique_ptr<Tracker> tracker_;
   bool finished_ = false;
+  std::size_t final_ba_keyframes_ = 0;
+  double final_ba_s_ = 0.0;
   std::vector<double> tracking_ms_;
   mutable std::mutex anchors_mutex_;
   std::vector<FrameAnchor> anchors_;  // copy of the tracker's, for other threads
