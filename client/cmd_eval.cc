@@ -78,20 +78,12 @@ void write_plot(const EvalArgs& args, const Trajectory& est, const Trajectory& g
   write_trajectory_plot(args.plot, plot);
 }
 
-// Several trajectories (sessions in one world frame) as one, in time order;
-// recordings that overlap in time cannot be joined.
+// Several trajectories (sessions in one world frame) as one, in time order.
 Trajectory read_joined(const std::vector<std::string>& paths) {
-  Trajectory all;
-  for (const auto& p : paths) {
-    const Trajectory t = read_any_ground_truth(p);
-    all.insert(all.end(), t.begin(), t.end());
-  }
-  std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; });
-  for (std::size_t i = 1; i < all.size(); ++i)
-    ORBATLAS_CHECK(all[i].t_ns > all[i - 1].t_ns,
-                   joined(paths) << ": the trajectories overlap in time (two poses at " << all[i].t_ns
-                                 << " ns); only recordings made at different times can be joined");
-  return all;
+  std::vector<Trajectory> parts;
+  for (const auto& p : paths) parts.push_back(read_any_ground_truth(p));
+  const std::string what = joined(paths) + " (only recordings made at different times can be joined)";
+  return join_trajectories(parts, what.c_str());
 }
 
 void run_eval(const EvalArgs& args) {

@@ -200,6 +200,10 @@ void print_merges(const nlohmann::json& reply) {
                 m["global_ba"]["interrupted"].get<bool>() ? " (interrupted)" : "");
   }
   if (reply.at("merges").empty()) std::printf("no merges\n");
+  for (const auto& r : reply.value("refinements", nlohmann::json::array()))
+    std::printf("map %llu refined (no other map shares its place): global BA %zu keyframes %.2f s%s\n",
+                r["map"].get<unsigned long long>(), r["keyframes"].get<std::size_t>(), r["seconds"].get<double>(),
+                r["interrupted"].get<bool>() ? " (interrupted)" : "");
   if (reply.value("pending", std::size_t{0}) > 0)
     std::printf("%zu map(s) waiting for the merging worker\n", reply["pending"].get<std::size_t>());
 }

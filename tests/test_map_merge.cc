@@ -8,11 +8,11 @@
 // ONE rigid alignment (before it, they do not).
 #include <gtest/gtest.h>
 
-#include <algorithm>
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/common/data_paths.h"
 #include "core/eval/evaluate.h"
+#include "core/io/tum_trajectory.h"
 #include "core/loop/global_adjustment_merge.h"
 #include "core/loop/map_merge.h"
 #include "core/loop/place_recognizer.h"
@@ -33,7 +33,7 @@ Session run_session(Atlas& atlas, const std::filesystem::path& clip, const SlamS
                     const Vocabulary& vocabulary) {
   const EurocDataset dataset = test::stereo_dataset(clip);
   Session s;
-  for (const auto& g : dataset.ground_truth) s.ground_truth.push_back({g.t_ns, g.T_w_b});
+  s.ground_truth = from_ground_truth_states(dataset.ground_truth);
   StereoSlamOptions o;
   o.synchronous_mapping = true;                   // deterministic
   o.may_enter_map = [](MapId) { return false; };  // each session keeps to its own map
@@ -50,16 +50,16 @@ Session run_session(Atlas& atlas, const std::filesystem::path& clip, const SlamS
 
 // Both sessions' frames, as the atlas places them now, against both ground truths.
 double joint_ate(const Atlas& atlas, const std::vector<const Session*>& sessions) {
-  Trajectory estimate, gt;
+  std::vector<Trajectory> estimates, ground_truths;
   for (const Session* s : sessions) {
+    Trajectory estimate;
     for (const auto& a : s->anchors)
       if (const auto pose = atlas.frame_pose(a)) estimate.push_back({a.t_ns, *pose});
-    gt.insert(gt.end(), s->ground_truth.begin(), s->ground_truth.end());
+    estimates.push_back(std::move(estimate));
+    ground_truths.push_back(s->ground_truth);
   }
-  const auto by_time = [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; };
-  std::sort(estimate.begin(), estimate.end(), by_time);
-  std::sort(gt.begin(), gt.end(), by_time);
-  return evaluate_trajectory(estimate, gt).ate.rmse;
+  return evaluate_trajectory(join_trajectories(estimates, "estimates"), join_trajectories(ground_truths, "ground truth"))
+      .ate.rmse;
 }
 
 TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {

@@ -63,4 +63,15 @@ TEST(Trajectory, PoseAtUsesExactSamplesInterpolatesAndRespectsGaps) {
 }
 
 }  // namespace
+TEST(Trajectory, JoinOrdersSessionsByTimeAndRefusesOverlap) {
+  const auto at = [](TimestampNs t, double x) { return StampedPose{t, Pose3(Eigen::Quaterniond::Identity(), {x, 0, 0})}; };
+  const Trajectory later = {at(50, 5), at(60, 6)}, earlier = {at(10, 1), at(20, 2)};
+  const Trajectory joined = join_trajectories({later, earlier}, "sessions");
+  ASSERT_EQ(joined.size(), 4u);
+  EXPECT_EQ(joined.front().t_ns, 10);
+  EXPECT_EQ(joined.back().t_ns, 60);
+  EXPECT_DOUBLE_EQ(joined[2].pose.t.x(), 5.0);
+  EXPECT_THROW(join_trajectories({earlier, {at(20, 9)}}, "sessions"), DataError);
+}
+
 }  // namespace orbatlas

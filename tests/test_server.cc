@@ -213,18 +213,15 @@ TEST(ServerUploads, RecordingBecomesAStoredSessionAndBadArchivesFailTheirJobOnly
 // under ONE alignment (the recordings share the ground-truth world frame).
 double joint_ate(ServerClient& client, const std::vector<std::uint64_t>& sessions,
                  const std::vector<std::filesystem::path>& clips, std::set<std::uint64_t>* maps) {
-  Trajectory estimate, gt;
+  std::vector<Trajectory> estimates, ground_truths;
   for (std::size_t i = 0; i < sessions.size(); ++i) {
     std::vector<std::uint64_t> in_maps;
-    const Trajectory poses = parse_tum_trajectory(client.trajectory_tum(sessions[i]), "trajectory", &in_maps);
-    estimate.insert(estimate.end(), poses.begin(), poses.end());
+    estimates.push_back(parse_tum_trajectory(client.trajectory_tum(sessions[i]), "trajectory", &in_maps));
     maps->insert(in_maps.begin(), in_maps.end());
-    for (const auto& g : test::stereo_dataset(clips[i]).ground_truth) gt.push_back({g.t_ns, g.T_w_b});
+    ground_truths.push_back(from_ground_truth_states(test::stereo_dataset(clips[i]).ground_truth));
   }
-  const auto by_time = [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; };
-  std::sort(estimate.begin(), estimate.end(), by_time);
-  std::sort(gt.begin(), gt.end(), by_time);
-  return evaluate_trajectory(estimate, gt).ate.rmse;
+  return evaluate_trajectory(join_trajectories(estimates, "estimates"), join_trajectories(ground_truths, "ground truth"))
+      .ate.rmse;
 }
 
 nlohmann::json wait_for_merges(ServerClient& client) {

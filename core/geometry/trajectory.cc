@@ -32,4 +32,12 @@ void check_strictly_increasing(const Trajectory& trajectory, const char* what) {
   }
 }
 
+Trajectory join_trajectories(const std::vector<Trajectory>& parts, const char* what) {
+  Trajectory all;
+  for (const Trajectory& part : parts) all.insert(all.end(), part.begin(), part.end());
+  std::stable_sort(all.begin(), all.end(), [](const StampedPose& a, const StampedPose& b) { return a.t_ns < b.t_ns; });
+  check_strictly_increasing(all, what);
+  return all;
+}
+
 }  // namespace orbatlas

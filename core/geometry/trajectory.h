@@ -24,4 +24,9 @@ std::optional<Pose3> pose_at(const Trajectory& trajectory, TimestampNs t, Timest
 // Throws DataError unless timestamps strictly increase.
 void check_strictly_increasing(const Trajectory& trajectory, const char* what);
 
+// Several trajectories (e.g. sessions in one world frame) as one, in time
+// order. Throws DataError, naming `what`, when two poses share a timestamp
+// (recordings that overlap in time cannot be joined).
+Trajectory join_trajectories(const std::vector<Trajectory>& parts, const char* what);
+
 }  // namespace orbatlas
