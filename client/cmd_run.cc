@@ -56,6 +56,16 @@ void print_run_summary(const DatasetRunReport& r) {
     for (const auto& g : r.stats.loop.global_adjustments)
       std::printf("; global BA %zu keyframes %.2f s%s", g.keyframes, g.seconds, g.interrupted ? " (interrupted)" : "");
     std::printf("\n");
+    if (r.stats.maps_started > 1 || !r.stats.loop.merges.empty()) {
+      std::printf("maps started %zu, merged live %zu", r.stats.maps_started, r.stats.loop.merges.size());
+      for (const auto& merged : r.stats.loop.merges)
+        std::printf("; map %llu into %llu at %.2f s (%d matches, %zu keyframes moved, %.0f ms)",
+                    static_cast<unsigned long long>(merged.merge.source),
+                    static_cast<unsigned long long>(merged.merge.target),
+                    static_cast<double>(merged.current_t_ns) * 1e-9, merged.matches, merged.merge.keyframes_moved,
+                    merged.merge.ms);
+      std::printf("\n");
+    }
   }
   if (r.session) {
     std::printf("atlas: %zu maps / %zu keyframes loaded in %.2f s; stored as session %llu", r.loaded_maps,

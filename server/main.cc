@@ -71,6 +71,10 @@ int main(int argc, char** argv) {
                  "and at least this often")->capture_default_str();
   app.add_option("--port-file", port_file, "Write the port listened on to this file once listening (tests, scripts)");
   app.add_flag("--log-requests", log_requests, "One log line per request");
+  bool no_merging = false, no_live_merging = false;
+  app.add_flag("--no-merging", no_merging, "Never merge maps (not live, not when a session finishes)");
+  app.add_flag("--no-live-merging", no_live_merging,
+               "Merge a session's maps only when it finishes, not while it runs");
   CLI11_PARSE(app, argc, argv);
 
   // Signals go to one thread that asks the server to stop (no handler state).

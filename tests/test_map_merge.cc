@@ -8,6 +8,8 @@
 // ONE rigid alignment (before it, they do not).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/common/data_paths.h"
@@ -26,23 +28,29 @@ namespace {
 struct Session {
   std::vector<FrameAnchor> anchors;
   Trajectory ground_truth;
-  MapId map = 0;
+  MapId map = 0;                  // the map its last frame was tracked in
+  std::vector<TrackResult> results;  // per frame
+  SlamStats stats;
 };
 
+// Each session keeps to its own map (relocalisation may not enter another);
+// with `live_merging` its map may be merged into another while it runs.
 Session run_session(Atlas& atlas, const std::filesystem::path& clip, const SlamSettings& settings,
-                    const Vocabulary& vocabulary) {
+                    const Vocabulary& vocabulary, bool live_merging = false) {
   const EurocDataset dataset = test::stereo_dataset(clip);
   Session s;
   s.ground_truth = from_ground_truth_states(dataset.ground_truth);
   StereoSlamOptions o;
-  o.synchronous_mapping = true;                   // deterministic
-  o.may_enter_map = [](MapId) { return false; };  // each session keeps to its own map
+  o.synchronous_mapping = true;  // deterministic
+  o.may_enter_map = [](MapId) { return false; };
+  o.live_merging = live_merging;
   StereoSlam slam(atlas, settings, vocabulary, o);
   for (const auto& f : pair_stereo_frames(dataset))
-    slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
-                 cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+    s.results.push_back(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                                     cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE)));
   slam.finish();
   s.anchors = slam.anchors();
+  s.stats = slam.stats();
   EXPECT_FALSE(s.anchors.empty());
   if (!s.anchors.empty()) s.map = s.anchors.back().map;
   return s;
@@ -137,6 +145,57 @@ TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {
   EXPECT_GT(ate_apart, 0.1);  // two maps, two frames: one alignment cannot fit both
   EXPECT_LT(ate_merged, 0.03);
   EXPECT_LT(ate_refined, 0.03);
+}
+
+// Live merging: the second session starts a map of its own (it may not
+// relocalise into the first one), and while it is still running, place
+// recognition over the other maps finds the first session's map; its map is
+// merged into that one and tracking follows: the frames after the merge are
+// tracked in the first map, in its frame.
+TEST(MapMerge, ARunningSessionsMapIsMergedLiveAndTrackingFollows) {
+  const auto clip_a = test::simulated_clip("MH_01", 46.0, 8.0);
+  test::ClipCleanup cleanup_a{clip_a};
+  const auto clip_b = test::simulated_clip("MH_02", 38.0, 8.0);
+  test::ClipCleanup cleanup_b{clip_b};
+  const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+
+  Atlas atlas;
+  const Session a = run_session(atlas, clip_a, settings, vocabulary, true);
+  EXPECT_TRUE(a.stats.loop.merges.empty());  // alone in the atlas: nothing to merge with
+  const Session b = run_session(atlas, clip_b, settings, vocabulary, true);
+
+  ASSERT_EQ(b.stats.loop.merges.size(), 1u) << "the second session's map was not merged while it ran";
+  const LiveMerge& merge = b.stats.loop.merges.front();
+  EXPECT_EQ(merge.merge.target, a.map);
+  EXPECT_NE(merge.merge.source, a.map);
+  EXPECT_GE(merge.verified_keyframes, 3);
+  ASSERT_FALSE(b.results.empty());
+  EXPECT_EQ(b.results.front().map, merge.merge.source);  // it started on its own
+  // Every frame after the merge is tracked, in the first session's map.
+  std::size_t after = 0;
+  for (const auto& r : b.results) {
+    if (r.t_ns <= merge.current_t_ns + 200'000'000) continue;  // the keyframe's mapping and closing take a few frames
+    ++after;
+    EXPECT_TRUE(r.tracked) << "frame at " << r.t_ns << " ns";
+    EXPECT_EQ(r.map, a.map) << "frame at " << r.t_ns << " ns";
+  }
+  EXPECT_GT(after, 20u) << "merged too late to show tracking following";
+  EXPECT_EQ(b.map, a.map);
+
+  ASSERT_EQ(atlas.maps().size(), 1u);
+  std::size_t roots = 0;
+  for (const auto& kf : atlas.maps().front()->keyframes()) roots += kf->parent() ? 0 : 1;
+  EXPECT_EQ(roots, 1u);
+  const double ate = joint_ate(atlas, {&a, &b});
+  std::printf("live merge at %.2f s of the second session (frame %zu of %zu): %d matches, %zu keyframes and %zu "
+              "points moved, %zu points fused, %.1f ms; joint ATE of both sessions under one alignment %.4f m\n",
+              static_cast<double>(merge.current_t_ns - b.results.front().t_ns) * 1e-9,
+              static_cast<std::size_t>(std::count_if(b.results.begin(), b.results.end(),
+                                                     [&](const TrackResult& r) { return r.t_ns <= merge.current_t_ns; })),
+              b.results.size(), merge.matches, merge.merge.keyframes_moved, merge.merge.points_moved,
+              merge.merge.points_merged, merge.merge.ms, ate);
+  EXPECT_LT(ate, 0.02);
 }
 
 }  // namespace

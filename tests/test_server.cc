@@ -3,6 +3,8 @@
 // three sessions stream at once.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <array>
 #include <future>
 #include <thread>
@@ -249,6 +251,7 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
   {
     AtlasServiceOptions options = test::server_options(db.path);
     options.start_in_stored_maps = false;  // the second session makes a map of its own: the merge joins them
+    options.live_merging = false;          // ... when it finishes (the live merge has its own test)
     test::TestServer server(options);
     ServerClient client(server.url());
     for (const auto& clip : clips) {
@@ -321,6 +324,66 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
   // tracked in it, making no keyframe, leaves it as it was).
   EXPECT_EQ(merges["refinements"].size(), again.keyframes > 0 ? 1u : 0u) << again.keyframes << " keyframes";
   EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
+}
+
+// The same two sessions with live merging: the second session's map is merged
+// into the first one's WHILE it streams; the replies switch to the first map
+// and stay there, the merge is listed, the worker has nothing left to merge
+// when the session finishes, and the result is stored (a restart sees it).
+TEST(ServerMerging, ASessionsMapIsMergedWhileItStreams) {
+  const std::vector<std::filesystem::path> clips = {test::simulated_clip("MH_01", 46.0, 8.0),
+                                                    test::simulated_clip("MH_02", 38.0, 8.0)};
+  const test::ClipCleanup cleanups[] = {{clips[0]}, {clips[1]}};
+  test::TempDbPath db("live_merge");
+  std::vector<std::uint64_t> sessions;
+  std::uint64_t first_map = 0;
+  double ate_live = 0.0;
+  {
+    AtlasServiceOptions options = test::server_options(db.path);
+    options.start_in_stored_maps = false;  // the second session starts apart
+    test::TestServer server(options);
+    ServerClient client(server.url());
+    const StreamReport a = stream_dataset(client, stream_options(clips[0]));
+    ASSERT_FALSE(a.reply_maps.empty());
+    first_map = a.reply_maps.back();
+    const StreamReport b = stream_dataset(client, stream_options(clips[1]));
+    sessions = {a.session, b.session};
+    EXPECT_EQ(b.tracked, b.frames);
+    ASSERT_EQ(b.reply_maps.size(), b.tracked);
+    ASSERT_NE(b.reply_maps.front(), first_map);  // it started on its own
+    // The replies switch to the first map once, and stay.
+    const auto switched = std::find(b.reply_maps.begin(), b.reply_maps.end(), first_map);
+    ASSERT_NE(switched, b.reply_maps.end()) << "the second session's map was not merged while it streamed";
+    EXPECT_TRUE(std::all_of(switched, b.reply_maps.end(), [&](std::uint64_t m) { return m == first_map; }));
+    const auto frames_after = static_cast<std::size_t>(b.reply_maps.end() - switched);
+    EXPECT_GT(frames_after, 20u);
+
+    const auto merges = wait_for_merges(client);
+    ASSERT_EQ(merges["live_merges"].size(), 1u) << merges.dump(2);
+    const auto& live = merges["live_merges"][0];
+    std::printf("live merge: %s; %zu of %zu frames replied in the first map\n", live.dump().c_str(), frames_after,
+                b.reply_maps.size());
+    EXPECT_EQ(live["session"], b.session);
+    EXPECT_EQ(live["source_map"], b.reply_maps.front());
+    EXPECT_EQ(live["target_map"], first_map);
+    EXPECT_GE(live["matches"].get<int>(), 80);
+    EXPECT_TRUE(merges["merges"].empty()) << "the worker merged again: " << merges.dump(2);
+    EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
+    EXPECT_NE(client.get_text("/metrics").find("orbatlas_map_merges_total 1"), std::string::npos);
+    std::set<std::uint64_t> in_maps;
+    ate_live = joint_ate(client, sessions, clips, &in_maps);
+    EXPECT_EQ(in_maps, std::set<std::uint64_t>{first_map});
+    EXPECT_LT(ate_live, 0.03);
+  }
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
+  std::set<std::uint64_t> in_maps;
+  const double ate_restarted = joint_ate(client, sessions, clips, &in_maps);
+  EXPECT_EQ(in_maps, std::set<std::uint64_t>{first_map});
+  EXPECT_NEAR(ate_restarted, ate_live, 1e-4);
+  std::printf("joint ATE of both sessions after the live merge: %.4f m (after restart %.4f m)\n", ate_live,
+              ate_restarted);
 }
 
 }  // namespace

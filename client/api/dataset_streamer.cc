@@ -59,7 +59,10 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
       report.tracking_ms.push_back(reply.at("tracking_ms").get<double>());
       report.server_ms.push_back(reply.at("server_ms").get<double>());
       ++report.frames;
-      if (reply.at("tracked").get<bool>()) ++report.tracked;
+      if (reply.at("tracked").get<bool>()) {
+        ++report.tracked;
+        if (reply.contains("map")) report.reply_maps.push_back(reply.at("map").get<std::uint64_t>());
+      }
       if (reply.at("keyframe").get<bool>()) ++report.keyframes;
     } catch (const ServerError& e) {
       if (e.status() != 422) throw;  // bad input: counted; anything else ends the stream

@@ -31,6 +31,12 @@ LoopCloser::LoopCloser(Atlas& atlas, FrameCamera cam, LocalMapper& mapper, LoopC
       options_(std::move(options)),
       recognizer_(atlas.keyframe_index(), cam_, options_.recognition),
       queue_(options_.queue_capacity) {
+  if (options_.live_merging) {
+    PlaceRecognitionOptions merging = options_.merge_recognition;
+    merging.scope = PlaceScope::kOtherMaps;
+    merging.may_use_map = options_.may_merge_into;
+    merge_recognizer_ = std::make_unique<PlaceRecognizer>(atlas.keyframe_index(), cam_, merging);
+  }
   mapper_.set_processed_listener([this](const std::shared_ptr<KeyFrame>& kf) { insert(kf); });
   if (!options_.shared_worker) thread_ = std::thread([this] { run(); });
 }
@@ -103,7 +109,23 @@ void LoopCloser::run_one(const std::shared_ptr<KeyFrame>& keyframe) {
   idle_cv_.notify_all();
 }
 
+std::unique_lock<std::mutex> LoopCloser::pause_tracking() {
+  if (!options_.tracking_mutex) return {};
+  return std::unique_lock(*options_.tracking_mutex);
+}
+
 void LoopCloser::process(const std::shared_ptr<KeyFrame>& keyframe) {
+  if (merge_recognizer_) {
+    // ORB-SLAM3 looks for a merge first: a keyframe that joins another map is
+    // not also taken as a loop.
+    const auto start = std::chrono::steady_clock::now();
+    const PlaceRecognitionStep step = merge_recognizer_->process(keyframe);
+    {
+      std::lock_guard lock(stats_mutex_);
+      stats_.merge_search_ms.push_back(ms_since(start));
+    }
+    if (step.match && !step.match->same_map() && merge_live(*step.match)) return;
+  }
   const auto start = std::chrono::steady_clock::now();
   const PlaceRecognitionStep step = recognizer_.process(keyframe);
   {
@@ -123,6 +145,7 @@ void LoopCloser::close_loop(const PlaceMatch& loop) {
   {
     std::lock_guard lock(correction_mutex_);
     MappingPause pause(mapper_);
+    const auto tracking = pause_tracking();
     correction = correct_loop(*map, loop, cam_, options_.correction);
   }
   log_info("loop closed: keyframe " + std::to_string(loop.current->id()) + " with " +
@@ -141,6 +164,43 @@ void LoopCloser::close_loop(const PlaceMatch& loop) {
     stats_.loops.push_back(closed);
   }
   if (options_.global_bundle_adjustment) start_global_adjustment(map->id());
+}
+
+bool LoopCloser::merge_live(const PlaceMatch& match) {
+  const MapId source = match.current->map_id();
+  const MapId target = match.matched->map_id();
+  if (source == target || !atlas_.map(source) || !atlas_.map(target)) return false;
+  if (options_.hold_map && !options_.hold_map(target)) {
+    log_info("live merge: map " + std::to_string(target) + " was taken by another session meanwhile; not merged");
+    return false;
+  }
+  stop_global_adjustment();  // it works on the source map, which is about to go
+  MapMergeStats merged;
+  {
+    std::lock_guard lock(correction_mutex_);
+    MappingPause pause(mapper_);
+    const auto tracking = pause_tracking();
+    merged = merge_maps(atlas_, match, cam_, options_.merge);
+  }
+  log_info("live merge: map " + std::to_string(source) + " merged into map " + std::to_string(target) +
+           " at keyframe " + std::to_string(match.current->id()) + " ~ " + std::to_string(match.matched->id()) +
+           " (" + std::to_string(match.matches) + " matches, " + std::to_string(merged.keyframes_moved) +
+           " keyframes moved, " + std::to_string(merged.points_merged) + " points fused, " +
+           std::to_string(merged.ms) + " ms)");
+  LiveMerge record;
+  record.current = match.current->id();
+  record.matched = match.matched->id();
+  record.current_t_ns = match.current->timestamp_ns();
+  record.matches = match.matches;
+  record.verified_keyframes = match.verified_keyframes;
+  record.merge = merged;
+  {
+    std::lock_guard lock(stats_mutex_);
+    stats_.merges.push_back(record);
+  }
+  if (options_.on_merged) options_.on_merged(record);
+  if (options_.global_bundle_adjustment) start_global_adjustment(target);
+  return true;
 }
 
 void LoopCloser::stop_global_adjustment() {
@@ -165,6 +225,7 @@ void LoopCloser::start_global_adjustment(MapId map_id) {
         if (!result.stopped) {
           std::lock_guard lock(correction_mutex_);
           MappingPause pause(mapper_);
+          const auto tracking = pause_tracking();
           merge_global_adjustment(*map, result, cam_.pyramid);
         }
         GlobalAdjustmentRun run{result.keyframes, result.points, ms_since(start) * 1e-3, result.stopped};

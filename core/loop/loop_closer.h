@@ -4,8 +4,13 @@
 // place recognition, corrects verified loops with local mapping paused, and
 // starts a global bundle adjustment in a background thread, which a new loop
 // interrupts. The adjustment's result is merged into the map (again with local
-// mapping paused) together with what was created meanwhile. See docs/loop_closing.md.
+// mapping paused) together with what was created meanwhile.
+// With live merging on, each keyframe is first looked for in the atlas's OTHER
+// maps: a verified place there merges the session's active map into that map
+// while the session goes on (tracking follows into the joined map), then a
+// global bundle adjustment refines the joined map. See docs/loop_closing.md.
 #include <atomic>
+#include <functional>
 #include <condition_variable>
 #include <memory>
 #include <mutex>
@@ -15,12 +20,21 @@
 #include "core/common/bounded_queue.h"
 #include "core/common/serial_worker.h"
 #include "core/loop/loop_correction.h"
+#include "core/loop/map_merge.h"
 #include "core/loop/place_recognizer.h"
 #include "core/map/atlas.h"
 #include "core/mapping/local_mapper.h"
 #include "core/optimization/global_bundle_adjustment.h"
 
 namespace orbatlas {
+
+struct LiveMerge {
+  KeyframeId current = 0, matched = 0;
+  TimestampNs current_t_ns = 0;
+  int matches = 0;
+  int verified_keyframes = 0;
+  MapMergeStats merge;
+};
 
 struct LoopCloserOptions {
   std::size_t queue_capacity = 32;  // keyframes waiting for place recognition (more are skipped)
@@ -32,6 +46,21 @@ struct LoopCloserOptions {
   LoopCorrectionOptions correction;
   bool global_bundle_adjustment = true;
   GlobalBundleAdjustmentOptions global;
+
+  // Live map merging: each keyframe is also searched for in the other maps of
+  // the atlas (the maps `may_merge_into` accepts; empty accepts all). Before a
+  // merge `hold_map` must agree (the server takes the map's lease; empty: yes);
+  // `on_merged` is told afterwards (on the worker thread).
+  bool live_merging = false;
+  PlaceRecognitionOptions merge_recognition;  // scope and may_use_map are set by the closer
+  std::function<bool(MapId)> may_merge_into;
+  std::function<bool(MapId)> hold_map;
+  std::function<void(const LiveMerge&)> on_merged;
+  MapMergeOptions merge;
+  // Held by tracking for each frame (StereoSlam); the closer holds it while it
+  // edits the map (loop correction, merge, merging a global adjustment), so a
+  // frame never sees a half-moved map. May be null (then not taken).
+  std::shared_ptr<std::mutex> tracking_mutex;
 };
 
 struct ClosedLoop {
@@ -54,6 +83,8 @@ struct LoopClosingStats {
   std::size_t hypotheses = 0;         // geometric hypotheses that passed the guided search
   std::vector<double> place_recognition_ms;  // per keyframe
   std::vector<ClosedLoop> loops;
+  std::vector<LiveMerge> merges;         // live merges of the active map into another
+  std::vector<double> merge_search_ms;   // per keyframe, when live merging is on
   std::vector<GlobalAdjustmentRun> global_adjustments;
 };
 
@@ -82,6 +113,9 @@ class LoopCloser {
   void run_one(const std::shared_ptr<KeyFrame>& keyframe);  // one keyframe, errors kept; in_flight_ - 1
   void process(const std::shared_ptr<KeyFrame>& keyframe);
   void close_loop(const PlaceMatch& loop);
+  // True when the active map was merged into the match's map.
+  bool merge_live(const PlaceMatch& match);
+  std::unique_lock<std::mutex> pause_tracking();
   void stop_global_adjustment();
   void start_global_adjustment(MapId map);
 
@@ -90,6 +124,7 @@ class LoopCloser {
   LocalMapper& mapper_;
   const LoopCloserOptions options_;
   PlaceRecognizer recognizer_;
+  std::unique_ptr<PlaceRecognizer> merge_recognizer_;  // live merging only
 
   BoundedQueue<std::shared_ptr<KeyFrame>> queue_;
   std::mutex state_mutex_;

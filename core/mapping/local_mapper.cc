@@ -124,7 +124,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   const auto start = std::chrono::steady_clock::now();
   const auto map = atlas_.map(keyframe->map_id());
   if (!map || keyframe->is_bad()) return;
-  origins_.try_emplace(map->id(), keyframe->id());
+  if (!origins_.contains(map->id())) origins_[map->id()] = spanning_tree_root(*map, *keyframe);
 
   complete_keyframe(keyframe);
   if (index_) index_->add(keyframe);
@@ -168,6 +168,21 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
     stats_.culling_disagreements += static_cast<std::size_t>(culling.disagreements);
     stats_.culled_keyframes.insert(stats_.culled_keyframes.end(), culling.culled.begin(), culling.culled.end());
   }
+}
+
+KeyframeId LocalMapper::spanning_tree_root(const Map& map, const KeyFrame& keyframe) {
+  // A new map: its first keyframe. A map this session entered (a stored map,
+  // or one its own map was merged into): the root of the map's spanning tree,
+  // reached from its oldest keyframe (which local mapping has processed).
+  const auto keyframes = map.keyframes();  // sorted by id
+  if (keyframes.empty() || keyframes.front()->id() >= keyframe.id()) return keyframe.id();
+  auto node = keyframes.front();
+  std::unordered_set<KeyframeId> seen{node->id()};
+  while (auto parent = node->parent()) {
+    if (!seen.insert(parent->id()).second) break;  // a cycle would be a bug elsewhere; do not loop
+    node = std::move(parent);
+  }
+  return node->id();
 }
 
 void LocalMapper::complete_keyframe(const std::shared_ptr<KeyFrame>& keyframe) {

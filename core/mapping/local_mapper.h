@@ -114,6 +114,8 @@ class LocalMapper final : public KeyframeSink {
   std::function<void(const std::shared_ptr<KeyFrame>&)> processed_listener_;
 
   // Mapper-thread state.
+  // The keyframe local BA and culling keep fixed in each map (its spanning-tree root).
+  static KeyframeId spanning_tree_root(const Map& map, const KeyFrame& keyframe);
   std::map<MapId, KeyframeId> origins_;
   std::vector<RecentPoint> recent_;
   std::size_t sequence_ = 0;

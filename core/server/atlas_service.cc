@@ -156,6 +156,18 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   slam_options.may_enter_map = [this, id](MapId map) { return leases_.claim(id, map); };
   slam_options.tracker.start_in_stored_map = options_.start_in_stored_maps;
   slam_options.loop.shared_worker = loop_worker_;
+  slam_options.live_merging = options_.merge_maps && options_.live_merging;
+  if (slam_options.live_merging) {
+    // Into maps this session holds (its own earlier ones) or free maps made
+    // with the same rig; the lease is taken for good just before the merge.
+    slam_options.may_merge_into = [this, id, rig = info.cameras](MapId map) {
+      const auto holder = leases_.holder(map);
+      if (holder) return *holder == id;
+      return leases_.available_to(id, map) && rig_matches(rig, map);
+    };
+    slam_options.loop.hold_map = [this, id](MapId map) { return leases_.hold(id, map); };
+    slam_options.loop.on_merged = [this, id](const LiveMerge& merge) { merged_live(id, merge); };
+  }
   std::unique_ptr<StereoSlam> slam;
   try {
     slam = std::make_unique<StereoSlam>(atlas_, loaded.settings, vocabulary_, slam_options);
@@ -234,17 +246,43 @@ void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
 }
 
 bool AtlasService::rigs_match(MapId source, MapId target) const {
+  std::vector<CameraCalibration> rig;
+  {
+    std::lock_guard lock(rigs_mutex_);
+    const auto a = map_rigs_.find(source);
+    if (a == map_rigs_.end()) return false;
+    rig = a->second;
+  }
+  return rig_matches(rig, target);
+}
+
+bool AtlasService::rig_matches(const std::vector<CameraCalibration>& rig, MapId target) const {
   std::lock_guard lock(rigs_mutex_);
-  const auto a = map_rigs_.find(source), b = map_rigs_.find(target);
-  if (a == map_rigs_.end() || b == map_rigs_.end() || a->second.size() != b->second.size()) return false;
-  for (std::size_t i = 0; i < a->second.size(); ++i) {
-    const CameraCalibration &x = a->second[i], &y = b->second[i];
+  const auto b = map_rigs_.find(target);
+  if (b == map_rigs_.end() || rig.size() != b->second.size()) return false;
+  for (std::size_t i = 0; i < rig.size(); ++i) {
+    const CameraCalibration &x = rig[i], &y = b->second[i];
     const bool same = x.model == y.model && x.width == y.width && x.height == y.height && x.fx == y.fx &&
                       x.fy == y.fy && x.cx == y.cx && x.cy == y.cy && x.distortion == y.distortion &&
                       translation_distance(x.T_b_c, y.T_b_c) < 1e-6 && rotation_distance(x.T_b_c, y.T_b_c) < 1e-6;
     if (!same) return false;
   }
   return true;
+}
+
+void AtlasService::merged_live(SessionId session, const LiveMerge& merge) {
+  leases_.forget(merge.merge.source);
+  {
+    std::lock_guard lock(rigs_mutex_);
+    map_rigs_.erase(merge.merge.source);
+  }
+  {
+    std::lock_guard lock(mutex_);
+    live_merges_.push_back({session, merge});
+  }
+  // Stored by the next periodic checkpoint (not waited for here: this is the
+  // loop-closing thread every session shares).
+  checkpointer_->notify_keyframe();
 }
 
 void AtlasService::merged(const MergeRecord& record) {
@@ -260,6 +298,23 @@ void AtlasService::merged(const MergeRecord& record) {
 nlohmann::json AtlasService::merges_json() const {
   nlohmann::json out = {{"enabled", merger_ != nullptr}, {"pending", 0}, {"merges", nlohmann::json::array()}};
   if (!merger_) return out;
+  out["live_merges"] = nlohmann::json::array();
+  {
+    std::lock_guard lock(mutex_);
+    for (const LiveMergeRecord& r : live_merges_)
+      out["live_merges"].push_back({{"session", r.session},
+                                    {"source_map", r.merge.merge.source},
+                                    {"target_map", r.merge.merge.target},
+                                    {"keyframe", r.merge.current},
+                                    {"matched_keyframe", r.merge.matched},
+                                    {"keyframe_t_s", static_cast<double>(r.merge.current_t_ns) * 1e-9},
+                                    {"matches", r.merge.matches},
+                                    {"verified_keyframes", r.merge.verified_keyframes},
+                                    {"keyframes_moved", r.merge.merge.keyframes_moved},
+                                    {"map_points_moved", r.merge.merge.points_moved},
+                                    {"points_fused", r.merge.merge.points_merged},
+                                    {"merge_ms", r.merge.merge.ms}});
+  }
   const MapMergeWorkerStats stats = merger_->stats();
   out["pending"] = stats.pending;
   out["requests"] = stats.requests;
@@ -486,8 +541,13 @@ std::string AtlasService::metrics_text() const {
   out << localize_latency_.prometheus("orbatlas_localize_latency_seconds", "Time to answer a localisation request.");
   if (merger_) {
     const MapMergeWorkerStats merging = merger_->stats();
-    gauge("orbatlas_map_merges_total", "Maps merged into another map since the server started.", "counter",
-          static_cast<double>(merging.merges.size()));
+    std::size_t live_merged = 0;
+    {
+      std::lock_guard lock(mutex_);
+      live_merged = live_merges_.size();
+    }
+    gauge("orbatlas_map_merges_total", "Maps merged into another map since the server started (live and at a session's end).",
+          "counter", static_cast<double>(merging.merges.size() + live_merged));
     gauge("orbatlas_map_merge_pending", "Maps waiting for (or in) the merging worker.", "gauge",
           static_cast<double>(merging.pending));
   }

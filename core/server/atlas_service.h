@@ -37,6 +37,11 @@ struct AtlasServiceOptions {
   // A finished session's maps are handed to the server-wide merging worker,
   // which merges them into a map of the atlas they share a place with.
   bool merge_maps = true;
+  // With merge_maps: a live session's map is also merged WHILE it runs, when
+  // place recognition finds a free map of the atlas made with the same camera
+  // rig that shares a place with it (StereoSlamOptions::live_merging); the
+  // session's tracking follows into that map.
+  bool live_merging = true;
   // A new session first looks for its place in the free stored maps: found, it
   // tracks in that map's frame from its first frame (TrackerOptions::start_in_stored_map).
   bool start_in_stored_maps = true;
@@ -140,7 +145,9 @@ class AtlasService {
   void submit_merges(SessionId id, const std::vector<MapId>& maps);
   // May two maps be merged (made with one camera rig)?
   bool rigs_match(MapId source, MapId target) const;
+  bool rig_matches(const std::vector<CameraCalibration>& rig, MapId target) const;
   void merged(const MergeRecord& record);  // on the worker thread
+  void merged_live(SessionId session, const LiveMerge& merge);  // on the loop-closing thread
 
   const AtlasServiceOptions options_;
   const Vocabulary vocabulary_;
@@ -158,6 +165,11 @@ class AtlasService {
     KeyframeId first_keyframe = 0;  // keyframe ids from here on are this session's or later ones
   };
   std::map<SessionId, SessionStart> session_starts_;  // of this run's sessions
+  struct LiveMergeRecord {
+    SessionId session = 0;
+    LiveMerge merge;
+  };
+  std::vector<LiveMergeRecord> live_merges_;  // guarded by mutex_
   SessionId next_session_ = 1;
   bool shut_down_ = false;
 

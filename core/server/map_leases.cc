@@ -17,6 +17,24 @@ bool MapLeases::claim(SessionId session, MapId map) {
   return true;
 }
 
+bool MapLeases::available_to(SessionId session, MapId map) const {
+  std::lock_guard lock(mutex_);
+  if (const auto it = leases_.find(map); it != leases_.end()) return it->second.session == session;
+  return free_.contains(map);
+}
+
+bool MapLeases::hold(SessionId session, MapId map) {
+  std::lock_guard lock(mutex_);
+  if (const auto it = leases_.find(map); it != leases_.end()) {
+    if (it->second.session != session) return false;
+    it->second.tentative = false;
+    return true;
+  }
+  if (free_.erase(map) == 0) return false;
+  leases_[map] = {session, false};
+  return true;
+}
+
 void MapLeases::settle(SessionId session, std::optional<MapId> tracked_in) {
   std::lock_guard lock(mutex_);
   if (tracked_in) {

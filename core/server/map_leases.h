@@ -25,6 +25,11 @@ class MapLeases {
   // True when `session` may work in `map`: it holds it, or it was free (it is
   // then held tentatively).
   bool claim(SessionId session, MapId map);
+  // True when `session` holds `map` or it is free (nothing is claimed).
+  bool available_to(SessionId session, MapId map) const;
+  // Like claim(), but held for good at once (a live merge into `map`: no
+  // settle() may give it back before tracking has followed).
+  bool hold(SessionId session, MapId map);
   // After a frame: the map the session tracked in (if any) is held for good;
   // its other tentative claims are given back.
   void settle(SessionId session, std::optional<MapId> tracked_in);

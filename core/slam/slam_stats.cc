@@ -51,6 +51,8 @@ nlohmann::json to_json(const SlamStats& s) {
   j["mappoints"] = s.mappoints;
   j["keyframes_made"] = s.keyframes_made;
   j["relocalizations"] = s.relocalizations;
+  j["maps_started"] = s.maps_started;
+  j["live_merges"] = s.loop.merges.size();
   j["tracking_ms"] = summary(s.tracking_ms);
   j["local_mapping_ms_per_kf"] = summary(s.mapping.keyframe_ms);
   j["local_ba_ms"] = summary(s.mapping.bundle_adjustment_ms);
@@ -106,6 +108,21 @@ nlohmann::json to_json(const SlamStats& s) {
       gba.push_back({{"keyframes", g.keyframes}, {"points", g.points}, {"seconds", g.seconds},
                      {"interrupted", g.interrupted}});
     lc["global_ba"] = gba;
+    nlohmann::json merges = nlohmann::json::array();
+    for (const auto& m : s.loop.merges)
+      merges.push_back({{"current_keyframe", m.current},
+                        {"matched_keyframe", m.matched},
+                        {"current_t_s", static_cast<double>(m.current_t_ns) * 1e-9},
+                        {"matches", m.matches},
+                        {"verified_keyframes", m.verified_keyframes},
+                        {"source_map", m.merge.source},
+                        {"target_map", m.merge.target},
+                        {"keyframes_moved", m.merge.keyframes_moved},
+                        {"points_moved", m.merge.points_moved},
+                        {"points_fused", m.merge.points_merged},
+                        {"merge_ms", m.merge.ms}});
+    lc["live_merges"] = merges;
+    if (!s.loop.merge_search_ms.empty()) lc["merge_search_ms_per_kf"] = summary(s.loop.merge_search_ms);
     if (!s.loop_error_m.empty()) {
       std::size_t false_loops = 0;
       for (std::size_t i = 0; i < s.loop_error_m.size(); ++i)

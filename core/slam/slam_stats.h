@@ -24,6 +24,7 @@ struct SlamStats {
   std::size_t maps = 0, keyframes = 0, mappoints = 0;  // in the atlas at the end
   std::size_t keyframes_made = 0;
   std::size_t relocalizations = 0;
+  std::size_t maps_started = 0;  // by tracking (the first one included)
   std::vector<double> tracking_ms;  // per frame: front end + tracking
   LocalMapperStats mapping;
   bool loop_closing = false;  // the loop closer ran
@@ -45,7 +46,8 @@ struct SlamStats {
 // culling_disagreements, culled_keyframes, points_triangulated, points_fused,
 // objects{keyframes,mappoints}{created,culled,alive,reclaimed}, loops,
 // loop_closing{place_recognition_ms_per_kf, loop_correction_ms, loops[],
-// global_ba[], false_loops}, final_global_ba{keyframes, seconds} (when it ran).
+// global_ba[], false_loops, live_merges[], merge_search_ms_per_kf}, maps_started,
+// live_merges (count), final_global_ba{keyframes, seconds} (when it ran).
 inline constexpr double kFalseLoopM = 0.2, kFalseLoopDeg = 5.0;
 nlohmann::json to_json(const SlamStats& stats);
 

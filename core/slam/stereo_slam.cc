@@ -48,8 +48,17 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
     relocalizer_ = std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c,
                                                       options_.may_enter_map);
   mapper_ = std::make_unique<LocalMapper>(atlas_, cam_, options_.mapper, &atlas_.keyframe_index());
-  if (options_.loop_closing && !options_.tracker.localization_only)
-    loop_closer_ = std::make_unique<LoopCloser>(atlas_, cam_, *mapper_, options_.loop);
+  if (options_.loop_closing && !options_.tracker.localization_only) {
+    LoopCloserOptions loop = options_.loop;
+    loop.tracking_mutex = tracking_mutex_;
+    if (options_.live_merging) {
+      loop.live_merging = true;
+      if (!loop.may_merge_into) loop.may_merge_into = options_.may_merge_into;
+      if (options_.relocalization && options_.tracker.new_map_after_failed_relocalizations == 0)
+        options_.tracker.new_map_after_failed_relocalizations = options_.new_map_after_failed_relocalizations;
+    }
+    loop_closer_ = std::make_unique<LoopCloser>(atlas_, cam_, *mapper_, loop);
+  }
   tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *mapper_, cam_, T_b_c, options_.tracker,
                                        relocalizer_.get());
 }
@@ -70,7 +79,11 @@ TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv:
   ORBATLAS_CHECK(!finished_, "this SLAM session has finished; it takes no more frames");
   const auto start = std::chrono::steady_clock::now();
   Frame frame = frontend_.make_frame(t_ns, left, right);
-  const TrackResult result = tracker_->track(std::move(frame));
+  TrackResult result;
+  {
+    std::lock_guard tracking(*tracking_mutex_);
+    result = tracker_->track(std::move(frame));
+  }
   tracking_ms_.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
   ++frames_;
   if (result.tracked) {
@@ -97,7 +110,8 @@ void StereoSlam::finish() {
   if (options_.final_global_ba && !options_.tracker.localization_only) {
     // Nothing else edits these maps now: mapping and loop closing have stopped.
     std::set<MapId> maps;
-    for (const auto& anchor : tracker_->anchors()) maps.insert(anchor.map);
+    for (const auto& anchor : tracker_->anchors())
+      if (const auto located = atlas_.locate_frame(anchor)) maps.insert(located->first);
     const auto start = std::chrono::steady_clock::now();
     for (const MapId id : maps) {
       const auto map = atlas_.map(id);
@@ -115,7 +129,8 @@ std::vector<TimedPose> StereoSlam::trajectory() const {
   std::vector<TimedPose> out;
   out.reserve(tracker_->anchors().size());
   for (const auto& anchor : tracker_->anchors())
-    if (const auto pose = atlas_.frame_pose(anchor)) out.push_back({anchor.t_ns, anchor.map, *pose});
+    if (const auto located = atlas_.locate_frame(anchor))  // the map it is in now (merges move frames)
+      out.push_back({anchor.t_ns, located->first, located->second});
   return out;
 }
 
@@ -128,6 +143,7 @@ SlamStats StereoSlam::stats() const {
   SlamStats s;
   s.frames = frames_;
   s.relocalizations = tracker_->relocalizations();
+  s.maps_started = tracker_->maps_started();
   s.final_ba_keyframes = final_ba_keyframes_;
   s.final_ba_s = final_ba_s_;
   s.tracked = tracked_;

@@ -27,6 +27,16 @@ struct StereoSlamOptions {
   LocalMapperOptions mapper;
   bool loop_closing = true;  // place recognition, loop correction, global BA (not when localising)
   LoopCloserOptions loop;
+  // Live map merging (with loop closing): each keyframe is also looked for in
+  // the atlas's other maps (those `may_merge_into` accepts, empty: all); a
+  // verified place merges the session's active map into that map while the
+  // session goes on. With it, a session that stays lost for
+  // `new_map_after_failed_relocalizations` frames starts a new map at once
+  // (tracking resumes; the new map joins the old one when a place is
+  // recognised) instead of waiting tracker.recently_lost_s.
+  bool live_merging = true;
+  std::function<bool(MapId)> may_merge_into;
+  int new_map_after_failed_relocalizations = 5;
   // Wait for local mapping to finish each keyframe before the next frame: slower,
   // but the run is deterministic (tests, comparing culling schemes).
   bool synchronous_mapping = false;
@@ -81,6 +91,8 @@ class StereoSlam {
   std::size_t final_ba_keyframes_ = 0;
   double final_ba_s_ = 0.0;
   std::vector<double> tracking_ms_;
+  // Held for each frame; the loop closer holds it while it edits the map.
+  std::shared_ptr<std::mutex> tracking_mutex_ = std::make_shared<std::mutex>();
   mutable std::mutex anchors_mutex_;
   std::vector<FrameAnchor> anchors_;  // copy of the tracker's, for other threads
   std::size_t frames_ = 0, tracked_ = 0, keyframes_made_ = 0;

@@ -59,6 +59,7 @@ TrackResult Tracker::track(Frame frame) {
   TrackResult result;
   result.t_ns = frame.t_ns;
 
+  follow_merged_map();
   const bool localizing = options_.localization_only;
   bool ok = false;
   bool joined_stored_map = false;
@@ -111,17 +112,23 @@ TrackResult Tracker::track(Frame frame) {
     } else {  // kRecentlyLost
       ok = recover(frame);
       if (ok) last_recovery_index_ = frame_index_;
+      failed_relocalizations_ = ok ? 0 : failed_relocalizations_ + 1;
     }
     if (ok) ok = track_local_map(frame);
 
     if (ok) {
       state_ = TrackingState::kOk;
     } else if (state_ == TrackingState::kOk) {
-      const bool keep = localizing ||
+      // A small map is given up at once, unless relocalisation gets a few
+      // frames before a new map starts anyway (then an older map may be found).
+      const bool keep = localizing || options_.new_map_after_failed_relocalizations > 0 ||
                         map_->keyframe_count() > static_cast<std::size_t>(options_.min_keyframes_to_keep_map);
       state_ = keep ? TrackingState::kRecentlyLost : TrackingState::kLost;
       lost_since_ns_ = frame.t_ns;
-    } else if (seconds_between(lost_since_ns_, frame.t_ns) > options_.recently_lost_s) {
+      failed_relocalizations_ = 0;
+    } else if (seconds_between(lost_since_ns_, frame.t_ns) > options_.recently_lost_s ||
+               (!localizing && options_.new_map_after_failed_relocalizations > 0 &&
+                failed_relocalizations_ >= options_.new_map_after_failed_relocalizations)) {
       state_ = TrackingState::kLost;
     }
 
@@ -176,6 +183,24 @@ void Tracker::start_new_map() {
   last_keyframe_.reset();
   local_keyframes_.clear();
   last_reference_.reset();
+}
+
+void Tracker::follow_merged_map() {
+  if (!map_ || atlas_.map(map_->id())) return;  // still in the atlas
+  // Merged away: the keyframes went with it, so the reference says where to.
+  std::shared_ptr<Map> into;
+  if (reference_) into = atlas_.map(reference_->map_id());
+  if (!into)
+    if (const auto holder = last_reference_ ? atlas_.map_holding(*last_reference_) : std::nullopt)
+      into = atlas_.map(*holder);
+  if (!into) {
+    map_.reset();  // nothing to follow (cannot happen with keyframes): a map of its own
+    start_new_map();
+    return;
+  }
+  map_ = std::move(into);
+  atlas_.set_active(map_->id());
+  ++maps_followed_;
 }
 
 void Tracker::refresh_last_frame_pose() {

@@ -29,6 +29,12 @@ struct TrackerOptions {
   int min_inliers = 30;                   // after the local-map search
   int min_inliers_after_recovery = 50;    // during the first second after recovering
   double recently_lost_s = 5.0;           // then LOST and a new map
+  // When > 0: LOST (and a new map) after this many frames in a row that the
+  // relocaliser did not place, however short the time. For sessions whose
+  // maps are merged live (the new map joins the old one when a place is
+  // recognised): tracking resumes at once instead of waiting to come back to
+  // a mapped place. 0: only recently_lost_s counts.
+  int new_map_after_failed_relocalizations = 0;
   int max_local_keyframes = 80;
   int min_keyframes_to_keep_map = 10;  // a map lost with fewer keyframes goes straight to LOST
   // Localisation on stored maps: no keyframe and no map is ever made; the first
@@ -67,6 +73,7 @@ class Tracker {
   TrackingState state() const { return state_; }
   const std::vector<FrameAnchor>& anchors() const { return anchors_; }
   std::size_t maps_started() const { return maps_started_; }
+  std::size_t maps_followed() const { return maps_followed_; }  // merges tracking followed
   std::size_t relocalizations() const { return relocalizations_; }
   // Drops the last frame and the keyframes tracking holds (end of a session), so
   // that nothing keeps culled objects alive; the anchors stay.
@@ -83,6 +90,8 @@ class Tracker {
   void create_keyframe(Frame& frame, bool all_stereo_points);
   void ensure_bow(Frame& frame) const;
   void start_new_map();
+  // The active map was merged into another (live map merging): continue there.
+  void follow_merged_map();
   void refresh_last_frame_pose();
 
   Atlas& atlas_;
@@ -106,7 +115,8 @@ class Tracker {
   TimestampNs last_t_ns_ = 0;
   bool has_last_t_ = false;
   TimestampNs lost_since_ns_ = 0;
-  std::size_t maps_started_ = 0, relocalizations_ = 0;
+  int failed_relocalizations_ = 0;  // in a row, while recently lost
+  std::size_t maps_started_ = 0, relocalizations_ = 0, maps_followed_ = 0;
   std::vector<FrameAnchor> anchors_;
 };
 
