@@ -188,6 +188,16 @@ void register_listing(CLI::App& app, const char* name, const char* help, const c
 }
 
 void print_merges(const nlohmann::json& reply) {
+  const auto live = reply.value("live_merges", nlohmann::json::array());
+  for (const auto& m : live)
+    std::printf("map %llu merged live into map %llu (session %llu still running): keyframe %llu ~ %llu, %d matches "
+                "(%d keyframes agree), %zu keyframes and %zu points moved, %zu points fused, merge %.1f ms\n",
+                m["source_map"].get<unsigned long long>(), m["target_map"].get<unsigned long long>(),
+                m["session"].get<unsigned long long>(), m["keyframe"].get<unsigned long long>(),
+                m["matched_keyframe"].get<unsigned long long>(), m["matches"].get<int>(),
+                m["verified_keyframes"].get<int>(), m["keyframes_moved"].get<std::size_t>(),
+                m["map_points_moved"].get<std::size_t>(), m["points_fused"].get<std::size_t>(),
+                m["merge_ms"].get<double>());
   for (const auto& m : reply.at("merges")) {
     std::printf("map %llu merged into map %llu: keyframe %llu ~ %llu, %d matches (%d keyframes agree), %zu keyframes "
                 "and %zu points moved, %zu points fused; search %.0f ms, merge %.1f ms, global BA %zu keyframes %.2f s%s\n",
@@ -199,7 +209,7 @@ void print_merges(const nlohmann::json& reply) {
                 m["global_ba"]["keyframes"].get<std::size_t>(), m["global_ba"]["seconds"].get<double>(),
                 m["global_ba"]["interrupted"].get<bool>() ? " (interrupted)" : "");
   }
-  if (reply.at("merges").empty()) std::printf("no merges\n");
+  if (reply.at("merges").empty() && live.empty()) std::printf("no merges\n");
   for (const auto& r : reply.value("refinements", nlohmann::json::array()))
     std::printf("map %llu refined (no other map shares its place): global BA %zu keyframes %.2f s%s\n",
                 r["map"].get<unsigned long long>(), r["keyframes"].get<std::size_t>(), r["seconds"].get<double>(),
@@ -212,7 +222,7 @@ void register_merges(CLI::App& app) {
   auto args = std::make_shared<ServerArgs>();
   auto json_out = std::make_shared<bool>(false);
   auto wait_s = std::make_shared<double>(0.0);
-  auto* cmd = app.add_subcommand("merges", "List the map merges of a map server (the server-wide merging worker)");
+  auto* cmd = app.add_subcommand("merges", "List the map merges of a map server (live ones and the server-wide merging worker's)");
   add_server_options(cmd, *args);
   cmd->add_flag("--json", *json_out, "Print the server's JSON reply");
   cmd->add_option("--wait", *wait_s, "First wait up to this many seconds until no map waits for the merging worker")

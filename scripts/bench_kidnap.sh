@@ -4,7 +4,8 @@
 # removed (from 60 s), and one with 2 s of frames from another part of the hall
 # spliced in (from 60 s, the frames of 30 s on). Prints how many frames after the
 # window tracking needed to relocalise (goal: within 10) and the ATE without the
-# window's frames (goal: <= 0.03 m).
+# window's frames (goal: <= 0.03 m). A run that cannot relocalise for 5 frames
+# starts a new map and merges it back live: the maps/merges line says when.
 #   scripts/bench_kidnap.sh [MH_01 ...]      (data: $ORBATLAS_BENCH_DATA, as bench_slam.sh)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -47,6 +48,13 @@ with open(f"{d}.outside.txt", "w") as f:
         if l[0] == '#' or not (w0 <= int(round(float(l.split()[0]) * 1e9)) < w1):
             f.write(l)
 print(f"frames after the window before the first tracked one: {n} (goal <= 10)")
+st = json.load(open(f"{d}.json"))
+line = f"maps at the end {st['maps']}, started {st.get('maps_started', 1)}, relocalisations {st['relocalizations']}"
+for m in st.get("loop_closing", {}).get("live_merges", []):
+    t = int(round(m["current_t_s"] * 1e9))
+    line += (f"; map {m['source_map']} merged live into {m['target_map']} "
+             f"{sum(1 for x in after if x <= t)} frames after the window ({m['matches']} matches)")
+print(line)
 PY
     "$OA" eval --gt "$DATA/$s" --est "$d.outside.txt" --align se3 | grep -i "ate" | head -n 2
   done
