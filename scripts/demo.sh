@@ -46,8 +46,9 @@ echo "== 3. Stream both sessions over HTTP (tracking, local mapping and loop clo
      --out-trajectory "$OUT/session_MH_02.txt"
 
 echo "== 4. One map for both sessions: they cross the same part of the hall. A new session's first frame is"
-echo "      looked up in the stored maps (recognised: it tracks in that map from the start); otherwise the"
-echo "      server-wide merging worker merges its map into the other when it finishes (then global BA)"
+echo "      looked up in the stored maps (recognised: it tracks in that map from the start); otherwise its"
+echo "      own map is merged into the other live, once a keyframe recognises the shared place, or by the"
+echo "      server-wide merging worker when it finishes (then global BA)"
 "$OA" merges --wait 600
 "$OA" sessions
 "$OA" maps
