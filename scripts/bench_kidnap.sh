@@ -51,7 +51,7 @@ print(f"frames after the window before the first tracked one: {n} (goal <= 10)")
 st = json.load(open(f"{d}.json"))
 line = f"maps at the end {st['maps']}, started {st.get('maps_started', 1)}, relocalisations {st['relocalizations']}"
 for m in st.get("loop_closing", {}).get("live_merges", []):
-    t = int(round(m["current_t_s"] * 1e9))
+    t = int(round(m["keyframe_t_s"] * 1e9))
     line += (f"; map {m['source_map']} merged live into {m['target_map']} "
              f"{sum(1 for x in after if x <= t)} frames after the window ({m['matches']} matches)")
 print(line)

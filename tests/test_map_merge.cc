@@ -70,13 +70,22 @@ double joint_ate(const Atlas& atlas, const std::vector<const Session*>& sessions
       .ate.rmse;
 }
 
+// MH_01 from 46 s and MH_02 from 38 s, 8 s each (removed at the end), with the
+// shipped stereo settings and vocabulary.
+struct OverlappingClips {
+  std::filesystem::path a = test::simulated_clip("MH_01", 46.0, 8.0);
+  test::ClipCleanup cleanup_a{a};
+  std::filesystem::path b = test::simulated_clip("MH_02", 38.0, 8.0);
+  test::ClipCleanup cleanup_b{b};
+  SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
+  Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+};
+
 TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {
-  const auto clip_a = test::simulated_clip("MH_01", 46.0, 8.0);
-  test::ClipCleanup cleanup_a{clip_a};
-  const auto clip_b = test::simulated_clip("MH_02", 38.0, 8.0);
-  test::ClipCleanup cleanup_b{clip_b};
-  const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
-  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  const OverlappingClips clips;
+  const SlamSettings& settings = clips.settings;
+  const Vocabulary& vocabulary = clips.vocabulary;
+  const auto &clip_a = clips.a, &clip_b = clips.b;
 
   Atlas atlas;
   const Session a = run_session(atlas, clip_a, settings, vocabulary);
@@ -153,12 +162,10 @@ TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {
 // merged into that one and tracking follows: the frames after the merge are
 // tracked in the first map, in its frame.
 TEST(MapMerge, ARunningSessionsMapIsMergedLiveAndTrackingFollows) {
-  const auto clip_a = test::simulated_clip("MH_01", 46.0, 8.0);
-  test::ClipCleanup cleanup_a{clip_a};
-  const auto clip_b = test::simulated_clip("MH_02", 38.0, 8.0);
-  test::ClipCleanup cleanup_b{clip_b};
-  const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
-  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  const OverlappingClips clips;
+  const SlamSettings& settings = clips.settings;
+  const Vocabulary& vocabulary = clips.vocabulary;
+  const auto &clip_a = clips.a, &clip_b = clips.b;
 
   Atlas atlas;
   const Session a = run_session(atlas, clip_a, settings, vocabulary, true);

@@ -11,6 +11,7 @@
 #include "core/io/tum_trajectory.h"
 #include "core/persistence/atlas_store.h"
 #include "core/place/relocalizer.h"
+#include "core/slam/slam_stats.h"
 #include "core/server/api_error.h"
 #include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
@@ -163,7 +164,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
     slam_options.may_merge_into = [this, id, rig = info.cameras](MapId map) {
       const auto holder = leases_.holder(map);
       if (holder) return *holder == id;
-      return leases_.available_to(id, map) && rig_matches(rig, map);
+      return leases_.is_free(map) && rig_matches(rig, map);
     };
     slam_options.loop.hold_map = [this, id](MapId map) { return leases_.hold(id, map); };
     slam_options.loop.on_merged = [this, id](const LiveMerge& merge) { merged_live(id, merge); };
@@ -301,19 +302,11 @@ nlohmann::json AtlasService::merges_json() const {
   out["live_merges"] = nlohmann::json::array();
   {
     std::lock_guard lock(mutex_);
-    for (const LiveMergeRecord& r : live_merges_)
-      out["live_merges"].push_back({{"session", r.session},
-                                    {"source_map", r.merge.merge.source},
-                                    {"target_map", r.merge.merge.target},
-                                    {"keyframe", r.merge.current},
-                                    {"matched_keyframe", r.merge.matched},
-                                    {"keyframe_t_s", static_cast<double>(r.merge.current_t_ns) * 1e-9},
-                                    {"matches", r.merge.matches},
-                                    {"verified_keyframes", r.merge.verified_keyframes},
-                                    {"keyframes_moved", r.merge.merge.keyframes_moved},
-                                    {"map_points_moved", r.merge.merge.points_moved},
-                                    {"points_fused", r.merge.merge.points_merged},
-                                    {"merge_ms", r.merge.merge.ms}});
+    for (const LiveMergeRecord& r : live_merges_) {
+      nlohmann::json j = to_json(r.merge);
+      j["session"] = r.session;
+      out["live_merges"].push_back(std::move(j));
+    }
   }
   const MapMergeWorkerStats stats = merger_->stats();
   out["pending"] = stats.pending;

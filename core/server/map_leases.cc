@@ -17,9 +17,8 @@ bool MapLeases::claim(SessionId session, MapId map) {
   return true;
 }
 
-bool MapLeases::available_to(SessionId session, MapId map) const {
+bool MapLeases::is_free(MapId map) const {
   std::lock_guard lock(mutex_);
-  if (const auto it = leases_.find(map); it != leases_.end()) return it->second.session == session;
   return free_.contains(map);
 }
 

@@ -25,8 +25,8 @@ class MapLeases {
   // True when `session` may work in `map`: it holds it, or it was free (it is
   // then held tentatively).
   bool claim(SessionId session, MapId map);
-  // True when `session` holds `map` or it is free (nothing is claimed).
-  bool available_to(SessionId session, MapId map) const;
+  // True when no session holds or claims `map` (a stored map, or a finished session's).
+  bool is_free(MapId map) const;
   // Like claim(), but held for good at once (a live merge into `map`: no
   // settle() may give it back before tracking has followed).
   bool hold(SessionId session, MapId map);

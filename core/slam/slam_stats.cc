@@ -41,6 +41,20 @@ double mean(const std::vector<double>& v) {
 
 nlohmann::json to_json_summary(const std::vector<double>& values) { return summary(values); }
 
+nlohmann::json to_json(const LiveMerge& m) {
+  return {{"source_map", m.merge.source},
+          {"target_map", m.merge.target},
+          {"keyframe", m.current},
+          {"matched_keyframe", m.matched},
+          {"keyframe_t_s", static_cast<double>(m.current_t_ns) * 1e-9},
+          {"matches", m.matches},
+          {"verified_keyframes", m.verified_keyframes},
+          {"keyframes_moved", m.merge.keyframes_moved},
+          {"map_points_moved", m.merge.points_moved},
+          {"points_fused", m.merge.points_merged},
+          {"merge_ms", m.merge.ms}};
+}
+
 nlohmann::json to_json(const SlamStats& s) {
   nlohmann::json j;
   j["frames"] = s.frames;
@@ -109,18 +123,7 @@ nlohmann::json to_json(const SlamStats& s) {
                      {"interrupted", g.interrupted}});
     lc["global_ba"] = gba;
     nlohmann::json merges = nlohmann::json::array();
-    for (const auto& m : s.loop.merges)
-      merges.push_back({{"current_keyframe", m.current},
-                        {"matched_keyframe", m.matched},
-                        {"current_t_s", static_cast<double>(m.current_t_ns) * 1e-9},
-                        {"matches", m.matches},
-                        {"verified_keyframes", m.verified_keyframes},
-                        {"source_map", m.merge.source},
-                        {"target_map", m.merge.target},
-                        {"keyframes_moved", m.merge.keyframes_moved},
-                        {"points_moved", m.merge.points_moved},
-                        {"points_fused", m.merge.points_merged},
-                        {"merge_ms", m.merge.ms}});
+    for (const auto& m : s.loop.merges) merges.push_back(to_json(m));
     lc["live_merges"] = merges;
     if (!s.loop.merge_search_ms.empty()) lc["merge_search_ms_per_kf"] = summary(s.loop.merge_search_ms);
     if (!s.loop_error_m.empty()) {

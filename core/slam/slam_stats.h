@@ -50,5 +50,9 @@ struct SlamStats {
 // live_merges (count), final_global_ba{keyframes, seconds} (when it ran).
 inline constexpr double kFalseLoopM = 0.2, kFalseLoopDeg = 5.0;
 nlohmann::json to_json(const SlamStats& stats);
+// One live merge (the stats' loop_closing.live_merges[], the server's GET /v1/merges
+// live_merges[]): source_map, target_map, keyframe, matched_keyframe, keyframe_t_s,
+// matches, verified_keyframes, keyframes_moved, map_points_moved, points_fused, merge_ms.
+nlohmann::json to_json(const LiveMerge& merge);
 
 }  // namespace orbatlas

@@ -188,13 +188,9 @@ void Tracker::start_new_map() {
 void Tracker::follow_merged_map() {
   if (!map_ || atlas_.map(map_->id())) return;  // still in the atlas
   // Merged away: the keyframes went with it, so the reference says where to.
-  std::shared_ptr<Map> into;
-  if (reference_) into = atlas_.map(reference_->map_id());
-  if (!into)
-    if (const auto holder = last_reference_ ? atlas_.map_holding(*last_reference_) : std::nullopt)
-      into = atlas_.map(*holder);
+  std::shared_ptr<Map> into = reference_ ? atlas_.map(reference_->map_id()) : nullptr;
   if (!into) {
-    map_.reset();  // nothing to follow (cannot happen with keyframes): a map of its own
+    map_.reset();  // nothing to follow (a map without keyframes is never merged): a map of its own
     start_new_map();
     return;
   }
