@@ -14,7 +14,7 @@ SERVER="$BUILD_DIR/server/orbatlas-server"
 SECONDS_PER_SESSION="${1:-60}"
 OUT="$ROOT/out/bench_server"
 mkdir -p "$OUT"
-rm -f "$OUT"/atlas.db* "$OUT"/*.json
+rm -rf "$OUT"/atlas.db* "$OUT"/*.json "$OUT"/port
 SERVER_PID=""
 trap '[ -n "$SERVER_PID" ] && kill -TERM "$SERVER_PID" 2>/dev/null && wait "$SERVER_PID" || true' EXIT
 

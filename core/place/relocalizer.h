@@ -3,7 +3,9 @@
 // Relocalization with MLPnP replaced by P3P-RANSAC on bearings): bag-of-words
 // candidates from the keyframe index, BoW matching, PnP-RANSAC on bearing vectors
 // (camera-model agnostic), pose-only optimisation, then a guided search in the
-// candidate's local map when too few inliers remain.
+// candidate's local map when too few inliers remain. The best few candidates
+// that fail alone are tried once more with their covisible keyframes' matches
+// added (a viewpoint the bag of words links to no single keyframe well).
 #include <functional>
 #include <memory>
 #include <optional>
@@ -19,6 +21,11 @@ namespace orbatlas {
 struct RelocalizationOptions {
   std::size_t max_candidates = 10;
   int min_bow_matches = 15;
+  float bow_ratio = 0.75f;  // best / second-best descriptor distance (ORB-SLAM's)
+  // The first `window_candidates` candidates that do not give a pose alone are
+  // tried again matched together with their best `window_covisibles`.
+  std::size_t window_candidates = 3;
+  std::size_t window_covisibles = 5;
   int min_inliers = 50;  // after optimisation (ORB-SLAM's threshold)
   float guided_radius = 10.0f;
   PnpRansacOptions pnp;
@@ -35,6 +42,7 @@ struct RelocalizationResult {
   Pose3 T_w_b;
   int inliers = 0;
   std::size_t candidates = 0;  // tried
+  std::size_t windows = 0;     // of them, tried again with their covisibles
 };
 
 // On success the frame holds the pose (T_w_b) and its map-point associations.
