@@ -82,6 +82,8 @@ void register_stream(CLI::App& app) {
   add_server_options(cmd, args->server);
   cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--config", args->stream.config, "Config name on the server")->capture_default_str();
+  cmd->add_option("--sensor", args->stream.sensor,
+                  "stereo or mono (default: the config's Sensor.type); mono sends the left images and localises in the stored maps");
   cmd->add_option("--name", args->stream.name, "Session name (default: the dataset folder's name)");
   cmd->add_option("--rate", args->stream.rate, "1: at the sensor rate, 2: twice as fast, 0: as fast as the server answers")
       ->capture_default_str()->check(CLI::NonNegativeNumber);

@@ -1,6 +1,7 @@
 // Relocalisation: P3P-RANSAC on bearings against exact synthetic data, a new
 // image of a known place relocalised against a map built from a simulated clip,
-// and tracking that relocalises after a jump.
+// tracking that relocalises after a jump, and a single camera that localises
+// along a stored map.
 #include <gtest/gtest.h>
 
 #include <opencv2/imgcodecs.hpp>
@@ -11,6 +12,7 @@
 #include "core/io/euroc_reader.h"
 #include "core/place/pnp_ransac.h"
 #include "core/place/relocalizer.h"
+#include "core/slam/mono_localizer.h"
 #include "core/slam/stereo_slam.h"
 #include "core/vocabulary/default_vocabulary.h"
 #include "tests/slam_test_clip.h"
@@ -175,6 +177,85 @@ TEST(Relocalization, AFrameSeenFromAnotherAngleIsPlacedThroughTheCandidatesWindo
   EXPECT_GE(placed, (tried + 1) / 2 - 1);
   EXPECT_GT(through_window, 0);
   EXPECT_LT(placed_alone, placed);
+}
+
+// A single camera (euroc/mono: the raw, distorted left images) revisiting a
+// place a stereo session mapped: localised from its first frames, tracked in
+// that map's frame along the ground truth, and the map is left as it was.
+TEST(MonoLocalizer, ASingleCameraIsTrackedInAStoredMapAndChangesNothing) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
+  test::ClipCleanup cleanup{clip};
+  const auto again = std::filesystem::temp_directory_path() / ("orbatlas_test_mono_" + std::to_string(::getpid()));
+  test::ClipCleanup cleanup_again{again};
+  sim::SimulationOptions so;
+  so.sequence = "MH_01";
+  so.out_dir = again;
+  so.start_s = 42.0;
+  so.duration_s = 5.0;
+  so.sensor_seed = 7;  // another visit: other image noise
+  so.show_progress = false;
+  sim::simulate_sequence(so);
+
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  Atlas atlas;
+  const auto frames = test::stereo_frames(clip);
+  {
+    StereoSlamOptions o;
+    o.synchronous_mapping = true;
+    StereoSlam slam(atlas, read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo),
+                    vocabulary, o);
+    for (const auto& f : frames)
+      ASSERT_TRUE(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                               cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE))
+                      .tracked);
+    slam.finish();
+  }
+  const MapId map = atlas.active_map()->id();
+  const std::size_t keyframes = atlas.map(map)->keyframe_count(), points = atlas.map(map)->map_point_count();
+  const Pose3 T_gt_map = ground_truth_near(test::stereo_dataset(clip), frames.front().t_ns);
+
+  const SlamSettings mono_settings = read_settings(shipped_config_dir() / "euroc" / "mono.yaml");
+  ASSERT_EQ(mono_settings.sensor, SensorType::kMonocular);
+  MonoLocalizer mono(atlas, mono_settings, vocabulary);
+  const EurocDataset again_ds = test::stereo_dataset(again);
+  const auto visit = test::stereo_frames(again);
+  std::size_t tracked = 0, first = visit.size();
+  double worst_m = 0.0, worst_deg = 0.0;
+  for (std::size_t i = 0; i < visit.size(); ++i) {
+    const TrackResult r = mono.process(visit[i].t_ns, cv::imread(visit[i].left.string(), cv::IMREAD_GRAYSCALE), {});
+    EXPECT_FALSE(r.keyframe);
+    if (!r.tracked) continue;
+    ++tracked;
+    first = std::min(first, i);
+    EXPECT_EQ(r.map, map);
+    const Pose3 expected = T_gt_map.inverse() * ground_truth_near(again_ds, visit[i].t_ns);
+    worst_m = std::max(worst_m, translation_distance(r.T_w_b, expected));
+    worst_deg = std::max(worst_deg, rotation_distance(r.T_w_b, expected) * 180.0 / M_PI);
+  }
+  std::printf("single camera: %zu of %zu frames tracked (first at %zu), worst %.4f m / %.3f deg from the ground truth "
+              "in the map's frame\n", tracked, visit.size(), first, worst_m, worst_deg);
+  EXPECT_LE(first, 2u);
+  EXPECT_GE(tracked + 3, visit.size());
+  EXPECT_LT(worst_m, 0.02);
+  EXPECT_LT(worst_deg, 0.5);
+  EXPECT_EQ(mono.anchors().size(), tracked);
+  // The stored map is read, never changed.
+  EXPECT_EQ(atlas.maps().size(), 1u);
+  EXPECT_EQ(atlas.map(map)->keyframe_count(), keyframes);
+  EXPECT_EQ(atlas.map(map)->map_point_count(), points);
+
+  // Frames it cannot take: DataError, and it goes on.
+  const cv::Mat left = cv::imread(visit.back().left.string(), cv::IMREAD_GRAYSCALE);
+  const TimestampNs next = visit.back().t_ns + kNsPerSecond / 20;
+  EXPECT_THROW(mono.process(next, left, left), DataError);                          // a pair
+  EXPECT_THROW(mono.process(next, cv::Mat(240, 376, CV_8UC1, cv::Scalar(3)), {}), DataError);  // wrong size
+  EXPECT_THROW(mono.process(visit.front().t_ns, left, {}), DataError);              // back in time
+  EXPECT_THROW(mono.process(next, cv::Mat(), {}), DataError);                       // empty
+  EXPECT_TRUE(mono.process(next, left, {}).tracked);
+  // A blank image is no place: not tracked, no error.
+  EXPECT_FALSE(mono.process(next + kNsPerSecond, cv::Mat(left.rows, left.cols, CV_8UC1, cv::Scalar(128)), {}).tracked);
+  mono.finish();
+  EXPECT_EQ(mono.stats().frames, visit.size() + 2);
 }
 
 TEST(Relocalization, TrackingRelocalizesAfterFramesFromElsewhere) {

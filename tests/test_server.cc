@@ -152,6 +152,65 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
   EXPECT_NE(metrics.find("orbatlas_sessions_created_total 3"), std::string::npos) << metrics;
 }
 
+// A single camera streams into a server whose stored map (from a restart)
+// covers the place: it localises there, replies carry that map, and the map
+// is left as it was.
+TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 4.0);
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath db("mono");
+  {
+    test::TestServer server(test::server_options(db.path));
+    ServerClient client(server.url());
+    const StreamReport stereo = stream_dataset(client, stream_options(clip));
+    ASSERT_EQ(stereo.tracked, stereo.frames);
+  }
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  const nlohmann::json maps_before = client.get_json("/v1/maps");
+  ASSERT_EQ(maps_before["maps"].size(), 1u);
+  const std::uint64_t stored_map = maps_before["maps"][0]["id"];
+
+  // Frame by frame: one image is a frame; a pair is refused (422), the session goes on.
+  const auto frames = test::stereo_frames(clip);
+  const nlohmann::json started = client.start_session("euroc/mono", "handheld");
+  const std::uint64_t id = started["id"];
+  EXPECT_EQ(started["session"]["sensor"], "mono");
+  const cv::Mat left = cv::imread(frames[10].left.string(), cv::IMREAD_GRAYSCALE);
+  const cv::Mat right = cv::imread(frames[10].right.string(), cv::IMREAD_GRAYSCALE);
+  try {
+    client.post_frame(id, frames[10].t_ns, left, right);
+    ADD_FAILURE() << "a stereo pair was taken by a single-camera session";
+  } catch (const ServerError& e) {
+    EXPECT_EQ(e.status(), 422);
+  }
+  const auto reply = client.post_frame(id, frames[10].t_ns, left, cv::Mat());
+  EXPECT_TRUE(reply["tracked"].get<bool>()) << reply.dump();
+  EXPECT_EQ(reply["map"], stored_map);
+  client.finish_session(id);
+
+  // A whole clip through `orbatlas stream --config euroc/mono`.
+  StreamOptions mono = stream_options(clip);
+  mono.config = "euroc/mono";
+  const StreamReport report = stream_dataset(client, mono);
+  EXPECT_EQ(report.rejected, 0u);
+  EXPECT_GE(report.tracked + 2, report.frames);
+  EXPECT_EQ(report.keyframes, 0u);
+  for (const auto m : report.reply_maps) EXPECT_EQ(m, stored_map);
+  ASSERT_TRUE(report.ate_rmse_m.has_value());
+  EXPECT_LT(*report.ate_rmse_m, 0.03);
+  std::printf("single camera over the API: %zu of %zu frames tracked in map %llu, ATE %.4f m, %.1f frames/s\n",
+              report.tracked, report.frames, static_cast<unsigned long long>(stored_map), *report.ate_rmse_m,
+              report.fps());
+  const nlohmann::json status = client.get_json("/v1/sessions/" + std::to_string(report.session));
+  EXPECT_EQ(status["sensor"], "mono");
+  EXPECT_EQ(status["state"], "finished");
+  const nlohmann::json maps_after = client.get_json("/v1/maps");
+  ASSERT_EQ(maps_after["maps"].size(), 1u);
+  EXPECT_EQ(maps_after["maps"][0]["keyframes"], maps_before["maps"][0]["keyframes"]);
+  EXPECT_EQ(maps_after["maps"][0]["map_points"], maps_before["maps"][0]["map_points"]);
+}
+
 nlohmann::json wait_for_job(ServerClient& client, std::uint64_t job) {
   for (int i = 0; i < 1200; ++i) {
     const auto status = client.get_json("/v1/jobs/" + std::to_string(job));
@@ -200,6 +259,15 @@ TEST(ServerUploads, RecordingBecomesAStoredSessionAndBadArchivesFailTheirJobOnly
   const auto bad_config = client.http().Post("/v1/uploads?config=no/such", std::string(10, 'x'), "application/x-tar");
   ASSERT_TRUE(bad_config);
   EXPECT_EQ(bad_config->status, 404);
+  // A single camera only localises: uploads (mapped as stereo) refuse it up front.
+  const auto mono = client.http().Post("/v1/uploads?config=euroc/mono", std::string(10, 'x'), "application/x-tar");
+  ASSERT_TRUE(mono);
+  EXPECT_EQ(mono->status, 422);
+  EXPECT_NE(mono->body.find("unsupported_sensor"), std::string::npos) << mono->body;
+  const auto mono_sensor =
+      client.http().Post("/v1/uploads?config=euroc/stereo&sensor=mono", std::string(10, 'x'), "application/x-tar");
+  ASSERT_TRUE(mono_sensor);
+  EXPECT_EQ(mono_sensor->status, 422) << mono_sensor->body;
   const auto empty = client.http().Post("/v1/uploads", "", "application/x-tar");
   ASSERT_TRUE(empty);
   EXPECT_EQ(empty->status, 400);

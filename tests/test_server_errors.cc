@@ -84,11 +84,10 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
   EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": 5})", "application/json"), 400, "bad_request");
   EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "nope/none"})", "application/json"), 404, "not_found");
   EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "../../etc/passwd"})", "application/json"), 400, "bad_request");
-  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/mono"})", "application/json"), 400, "bad_config");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/mono", "sensor": "stereo"})", "application/json"), 400,
+               "bad_config");
   EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/stereo", "sensor": "sonar"})", "application/json"), 400,
                "bad_request");
-  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/stereo", "sensor": "mono"})", "application/json"), 422,
-               "unsupported_sensor");
   EXPECT_REPLY(http.Post("/v1/sessions", R"({"settings_yaml": "%YAML:1.0\nCamera1.fx: [oops"})", "application/json"),
                400, "bad_config");
   // GET /v1/sessions/{id}
@@ -100,6 +99,10 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
   EXPECT_REPLY(http.Post(sid + "/frames", "{}", "application/json"), 400, "bad_request");
   EXPECT_REPLY(http.Post(sid + "/frames", frame_form("soon", left, right)), 400, "bad_request");
   EXPECT_REPLY(http.Post(sid + "/frames", httplib::MultipartFormDataItems{{"t_ns", next_t, "", ""}}), 400, "bad_request");
+  // A stereo session given one image.
+  EXPECT_REPLY(http.Post(sid + "/frames", httplib::MultipartFormDataItems{{"t_ns", next_t, "", ""},
+                                                                          {"left", left, "l.png", "image/png"}}),
+               422, "bad_input");
   EXPECT_REPLY(http.Post(sid + "/frames", frame_form(std::to_string(frames[2].t_ns), left, right)), 422, "bad_input");
   EXPECT_REPLY(http.Post(sid + "/frames", frame_form(next_t, left.substr(0, left.size() / 2), right)), 422, "bad_input");
   EXPECT_REPLY(http.Post(sid + "/frames", frame_form(next_t, "hello", right)), 422, "bad_input");

@@ -35,7 +35,10 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   StreamReport report;
   std::string name = options.name;
   if (name.empty()) name = std::filesystem::absolute(options.dataset).lexically_normal().filename().string();
-  report.session = client.create_session(options.config, name);
+  const nlohmann::json started = client.start_session(options.config, name, options.sensor);
+  report.session = started.at("id").get<std::uint64_t>();
+  const std::string sensor = started.at("session").value("sensor", "stereo");
+  const bool single_camera = sensor == "mono" || sensor == "mono_inertial";
 
   Progress progress("stream", static_cast<std::int64_t>(frames.size()), options.show_progress);
   StereoPairLoader loaded(std::move(frames));
@@ -54,7 +57,8 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
     }
     const auto sent = Clock::now();
     try {
-      const auto reply = client.post_frame(report.session, pair->t_ns, pair->left, pair->right, options.encoding);
+      const auto reply = client.post_frame(report.session, pair->t_ns, pair->left,
+                                           single_camera ? cv::Mat() : pair->right, options.encoding);
       report.round_trip_ms.push_back(ms_between(sent, Clock::now()));
       report.tracking_ms.push_back(reply.at("tracking_ms").get<double>());
       report.server_ms.push_back(reply.at("server_ms").get<double>());

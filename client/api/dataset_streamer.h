@@ -1,7 +1,7 @@
 #pragma once
 // Streams a recorded EuRoC ASL sequence to the map server as a live session
 // (what `orbatlas stream` does): images are read ahead by a loader thread, each
-// stereo pair is posted at the sensor rate times `rate` (0: as fast as the server
+// stereo pair (the left image alone for a single-camera session) is posted at the sensor rate times `rate` (0: as fast as the server
 // answers), the session is finished (stored), and its final trajectory fetched
 // and, with ground truth, evaluated.
 #include <filesystem>
@@ -17,6 +17,9 @@ namespace orbatlas {
 struct StreamOptions {
   std::filesystem::path dataset;
   std::string config = "euroc/stereo";
+  // Empty: the config's Sensor.type. "mono" (or a mono config): only the left
+  // images are sent, and the session localises in the stored maps.
+  std::string sensor;
   std::string name;  // default: the dataset folder's name
   double rate = 0.0;  // 1: real time; 2: twice as fast; 0: no pacing
   ImageEncoding encoding = ImageEncoding::kRaw;

@@ -94,10 +94,11 @@ json ServerClient::post_json(const std::string& path, const json& body) {
   return json::parse(checked(client_->Post(path, body.dump(), "application/json"), url_, path).body);
 }
 
-std::uint64_t ServerClient::create_session(const std::string& config, const std::string& name) {
+json ServerClient::start_session(const std::string& config, const std::string& name, const std::string& sensor) {
   json body = {{"config", config}};
   if (!name.empty()) body["name"] = name;
-  return post_json("/v1/sessions", body).at("id").get<std::uint64_t>();
+  if (!sensor.empty()) body["sensor"] = sensor;
+  return post_json("/v1/sessions", body);
 }
 
 json ServerClient::post_frame(std::uint64_t session, std::int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
@@ -105,7 +106,7 @@ json ServerClient::post_frame(std::uint64_t session, std::int64_t t_ns, const cv
   httplib::MultipartFormDataItems items;
   items.push_back({"t_ns", std::to_string(t_ns), "", ""});
   add_image(items, "left", left, encoding);
-  add_image(items, "right", right, encoding);
+  if (!right.empty()) add_image(items, "right", right, encoding);
   add_raw_size(items, left, encoding);
   const std::string path = "/v1/sessions/" + std::to_string(session) + "/frames";
   return json::parse(checked(client_->Post(path, items), url_, path).body);

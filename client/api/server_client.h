@@ -49,9 +49,16 @@ class ServerClient {
   std::string get_text(const std::string& path);
   nlohmann::json post_json(const std::string& path, const nlohmann::json& body);
 
-  // POST /v1/sessions with a config name; returns the session id.
-  std::uint64_t create_session(const std::string& config, const std::string& name = {});
-  // POST /v1/sessions/{id}/frames; the reply (pose, state, map, timings).
+  // POST /v1/sessions with a config name (and a sensor: empty takes the
+  // config's Sensor.type); returns the reply: {"id", "session": {... "sensor"}}.
+  nlohmann::json start_session(const std::string& config, const std::string& name = {},
+                               const std::string& sensor = {});
+  // The same; returns the session id.
+  std::uint64_t create_session(const std::string& config, const std::string& name = {}) {
+    return start_session(config, name).at("id").get<std::uint64_t>();
+  }
+  // POST /v1/sessions/{id}/frames (one image for a single-camera session:
+  // `right` empty); the reply (pose, state, map, timings).
   nlohmann::json post_frame(std::uint64_t session, std::int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
                             ImageEncoding encoding = ImageEncoding::kRaw);
   nlohmann::json finish_session(std::uint64_t session);

@@ -11,7 +11,9 @@
 #include "core/io/tum_trajectory.h"
 #include "core/persistence/atlas_store.h"
 #include "core/place/relocalizer.h"
+#include "core/slam/mono_localizer.h"
 #include "core/slam/slam_stats.h"
+#include "core/slam/stereo_slam.h"
 #include "core/server/api_error.h"
 #include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
@@ -124,35 +126,34 @@ AtlasService::LoadedSettings AtlasService::load_settings(const SettingsSource& s
   }
 }
 
-SessionId AtlasService::create_session(const SessionRequest& request) {
+namespace {
+
+// The request's sensor, else the settings' Sensor.type; 400 for an unknown name.
+SensorType session_sensor(const SessionRequest& request, const SlamSettings& settings) {
+  if (request.sensor.empty()) return settings.sensor;
   const auto sensor = parse_sensor_type(request.sensor);
   if (!sensor) throw_bad_request("unknown sensor '" + request.sensor + "' (stereo, stereo_inertial, mono, mono_inertial)");
-  if (*sensor != SensorType::kStereo && *sensor != SensorType::kStereoInertial)
-    throw ApiError(422, "unsupported_sensor",
-                   "sensor '" + request.sensor + "' is not served yet: sessions are stereo (stereo_inertial is tracked visually)");
+  return *sensor;
+}
+
+bool is_single_camera(SensorType sensor) {
+  return sensor == SensorType::kMonocular || sensor == SensorType::kMonocularInertial;
+}
+
+}  // namespace
+
+void AtlasService::check_upload(const SessionRequest& request) const {
   const LoadedSettings loaded = load_settings(request.settings);
+  const SensorType sensor = session_sensor(request, loaded.settings);
+  if (is_single_camera(sensor))
+    throw ApiError(422, "unsupported_sensor",
+                   "uploads are mapped as stereo sequences; a single camera only localises in stored maps (stream it as a session)");
   if (!loaded.settings.is_stereo())
     throw ApiError(400, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
+}
 
-  SessionId id = 0;
-  {
-    std::lock_guard lock(mutex_);
-    if (shut_down_) throw ApiError(503, "shutting_down", "the server is shutting down");
-    std::size_t live = 0;
-    for (const auto& [_, s] : sessions_) live += s->state() == SessionState::kActive ? 1 : 0;
-    if (live >= options_.max_live_sessions)
-      throw ApiError(503, "too_many_sessions", std::to_string(live) + " sessions are live; the limit is " +
-                                                   std::to_string(options_.max_live_sessions) + " (finish one first)");
-    id = next_session_++;
-  }
-  SessionInfo info;
-  info.id = id;
-  info.name = request.name.empty() ? "session " + std::to_string(id) : request.name;
-  info.sensor = *sensor;
-  info.created_ns = unix_now_ns();
-  info.cameras.push_back(loaded.settings.camera0);
-  if (loaded.settings.camera1) info.cameras.push_back(*loaded.settings.camera1);
-
+std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const SessionInfo& info,
+                                                          const SlamSettings& settings) {
   StereoSlamOptions slam_options = options_.slam;
   slam_options.may_enter_map = [this, id](MapId map) { return leases_.claim(id, map); };
   slam_options.tracker.start_in_stored_map = options_.start_in_stored_maps;
@@ -169,11 +170,55 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
     slam_options.loop.hold_map = [this, id](MapId map) { return leases_.hold(id, map); };
     slam_options.loop.on_merged = [this, id](const LiveMerge& merge) { merged_live(id, merge); };
   }
-  std::unique_ptr<StereoSlam> slam;
   try {
-    slam = std::make_unique<StereoSlam>(atlas_, loaded.settings, vocabulary_, slam_options);
+    return std::make_unique<StereoSlam>(atlas_, settings, vocabulary_, slam_options);
   } catch (const std::exception& e) {
     throw ApiError(400, "bad_config", std::string("cannot start a stereo session with these settings: ") + e.what());
+  }
+}
+
+SessionId AtlasService::create_session(const SessionRequest& request) {
+  const LoadedSettings loaded = load_settings(request.settings);
+  const SensorType sensor = session_sensor(request, loaded.settings);
+  // A single camera localises in the stored maps (no map of its own: mapping
+  // needs the stereo rig's metric depth); the inertial variants are tracked
+  // visually, their IMU checked and counted. A single camera may also be the
+  // first camera of a stereo config.
+  const bool single_camera = is_single_camera(sensor);
+  if (!single_camera && !loaded.settings.is_stereo())
+    throw ApiError(400, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
+
+  SessionId id = 0;
+  {
+    std::lock_guard lock(mutex_);
+    if (shut_down_) throw ApiError(503, "shutting_down", "the server is shutting down");
+    std::size_t live = 0;
+    for (const auto& [_, s] : sessions_) live += s->state() == SessionState::kActive ? 1 : 0;
+    if (live >= options_.max_live_sessions)
+      throw ApiError(503, "too_many_sessions", std::to_string(live) + " sessions are live; the limit is " +
+                                                   std::to_string(options_.max_live_sessions) + " (finish one first)");
+    id = next_session_++;
+  }
+  SessionInfo info;
+  info.id = id;
+  info.name = request.name.empty() ? "session " + std::to_string(id) : request.name;
+  info.sensor = sensor;
+  info.created_ns = unix_now_ns();
+  info.cameras.push_back(loaded.settings.camera0);
+  if (loaded.settings.camera1) info.cameras.push_back(*loaded.settings.camera1);
+
+  std::unique_ptr<SessionSlam> slam;
+  if (single_camera) {
+    MonoLocalizerOptions mono;
+    mono.tracker = options_.slam.tracker;
+    mono.may_enter_map = [this, id](MapId map) { return leases_.claim(id, map); };
+    try {
+      slam = std::make_unique<MonoLocalizer>(atlas_, loaded.settings, vocabulary_, mono);
+    } catch (const std::exception& e) {
+      throw ApiError(400, "bad_config", std::string("cannot start a single-camera session with these settings: ") + e.what());
+    }
+  } else {
+    slam = make_stereo_slam(id, info, loaded.settings);
   }
   auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam));
   {

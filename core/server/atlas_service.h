@@ -22,6 +22,7 @@
 #include "core/server/live_session.h"
 #include "core/server/map_leases.h"
 #include "core/server/map_merge_worker.h"
+#include "core/slam/stereo_slam.h"
 #include "core/vocabulary/vocabulary.h"
 
 namespace orbatlas {
@@ -61,7 +62,7 @@ struct SettingsSource {
 
 struct SessionRequest {
   std::string name;
-  std::string sensor = "stereo";
+  std::string sensor;  // empty: the config's Sensor.type
   SettingsSource settings;
 };
 
@@ -97,7 +98,9 @@ class AtlasService {
 
   SessionId create_session(const SessionRequest& request);
   // ApiError when the settings cannot be used (uploads check before receiving).
-  void check_settings(const SettingsSource& source) const { load_settings(source); }
+  // Uploads run stereo sessions: ApiError 400/404 for settings that cannot be
+  // used, 422 for a single camera (it only localises; stream it instead).
+  void check_upload(const SessionRequest& request) const;
   std::shared_ptr<LiveSession> session(SessionId id) const;  // ApiError 404
   std::vector<std::shared_ptr<LiveSession>> sessions() const;  // by id
   // GET /v1/sessions/{id}: LiveSession::status with "map" the map the session's
@@ -139,6 +142,8 @@ class AtlasService {
 
   LoadedSettings load_settings(const SettingsSource& source) const;
   std::shared_ptr<LocalizerContext> localizer_for(const SettingsSource& source);
+  // A stereo session's SLAM with the server's policies (leases, live merging).
+  std::unique_ptr<SessionSlam> make_stereo_slam(SessionId id, const SessionInfo& info, const SlamSettings& settings);
   // Leases and checkpoints after a session ended; returns the maps it held.
   std::vector<MapId> end_session_storage(SessionId id);
   // Hands a finished session's maps to the merging worker.

@@ -141,11 +141,14 @@ void install_session_routes(httplib::Server& server, AtlasService& service) {
     service.session(id);  // 404 before looking at the body
     require_multipart(req, "'t_ns', 'left', 'right' (and 'width', 'height' for raw pixels)");
     const TimestampNs t_ns = form_integer(req, "t_ns", true);
-    if (!req.has_file("left") || !req.has_file("right"))
-      throw_bad_request("a frame needs the images 'left' and 'right' (a stereo pair)");
+    if (!req.has_file("left"))
+      throw_bad_request("a frame needs the image 'left' (and 'right' for a stereo session)");
     const auto raw = raw_size(req);
     const cv::Mat left = decode_request_image(req.get_file_value("left").content, raw, "left image");
-    const cv::Mat right = decode_request_image(req.get_file_value("right").content, raw, "right image");
+    // A single-camera session takes 'left' alone; the session says which it needs.
+    const cv::Mat right = req.has_file("right")
+                              ? decode_request_image(req.get_file_value("right").content, raw, "right image")
+                              : cv::Mat();
     const FrameReply r = service.process_frame(id, t_ns, left, right);
     json body = {{"t_ns", r.result.t_ns},
                  {"state", tracking_state_name(r.result.state)},
@@ -228,13 +231,16 @@ void install_map_routes(httplib::Server& server, AtlasService& service) {
 void install_upload_routes(httplib::Server& server, AtlasService& service, UploadJobs* jobs, std::uint64_t max_bytes) {
   server.Post("/v1/uploads", [&service, jobs, max_bytes](const Request& req, Response& res,
                                                          const httplib::ContentReader& reader) {
+    // A refusal comes before the body is read; what is left of it must not be
+    // taken for the next request on this connection: the client closes it.
+    res.set_header("Connection", "close");
     run_guarded(req, res, [&] {
       if (!jobs) throw ApiError(503, "unavailable", "this server takes no uploads");
       SessionRequest request;
       request.name = req.get_param_value("name");
       request.settings.config = req.has_param("config") ? req.get_param_value("config") : "euroc/stereo";
       if (req.has_param("sensor")) request.sensor = req.get_param_value("sensor");
-      service.check_settings(request.settings);  // before receiving gigabytes for nothing
+      service.check_upload(request);  // before receiving gigabytes for nothing
       const std::filesystem::path path = jobs->new_upload_path();
       struct Discard {  // the archive, unless a job took it
         std::filesystem::path path;

@@ -20,7 +20,7 @@ const char* session_state_name(SessionState state) {
 }
 
 
-LiveSession::LiveSession(SessionInfo info, std::string config, std::unique_ptr<StereoSlam> slam)
+LiveSession::LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam)
     : info_(std::move(info)), config_(std::move(config)), slam_(std::move(slam)), state_(SessionState::kActive) {}
 
 LiveSession::LiveSession(SessionInfo info, std::vector<FrameAnchor> anchors)

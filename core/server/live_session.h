@@ -1,6 +1,7 @@
 #pragma once
 // One client session of the server: its own SLAM (tracking on the request's
-// thread, local mapping and loop closing on their own), serialised per session,
+// thread, local mapping and loop closing on their own) or, for a single
+// camera, its own localisation in the stored maps; serialised per session,
 // with what the API reports about it. A session from an earlier run of the
 // server (read from the database) is a LiveSession without SLAM, state "stored".
 #include <memory>
@@ -13,7 +14,7 @@
 #include "core/io/euroc_types.h"
 #include "core/map/frame_anchor.h"
 #include "core/persistence/session_info.h"
-#include "core/slam/stereo_slam.h"
+#include "core/slam/session_slam.h"
 
 namespace orbatlas {
 
@@ -27,7 +28,7 @@ struct FrameOutcome {
 
 class LiveSession {
  public:
-  LiveSession(SessionInfo info, std::string config, std::unique_ptr<StereoSlam> slam);
+  LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam);
   // A stored session: its frames only.
   LiveSession(SessionInfo info, std::vector<FrameAnchor> anchors);
   ~LiveSession();
@@ -38,7 +39,7 @@ class LiveSession {
   const SessionInfo& info() const { return info_; }
   SessionState state() const;
 
-  // One stereo pair. ApiError 409 when the session is not active; DataError for
+  // One stereo pair, or one image (`right` empty) for a single-camera session. ApiError 409 when the session is not active; DataError for
   // a bad frame (timestamp not after the previous one, wrong size...): the
   // session goes on. Any other failure of tracking or mapping fails the session
   // (state "failed", ApiError 500 naming the cause); the server goes on.
@@ -60,7 +61,7 @@ class LiveSession {
   const SessionInfo info_;
   const std::string config_;
   mutable std::mutex mutex_;  // serialises frames, IMU and finish
-  std::unique_ptr<StereoSlam> slam_;
+  std::unique_ptr<SessionSlam> slam_;
   SessionState state_;
   std::string error_;
   std::vector<FrameAnchor> final_anchors_;  // once the SLAM objects are gone

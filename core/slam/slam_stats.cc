@@ -6,6 +6,17 @@
 
 namespace orbatlas {
 
+void add_atlas_counts(const Atlas& atlas, SlamStats& stats) {
+  for (const auto& map : atlas.maps()) {
+    if (map->keyframe_count() == 0) continue;
+    ++stats.maps;
+    stats.keyframes += map->keyframe_count();
+    stats.mappoints += map->map_point_count();
+  }
+  stats.keyframe_objects = atlas.counters()->keyframes();
+  stats.mappoint_objects = atlas.counters()->map_points();
+}
+
 Percentiles percentiles(std::vector<double> values) {
   Percentiles p;
   p.count = values.size();

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "core/map/atlas.h"
 #include "core/map/object_counters.h"
 #include "core/loop/loop_closer.h"
 #include "core/mapping/local_mapper.h"
@@ -48,6 +49,10 @@ struct SlamStats {
 // loop_closing{place_recognition_ms_per_kf, loop_correction_ms, loops[],
 // global_ba[], false_loops, live_merges[], merge_search_ms_per_kf}, maps_started,
 // live_merges (count), final_global_ba{keyframes, seconds} (when it ran).
+// Fills maps, keyframes, mappoints (maps holding keyframes) and the object
+// counters from the atlas as it is now.
+void add_atlas_counts(const Atlas& atlas, SlamStats& stats);
+
 inline constexpr double kFalseLoopM = 0.2, kFalseLoopDeg = 5.0;
 nlohmann::json to_json(const SlamStats& stats);
 // One live merge (the stats' loop_closing.live_merges[], the server's GET /v1/merges

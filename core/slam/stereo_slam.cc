@@ -6,34 +6,9 @@
 #include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/loop/global_adjustment_merge.h"
-#include "core/place/relocalizer.h"
+#include "core/slam/index_relocalizer.h"
 
 namespace orbatlas {
-namespace {
-
-class IndexRelocalizer final : public FrameRelocalizer {
- public:
-  IndexRelocalizer(const Vocabulary& vocabulary, const KeyframeIndex& index, const FrameCamera& cam, Pose3 T_b_c,
-                   std::function<bool(MapId)> may_enter)
-      : vocabulary_(vocabulary), index_(index), cam_(cam), T_b_c_(T_b_c) {
-    options_.may_enter = std::move(may_enter);
-  }
-  std::optional<Relocalized> relocalize(Frame& frame) override {
-    const RelocalizationResult r = orbatlas::relocalize(frame, vocabulary_, index_, cam_, T_b_c_, options_);
-    if (!r.success) return std::nullopt;
-    return Relocalized{r.map, r.keyframe};
-  }
-
- private:
-  const Vocabulary& vocabulary_;
-  const KeyframeIndex& index_;
-  const FrameCamera cam_;
-  const Pose3 T_b_c_;
-  RelocalizationOptions options_;
-};
-
-}  // namespace
-
 StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
                        StereoSlamOptions options)
     : atlas_(atlas), options_(std::move(options)), frontend_(settings) {
@@ -77,6 +52,7 @@ StereoSlam::~StereoSlam() {
 
 TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
   ORBATLAS_CHECK(!finished_, "this SLAM session has finished; it takes no more frames");
+  ORBATLAS_DATA_CHECK(!right.empty(), "a stereo session takes a stereo pair: the right image is missing");
   const auto start = std::chrono::steady_clock::now();
   Frame frame = frontend_.make_frame(t_ns, left, right);
   TrackResult result;
@@ -149,12 +125,7 @@ SlamStats StereoSlam::stats() const {
   s.tracked = tracked_;
   s.lost = frames_ - tracked_;
   s.keyframes_made = keyframes_made_;
-  for (const auto& map : atlas_.maps()) {
-    if (map->keyframe_count() == 0) continue;
-    ++s.maps;
-    s.keyframes += map->keyframe_count();
-    s.mappoints += map->map_point_count();
-  }
+  add_atlas_counts(atlas_, s);
   s.tracking_ms = tracking_ms_;
   s.mapping = mapper_->stats();
   if (loop_closer_) {
@@ -162,8 +133,6 @@ SlamStats StereoSlam::stats() const {
     s.loop = loop_closer_->stats();
   }
   s.culling_scheme = options_.mapper.culling.scheme;
-  s.keyframe_objects = atlas_.counters()->keyframes();
-  s.mappoint_objects = atlas_.counters()->map_points();
   return s;
 }
 

@@ -12,6 +12,7 @@
 #include "core/map/atlas.h"
 #include "core/loop/loop_closer.h"
 #include "core/mapping/local_mapper.h"
+#include "core/slam/session_slam.h"
 #include "core/slam/slam_stats.h"
 #include "core/tracking/stereo_frontend.h"
 #include "core/tracking/tracker.h"
@@ -53,29 +54,29 @@ struct TimedPose {
   Pose3 T_w_b;
 };
 
-class StereoSlam {
+class StereoSlam final : public SessionSlam {
  public:
   // `atlas` and `vocabulary` must outlive the session. Throws Error for settings
   // that are not a stereo rig.
   StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary, StereoSlamOptions options = {});
-  ~StereoSlam();
+  ~StereoSlam() override;
   StereoSlam(const StereoSlam&) = delete;
   StereoSlam& operator=(const StereoSlam&) = delete;
 
   // One stereo pair (throws Error on bad images or a timestamp that does not increase).
-  TrackResult process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
+  TrackResult process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) override;
 
   // Lets local mapping finish what is queued, stops it and releases the last
   // frame (so every culled object can be reclaimed). Idempotent; process() may
   // not be called afterwards.
-  void finish();
+  void finish() override;
 
   // Every tracked frame's body pose, from its reference keyframe's current pose.
   std::vector<TimedPose> trajectory() const;
   // The tracked frames' anchors so far; safe to call from any thread while
   // frames are processed (a checkpoint thread storing the trajectory).
-  std::vector<FrameAnchor> anchors() const;
-  SlamStats stats() const;
+  std::vector<FrameAnchor> anchors() const override;
+  SlamStats stats() const override;
   const StereoFrontend& frontend() const { return frontend_; }
 
  private:

@@ -2,11 +2,11 @@
 
 #include <algorithm>
 #include <future>
-#include <opencv2/imgproc.hpp>
 
 #include "core/camera/camera_factory.h"
 #include "core/common/error.h"
 #include "core/features/keypoint_geometry.h"
+#include "core/tracking/gray_image.h"
 
 namespace orbatlas {
 namespace {
@@ -14,16 +14,6 @@ namespace {
 const CameraCalibration& require_camera1(const SlamSettings& settings) {
   ORBATLAS_CHECK(settings.camera1.has_value(), "stereo tracking needs a second camera (Camera2.* in the settings)");
   return *settings.camera1;
-}
-
-// Grey view of an input image (converted into `scratch` when it has colour).
-const cv::Mat& as_gray(const cv::Mat& image, cv::Mat& scratch, const char* which) {
-  ORBATLAS_DATA_CHECK(!image.empty(), which << " image is empty");
-  ORBATLAS_DATA_CHECK(image.depth() == CV_8U, which << " image must be 8-bit");
-  if (image.channels() == 1) return image;
-  ORBATLAS_DATA_CHECK(image.channels() == 3 || image.channels() == 4, which << " image has " << image.channels() << " channels");
-  cv::cvtColor(image, scratch, image.channels() == 3 ? cv::COLOR_BGR2GRAY : cv::COLOR_BGRA2GRAY);
-  return scratch;
 }
 
 }  // namespace

@@ -41,7 +41,8 @@ Tracker::Tracker(Atlas& atlas, const Vocabulary& vocabulary, KeyframeSink& sink,
                  TrackerOptions options, FrameRelocalizer* relocalizer)
     : atlas_(atlas), vocabulary_(vocabulary), sink_(sink), relocalizer_(relocalizer), cam_(std::move(cam)), T_b_c_(T_b_c), options_(options) {
   ORBATLAS_CHECK(cam_.camera != nullptr, "tracker needs a camera");
-  ORBATLAS_CHECK(cam_.bf > 0.0, "the stereo tracker needs bf > 0");
+  ORBATLAS_CHECK(cam_.bf > 0.0 || options_.localization_only,
+                 "the tracker needs a stereo rig (bf > 0) unless it only localises");
   ORBATLAS_CHECK(!options_.localization_only || relocalizer_ != nullptr,
                  "localisation on stored maps needs a relocaliser");
 }

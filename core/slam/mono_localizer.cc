@@ -1,0 +1,77 @@
+#include "core/slam/mono_localizer.h"
+
+#include <chrono>
+
+#include "core/common/error.h"
+#include "core/slam/index_relocalizer.h"
+
+namespace orbatlas {
+
+// Tracking in localisation mode never makes a keyframe; one would be a bug.
+class MonoLocalizer::NoKeyframes final : public KeyframeSink {
+ public:
+  bool idle() const override { return true; }
+  std::size_t queued() const override { return 0; }
+  bool accepting() const override { return false; }
+  void insert(std::shared_ptr<KeyFrame>) override {
+    throw Error("a localisation session made a keyframe");
+  }
+  void interrupt_optimization() override {}
+};
+
+MonoLocalizer::MonoLocalizer(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
+                             MonoLocalizerOptions options)
+    : atlas_(atlas), frontend_(settings), sink_(std::make_unique<NoKeyframes>()) {
+  cam_.camera = &frontend_.camera();
+  cam_.bf = 0.0;  // no stereo
+  cam_.pyramid.scale_factor = settings.orb.scale_factor;
+  cam_.pyramid.n_levels = settings.orb.n_levels;
+  const Pose3 T_b_c = frontend_.calibration().T_b_c;
+  relocalizer_ = std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c,
+                                                    std::move(options.may_enter_map));
+  TrackerOptions tracker = options.tracker;
+  tracker.localization_only = true;
+  tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));
+  tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *sink_, cam_, T_b_c, tracker, relocalizer_.get());
+}
+
+MonoLocalizer::~MonoLocalizer() = default;
+
+TrackResult MonoLocalizer::process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
+  ORBATLAS_CHECK(!finished_, "this localisation session has finished; it takes no more frames");
+  ORBATLAS_DATA_CHECK(right.empty(), "a single-camera session takes one image per frame, not a stereo pair");
+  const auto start = std::chrono::steady_clock::now();
+  TrackResult result = tracker_->track(frontend_.make_frame(t_ns, left));
+  tracking_ms_.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  ++frames_;
+  if (result.tracked) {
+    ++tracked_;
+    std::lock_guard lock(anchors_mutex_);
+    anchors_.push_back(tracker_->anchors().back());
+  }
+  return result;
+}
+
+void MonoLocalizer::finish() {
+  if (finished_) return;
+  finished_ = true;
+  tracker_->release_frames();
+}
+
+std::vector<FrameAnchor> MonoLocalizer::anchors() const {
+  std::lock_guard lock(anchors_mutex_);
+  return anchors_;
+}
+
+SlamStats MonoLocalizer::stats() const {
+  SlamStats s;
+  s.frames = frames_;
+  s.tracked = tracked_;
+  s.lost = frames_ - tracked_;
+  s.relocalizations = tracker_->relocalizations();
+  add_atlas_counts(atlas_, s);
+  s.tracking_ms = tracking_ms_;
+  return s;
+}
+
+}  // namespace orbatlas

@@ -1,0 +1,27 @@
+#pragma once
+// What a session of the server drives, whatever its camera: stereo SLAM
+// (StereoSlam), or a single camera localising in stored maps (MonoLocalizer).
+#include <opencv2/core/mat.hpp>
+#include <vector>
+
+#include "core/map/frame_anchor.h"
+#include "core/slam/slam_stats.h"
+#include "core/tracking/tracker.h"
+
+namespace orbatlas {
+
+class SessionSlam {
+ public:
+  virtual ~SessionSlam() = default;
+  // One frame: a stereo pair, or one image (`right` empty) for a single camera.
+  // DataError for a frame this session cannot take (wrong size, a pair where
+  // one image is expected or the reverse, a timestamp that does not increase).
+  virtual TrackResult process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) = 0;
+  // Stops the session's workers; process() may not be called afterwards. Idempotent.
+  virtual void finish() = 0;
+  // The tracked frames' anchors so far; safe from any thread.
+  virtual std::vector<FrameAnchor> anchors() const = 0;
+  virtual SlamStats stats() const = 0;
+};
+
+}  // namespace orbatlas

@@ -1,0 +1,31 @@
+#include "core/tracking/mono_frontend.h"
+
+#include "core/camera/camera_factory.h"
+#include "core/common/error.h"
+#include "core/features/keypoint_geometry.h"
+#include "core/tracking/gray_image.h"
+#include "core/tracking/stereo_frontend.h"
+
+namespace orbatlas {
+
+MonoFrontend::MonoFrontend(const SlamSettings& settings)
+    : calibration_(settings.camera0), camera_(make_camera(settings.camera0)), extractor_(orb_options_from(settings)) {}
+
+Frame MonoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& image) {
+  const cv::Mat& gray = as_gray(image, gray_, "camera");
+  ORBATLAS_DATA_CHECK(gray.cols == calibration_.width && gray.rows == calibration_.height,
+                      "image of " << gray.cols << "x" << gray.rows << " pixels; the calibration says "
+                                  << calibration_.width << "x" << calibration_.height);
+  Frame f;
+  f.t_ns = t_ns;
+  f.features = extractor_.extract(gray);
+  compute_keypoint_geometry(*camera_, f.features.keypoints);
+  f.depth.assign(f.size(), -1.0f);
+  f.u_right.assign(f.size(), -1.0f);
+  f.grid = FeatureGrid(f.features);
+  f.map_points.assign(f.size(), nullptr);
+  f.outlier.assign(f.size(), false);
+  return f;
+}
+
+}  // namespace orbatlas
