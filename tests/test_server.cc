@@ -189,7 +189,9 @@ TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
   EXPECT_EQ(reply["map"], stored_map);
   client.finish_session(id);
 
-  // A whole clip through `orbatlas stream --config euroc/mono`.
+  // A whole clip through `orbatlas stream --config euroc/mono`, from a recording
+  // of the left camera only.
+  std::filesystem::remove_all(clip / "mav0" / "cam1");
   StreamOptions mono = stream_options(clip);
   mono.config = "euroc/mono";
   const StreamReport report = stream_dataset(client, mono);

@@ -5,6 +5,7 @@
 #include <thread>
 #include <unistd.h>
 
+#include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/common/progress.h"
 #include "core/eval/evaluate.h"
@@ -26,11 +27,9 @@ double ms_between(Clock::time_point a, Clock::time_point b) {
 
 StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) {
   EurocReadOptions read_options;
-  read_options.require_cam1 = true;
+  read_options.require_cam1 = false;  // a single camera needs cam0 only
   const EurocDataset dataset = read_euroc_dataset(options.dataset, read_options);
-  std::vector<StereoFrame> frames = pair_stereo_frames(dataset);
-  keep_time_window(frames, options.start_s, options.duration_s, options.dataset);
-  const TimestampNs first_t = frames.front().t_ns;
+  ORBATLAS_CHECK(!dataset.cameras.empty(), options.dataset << " has no camera");
 
   StreamReport report;
   std::string name = options.name;
@@ -39,6 +38,19 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   report.session = started.at("id").get<std::uint64_t>();
   const std::string sensor = started.at("session").value("sensor", "stereo");
   const bool single_camera = sensor == "mono" || sensor == "mono_inertial";
+  std::vector<StereoFrame> frames;
+  try {
+    if (single_camera) {
+      for (const auto& f : dataset.cameras[0].frames) frames.push_back(StereoFrame{f.t_ns, f.path, {}});
+    } else {
+      frames = pair_stereo_frames(dataset);
+    }
+    keep_time_window(frames, options.start_s, options.duration_s, options.dataset);
+  } catch (...) {
+    client.finish_session(report.session);  // nothing to stream: do not leave it live
+    throw;
+  }
+  const TimestampNs first_t = frames.front().t_ns;
 
   Progress progress("stream", static_cast<std::int64_t>(frames.size()), options.show_progress);
   StereoPairLoader loaded(std::move(frames));
@@ -57,8 +69,7 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
     }
     const auto sent = Clock::now();
     try {
-      const auto reply = client.post_frame(report.session, pair->t_ns, pair->left,
-                                           single_camera ? cv::Mat() : pair->right, options.encoding);
+      const auto reply = client.post_frame(report.session, pair->t_ns, pair->left, pair->right, options.encoding);
       report.round_trip_ms.push_back(ms_between(sent, Clock::now()));
       report.tracking_ms.push_back(reply.at("tracking_ms").get<double>());
       report.server_ms.push_back(reply.at("server_ms").get<double>());

@@ -1,7 +1,8 @@
 #pragma once
 // Decodes the stereo pairs of a recording ahead of their consumer, on a thread
 // of its own, into a bounded queue (a few pairs: memory stays flat). Used by
-// `orbatlas run` (dataset_runner) and `orbatlas stream` (dataset_streamer).
+// `orbatlas run` (dataset_runner) and `orbatlas stream` (dataset_streamer). A
+// frame with an empty right path is a single camera's: only `left` is read.
 #include <opencv2/core/mat.hpp>
 #include <optional>
 #include <string>
