@@ -188,6 +188,18 @@ TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
   EXPECT_TRUE(reply["tracked"].get<bool>()) << reply.dump();
   EXPECT_EQ(reply["map"], stored_map);
   client.finish_session(id);
+  // One image against the stored map with the single camera's config; a pair
+  // with it is refused.
+  const auto placed = client.localize("euroc/mono", left);
+  ASSERT_TRUE(placed["recognised"].get<bool>()) << placed.dump();
+  EXPECT_EQ(placed["map"], stored_map);
+  EXPECT_LT((pose_from_json(placed["T_w_b"]).t - pose_from_json(reply["T_w_b"]).t).norm(), 0.02);
+  try {
+    client.localize("euroc/mono", left, right);
+    ADD_FAILURE() << "a pair was localised with a single camera's config";
+  } catch (const ServerError& e) {
+    EXPECT_EQ(e.status(), 422);
+  }
 
   // A whole clip through `orbatlas stream --config euroc/mono`, from a recording
   // of the left camera only.

@@ -12,6 +12,7 @@
 #include "core/persistence/atlas_store.h"
 #include "core/place/relocalizer.h"
 #include "core/slam/mono_localizer.h"
+#include "core/tracking/mono_frontend.h"
 #include "core/slam/slam_stats.h"
 #include "core/slam/stereo_slam.h"
 #include "core/server/api_error.h"
@@ -38,15 +39,33 @@ std::uintmax_t file_size_or_zero(const fs::path& path) {
 
 // The frontend and camera a localisation request needs, per configuration.
 struct AtlasService::LocalizerContext {
-  explicit LocalizerContext(const SlamSettings& settings) : frontend(settings, false) {
-    cam.camera = &frontend.camera();
-    cam.bf = frontend.bf();
+  // A stereo rig localises a pair or its left image; a single camera one image.
+  explicit LocalizerContext(const SlamSettings& settings) {
+    if (settings.is_stereo()) {
+      stereo.emplace(settings, false);
+      cam.camera = &stereo->camera();
+      cam.bf = stereo->bf();
+      T_b_c = stereo->calibration().T_b_c;
+    } else {
+      mono.emplace(settings);
+      cam.camera = &mono->camera();
+      T_b_c = mono->calibration().T_b_c;
+    }
     cam.pyramid.scale_factor = settings.orb.scale_factor;
     cam.pyramid.n_levels = settings.orb.n_levels;
   }
+  Frame make_frame(const cv::Mat& left, const cv::Mat& right) {
+    if (mono) {
+      ORBATLAS_DATA_CHECK(right.empty(), "the config is a single camera: send one image, not a pair");
+      return mono->make_frame(0, left);
+    }
+    return right.empty() ? stereo->make_left_frame(0, left) : stereo->make_frame(0, left, right);
+  }
   std::mutex mutex;  // a frontend has scratch buffers: one request at a time per configuration
-  StereoFrontend frontend;
+  std::optional<StereoFrontend> stereo;
+  std::optional<MonoFrontend> mono;
   FrameCamera cam;
+  Pose3 T_b_c;
 };
 
 AtlasService::AtlasService(AtlasServiceOptions options)
@@ -488,8 +507,6 @@ std::shared_ptr<AtlasService::LocalizerContext> AtlasService::localizer_for(cons
   std::lock_guard lock(localizers_mutex_);
   if (const auto it = localizers_.find(key); it != localizers_.end()) return it->second;
   const LoadedSettings loaded = load_settings(source);
-  if (!loaded.settings.is_stereo())
-    throw ApiError(400, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
   std::shared_ptr<LocalizerContext> context;
   try {
     context = std::make_shared<LocalizerContext>(loaded.settings);
@@ -508,12 +525,11 @@ LocalizeReply AtlasService::localize(const LocalizeRequest& request) {
   LocalizeReply reply;
   {
     std::lock_guard lock(context->mutex);
-    Frame frame = request.right.empty() ? context->frontend.make_left_frame(0, request.left)
-                                        : context->frontend.make_frame(0, request.left, request.right);
+    Frame frame = context->make_frame(request.left, request.right);
     RelocalizationOptions options;
     options.only_map = request.map;
-    const RelocalizationResult r = relocalize(frame, vocabulary_, atlas_.keyframe_index(), context->cam,
-                                              context->frontend.calibration().T_b_c, options);
+    const RelocalizationResult r =
+        relocalize(frame, vocabulary_, atlas_.keyframe_index(), context->cam, context->T_b_c, options);
     reply.recognised = r.success;
     reply.map = r.map;
     reply.T_w_b = r.T_w_b;
