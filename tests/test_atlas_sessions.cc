@@ -2,10 +2,15 @@
 // second run over the same place appending a session whose map is merged live
 // into the first one (one map stored), and localisation
 // of new images of the same hall against the stored map (no keyframe added),
-// measured in the stored map's own frame.
+// measured in the stored map's own frame; a run with another camera rig keeps
+// out of the stored map.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
+
+#include <fstream>
+#include <iterator>
+#include <string>
 
 #include "core/common/data_paths.h"
 #include "core/persistence/atlas_store.h"
@@ -114,6 +119,25 @@ TEST(AtlasSessions, RunsAppendSessionsAndLocalizationTracksInTheStoredMapFrame) 
   std::printf("localised %zu of %zu frames (%.1f%%), ATE in the map frame %.4f m\n", loc.trajectory.size(),
               loc.stats.frames, 100.0 * fraction, ate);
   EXPECT_LT(ate, 0.03);
+
+  // A run with another rig (the same images, fx 1 px off): local mapping would
+  // adjust the stored keyframes with the wrong camera, so it neither enters nor
+  // merges into the stored map: a map of its own.
+  std::ifstream in(shipped_config_dir() / "euroc" / "stereo.yaml");
+  std::string yaml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string fx = "Camera1.fx: 458.654";
+  ASSERT_NE(yaml.find(fx), std::string::npos);
+  yaml.replace(yaml.find(fx), fx.size(), "Camera1.fx: 459.654");
+  const auto other_rig = dir / "other_rig.yaml";
+  std::ofstream(other_rig) << yaml;
+  DatasetRunOptions other = options_for(clip, db);
+  other.settings = other_rig;
+  const DatasetRunReport third = run_stereo_dataset(other);
+  EXPECT_EQ(third.loaded_maps, 1u);
+  EXPECT_TRUE(third.stats.loop.merges.empty());
+  EXPECT_EQ(third.stats.maps, 2u);
+  EXPECT_EQ(third.trajectory.size(), third.stats.frames);
+  for (const MapId m : third.trajectory_maps) EXPECT_NE(m, first_map);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <algorithm>
 
 #include <array>
+#include <fstream>
 #include <future>
 #include <thread>
 #include <set>
@@ -468,5 +469,43 @@ TEST(ServerMerging, ASessionsMapIsMergedWhileItStreams) {
               ate_restarted);
 }
 
+
+// Local mapping adjusts every keyframe of the map it works in with its own
+// session's camera, so a stereo session only enters (relocalises into, starts
+// in, merges into) stored maps made with its rig: here the same images with a
+// calibration 1 px off in fx stay in a map of their own, also after finishing.
+TEST(ServerMerging, ASessionOfAnotherRigStaysOutOfStoredMaps) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 4.0);
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath db("rig");
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  const StreamReport first = stream_dataset(client, stream_options(clip));
+  ASSERT_EQ(first.tracked, first.frames);
+  const std::uint64_t stored_map = first.trajectory_maps.front();
+
+  std::ifstream in(shipped_config_dir() / "euroc" / "stereo.yaml");
+  std::string yaml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string fx = "Camera1.fx: 458.654";
+  ASSERT_NE(yaml.find(fx), std::string::npos);
+  yaml.replace(yaml.find(fx), fx.size(), "Camera1.fx: 459.654");
+  const std::uint64_t id =
+      client.post_json("/v1/sessions", {{"name", "other rig"}, {"settings_yaml", yaml}}).at("id").get<std::uint64_t>();
+  std::size_t tracked = 0;
+  const auto frames = test::stereo_frames(clip);
+  for (const auto& f : frames) {
+    const auto reply = client.post_frame(id, f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                                         cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+    if (!reply["tracked"].get<bool>()) continue;
+    ++tracked;
+    EXPECT_NE(reply["map"].get<std::uint64_t>(), stored_map) << "tracked in the other rig's map at " << f.t_ns;
+  }
+  EXPECT_EQ(tracked, frames.size());
+  client.finish_session(id);
+  const auto merges = wait_for_merges(client);
+  EXPECT_TRUE(merges.at("merges").empty()) << merges.dump();
+  EXPECT_TRUE(merges.at("live_merges").empty()) << merges.dump();
+  EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 2u);
+}
 }  // namespace
 }  // namespace orbatlas

@@ -11,6 +11,7 @@
 #include "core/io/tum_trajectory.h"
 #include "core/persistence/atlas_store.h"
 #include "core/place/relocalizer.h"
+#include "core/persistence/map_rigs.h"
 #include "core/slam/mono_localizer.h"
 #include "core/tracking/mono_frontend.h"
 #include "core/slam/slam_stats.h"
@@ -38,6 +39,18 @@ std::uintmax_t file_size_or_zero(const fs::path& path) {
 }  // namespace
 
 // The frontend and camera a localisation request needs, per configuration.
+namespace {
+
+// The request's sensor, else the settings' Sensor.type; 400 for an unknown name.
+SensorType session_sensor(const SessionRequest& request, const SlamSettings& settings) {
+  if (request.sensor.empty()) return settings.sensor;
+  const auto sensor = parse_sensor_type(request.sensor);
+  if (!sensor) throw_bad_request("unknown sensor '" + request.sensor + "' (stereo, stereo_inertial, mono, mono_inertial)");
+  return *sensor;
+}
+
+}  // namespace
+
 struct AtlasService::LocalizerContext {
   // A stereo rig localises a pair or its left image; a single camera one image.
   explicit LocalizerContext(const SlamSettings& settings) {
@@ -81,9 +94,9 @@ AtlasService::AtlasService(AtlasServiceOptions options)
     for (const auto& map : atlas_.maps()) leases_.add_free(map->id());
     for (const SessionInfo& info : store.load_sessions()) {
       auto anchors = store.load_trajectory(info.id);
-      // The rig each stored map was made with (for merging): its sessions' cameras.
-      for (const FrameAnchor& a : anchors)
-        if (const auto map = atlas_.map_holding(a.reference)) map_rigs_.try_emplace(*map, info.cameras);
+      // The rig each stored map was made with (for merging, and for entering
+      // it): its stereo sessions' cameras (a single camera only localised there).
+      record_map_rigs(atlas_, info, anchors, map_rigs_);
       sessions_[info.id] = std::make_shared<LiveSession>(info, std::move(anchors));
       next_session_ = std::max(next_session_, info.id + 1);
     }
@@ -145,22 +158,6 @@ AtlasService::LoadedSettings AtlasService::load_settings(const SettingsSource& s
   }
 }
 
-namespace {
-
-// The request's sensor, else the settings' Sensor.type; 400 for an unknown name.
-SensorType session_sensor(const SessionRequest& request, const SlamSettings& settings) {
-  if (request.sensor.empty()) return settings.sensor;
-  const auto sensor = parse_sensor_type(request.sensor);
-  if (!sensor) throw_bad_request("unknown sensor '" + request.sensor + "' (stereo, stereo_inertial, mono, mono_inertial)");
-  return *sensor;
-}
-
-bool is_single_camera(SensorType sensor) {
-  return sensor == SensorType::kMonocular || sensor == SensorType::kMonocularInertial;
-}
-
-}  // namespace
-
 void AtlasService::check_upload(const SessionRequest& request) const {
   const LoadedSettings loaded = load_settings(request.settings);
   const SensorType sensor = session_sensor(request, loaded.settings);
@@ -174,7 +171,13 @@ void AtlasService::check_upload(const SessionRequest& request) const {
 std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const SessionInfo& info,
                                                           const SlamSettings& settings) {
   StereoSlamOptions slam_options = options_.slam;
-  slam_options.may_enter_map = [this, id](MapId map) { return leases_.claim(id, map); };
+  // Stored maps of its own rig only: local mapping would adjust another rig's
+  // keyframes with this session's camera.
+  slam_options.may_enter_map = [this, id, rig = info.cameras](MapId map) {
+    const auto holder = leases_.holder(map);
+    if (holder) return *holder == id;
+    return rig_matches(rig, map) && leases_.claim(id, map);
+  };
   slam_options.tracker.start_in_stored_map = options_.start_in_stored_maps;
   slam_options.loop.shared_worker = loop_worker_;
   slam_options.live_merging = options_.merge_maps && options_.live_merging;
@@ -279,8 +282,7 @@ nlohmann::json AtlasService::session_status(SessionId id) const {
 
 std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
   const std::vector<MapId> held = leases_.held_by(id);
-  {
-    const auto live = session(id);
+  if (const auto live = session(id); !is_single_camera(live->info().sensor)) {
     std::lock_guard lock(rigs_mutex_);
     for (const MapId map : held) map_rigs_.try_emplace(map, live->info().cameras);
   }
@@ -324,15 +326,7 @@ bool AtlasService::rigs_match(MapId source, MapId target) const {
 bool AtlasService::rig_matches(const std::vector<CameraCalibration>& rig, MapId target) const {
   std::lock_guard lock(rigs_mutex_);
   const auto b = map_rigs_.find(target);
-  if (b == map_rigs_.end() || rig.size() != b->second.size()) return false;
-  for (std::size_t i = 0; i < rig.size(); ++i) {
-    const CameraCalibration &x = rig[i], &y = b->second[i];
-    const bool same = x.model == y.model && x.width == y.width && x.height == y.height && x.fx == y.fx &&
-                      x.fy == y.fy && x.cx == y.cx && x.cy == y.cy && x.distortion == y.distortion &&
-                      translation_distance(x.T_b_c, y.T_b_c) < 1e-6 && rotation_distance(x.T_b_c, y.T_b_c) < 1e-6;
-    if (!same) return false;
-  }
-  return true;
+  return b != map_rigs_.end() && same_rig(rig, b->second);
 }
 
 void AtlasService::merged_live(SessionId session, const LiveMerge& merge) {
@@ -445,7 +439,9 @@ nlohmann::json AtlasService::finish_session(SessionId id) {
       throw ApiError(500, "storage_failed",
                      "session " + std::to_string(id) + " ended but could not be stored yet: " +
                          checkpointer_->stats().last_error + " (the server keeps retrying)");
-    submit_merges(id, held);
+    // A single camera only read the maps it held: nothing new to merge (and
+    // its camera is not the rig the maps were made with).
+    if (!is_single_camera(live->info().sensor)) submit_merges(id, held);
   }
   return live->status();
 }

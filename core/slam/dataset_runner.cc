@@ -1,6 +1,8 @@
 #include "core/slam/dataset_runner.h"
 
 #include <chrono>
+#include <functional>
+#include <map>
 #include <thread>
 
 #include "core/common/error.h"
@@ -12,6 +14,7 @@
 #include "core/io/stereo_pair_loader.h"
 #include "core/io/tum_trajectory.h"
 #include "core/persistence/atlas_store.h"
+#include "core/persistence/map_rigs.h"
 #include "core/vocabulary/default_vocabulary.h"
 
 namespace orbatlas {
@@ -59,6 +62,7 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   Atlas atlas;
   DatasetRunReport report;
   std::optional<SessionInfo> session;
+  std::map<MapId, CameraRig> stored_rigs;  // of the stored maps, by their sessions
   if (!options.atlas.empty()) {
     const auto load_start = Clock::now();
     if (options.localize_only) ORBATLAS_CHECK(std::filesystem::exists(options.atlas), options.atlas << " does not exist");
@@ -75,7 +79,10 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
       ORBATLAS_DATA_CHECK(loaded.keyframes > 0, options.atlas << " holds no keyframe to localise against");
     } else {
       SessionInfo info;
-      for (const auto& stored : store.load_sessions()) info.id = std::max(info.id, stored.id);
+      for (const auto& stored : store.load_sessions()) {
+        info.id = std::max(info.id, stored.id);
+        record_map_rigs(atlas, stored, store.load_trajectory(stored.id), stored_rigs);
+      }
       ++info.id;
       info.name = std::filesystem::absolute(options.dataset).lexically_normal().filename().string();
       if (info.name.empty()) info.name = options.dataset.string();
@@ -90,6 +97,19 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
     }
   }
   StereoSlamOptions slam_options = options.slam;
+  if (session) {
+    // This run maps: it enters and merges into stored maps of its own rig only.
+    const auto own_rig = [rigs = stored_rigs, rig = session->cameras](MapId map) {
+      const auto it = rigs.find(map);
+      return it == rigs.end() || same_rig(it->second, rig);
+    };
+    const auto both = [](std::function<bool(MapId)> a, std::function<bool(MapId)> b) -> std::function<bool(MapId)> {
+      if (!a) return b;
+      return [a, b](MapId map) { return b(map) && a(map); };
+    };
+    slam_options.may_enter_map = both(slam_options.may_enter_map, own_rig);
+    slam_options.may_merge_into = both(slam_options.may_merge_into, own_rig);
+  }
   if (options.localize_only) {
     slam_options.tracker.localization_only = true;
     slam_options.relocalization = true;
