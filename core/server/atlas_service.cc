@@ -524,6 +524,9 @@ LocalizeReply AtlasService::localize(const LocalizeRequest& request) {
     Frame frame = context->make_frame(request.left, request.right);
     RelocalizationOptions options;
     options.only_map = request.map;
+    // No merge half-way through while the maps are read (a merge moves a map's
+    // keyframes and points into another's frame): one waits for the other.
+    const auto whole = atlas_.lock_maps_shared();
     const RelocalizationResult r =
         relocalize(frame, vocabulary_, atlas_.keyframe_index(), context->cam, context->T_b_c, options);
     reply.recognised = r.success;
