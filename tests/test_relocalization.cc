@@ -63,21 +63,30 @@ Pose3 ground_truth_near(const EurocDataset& ds, TimestampNs t) {
   return Pose3();
 }
 
+// A stereo map of `frames` in `atlas` (synchronous mapping: deterministic);
+// the number of frames tracked.
+std::size_t map_clip(Atlas& atlas, const Vocabulary& vocabulary, const std::vector<StereoFrame>& frames) {
+  StereoSlamOptions o;
+  o.synchronous_mapping = true;
+  StereoSlam slam(atlas, read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo),
+                  vocabulary, o);
+  std::size_t tracked = 0;
+  for (const auto& f : frames)
+    tracked += slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                            cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE))
+                       .tracked ? 1 : 0;
+  slam.finish();
+  return tracked;
+}
+
 TEST(Relocalization, NewImageOfAKnownPlaceGivesItsPose) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
   test::ClipCleanup cleanup{clip};
   const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
-  StereoSlamOptions o;
-  o.synchronous_mapping = true;
   Atlas atlas;
-  StereoSlam slam(atlas, settings, vocabulary, o);
   const auto frames = test::stereo_frames(clip);
-  for (const auto& f : frames)
-    ASSERT_TRUE(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
-                             cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE))
-                    .tracked);
-  slam.finish();
+  ASSERT_EQ(map_clip(atlas, vocabulary, frames), frames.size());
   ASSERT_GT(atlas.keyframe_index().size(), 0u);
 
   // The same places seen again with other sensor noise (another "visit").
@@ -126,16 +135,9 @@ TEST(Relocalization, AFrameSeenFromAnotherAngleIsPlacedThroughTheCandidatesWindo
   test::ClipCleanup cleanup{clip}, cleanup_later{later};
   const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
-  StereoSlamOptions o;
-  o.synchronous_mapping = true;
   Atlas atlas;
-  StereoSlam slam(atlas, settings, vocabulary, o);
   const auto frames = test::stereo_frames(clip);
-  for (const auto& f : frames)
-    ASSERT_TRUE(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
-                             cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE))
-                    .tracked);
-  slam.finish();
+  ASSERT_EQ(map_clip(atlas, vocabulary, frames), frames.size());
   const EurocDataset clip_ds = test::stereo_dataset(clip), later_ds = test::stereo_dataset(later);
 
   StereoFrontend frontend(settings);
@@ -199,17 +201,7 @@ TEST(MonoLocalizer, ASingleCameraIsTrackedInAStoredMapAndChangesNothing) {
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
   Atlas atlas;
   const auto frames = test::stereo_frames(clip);
-  {
-    StereoSlamOptions o;
-    o.synchronous_mapping = true;
-    StereoSlam slam(atlas, read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo),
-                    vocabulary, o);
-    for (const auto& f : frames)
-      ASSERT_TRUE(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
-                               cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE))
-                      .tracked);
-    slam.finish();
-  }
+  ASSERT_EQ(map_clip(atlas, vocabulary, frames), frames.size());
   const MapId map = atlas.active_map()->id();
   const std::size_t keyframes = atlas.map(map)->keyframe_count(), points = atlas.map(map)->map_point_count();
   const Pose3 T_gt_map = ground_truth_near(test::stereo_dataset(clip), frames.front().t_ns);

@@ -1,8 +1,6 @@
 #include "core/place/relocalizer.h"
 
 #include <unordered_set>
-#include <string>
-#include "core/common/log.h"
 
 #include "core/map/map_point.h"
 #include "core/tracking/frame_pose.h"

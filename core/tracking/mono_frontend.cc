@@ -2,7 +2,6 @@
 
 #include "core/camera/camera_factory.h"
 #include "core/common/error.h"
-#include "core/features/keypoint_geometry.h"
 #include "core/tracking/gray_image.h"
 #include "core/tracking/stereo_frontend.h"
 
@@ -19,12 +18,9 @@ Frame MonoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& image) {
   Frame f;
   f.t_ns = t_ns;
   f.features = extractor_.extract(gray);
-  compute_keypoint_geometry(*camera_, f.features.keypoints);
   f.depth.assign(f.size(), -1.0f);
   f.u_right.assign(f.size(), -1.0f);
-  f.grid = FeatureGrid(f.features);
-  f.map_points.assign(f.size(), nullptr);
-  f.outlier.assign(f.size(), false);
+  finish_frame(*camera_, f);
   return f;
 }
 

@@ -69,7 +69,7 @@ Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv
                                                right_extractor_.pyramid(), left_extractor_.scale_factors(), bf(), baseline());
   f.depth = std::move(depths.depth);
   f.u_right = std::move(depths.u_right);
-  finish_frame(f);
+  finish_frame(*camera_, f);
   return f;
 }
 
@@ -85,12 +85,12 @@ Frame StereoFrontend::make_left_frame(TimestampNs t_ns, const cv::Mat& left) {
   f.features = left_extractor_.extract(left_rect_);
   f.depth.assign(f.size(), -1.0f);
   f.u_right.assign(f.size(), -1.0f);
-  finish_frame(f);
+  finish_frame(*camera_, f);
   return f;
 }
 
-void StereoFrontend::finish_frame(Frame& f) const {
-  compute_keypoint_geometry(*camera_, f.features.keypoints);
+void finish_frame(const Camera& camera, Frame& f) {
+  compute_keypoint_geometry(camera, f.features.keypoints);
   f.grid = FeatureGrid(f.features);
   f.map_points.assign(f.size(), nullptr);
   f.outlier.assign(f.size(), false);

@@ -35,7 +35,6 @@ class StereoFrontend {
   const OrbExtractor& extractor() const { return left_extractor_; }
 
  private:
-  void finish_frame(Frame& f) const;  // geometry, grid, empty associations
 
   bool parallel_;
   StereoRectifier rectifier_;
@@ -45,5 +44,9 @@ class StereoFrontend {
 };
 
 OrbExtractorOptions orb_options_from(const SlamSettings& settings);
+
+// The last step of every front end, once features (and depths) are in:
+// keypoint bearings through `camera`, the search grid, empty associations.
+void finish_frame(const Camera& camera, Frame& frame);
 
 }  // namespace orbatlas
