@@ -365,5 +365,70 @@ TEST(LocalMapping, SpanningTreeParentIsAnOlderKeyframe) {
   EXPECT_LT(kfs[2]->parent()->id(), kfs[2]->id());
 }
 
+// An error while processing one keyframe (here: in the processed-keyframe
+// listener, where loop closing is fed) is contained: counted, the mapper goes
+// on with the next keyframe, the session sees nothing. Only a long run of
+// failures, a map that cannot be worked on, reaches the session.
+TEST(LocalMapping, AnErrorInOneKeyframeIsCountedAndMappingGoesOn) {
+  const Scene s = make_scene(200, 13);
+  Atlas atlas;
+  auto map = atlas.create_map();
+  std::vector<std::shared_ptr<KeyFrame>> kfs;
+  for (int k = 0; k < 6; ++k) {
+    std::vector<std::size_t> idx;
+    kfs.push_back(map->new_keyframe(keyframe_data(s, at(0.05 * k, 0, 0), &idx)));
+  }
+  LocalMapperOptions o;
+  o.run_bundle_adjustment = false;
+  o.run_culling = false;
+  LocalMapper mapper(atlas, s.cam(), o);
+  std::vector<KeyframeId> listened;
+  mapper.set_processed_listener([&](const std::shared_ptr<KeyFrame>& kf) {
+    listened.push_back(kf->id());
+    if (kf->id() % 2 == 1) throw Error("injected failure in keyframe " + std::to_string(kf->id()));
+  });
+  for (const auto& kf : kfs) {
+    EXPECT_NO_THROW(mapper.insert(kf));
+    EXPECT_NO_THROW(mapper.wait_until_idle());
+  }
+  EXPECT_NO_THROW(mapper.finish());
+  EXPECT_EQ(listened.size(), kfs.size());  // every keyframe was processed
+  const LocalMapperStats stats = mapper.stats();
+  EXPECT_EQ(stats.keyframes, kfs.size());
+  EXPECT_EQ(stats.errors.errors, 3u);
+  EXPECT_FALSE(stats.errors.fatal);
+  EXPECT_NE(stats.errors.last.find("injected failure in keyframe 5"), std::string::npos) << stats.errors.last;
+  // The map is intact: every keyframe still in it, each one's parent older.
+  EXPECT_EQ(map->keyframe_count(), kfs.size());
+  for (std::size_t k = 1; k < kfs.size(); ++k)
+    if (kfs[k]->parent()) EXPECT_LT(kfs[k]->parent()->id(), kfs[k]->id());
+}
+
+TEST(LocalMapping, FailingOnEveryKeyframeFailsTheSessionAtLast) {
+  const Scene s = make_scene(100, 17);
+  Atlas atlas;
+  auto map = atlas.create_map();
+  LocalMapperOptions o;
+  o.run_bundle_adjustment = false;
+  o.run_culling = false;
+  LocalMapper mapper(atlas, s.cam(), o);
+  mapper.set_processed_listener([](const std::shared_ptr<KeyFrame>&) { throw Error("the map is broken"); });
+  bool failed = false;
+  for (int k = 0; k < 40 && !failed; ++k) {
+    std::vector<std::size_t> idx;
+    try {
+      mapper.insert(map->new_keyframe(keyframe_data(s, at(0.01 * k, 0, 0), &idx)));
+      mapper.wait_until_idle();
+    } catch (const WorkerFailed& e) {
+      failed = true;
+      EXPECT_NE(std::string(e.what()).find("local mapping failed 20 times in a row"), std::string::npos) << e.what();
+      EXPECT_EQ(k, 19);  // raised by the wait after the 20th keyframe
+    }
+  }
+  EXPECT_TRUE(failed);
+  EXPECT_TRUE(mapper.stats().errors.fatal);
+  EXPECT_THROW(mapper.finish(), WorkerFailed);
+}
+
 }  // namespace
 }  // namespace orbatlas

@@ -151,6 +151,10 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
   EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 3u);
   const std::string metrics = client.get_text("/metrics");
   EXPECT_NE(metrics.find("orbatlas_sessions_created_total 3"), std::string::npos) << metrics;
+  // Errors contained by the workers are reported (none expected here).
+  EXPECT_NE(metrics.find("orbatlas_worker_errors_total 0"), std::string::npos) << metrics;
+  for (const auto session : sessions)
+    EXPECT_EQ(client.get_json("/v1/sessions/" + std::to_string(session)).at("worker_errors"), 0u);
 }
 
 // A single camera streams into a server whose stored map (from a restart)

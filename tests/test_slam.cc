@@ -62,7 +62,7 @@ TEST(StereoSlam, TenSecondClipTracksWithinThreeCentimetres) {
   const auto j = r.to_json();
   for (const char* key : {"frames", "tracked", "lost", "maps", "keyframes", "mappoints", "tracking_ms",
                           "local_mapping_ms_per_kf", "local_ba_ms", "culling_ms_per_kf", "peak_rss_mb", "objects",
-                          "late_frames", "loops", "loop_closing"})
+                          "late_frames", "loops", "loop_closing", "worker_errors", "worker_errors_by", "slot_races"})
     EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_EQ(j["objects"]["mappoints"]["reclaimed"].get<std::uint64_t>(), r.stats.mappoint_objects.reclaimed);
 }

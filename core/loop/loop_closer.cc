@@ -89,8 +89,19 @@ void LoopCloser::finish() {
 }
 
 LoopClosingStats LoopCloser::stats() const {
-  std::lock_guard lock(stats_mutex_);
-  return stats_;
+  LoopClosingStats out;
+  {
+    std::lock_guard lock(stats_mutex_);
+    out = stats_;
+  }
+  out.errors = errors_.counts();
+  return out;
+}
+
+void LoopCloser::record_error(const std::string& unit) {
+  if (!errors_.record(unit, std::current_exception())) return;
+  std::lock_guard lock(state_mutex_);
+  if (!error_) error_ = errors_.fatal_error();
 }
 
 void LoopCloser::run() {
@@ -100,9 +111,11 @@ void LoopCloser::run() {
 void LoopCloser::run_one(const std::shared_ptr<KeyFrame>& keyframe) {
   try {
     process(keyframe);
+    errors_.succeeded();
   } catch (...) {
-    std::lock_guard lock(state_mutex_);
-    if (!error_) error_ = std::current_exception();
+    // Given up for this keyframe: a correction or merge that failed half-way
+    // leaves each keyframe and point as its last complete edit left it.
+    record_error("keyframe " + std::to_string(keyframe->id()));
   }
   std::lock_guard lock(state_mutex_);
   --in_flight_;
@@ -235,8 +248,7 @@ void LoopCloser::start_global_adjustment(MapId map_id) {
         stats_.global_adjustments.push_back(run);
       }
     } catch (...) {
-      std::lock_guard lock(state_mutex_);
-      if (!error_) error_ = std::current_exception();
+      record_error("global bundle adjustment of map " + std::to_string(map_id));
     }
     std::lock_guard lock(state_mutex_);
     global_running_ = false;

@@ -14,11 +14,13 @@
 #include <condition_variable>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <thread>
 #include <vector>
 
 #include "core/common/bounded_queue.h"
 #include "core/common/serial_worker.h"
+#include "core/common/worker_errors.h"
 #include "core/loop/loop_correction.h"
 #include "core/loop/map_merge.h"
 #include "core/loop/place_recognizer.h"
@@ -86,6 +88,7 @@ struct LoopClosingStats {
   std::vector<LiveMerge> merges;         // live merges of the active map into another
   std::vector<double> merge_search_ms;   // per keyframe, when live merging is on
   std::vector<GlobalAdjustmentRun> global_adjustments;
+  WorkerErrorCounts errors;  // keyframes / adjustments given up after an error
 };
 
 class LoopCloser {
@@ -103,10 +106,11 @@ class LoopCloser {
   void wait_until_idle();
   // Call after the mapper has finished: processes what is queued, waits for a
   // running global adjustment and merges it, stops the threads. Idempotent;
-  // rethrows an error that stopped the worker.
+  // rethrows a fatal error (a keyframe that failed alone is only counted).
   void finish();
 
   LoopClosingStats stats() const;
+  WorkerErrorCounts errors() const { return errors_.counts(); }  // cheap
 
  private:
   void run();
@@ -116,6 +120,8 @@ class LoopCloser {
   // True when the active map was merged into the match's map.
   bool merge_live(const PlaceMatch& match);
   std::unique_lock<std::mutex> pause_tracking();
+  // From a catch block: count and log; a fatal run of errors stops the closer.
+  void record_error(const std::string& unit);
   void stop_global_adjustment();
   void start_global_adjustment(MapId map);
 
@@ -132,7 +138,8 @@ class LoopCloser {
   std::size_t in_flight_ = 0;
   bool closed_ = false;  // finish() began: no more keyframes (shared worker)
   bool global_running_ = false;
-  std::exception_ptr error_;
+  std::exception_ptr error_;  // fatal only (errors_: too many failures in a row)
+  WorkerErrors errors_{"loop closing"};
 
   // One correction at a time touches the map with local mapping paused.
   std::mutex correction_mutex_;

@@ -69,7 +69,7 @@ void KeyFrame::set_T_w_b(const Pose3& T_w_b) {
   T_w_b_ = T_w_b;
 }
 
-bool KeyFrame::attach_locked(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {
+SlotEdit KeyFrame::attach_locked(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {
   ObserverRecord record;
   record.keyframe = weak_from_this();
   record.slot = static_cast<std::uint32_t>(slot);
@@ -78,16 +78,26 @@ bool KeyFrame::attach_locked(std::size_t slot, const std::shared_ptr<MapPoint>& 
   return map_point->attach_observer(id_, std::move(record));
 }
 
-bool KeyFrame::add_observation(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {
+SlotEdit KeyFrame::try_add_observation(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {
   ORBATLAS_CHECK(map_point != nullptr, "keyframe " << id_ << ": null map point for slot " << slot);
   check_slot(slot);
   std::lock_guard lock(mutex_);
-  ORBATLAS_CHECK(!slots_[slot], "keyframe " << id_ << ": slot " << slot << " already holds map point " << slots_[slot]->id());
-  if (bad_.load()) return false;
-  if (!attach_locked(slot, map_point)) return false;
+  if (bad_.load()) return SlotEdit::kBad;
+  if (slots_[slot]) return SlotEdit::kSlotTaken;
+  const SlotEdit attached = attach_locked(slot, map_point);
+  if (attached != SlotEdit::kDone) return attached;
   slots_[slot] = map_point;
   map_point_count_.fetch_add(1);
-  return true;
+  return SlotEdit::kDone;
+}
+
+bool KeyFrame::add_observation(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {
+  const SlotEdit edit = try_add_observation(slot, map_point);
+  ORBATLAS_CHECK(edit != SlotEdit::kSlotTaken,
+                 "keyframe " << id_ << ": slot " << slot << " already holds a map point");
+  ORBATLAS_CHECK(edit != SlotEdit::kAlreadyObserved,
+                 "map point " << map_point->id() << " is already observed by keyframe " << id_);
+  return edit == SlotEdit::kDone;
 }
 
 std::shared_ptr<MapPoint> KeyFrame::erase_slot(std::size_t slot) {
@@ -114,15 +124,14 @@ void KeyFrame::erase_slot_if_holds(std::size_t slot, const std::shared_ptr<MapPo
   map_point_count_.fetch_sub(1);
 }
 
-bool KeyFrame::replace(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {
-  ORBATLAS_CHECK(map_point != nullptr, "keyframe " << id_ << ": null map point for slot " << slot);
-  check_slot(slot);
-  std::shared_ptr<MapPoint> released;  // declared before the lock: dropped after unlocking
-  std::lock_guard lock(mutex_);
-  if (slots_[slot] == map_point) return true;
-  if (bad_.load()) return false;
+SlotEdit KeyFrame::swap_locked(std::size_t slot, const std::shared_ptr<MapPoint>& expected, bool any,
+                               const std::shared_ptr<MapPoint>& map_point, std::shared_ptr<MapPoint>& released) {
+  if (!any && slots_[slot] != expected) return SlotEdit::kSlotChanged;
+  if (slots_[slot] == map_point) return SlotEdit::kDone;
+  if (bad_.load()) return SlotEdit::kBad;
   // Attach the new point first: if that fails or throws, nothing has changed.
-  if (!attach_locked(slot, map_point)) return false;
+  const SlotEdit attached = attach_locked(slot, map_point);
+  if (attached != SlotEdit::kDone) return attached;
   released = std::move(slots_[slot]);
   if (released) {
     released->detach_observer(id_);
@@ -130,7 +139,27 @@ bool KeyFrame::replace(std::size_t slot, const std::shared_ptr<MapPoint>& map_po
     map_point_count_.fetch_add(1);
   }
   slots_[slot] = map_point;
-  return true;
+  return SlotEdit::kDone;
+}
+
+SlotEdit KeyFrame::replace_if_holds(std::size_t slot, const std::shared_ptr<MapPoint>& expected,
+                                    const std::shared_ptr<MapPoint>& replacement) {
+  ORBATLAS_CHECK(replacement != nullptr, "keyframe " << id_ << ": null map point for slot " << slot);
+  check_slot(slot);
+  std::shared_ptr<MapPoint> released;  // declared before the lock: dropped after unlocking
+  std::lock_guard lock(mutex_);
+  return swap_locked(slot, expected, false, replacement, released);
+}
+
+bool KeyFrame::replace(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {
+  ORBATLAS_CHECK(map_point != nullptr, "keyframe " << id_ << ": null map point for slot " << slot);
+  check_slot(slot);
+  std::shared_ptr<MapPoint> released;  // declared before the lock: dropped after unlocking
+  std::lock_guard lock(mutex_);
+  const SlotEdit edit = swap_locked(slot, nullptr, true, map_point, released);
+  ORBATLAS_CHECK(edit != SlotEdit::kAlreadyObserved,
+                 "map point " << map_point->id() << " is already observed by keyframe " << id_);
+  return edit == SlotEdit::kDone;
 }
 
 std::shared_ptr<MapPoint> KeyFrame::map_point(std::size_t slot) const {

@@ -59,12 +59,25 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   void set_T_w_b(const Pose3& T_w_b);
 
   // --- observations (both sides: the slot and the map point's observer list) ---
-  // False (nothing changed) when this keyframe or the point is bad. Throws when
-  // the slot is out of range or taken, or the point already sits in another slot.
+  // Puts the point in a free slot, as one step against concurrent edits: what
+  // stood in the way is the result (nothing changed unless kDone). Throws only
+  // for a slot out of range or a null point. Use this wherever another thread
+  // may edit the keyframe (tracking, local mapping, loop closing, merging).
+  SlotEdit try_add_observation(std::size_t slot, const std::shared_ptr<MapPoint>& map_point);
+  // For code that owns the keyframe alone (loading, tests): false (nothing
+  // changed) when this keyframe or the point is bad; throws when the slot is
+  // taken or the point already sits in another slot.
   bool add_observation(std::size_t slot, const std::shared_ptr<MapPoint>& map_point);
   // Empties the slot; returns the point that was there (null if none).
   std::shared_ptr<MapPoint> erase_slot(std::size_t slot);
-  // Puts `map_point` in the slot instead of what was there (same rules as add).
+  // erase_slot, only if the slot still holds `map_point` (culling, fusion).
+  void erase_slot_if_holds(std::size_t slot, const std::shared_ptr<MapPoint>& map_point);
+  // Puts `replacement` in the slot only if it still holds `expected` (fusion):
+  // kSlotChanged when another edit got there first.
+  SlotEdit replace_if_holds(std::size_t slot, const std::shared_ptr<MapPoint>& expected,
+                            const std::shared_ptr<MapPoint>& replacement);
+  // Puts `map_point` in the slot instead of whatever is there (same rules as
+  // add_observation; single-owner code).
   bool replace(std::size_t slot, const std::shared_ptr<MapPoint>& map_point);
   std::shared_ptr<MapPoint> map_point(std::size_t slot) const;
   std::vector<std::shared_ptr<MapPoint>> slots() const;       // index-aligned, nulls included
@@ -106,10 +119,13 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   KeyFrame(KeyframeId id, MapId map, KeyFrameData data, std::shared_ptr<ObjectCounters> counters);
 
   void check_slot(std::size_t slot) const;
-  // erase_slot, only if the slot still holds `map_point` (culling a point).
-  void erase_slot_if_holds(std::size_t slot, const std::shared_ptr<MapPoint>& map_point);
   // Attaches this keyframe to `map_point` for `slot`; mutex_ must be held.
-  bool attach_locked(std::size_t slot, const std::shared_ptr<MapPoint>& map_point);
+  SlotEdit attach_locked(std::size_t slot, const std::shared_ptr<MapPoint>& map_point);
+  // Puts `map_point` in the slot in place of what is there when that is
+  // `expected` (any point when `any`); mutex_ must be held; the old point is
+  // moved to `released` (dropped by the caller after unlocking).
+  SlotEdit swap_locked(std::size_t slot, const std::shared_ptr<MapPoint>& expected, bool any,
+                       const std::shared_ptr<MapPoint>& map_point, std::shared_ptr<MapPoint>& released);
   void rebuild_order_locked();
   void add_child(KeyframeId id, std::weak_ptr<KeyFrame> child);
   void erase_child(KeyframeId id);

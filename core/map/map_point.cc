@@ -116,17 +116,27 @@ int MapPoint::observers_up_to_level(int max_level, KeyframeId exclude, int enoug
   return n;
 }
 
-bool MapPoint::attach_observer(KeyframeId keyframe, ObserverRecord record) {
+const char* to_string(SlotEdit edit) {
+  switch (edit) {
+    case SlotEdit::kDone: return "done";
+    case SlotEdit::kBad: return "culled";
+    case SlotEdit::kSlotTaken: return "slot taken";
+    case SlotEdit::kSlotChanged: return "slot changed";
+    case SlotEdit::kAlreadyObserved: return "already observed";
+  }
+  return "?";
+}
+
+SlotEdit MapPoint::attach_observer(KeyframeId keyframe, ObserverRecord record) {
   std::lock_guard lock(mutex_);
-  if (bad_.load()) return false;
-  ORBATLAS_CHECK(!observers_.contains(keyframe),
-                 "map point " << id_ << " is already observed by keyframe " << keyframe);
+  if (bad_.load()) return SlotEdit::kBad;
+  if (observers_.contains(keyframe)) return SlotEdit::kAlreadyObserved;
   if (!reference_id_) {
     reference_ = record.keyframe;
     reference_id_ = keyframe;
   }
   track_attach(observers_, keyframe, std::move(record));
-  return true;
+  return SlotEdit::kDone;
 }
 
 void MapPoint::detach_observer(KeyframeId keyframe) {

@@ -18,6 +18,20 @@ namespace orbatlas {
 
 class KeyFrame;
 
+// The outcome of an observation edit (KeyFrame::try_add_observation,
+// replace_if_holds). The check and the edit happen under the keyframe's and the
+// point's mutexes, so "the slot was free" and "the point went in" are one step:
+// tracking and local mapping may edit the same keyframe at once and the one that
+// loses simply learns it here (nothing changed unless kDone).
+enum class SlotEdit {
+  kDone,
+  kBad,              // the keyframe or the point is culled
+  kSlotTaken,        // the slot already holds a point (add)
+  kSlotChanged,      // the slot no longer holds the expected point (replace_if_holds)
+  kAlreadyObserved,  // the point already sits in another slot of this keyframe
+};
+const char* to_string(SlotEdit edit);
+
 struct MapPointData {
   Eigen::Vector3d p_w = Eigen::Vector3d::Zero();     // position in the map's world
   Descriptor descriptor{};                           // representative descriptor
@@ -82,9 +96,8 @@ class MapPoint {
 
   MapPoint(MapPointId id, MapId map, MapPointData data, std::shared_ptr<ObjectCounters> counters);
 
-  // Returns false (nothing changed) when the point is bad; throws when `keyframe`
-  // already observes it.
-  bool attach_observer(KeyframeId keyframe, ObserverRecord record);
+  // kBad or kAlreadyObserved change nothing; decided under the point's mutex.
+  SlotEdit attach_observer(KeyframeId keyframe, ObserverRecord record);
   void detach_observer(KeyframeId keyframe);
   void mark_bad();
 

@@ -69,14 +69,8 @@ void update_map_point(MapPoint& point, const ScalePyramid& pyramid) {
 }
 
 bool add_observation_if_free(KeyFrame& keyframe, std::size_t slot, const std::shared_ptr<MapPoint>& point) {
-  if (!point || point->is_bad() || keyframe.is_bad()) return false;
-  if (keyframe.map_point(slot)) return false;
-  if (point->slot_in(keyframe.id())) return false;
-  try {
-    return keyframe.add_observation(slot, point);
-  } catch (const Error&) {
-    return false;  // lost a race with another edit of the same slot or point
-  }
+  if (!point) return false;
+  return keyframe.try_add_observation(slot, point) == SlotEdit::kDone;
 }
 
 bool replace_map_point(Map& map, const std::shared_ptr<MapPoint>& replaced, const std::shared_ptr<MapPoint>& kept) {
@@ -84,14 +78,12 @@ bool replace_map_point(Map& map, const std::shared_ptr<MapPoint>& replaced, cons
   for (const auto& obs : replaced->observations()) {
     const auto kf = obs.kf.lock();
     if (!kf || kf->is_bad()) continue;
-    if (kept->slot_in(kf->id())) {
-      if (kf->map_point(obs.slot) == replaced) kf->erase_slot(obs.slot);
-    } else {
-      try {
-        if (kf->map_point(obs.slot) == replaced) kf->replace(obs.slot, kept);
-      } catch (const Error&) {
-        kf->erase_slot(obs.slot);
-      }
+    // One step per slot: another thread (tracking filling a new keyframe, local
+    // mapping) may have changed it since the snapshot; then it is left alone.
+    const SlotEdit edit = kf->replace_if_holds(obs.slot, replaced, kept);
+    if (edit == SlotEdit::kAlreadyObserved) {
+      // The keyframe sees `kept` in another slot already: drop this one.
+      kf->erase_slot_if_holds(obs.slot, replaced);
     }
   }
   kept->increase_visible(replaced->visible());

@@ -74,8 +74,13 @@ void LocalMapper::finish() {
 }
 
 LocalMapperStats LocalMapper::stats() const {
-  std::lock_guard lock(stats_mutex_);
-  return stats_;
+  LocalMapperStats out;
+  {
+    std::lock_guard lock(stats_mutex_);
+    out = stats_;
+  }
+  out.errors = errors_.counts();
+  return out;
 }
 
 void LocalMapper::set_processed_listener(std::function<void(const std::shared_ptr<KeyFrame>&)> listener) {
@@ -109,9 +114,14 @@ void LocalMapper::run() {
     try {
       process(*keyframe);
       if (processed_listener_ && !(*keyframe)->is_bad()) processed_listener_(*keyframe);
+      errors_.succeeded();
     } catch (...) {
-      std::lock_guard lock(state_mutex_);
-      if (!error_) error_ = std::current_exception();
+      // The keyframe stays as far as it was processed (every edit is a whole
+      // step of the map model); the next one is processed as usual.
+      if (errors_.record("keyframe " + std::to_string((*keyframe)->id()), std::current_exception())) {
+        std::lock_guard lock(state_mutex_);
+        if (!error_) error_ = errors_.fatal_error();
+      }
     }
     keyframe->reset();  // drop our reference before reporting idle
     std::lock_guard lock(state_mutex_);

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/common/bounded_queue.h"
+#include "core/common/worker_errors.h"
 #include "core/map/atlas.h"
 #include "core/map/keyframe_index.h"
 #include "core/mapping/keyframe_culling.h"
@@ -48,6 +49,7 @@ struct LocalMapperStats {
   std::vector<KeyframeId> culled_keyframes;  // in order
   std::size_t points_triangulated = 0, points_fused = 0, observations_fused = 0, recent_points_culled = 0;
   std::size_t bundle_adjustments_interrupted = 0;
+  WorkerErrorCounts errors;  // keyframes whose processing failed (given up, the mapper went on)
 };
 
 class LocalMapper final : public KeyframeSink {
@@ -79,11 +81,13 @@ class LocalMapper final : public KeyframeSink {
   void resume();
 
   void wait_until_idle() const;
-  // Processes what is queued, then stops the thread (idempotent). Rethrows an
-  // error that stopped the thread.
+  // Processes what is queued, then stops the thread (idempotent). Rethrows a
+  // fatal error (WorkerErrors: too many keyframes failed in a row); a keyframe
+  // that failed alone is counted in stats().errors and logged.
   void finish();
 
   LocalMapperStats stats() const;
+  WorkerErrorCounts errors() const { return errors_.counts(); }  // cheap
 
  private:
   struct RecentPoint {
@@ -110,7 +114,8 @@ class LocalMapper final : public KeyframeSink {
   std::size_t in_flight_ = 0;  // inserted and not yet processed
   std::atomic<bool> pause_requested_{false};
   bool paused_ = false;  // guarded by state_mutex_; the mapper processes nothing while set
-  std::exception_ptr error_;
+  std::exception_ptr error_;  // fatal only: errors_ said the map is unusable
+  WorkerErrors errors_{"local mapping"};
   std::function<void(const std::shared_ptr<KeyFrame>&)> processed_listener_;
 
   // Mapper-thread state.

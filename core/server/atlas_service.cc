@@ -372,6 +372,7 @@ nlohmann::json AtlasService::merges_json() const {
   out["skipped"] = stats.skipped;
   out["maps_searched"] = stats.maps_searched;
   out["keyframes_searched"] = stats.keyframes_searched;
+  out["worker_errors"] = stats.errors;
   if (!stats.last_error.empty()) out["last_error"] = stats.last_error;
   out["refinements"] = nlohmann::json::array();
   for (const MapRefinement& r : stats.refinements)
@@ -553,15 +554,17 @@ nlohmann::json AtlasService::health() const {
 }
 
 std::string AtlasService::metrics_text() const {
-  std::size_t live = 0, stored = 0;
+  std::size_t live = 0, stored = 0, worker_errors = 0;
   {
     std::lock_guard lock(mutex_);
     for (const auto& [_, s] : sessions_) {
       const SessionState st = s->state();
       live += st == SessionState::kActive ? 1 : 0;
       stored += st == SessionState::kActive ? 0 : 1;
+      worker_errors += s->worker_errors();
     }
   }
+  if (merger_) worker_errors += merger_->stats().errors;
   std::size_t keyframes = 0, points = 0;
   const auto maps = atlas_.maps();
   for (const auto& m : maps) {
@@ -578,6 +581,10 @@ std::string AtlasService::metrics_text() const {
   gauge("orbatlas_sessions_created_total", "Sessions created since the server started.", "counter",
         static_cast<double>(sessions_created_.load()));
   gauge("orbatlas_frames_total", "Frames processed.", "counter", static_cast<double>(frames_.load()));
+  gauge("orbatlas_worker_errors_total",
+        "Errors contained inside tracking, local mapping, loop closing and map merging (the unit of work was "
+        "given up, the session and the server went on), over the sessions this server holds.",
+        "counter", static_cast<double>(worker_errors));
   gauge("orbatlas_frames_rejected_total", "Frames refused as bad input.", "counter", static_cast<double>(frames_rejected_.load()));
   out << tracking_latency_.prometheus("orbatlas_tracking_latency_seconds", "Time to track one frame (features included).");
   gauge("orbatlas_maps", "Maps in the atlas.", "gauge", static_cast<double>(maps.size()));

@@ -46,6 +46,7 @@ void LiveSession::fail(const std::string& why) {
   error_ = why;
   log_warn("session " + std::to_string(info_.id) + " failed: " + why);
   if (slam_) {
+    worker_errors_.store(slam_->worker_errors());
     final_anchors_ = slam_->anchors();
     slam_.reset();  // stops its threads (errors are logged there); the maps stay in the atlas
   }
@@ -73,6 +74,7 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
     throw ApiError(500, "session_failed", "session " + std::to_string(info_.id) + " failed: " + e.what());
   }
   out.tracking_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  worker_errors_.store(slam_->worker_errors());
   last_frame_t_ = t_ns;
   ++frames_;
   if (out.result.tracked) ++tracked_;
@@ -110,6 +112,7 @@ bool LiveSession::finish() {
   if (state_ != SessionState::kActive) return false;
   try {
     slam_->finish();
+    worker_errors_.store(slam_->worker_errors());
     final_stats_ = to_json(slam_->stats());
     final_anchors_ = slam_->anchors();
     slam_.reset();
@@ -136,7 +139,8 @@ nlohmann::json LiveSession::status() const {
                       {"tracked", tracked_},
                       {"keyframes", keyframes_},
                       {"rejected_frames", rejected_frames_},
-                      {"imu_samples", imu_samples_}};
+                      {"imu_samples", imu_samples_},
+                      {"worker_errors", worker_errors_.load()}};
   if (!config_.empty()) j["config"] = config_;
   if (!error_.empty()) j["error"] = error_;
   if (last_) {

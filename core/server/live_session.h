@@ -4,6 +4,7 @@
 // camera, its own localisation in the stored maps; serialised per session,
 // with what the API reports about it. A session from an earlier run of the
 // server (read from the database) is a LiveSession without SLAM, state "stored".
+#include <atomic>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -53,6 +54,8 @@ class LiveSession {
   bool finish();
 
   std::vector<FrameAnchor> anchors() const;  // thread-safe
+  // Errors the session's workers contained (as of its last frame; any thread).
+  std::size_t worker_errors() const { return worker_errors_.load(); }
   nlohmann::json status() const;             // GET /v1/sessions/{id}
 
  private:
@@ -70,6 +73,7 @@ class LiveSession {
   std::optional<TrackResult> last_;
   std::vector<double> tracking_ms_;
   nlohmann::json final_stats_;  // SLAM statistics captured by finish()
+  std::atomic<std::size_t> worker_errors_{0};
 };
 
 }  // namespace orbatlas

@@ -56,10 +56,15 @@ void MapMergeWorker::run() {
     if (!stopping_.load()) {
       try {
         process(*request);
-      } catch (const std::exception& e) {
-        log_warn(std::string("map merging failed: ") + e.what());
+        errors_.succeeded();
+      } catch (...) {
+        // The request is given up (its maps stay as the last complete edit
+        // left them); the next one is taken as usual.
+        errors_.record("the merge request for map " + std::to_string(request->map), std::current_exception());
+        const WorkerErrorCounts counts = errors_.counts();
         std::lock_guard lock(mutex_);
-        stats_.last_error = e.what();
+        stats_.last_error = counts.last;
+        stats_.errors = counts.errors;
       }
     }
     leases_.release_all(kMergeWorkerLease);

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "core/common/bounded_queue.h"
+#include "core/common/worker_errors.h"
 #include "core/loop/map_merge.h"
 #include "core/loop/place_recognizer.h"
 #include "core/map/atlas.h"
@@ -76,6 +77,7 @@ struct MapMergeWorkerStats {
   std::vector<MergeRecord> merges;
   std::size_t pending = 0;  // queued or in progress
   std::string last_error;
+  std::size_t errors = 0;  // requests given up after an error (the worker went on)
 };
 
 class MapMergeWorker {
@@ -117,6 +119,7 @@ class MapMergeWorker {
 
   BoundedQueue<MergeRequest> queue_;
   std::atomic<bool> stopping_{false};
+  WorkerErrors errors_{"map merging", std::numeric_limits<std::size_t>::max()};  // never fatal: the server goes on
   mutable std::mutex mutex_;  // guards stats_
   std::condition_variable idle_;
   MapMergeWorkerStats stats_;

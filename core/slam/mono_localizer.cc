@@ -41,15 +41,7 @@ TrackResult MonoLocalizer::process(TimestampNs t_ns, const cv::Mat& left, const 
   ORBATLAS_CHECK(!finished_, "this localisation session has finished; it takes no more frames");
   ORBATLAS_DATA_CHECK(right.empty(), "a single-camera session takes one image per frame, not a stereo pair");
   const auto start = std::chrono::steady_clock::now();
-  TrackResult result = tracker_->track(frontend_.make_frame(t_ns, left));
-  tracking_ms_.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
-  ++frames_;
-  if (result.tracked) {
-    ++tracked_;
-    std::lock_guard lock(anchors_mutex_);
-    anchors_.push_back(tracker_->anchors().back());
-  }
-  return result;
+  return frames_.track(*tracker_, frontend_.make_frame(t_ns, left), nullptr, start);
 }
 
 void MonoLocalizer::finish() {
@@ -58,19 +50,17 @@ void MonoLocalizer::finish() {
   tracker_->release_frames();
 }
 
-std::vector<FrameAnchor> MonoLocalizer::anchors() const {
-  std::lock_guard lock(anchors_mutex_);
-  return anchors_;
-}
+std::vector<FrameAnchor> MonoLocalizer::anchors() const { return frames_.anchors(); }
 
 SlamStats MonoLocalizer::stats() const {
   SlamStats s;
-  s.frames = frames_;
-  s.tracked = tracked_;
-  s.lost = frames_ - tracked_;
+  s.frames = frames_.frames();
+  s.tracked = frames_.tracked();
+  s.lost = s.frames - s.tracked;
+  s.tracking_errors = frames_.errors();
   s.relocalizations = tracker_->relocalizations();
   add_atlas_counts(atlas_, s);
-  s.tracking_ms = tracking_ms_;
+  s.tracking_ms = frames_.tracking_ms();
   return s;
 }
 

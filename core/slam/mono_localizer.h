@@ -15,6 +15,7 @@
 #include "core/io/settings.h"
 #include "core/map/atlas.h"
 #include "core/slam/session_slam.h"
+#include "core/slam/tracked_frames.h"
 #include "core/tracking/frame_relocalizer.h"
 #include "core/tracking/mono_frontend.h"
 #include "core/tracking/tracker.h"
@@ -42,6 +43,7 @@ class MonoLocalizer final : public SessionSlam {
   void finish() override;
   std::vector<FrameAnchor> anchors() const override;
   SlamStats stats() const override;
+  std::size_t worker_errors() const override { return frames_.errors().errors; }
 
  private:
   class NoKeyframes;
@@ -52,10 +54,7 @@ class MonoLocalizer final : public SessionSlam {
   std::unique_ptr<FrameRelocalizer> relocalizer_;
   std::unique_ptr<Tracker> tracker_;
   bool finished_ = false;
-  std::vector<double> tracking_ms_;
-  mutable std::mutex anchors_mutex_;
-  std::vector<FrameAnchor> anchors_;  // copy of the tracker's, for other threads
-  std::size_t frames_ = 0, tracked_ = 0;
+  TrackedFrames frames_;
 };
 
 }  // namespace orbatlas

@@ -22,6 +22,8 @@ class SessionSlam {
   // The tracked frames' anchors so far; safe from any thread.
   virtual std::vector<FrameAnchor> anchors() const = 0;
   virtual SlamStats stats() const = 0;
+  // Errors contained by the session's workers so far (cheap; any thread).
+  virtual std::size_t worker_errors() const = 0;
 };
 
 }  // namespace orbatlas

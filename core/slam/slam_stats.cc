@@ -66,6 +66,10 @@ nlohmann::json to_json(const LiveMerge& m) {
           {"merge_ms", m.merge.ms}};
 }
 
+std::size_t worker_error_total(const SlamStats& s) {
+  return s.tracking_errors.errors + s.mapping.errors.errors + s.loop.errors.errors;
+}
+
 nlohmann::json to_json(const SlamStats& s) {
   nlohmann::json j;
   j["frames"] = s.frames;
@@ -146,6 +150,13 @@ nlohmann::json to_json(const SlamStats& s) {
     j["loop_closing"] = lc;
   }
   j["objects"] = {{"keyframes", counters(s.keyframe_objects)}, {"mappoints", counters(s.mappoint_objects)}};
+  j["worker_errors"] = worker_error_total(s);
+  j["worker_errors_by"] = {{"tracking", s.tracking_errors.errors},
+                           {"local_mapping", s.mapping.errors.errors},
+                           {"loop_closing", s.loop.errors.errors}};
+  for (const WorkerErrorCounts* e : {&s.loop.errors, &s.mapping.errors, &s.tracking_errors})
+    if (!e->last.empty()) j["last_worker_error"] = e->last;
+  j["slot_races"] = s.slot_races;
   return j;
 }
 

@@ -39,7 +39,15 @@ struct SlamStats {
   // The final global BA (StereoSlamOptions::final_global_ba), when it ran.
   std::size_t final_ba_keyframes = 0;
   double final_ba_s = 0.0;
+  // Errors contained inside the engine (frames / keyframes given up, the
+  // session went on); mapping.errors and loop.errors hold the other workers'.
+  WorkerErrorCounts tracking_errors;
+  // New-keyframe slots local mapping filled while tracking filled them (handled).
+  std::size_t slot_races = 0;
 };
+
+// Every worker's contained errors together (tracking, local mapping, loop closing).
+std::size_t worker_error_total(const SlamStats& stats);
 
 // Keys: frames, tracked, lost, maps, keyframes, mappoints, tracking_ms{p50,p95,max,mean},
 // local_mapping_ms_per_kf{p50,p95,max}, local_ba_ms{p50,p95,max}, culling_scheme,
@@ -48,7 +56,9 @@ struct SlamStats {
 // objects{keyframes,mappoints}{created,culled,alive,reclaimed}, loops,
 // loop_closing{place_recognition_ms_per_kf, loop_correction_ms, loops[],
 // global_ba[], false_loops, live_merges[], merge_search_ms_per_kf}, maps_started,
-// live_merges (count), final_global_ba{keyframes, seconds} (when it ran).
+// live_merges (count), final_global_ba{keyframes, seconds} (when it ran),
+// worker_errors (total), worker_errors_by{tracking, local_mapping, loop_closing},
+// last_worker_error (when any), slot_races.
 // Fills maps, keyframes, mappoints (maps holding keyframes) and the object
 // counters from the atlas as it is now.
 void add_atlas_counts(const Atlas& atlas, SlamStats& stats);

@@ -55,18 +55,7 @@ TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv:
   ORBATLAS_DATA_CHECK(!right.empty(), "a stereo session takes a stereo pair: the right image is missing");
   const auto start = std::chrono::steady_clock::now();
   Frame frame = frontend_.make_frame(t_ns, left, right);
-  TrackResult result;
-  {
-    std::lock_guard tracking(*tracking_mutex_);
-    result = tracker_->track(std::move(frame));
-  }
-  tracking_ms_.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
-  ++frames_;
-  if (result.tracked) {
-    ++tracked_;
-    std::lock_guard lock(anchors_mutex_);
-    anchors_.push_back(tracker_->anchors().back());
-  }
+  const TrackResult result = frames_.track(*tracker_, std::move(frame), tracking_mutex_.get(), start);
   if (result.keyframe) {
     ++keyframes_made_;
     if (options_.synchronous_mapping) {
@@ -110,23 +99,26 @@ std::vector<TimedPose> StereoSlam::trajectory() const {
   return out;
 }
 
-std::vector<FrameAnchor> StereoSlam::anchors() const {
-  std::lock_guard lock(anchors_mutex_);
-  return anchors_;
+std::vector<FrameAnchor> StereoSlam::anchors() const { return frames_.anchors(); }
+
+std::size_t StereoSlam::worker_errors() const {
+  return frames_.errors().errors + mapper_->errors().errors + (loop_closer_ ? loop_closer_->errors().errors : 0);
 }
 
 SlamStats StereoSlam::stats() const {
   SlamStats s;
-  s.frames = frames_;
+  s.frames = frames_.frames();
   s.relocalizations = tracker_->relocalizations();
   s.maps_started = tracker_->maps_started();
   s.final_ba_keyframes = final_ba_keyframes_;
   s.final_ba_s = final_ba_s_;
-  s.tracked = tracked_;
-  s.lost = frames_ - tracked_;
+  s.tracked = frames_.tracked();
+  s.lost = s.frames - s.tracked;
+  s.tracking_errors = frames_.errors();
+  s.slot_races = tracker_->slot_races();
   s.keyframes_made = keyframes_made_;
   add_atlas_counts(atlas_, s);
-  s.tracking_ms = tracking_ms_;
+  s.tracking_ms = frames_.tracking_ms();
   s.mapping = mapper_->stats();
   if (loop_closer_) {
     s.loop_closing = true;

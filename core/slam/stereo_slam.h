@@ -14,6 +14,7 @@
 #include "core/mapping/local_mapper.h"
 #include "core/slam/session_slam.h"
 #include "core/slam/slam_stats.h"
+#include "core/slam/tracked_frames.h"
 #include "core/tracking/stereo_frontend.h"
 #include "core/tracking/tracker.h"
 #include "core/vocabulary/vocabulary.h"
@@ -77,6 +78,7 @@ class StereoSlam final : public SessionSlam {
   // frames are processed (a checkpoint thread storing the trajectory).
   std::vector<FrameAnchor> anchors() const override;
   SlamStats stats() const override;
+  std::size_t worker_errors() const override;
   const StereoFrontend& frontend() const { return frontend_; }
 
  private:
@@ -91,12 +93,10 @@ class StereoSlam final : public SessionSlam {
   bool finished_ = false;
   std::size_t final_ba_keyframes_ = 0;
   double final_ba_s_ = 0.0;
-  std::vector<double> tracking_ms_;
   // Held for each frame; the loop closer holds it while it edits the map.
   std::shared_ptr<std::mutex> tracking_mutex_ = std::make_shared<std::mutex>();
-  mutable std::mutex anchors_mutex_;
-  std::vector<FrameAnchor> anchors_;  // copy of the tracker's, for other threads
-  std::size_t frames_ = 0, tracked_ = 0, keyframes_made_ = 0;
+  TrackedFrames frames_;
+  std::size_t keyframes_made_ = 0;
 };
 
 }  // namespace orbatlas

@@ -7,6 +7,7 @@
 #include "core/common/error.h"
 #include "core/map/map_point_update.h"
 #include "core/tracking/frame_pose.h"
+#include "core/tracking/keyframe_points.h"
 
 namespace orbatlas {
 namespace {
@@ -408,39 +409,12 @@ void Tracker::create_keyframe(Frame& frame, bool all_stereo_points) {
   data.feature_vector = frame.feature_vector;
   data.grid = frame.grid;
   auto kf = map_->new_keyframe(std::move(data));
-
-  for (std::size_t i = 0; i < frame.size(); ++i) {
-    const auto& mp = frame.map_points[i];
-    if (mp && !frame.outlier[i] && !mp->is_bad()) add_observation_if_free(*kf, i, mp);
-  }
-
-  // New points from the closest stereo matches without one (all of them when
-  // initialising), and at least 100 in total (ORB-SLAM's CreateNewKeyFrame).
-  std::vector<std::pair<float, std::size_t>> by_depth;
-  for (std::size_t i = 0; i < frame.size(); ++i)
-    if (frame.depth[i] > 0.0f) by_depth.emplace_back(frame.depth[i], i);
-  std::sort(by_depth.begin(), by_depth.end());
-  const Pose3 T_w_c = frame.T_w_b * T_b_c_;
-  int points = 0;
-  for (const auto& [z, i] : by_depth) {
-    const auto& existing = frame.map_points[i];
-    if (existing && !existing->is_bad() && existing->observation_count() > 0) {
-      ++points;
-    } else {
-      const Keypoint& kp = frame.features.keypoints[i];
-      MapPointData pd;
-      pd.p_w = T_w_c * (kp.bearing * (static_cast<double>(z) / kp.bearing.z()));
-      pd.descriptor = frame.features.descriptors[i];
-      auto mp = map_->new_map_point(pd);
-      mp->set_reference_keyframe(kf);
-      kf->add_observation(i, mp);
-      update_normal_and_distances(*mp, cam_.pyramid);
-      frame.map_points[i] = mp;
-      frame.outlier[i] = false;
-      ++points;
-    }
-    if (!all_stereo_points && z > options_.th_depth_m && points > 100) break;
-  }
+  KeyframePointsOptions points;
+  points.th_depth_m = options_.th_depth_m;
+  points.all_stereo_points = all_stereo_points;
+  // Local mapping may already be editing the keyframe's slots (see keyframe_points.h).
+  const KeyframePointsResult added = add_keyframe_points(*map_, kf, frame, T_b_c_, cam_.pyramid, points);
+  slot_races_ += added.lost_races;
 
   reference_ = kf;
   last_keyframe_ = kf;

@@ -75,6 +75,9 @@ class Tracker {
   std::size_t maps_started() const { return maps_started_; }
   std::size_t maps_followed() const { return maps_followed_; }  // merges tracking followed
   std::size_t relocalizations() const { return relocalizations_; }
+  // Slots of new keyframes that local mapping filled while tracking was
+  // filling them (handled: the point local mapping put there is used).
+  std::size_t slot_races() const { return slot_races_; }
   // Drops the last frame and the keyframes tracking holds (end of a session), so
   // that nothing keeps culled objects alive; the anchors stay.
   void release_frames();
@@ -116,7 +119,7 @@ class Tracker {
   bool has_last_t_ = false;
   TimestampNs lost_since_ns_ = 0;
   int failed_relocalizations_ = 0;  // in a row, while recently lost
-  std::size_t maps_started_ = 0, relocalizations_ = 0, maps_followed_ = 0;
+  std::size_t maps_started_ = 0, relocalizations_ = 0, maps_followed_ = 0, slot_races_ = 0;
   std::vector<FrameAnchor> anchors_;
 };
 

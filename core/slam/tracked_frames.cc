@@ -1,0 +1,44 @@
+#include "core/slam/tracked_frames.h"
+
+#include <chrono>
+#include <string>
+
+#include "core/common/stopwatch.h"
+
+namespace orbatlas {
+
+TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, std::mutex* tracking_mutex,
+                                 std::chrono::steady_clock::time_point started) {
+  const TimestampNs t_ns = frame.t_ns;
+  TrackResult result;
+  try {
+    std::unique_lock<std::mutex> lock;
+    if (tracking_mutex) lock = std::unique_lock(*tracking_mutex);
+    result = tracker.track(std::move(frame));
+    errors_.succeeded();
+  } catch (const DataError&) {
+    throw;  // the frame's fault: the caller says so to the user
+  } catch (const WorkerFailed&) {
+    throw;
+  } catch (...) {
+    if (errors_.record("frame at " + std::to_string(t_ns) + " ns", std::current_exception())) throw;
+    result = TrackResult{};
+    result.t_ns = t_ns;
+    result.state = tracker.state();
+  }
+  tracking_ms_.push_back(ms_since(started));
+  ++frames_;
+  if (result.tracked) {
+    ++tracked_;
+    std::lock_guard lock(anchors_mutex_);
+    anchors_.push_back(tracker.anchors().back());
+  }
+  return result;
+}
+
+std::vector<FrameAnchor> TrackedFrames::anchors() const {
+  std::lock_guard lock(anchors_mutex_);
+  return anchors_;
+}
+
+}  // namespace orbatlas

@@ -1,0 +1,46 @@
+#pragma once
+// The per-frame bookkeeping a session shares between its tracking thread and
+// readers on other threads (StereoSlam and MonoLocalizer): tracking one frame
+// with its errors contained, the time it took, frame counts, and the anchors of
+// the tracked frames.
+//
+// An error inside tracking that is not the frame's fault (not a DataError) is
+// a broken invariant of the engine: the frame is reported as not tracked, the
+// error is logged and counted (stats: worker_errors, tracking), and the next
+// frame is tracked as usual. Only a run of such errors, or a worker that gave
+// up on the map (WorkerFailed), fails the session.
+#include <chrono>
+#include <cstddef>
+#include <mutex>
+#include <vector>
+
+#include "core/common/worker_errors.h"
+#include "core/map/frame_anchor.h"
+#include "core/tracking/tracker.h"
+
+namespace orbatlas {
+
+class TrackedFrames {
+ public:
+  // Tracks `frame` with `tracker` (holding `tracking_mutex` when not null);
+  // `started`: when the frame's processing began (its front end included).
+  // Rethrows DataError (the frame's fault), WorkerFailed, and the error that
+  // makes tracking fail too many times in a row.
+  TrackResult track(Tracker& tracker, Frame frame, std::mutex* tracking_mutex,
+                    std::chrono::steady_clock::time_point started);
+
+  std::vector<FrameAnchor> anchors() const;  // any thread
+  std::size_t frames() const { return frames_; }
+  std::size_t tracked() const { return tracked_; }
+  const std::vector<double>& tracking_ms() const { return tracking_ms_; }
+  WorkerErrorCounts errors() const { return errors_.counts(); }
+
+ private:
+  WorkerErrors errors_{"tracking"};
+  std::vector<double> tracking_ms_;
+  std::size_t frames_ = 0, tracked_ = 0;
+  mutable std::mutex anchors_mutex_;
+  std::vector<FrameAnchor> anchors_;  // copy of the tracker's, for other threads
+};
+
+}  // namespace orbatlas
