@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <opencv2/core/utility.hpp>
+#include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "client/benchmarks.h"
@@ -58,7 +59,9 @@ void run_feature_bench(const FeatureBenchOptions& o) {
   const std::size_t n_db = std::min<std::size_t>(frames.size(), static_cast<std::size_t>(std::max(1, o.database_keyframes)));
   std::vector<double> extract_ms, stereo_ms, rectify_ms, bow_ms, query_ms;
   std::vector<BowVector> bows;
-  std::size_t features_total = 0, stereo_total = 0;
+  std::size_t features_total = 0, stereo_total = 0, corners_total = 0;
+  double mean_total = 0.0, contrast_total = 0.0;
+  std::vector<cv::KeyPoint> corners;
   Progress progress("bench features", static_cast<std::int64_t>(n_db + n_time));
   KeyframeDatabase database;
   cv::Mat left_rect, right_rect;
@@ -88,6 +91,14 @@ void run_feature_bench(const FeatureBenchOptions& o) {
       bow_ms.push_back(t_bow);
       features_total += fl.keypoints.size();
       stereo_total += depths.matched();
+      // Texture as a detector sees it: FAST corners at ORB's initial threshold
+      // on the full-resolution image (before ORB's spatial distribution caps them).
+      cv::FAST(left_rect, corners, settings.orb.ini_th_fast, true);
+      corners_total += corners.size();
+      cv::Scalar mean, stddev;
+      cv::meanStdDev(left_rect, mean, stddev);
+      mean_total += mean[0];
+      contrast_total += stddev[0];
     }
     database.add(k, bow);
     bows.push_back(std::move(bow));
@@ -109,6 +120,9 @@ void run_feature_bench(const FeatureBenchOptions& o) {
                       {"frames_timed", extract_ms.size()},
                       {"features_per_frame", static_cast<double>(features_total) / n},
                       {"stereo_matches_per_frame", static_cast<double>(stereo_total) / n},
+                      {"fast_corners_per_frame", static_cast<double>(corners_total) / n},
+                      {"image_mean", mean_total / n},
+                      {"image_contrast", contrast_total / n},
                       {"extract_ms_p50", percentile(extract_ms, 0.5)},
                       {"extract_ms_p95", percentile(extract_ms, 0.95)},
                       {"rectify_ms_p50", percentile(rectify_ms, 0.5)},
@@ -123,6 +137,8 @@ void run_feature_bench(const FeatureBenchOptions& o) {
     return;
   }
   std::printf("feature benchmark on %s (%zu stereo frames timed, one thread)\n", o.dataset.c_str(), extract_ms.size());
+  std::printf("  texture          %.0f FAST corners per frame (threshold %d, level 0), grey mean %.0f, contrast (std) %.0f\n",
+              static_cast<double>(corners_total) / n, settings.orb.ini_th_fast, mean_total / n, contrast_total / n);
   std::printf("  ORB extraction   p50 %.2f ms  p95 %.2f ms  (%.0f features per frame)\n", percentile(extract_ms, 0.5),
               percentile(extract_ms, 0.95), static_cast<double>(features_total) / n);
   std::printf("  rectification    p50 %.2f ms per pair\n", percentile(rectify_ms, 0.5));

@@ -12,6 +12,7 @@
 #include "core/common/error.h"
 #include "core/eval/evaluate.h"
 #include "core/eval/trajectory_plot.h"
+#include "core/io/euroc_reader.h"
 #include "core/io/tum_trajectory.h"
 
 namespace orbatlas::cli {
@@ -38,7 +39,10 @@ nlohmann::ordered_json to_json(const EvalResult& r) {
           {"align", align_mode_name(r.align)},
           {"matched", r.matched},
           {"est_poses", r.est_poses},
-          {"gt_poses", r.gt_poses}};
+          {"gt_poses", r.gt_poses},
+          {"coverage", r.coverage.fraction},
+          {"covered_s", r.coverage.covered_s},
+          {"span_s", r.coverage.span_s}};
 }
 
 std::string joined(const std::vector<std::string>& paths) {
@@ -53,9 +57,11 @@ void print_human(const EvalArgs& args, const EvalResult& r) {
   std::snprintf(buf, sizeof buf,
                 "  alignment      %s, scale %.6f\n"
                 "  matched poses  %zu of %zu estimated (ground truth: %zu poses)\n"
+                "  coverage       %.3f (%.1f s of %.1f s tracked)\n"
                 "  ATE [m]        rmse %.4f  mean %.4f  median %.4f  max %.4f\n"
                 "  RPE over 1 s   trans %.4f m  rot %.4f deg  (%zu pairs)\n",
-                align_mode_name(r.align), r.alignment.scale, r.matched, r.est_poses, r.gt_poses, r.ate.rmse,
+                align_mode_name(r.align), r.alignment.scale, r.matched, r.est_poses, r.gt_poses, r.coverage.fraction,
+                r.coverage.covered_s, r.coverage.span_s, r.ate.rmse,
                 r.ate.mean, r.ate.median, r.ate.max, r.rpe.trans_rmse_m, r.rpe.rot_rmse_deg, r.rpe.pairs);
   std::cout << buf;
 }
@@ -78,6 +84,22 @@ void write_plot(const EvalArgs& args, const Trajectory& est, const Trajectory& g
   write_trajectory_plot(args.plot, plot);
 }
 
+// The span coverage is measured over: the camera frames when every --gt is a
+// dataset folder (its ground truth may start earlier and end later), the
+// ground truth's own span otherwise.
+std::vector<std::pair<TimestampNs, TimestampNs>> recording_spans(const std::vector<std::string>& gts) {
+  std::vector<std::pair<TimestampNs, TimestampNs>> spans;
+  for (const auto& g : gts) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(g, ec)) return {};
+    const EurocDataset dataset = read_euroc_dataset(g);
+    if (dataset.cameras.empty() || dataset.cameras.front().frames.empty()) return {};
+    const auto& frames = dataset.cameras.front().frames;
+    spans.emplace_back(frames.front().t_ns, frames.back().t_ns);
+  }
+  return spans;
+}
+
 // Several trajectories (sessions in one world frame) as one, in time order.
 Trajectory read_joined(const std::vector<std::string>& paths) {
   std::vector<Trajectory> parts;
@@ -97,6 +119,7 @@ void run_eval(const EvalArgs& args) {
   ORBATLAS_CHECK(mode.has_value(), "--align must be se3, sim3 or none, not '" << args.align << "'");
   options.align = *mode;
   options.association.max_gap_ns = s_to_ns(args.max_gap_s);
+  options.spans = recording_spans(args.gt);
   const EvalResult result = evaluate_trajectory(est, gt, options);
 
   if (args.json) {

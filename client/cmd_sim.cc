@@ -2,6 +2,7 @@
 #include <cstdio>
 
 #include "client/commands.h"
+#include "core/common/error.h"
 #include "core/sim/sequence_simulator.h"
 
 namespace orbatlas::cli {
@@ -9,6 +10,9 @@ namespace orbatlas::cli {
 void register_sim_command(CLI::App& app) {
   auto opts = std::make_shared<sim::SimulationOptions>();
   auto imu = std::make_shared<std::string>("synthetic");
+  auto look = std::make_shared<std::string>("clean");
+  auto calib_error = std::make_shared<double>(-1.0);
+  auto illumination = std::make_shared<double>(-1.0);
   auto* cmd = app.add_subcommand("sim", "Render an EuRoC ASL dataset (stereo, IMU, ground truth) along a real EuRoC trajectory");
   cmd->add_option("--sequence", opts->sequence, "MH_01..MH_05 (one shared Machine Hall) or V1_01")->capture_default_str();
   cmd->add_option("--out", opts->out_dir, "Output folder (created; must not already hold a dataset)")->required();
@@ -19,17 +23,41 @@ void register_sim_command(CLI::App& app) {
   cmd->add_option("--imu", *imu, "IMU source: synthetic, or real (the real MH_05 IMU)")
       ->check(CLI::IsMember({"synthetic", "real"}))
       ->capture_default_str();
-  cmd->add_option("--noise", opts->noise_sigma, "Image noise sigma in grey levels")->capture_default_str();
+  cmd->add_option("--look", *look,
+                  "clean: dense procedural texture, constant exposure, Gaussian noise; real: sparse texture, "
+                  "auto exposure, vignetting, motion blur, signal-dependent noise, darker MH_04/MH_05, "
+                  "calibration error, IMU vibration (docs/simulator.md)")
+      ->check(CLI::IsMember({"clean", "real"}))
+      ->capture_default_str();
+  cmd->add_option("--calib-error", *calib_error,
+                  "Real look: scale of the difference between the rendering and the written calibration (0: none; default 1)")
+      ->check(CLI::Range(0.0, 20.0));
+  cmd->add_option("--illumination", *illumination,
+                  "Real look: scene illumination relative to a well-lit hall (default 1, MH_04/MH_05 0.12)")
+      ->check(CLI::Range(0.01, 10.0));
+  cmd->add_option("--noise", opts->noise_sigma, "Clean look: image noise sigma in grey levels")->capture_default_str();
   cmd->add_option("--sensor-seed", opts->sensor_seed, "Seed of IMU and image noise (default: from the sequence name)");
   cmd->add_option("--config", opts->settings, "Rig calibration, ORB-SLAM3-style YAML (default: config/euroc/stereo_inertial.yaml)");
   cmd->add_option("--threads", opts->threads, "Render threads (default: all cores)");
   cmd->add_flag("!--no-progress", opts->show_progress, "Do not print progress");
-  cmd->callback([opts, imu]() {
+  cmd->callback([opts, imu, look, calib_error, illumination]() {
     opts->imu = *imu == "real" ? sim::ImuSource::kReal : sim::ImuSource::kSynthetic;
+    opts->look = sim::parse_look(*look);
+    if ((*calib_error >= 0.0 || *illumination > 0.0) && opts->look != sim::Look::kReal)
+      throw Error("--calib-error and --illumination belong to --look real");
+    if (opts->look == sim::Look::kReal) {
+      sim::RealLookOptions real = sim::real_look_for(opts->sequence);
+      if (*calib_error >= 0.0) real.calibration_error = *calib_error;
+      if (*illumination > 0.0) real.camera.illumination = *illumination;
+      opts->real = real;
+    }
     const sim::SimulationReport r = sim::simulate_sequence(*opts);
     std::printf("wrote %zu stereo frames and %zu IMU samples to %s\n", r.frames, r.imu_samples, opts->out_dir.c_str());
     std::printf("world built in %.2f s; images rendered and written in %.1f s; render %.2f ms per image\n",
                 r.world_build_s, r.render_s, r.render_ms_per_image);
+    if (opts->look == sim::Look::kReal)
+      std::printf("real look: %.2f renders per image (motion blur), mean exposure %.1f ms\n", r.subframes_per_image,
+                  r.mean_exposure_ms);
     if (r.frames_outside_gt > 0) std::printf("skipped %zu camera timestamps outside the ground truth\n", r.frames_outside_gt);
   });
 }

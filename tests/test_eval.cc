@@ -296,5 +296,36 @@ TEST(Eval, OrbSlam3OnRealMh01IsPlausible) {
   EXPECT_NEAR(sim3.alignment.scale, 1.0, 0.05);
 }
 
+// Coverage: a run that tracks every frame covers the span; one that loses the
+// second half covers half of it, however clean its ATE is; a dropped frame
+// here and there does not count as lost; several sessions' spans add up.
+TEST(Eval, CoverageIsTheFractionOfTheSpanTracked) {
+  const Trajectory gt = make_wavy_trajectory();  // 20 s at 20 Hz
+  const EvalResult full = eval(gt, gt, AlignMode::kSe3);
+  EXPECT_NEAR(full.coverage.fraction, 1.0, 1e-9);
+  EXPECT_NEAR(full.coverage.span_s, 20.0, 1e-9);
+
+  Trajectory first_half(gt.begin(), gt.begin() + 201);  // 0 .. 10 s
+  const EvalResult half = eval(first_half, gt, AlignMode::kSe3);
+  EXPECT_NEAR(half.ate.rmse, 0.0, 1e-9);  // clean where it tracked...
+  EXPECT_NEAR(half.coverage.fraction, 0.5, 1e-9);  // ...but only half of the time
+
+  Trajectory dropped;  // every third frame missing: still tracking
+  for (std::size_t i = 0; i < gt.size(); ++i)
+    if (i % 3 != 1 || i + 1 == gt.size()) dropped.push_back(gt[i]);
+  EXPECT_NEAR(eval(dropped, gt, AlignMode::kSe3).coverage.fraction, 1.0, 1e-9);
+
+  Trajectory gap = first_half;  // lost from 10 s to 15 s
+  gap.insert(gap.end(), gt.begin() + 300, gt.end());
+  EXPECT_NEAR(eval(gap, gt, AlignMode::kSe3).coverage.fraction, 0.75, 1e-9);
+
+  // Two sessions' spans: 0..10 s fully, 15..20 s not at all.
+  const std::vector<std::pair<TimestampNs, TimestampNs>> spans = {{gt[0].t_ns, gt[200].t_ns}, {gt[300].t_ns, gt[400].t_ns}};
+  const Coverage two = trajectory_coverage(first_half, spans);
+  EXPECT_NEAR(two.span_s, 15.0, 1e-9);
+  EXPECT_NEAR(two.fraction, 10.0 / 15.0, 1e-9);
+  EXPECT_EQ(trajectory_coverage({}, spans).fraction, 0.0);
+}
+
 }  // namespace
 }  // namespace orbatlas

@@ -96,6 +96,37 @@ TEST(ImuSynthesizer, NoiseHasTheRequestedDensity) {
   EXPECT_GT((noisy.states.back().gyro_bias - noisy.states.front().gyro_bias).norm(), 0.0);
 }
 
+// The real look's vibration: with the noise off, what it adds is exactly the
+// vibration, whose power is that of three sinusoids of amplitude A/sqrt(3)
+// (mean square A^2/2 over the three axes together); the noise sequence is the
+// same with or without it.
+TEST(ImuSynthesizer, VibrationAddsSinusoidsOfTheRequestedAmplitude) {
+  const auto& spline = mh01_spline();
+  const TimestampNs t0 = spline.start_ns() + 10 * kNsPerSecond;
+  sim::ImuSynthesisOptions quiet;
+  quiet.add_noise = false;
+  sim::ImuSynthesisOptions shaking = quiet;
+  shaking.vibration_accel = 0.3;
+  shaking.vibration_gyro = 0.02;
+  const sim::SyntheticImu a = sim::synthesize_imu(spline, t0, t0 + 20 * kNsPerSecond, quiet);
+  const sim::SyntheticImu b = sim::synthesize_imu(spline, t0, t0 + 20 * kNsPerSecond, shaking);
+  ASSERT_EQ(a.samples.size(), b.samples.size());
+  double sq_a = 0, sq_g = 0;
+  for (std::size_t k = 0; k < a.samples.size(); ++k) {
+    sq_a += (b.samples[k].accel - a.samples[k].accel).squaredNorm();
+    sq_g += (b.samples[k].gyro - a.samples[k].gyro).squaredNorm();
+  }
+  const double n = static_cast<double>(a.samples.size());
+  EXPECT_NEAR(std::sqrt(sq_a / n), 0.3 / std::sqrt(2.0), 0.3 * 0.15);
+  EXPECT_NEAR(std::sqrt(sq_g / n), 0.02 / std::sqrt(2.0), 0.02 * 0.15);
+  // With noise on, the noise itself is unchanged by the vibration.
+  sim::ImuSynthesisOptions noisy, noisy_shaking;
+  noisy_shaking.vibration_accel = 0.3;
+  const sim::SyntheticImu c = sim::synthesize_imu(spline, t0, t0 + kNsPerSecond, noisy);
+  const sim::SyntheticImu d = sim::synthesize_imu(spline, t0, t0 + kNsPerSecond, noisy_shaking);
+  EXPECT_EQ(c.states.back().accel_bias, d.states.back().accel_bias);
+}
+
 TEST(ImuSynthesizer, GravityAtRestPointsUpInTheBody) {
   Trajectory still;
   for (int i = 0; i < 400; ++i) still.push_back({i * 5'000'000LL, Pose3()});

@@ -1,8 +1,40 @@
 #include "core/eval/evaluate.h"
 
+#include <algorithm>
+#include <iterator>
+#include <vector>
+
 #include "core/common/error.h"
 
 namespace orbatlas {
+
+Coverage trajectory_coverage(const Trajectory& estimate, const std::vector<std::pair<TimestampNs, TimestampNs>>& spans,
+                             TimestampNs max_step_ns) {
+  Coverage c;
+  std::vector<TimestampNs> all;
+  for (const StampedPose& p : estimate) all.push_back(p.t_ns);
+  std::sort(all.begin(), all.end());
+  if (max_step_ns <= 0 && all.size() >= 2) {
+    std::vector<TimestampNs> steps;
+    for (std::size_t i = 1; i < all.size(); ++i) steps.push_back(all[i] - all[i - 1]);
+    std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
+    max_step_ns = std::max<TimestampNs>(3 * steps[steps.size() / 2], 1'000'000);
+  }
+  TimestampNs covered = 0, length = 0;
+  for (const auto& [begin, end] : spans) {
+    if (end <= begin) continue;
+    length += end - begin;
+    const auto first = std::lower_bound(all.begin(), all.end(), begin);
+    const auto last = std::upper_bound(all.begin(), all.end(), end);
+    for (auto it = first; it != last && std::next(it) != last; ++it)
+      if (*std::next(it) - *it <= max_step_ns) covered += *std::next(it) - *it;
+  }
+  if (length <= 0) return c;
+  c.span_s = ns_to_s(length);
+  c.covered_s = ns_to_s(covered);
+  c.fraction = std::clamp(c.covered_s / c.span_s, 0.0, 1.0);
+  return c;
+}
 
 EvalResult evaluate_trajectory(const Trajectory& estimate, const Trajectory& ground_truth, const EvalOptions& options) {
   EvalResult result;
@@ -33,6 +65,10 @@ EvalResult evaluate_trajectory(const Trajectory& estimate, const Trajectory& gro
   result.alignment = align_positions(est_positions, gt_positions, options.align);
   result.ate = error_stats(ate_errors(association.pairs, result.alignment));
   result.rpe = relative_pose_error(association.pairs, result.alignment.scale, options.rpe_delta_ns);
+  result.coverage = trajectory_coverage(
+      estimate, options.spans.empty() ? std::vector<std::pair<TimestampNs, TimestampNs>>{{ground_truth.front().t_ns,
+                                                                                             ground_truth.back().t_ns}}
+                                      : options.spans);
   return result;
 }
 

@@ -2,6 +2,8 @@
 // The whole evaluation of an estimated trajectory against ground truth:
 // associate -> align -> ATE and RPE (what `orbatlas eval` reports).
 #include <cstddef>
+#include <utility>
+#include <vector>
 
 #include "core/eval/alignment.h"
 #include "core/eval/association.h"
@@ -13,7 +15,24 @@ struct EvalOptions {
   AlignMode align = AlignMode::kSe3;
   AssociationOptions association;
   TimestampNs rpe_delta_ns = 1'000'000'000;  // RPE over 1 s
+  // The time spans the estimate should cover (coverage; several for sessions
+  // evaluated together); empty: the ground truth's first to last pose.
+  // `orbatlas eval` passes each dataset's camera frames.
+  std::vector<std::pair<TimestampNs, TimestampNs>> spans;
 };
+
+// How much of a time span an estimate covers: the time between consecutive
+// estimated poses inside the span, counted where they are at most `max_step_ns`
+// apart (a lost stretch counts nothing), over the span's length. A run that
+// tracks every frame covers ~1; one that loses half its frames ~0.5.
+struct Coverage {
+  double fraction = 0.0;  // covered_s / span_s, in [0, 1]
+  double covered_s = 0.0, span_s = 0.0;
+};
+// Several spans add up. max_step_ns 0: three times the estimate's median step
+// (at least 1 ms).
+Coverage trajectory_coverage(const Trajectory& estimate, const std::vector<std::pair<TimestampNs, TimestampNs>>& spans,
+                             TimestampNs max_step_ns = 0);
 
 struct EvalResult {
   AlignMode align = AlignMode::kSe3;
@@ -23,6 +42,7 @@ struct EvalResult {
   std::size_t matched = 0;    // estimated poses with a ground-truth pose
   std::size_t est_poses = 0;  // all estimated poses
   std::size_t gt_poses = 0;   // all ground-truth poses
+  Coverage coverage;          // of EvalOptions::span (the ground truth's by default)
 };
 
 // Throws Error when fewer than 3 estimated poses match the ground truth.

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include "core/common/error.h"
 
@@ -47,6 +48,30 @@ SyntheticImu synthesize_imu(const TrajectorySpline& trajectory, TimestampNs firs
   const double gyro_walk = cal.gyro_random_walk * std::sqrt(dt);
   const double accel_walk = cal.accel_random_walk * std::sqrt(dt);
 
+  // Vibration: a few fixed sinusoids (frequency, axis, phase) per sensor.
+  struct Vibration {
+    double hz, phase;
+    Eigen::Vector3d axis;
+  };
+  std::vector<Vibration> accel_vibration, gyro_vibration;
+  if (options.vibration_accel > 0.0 || options.vibration_gyro > 0.0) {
+    // Its own generator: the noise sequence is the same with or without vibration.
+    std::mt19937_64 vib_rng(options.seed ^ 0x5EED0F0D1BULL);
+    std::uniform_real_distribution<double> uni(0.0, 1.0);
+    const auto axis = [&] {
+      return Eigen::Vector3d(normal(vib_rng), normal(vib_rng), normal(vib_rng)).normalized();
+    };
+    for (const double hz : {47.3, 83.1, 131.7}) {
+      accel_vibration.push_back({hz, 2.0 * M_PI * uni(vib_rng), axis()});
+      gyro_vibration.push_back({hz * 1.01, 2.0 * M_PI * uni(vib_rng), axis()});
+    }
+  }
+  const auto vibration = [](const std::vector<Vibration>& v, double amplitude, double ts) {
+    Eigen::Vector3d out = Eigen::Vector3d::Zero();
+    for (const Vibration& s : v) out += amplitude / std::sqrt(3.0) * std::sin(2.0 * M_PI * s.hz * ts + s.phase) * s.axis;
+    return out;
+  };
+
   SyntheticImu out;
   for (TimestampNs t = std::max(first_ns, trajectory.start_ns()); t <= std::min(last_ns, trajectory.end_ns()); t += period) {
     const SplineState s = trajectory.evaluate(t);
@@ -63,6 +88,11 @@ SyntheticImu synthesize_imu(const TrajectorySpline& trajectory, TimestampNs firs
       m.accel += ba + gauss3(accel_white);
       bg += gauss3(gyro_walk);
       ba += gauss3(accel_walk);
+    }
+    if (!accel_vibration.empty()) {
+      const double ts = ns_to_s(t);
+      m.gyro += vibration(gyro_vibration, options.vibration_gyro, ts);
+      m.accel += vibration(accel_vibration, options.vibration_accel, ts);
     }
     out.samples.push_back(m);
   }

@@ -19,6 +19,11 @@ struct ImuSynthesisOptions {
   // Initial biases are drawn from N(0, sigma^2) per axis (EuRoC-like magnitudes).
   double initial_gyro_bias_sigma = 0.01;   // rad/s
   double initial_accel_bias_sigma = 0.05;  // m/s^2
+  // Vibration of the airframe (the real look): three sinusoids per sensor at
+  // rotor-like frequencies (aliased by the IMU rate), random axes and phases,
+  // with these amplitudes (0: none).
+  double vibration_accel = 0.0;  // m/s^2
+  double vibration_gyro = 0.0;   // rad/s
 };
 
 struct SyntheticImu {

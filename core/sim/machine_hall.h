@@ -17,6 +17,7 @@ struct MachineHallOptions {
   double margin_m = 4.0;        // walls this far beyond the trajectories
   int machine_count = 70;       // target number of machines/crates
   double texel_size_m = 0.005;  // finest texture detail
+  bool sparse_textures = false;  // the real look's textures (TextureRequest::sparse)
 };
 
 struct HallBounds {

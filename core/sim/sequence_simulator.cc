@@ -6,6 +6,7 @@
 #include <functional>
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
+#include <random>
 #include <thread>
 
 #include "core/camera/camera_factory.h"
@@ -19,6 +20,7 @@
 #include "core/sim/euroc_sequences.h"
 #include "core/sim/imu_synthesizer.h"
 #include "core/sim/machine_hall.h"
+#include "core/sim/real_camera.h"
 #include "core/sim/renderer.h"
 #include "core/sim/trajectory_spline.h"
 
@@ -45,6 +47,23 @@ std::vector<ImuSample> load_real_mh05_imu(TimestampNs first, TimestampNs last) {
   return out;
 }
 
+// The calibration the real look renders with: the written one, slightly off
+// (focal lengths by up to 0.2%, principal points by up to 0.8 px, the camera's
+// mounting by up to 0.05 deg and 0.5 mm), times `scale`.
+CameraCalibration perturbed(const CameraCalibration& written, double scale, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  CameraCalibration c = written;
+  c.fx *= 1.0 + scale * 0.002 * u(rng);
+  c.fy *= 1.0 + scale * 0.002 * u(rng);
+  c.cx += scale * 0.8 * u(rng);
+  c.cy += scale * 0.8 * u(rng);
+  const Eigen::Vector3d axis = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+  const double angle = scale * 0.05 * M_PI / 180.0 * u(rng);
+  const Pose3 error(Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis)), scale * 0.0005 * Eigen::Vector3d(u(rng), u(rng), u(rng)));
+  c.T_b_c = c.T_b_c * error;
+  return c;
+}
+
 std::uint64_t hash_name(const std::string& s) {
   std::uint64_t h = 1469598103934665603ULL;
   for (const char c : s) h = (h ^ static_cast<unsigned char>(c)) * 1099511628211ULL;
@@ -66,6 +85,8 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   ORBATLAS_CHECK(settings.camera1.has_value(), "sim: " << settings_path.string() << " describes no second camera");
   const ImuCalibration imu_cal = settings.imu.value_or(ImuCalibration{});
   const std::uint64_t sensor_seed = options.sensor_seed != 0 ? options.sensor_seed : hash_name(sequence.name);
+  const bool real = options.look == Look::kReal;
+  const RealLookOptions look = options.real.value_or(real_look_for(sequence.name));
 
   // Trajectory and frame times.
   const Trajectory gt = load_ground_truth(sequence);
@@ -93,12 +114,20 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   // Created before the slow work so that an occupied output folder fails at once.
   const std::vector<CameraCalibration> cams = {settings.camera0, *settings.camera1};
   EurocWriter writer(options.out_dir, cams, imu_cal);
+  // What the images are rendered with: the written calibration, or (real
+  // look) one slightly off it, as a real rig's calibration is.
+  std::vector<CameraCalibration> render_cams = cams;
+  if (real && look.calibration_error > 0.0) {
+    std::mt19937_64 rng(sensor_seed ^ 0xCA11B7A7E5ULL);
+    for (auto& c : render_cams) c = perturbed(c, look.calibration_error, rng);
+  }
 
   // The world: the same hall for every Machine Hall sequence.
   const auto world_start = Clock::now();
   std::vector<Trajectory> keep_free = sequence.machine_hall ? load_machine_hall_trajectories() : std::vector<Trajectory>{gt};
   MachineHallOptions hall_options;
   hall_options.seed = options.scene_seed;
+  hall_options.sparse_textures = real && look.sparse_textures;
   const World world = build_machine_hall(keep_free, hall_options);
   report.world_build_s = std::chrono::duration<double>(Clock::now() - world_start).count();
   log_info("sim: world with " + std::to_string(world.quads().size()) + " surfaces built in " +
@@ -111,6 +140,10 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   ImuSynthesisOptions imu_options;
   imu_options.calibration = imu_cal;
   imu_options.seed = sensor_seed;
+  if (real) {
+    imu_options.vibration_accel = 0.3 * look.imu_vibration;
+    imu_options.vibration_gyro = 0.02 * look.imu_vibration;
+  }
   // The grid runs through the first camera timestamp, like EuRoC's triggered cameras.
   const TimestampNs period = s_to_ns(1.0 / imu_cal.rate_hz);
   const TimestampNs grid_first = stamps.front() - ((stamps.front() - imu_first) / period) * period;
@@ -135,27 +168,59 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   // Images: workers take frames from a shared counter; each owns its renderers.
   const int threads = options.threads > 0 ? options.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   std::vector<std::unique_ptr<Camera>> cameras;
-  for (const auto& c : cams) cameras.push_back(make_camera(c));
+  for (const auto& c : render_cams) cameras.push_back(make_camera(c));
   Progress progress("sim " + sequence.name, static_cast<std::int64_t>(stamps.size()), options.show_progress);
   std::atomic<std::size_t> next{0};
   std::atomic<std::int64_t> render_ns{0};
+  std::atomic<std::int64_t> subframes_total{0}, exposure_us_total{0};
   std::mutex error_mutex;
   std::string first_error;
   const auto render_start = Clock::now();
   auto worker = [&]() {
     try {
       std::vector<std::unique_ptr<Renderer>> renderers;
+      std::vector<RealCamera> real_cameras;
       RenderOptions ro;
-      ro.noise_sigma = options.noise_sigma;
-      for (const auto& cam : cameras) renderers.push_back(std::make_unique<Renderer>(world, *cam, ro));
-      cv::Mat image;
+      ro.noise_sigma = real ? 0.0 : options.noise_sigma;  // the real camera adds its own
+      for (std::size_t c = 0; c < cameras.size(); ++c) {
+        renderers.push_back(std::make_unique<Renderer>(world, *cameras[c], ro));
+        if (real) real_cameras.emplace_back(look.camera, cameras[c]->width(), cameras[c]->height(), static_cast<int>(c), sensor_seed);
+      }
+      cv::Mat image, radiance, sum;
       const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
       for (std::size_t i = next++; i < stamps.size(); i = next++) {
         const TimestampNs t = stamps[i];
         const Pose3 T_w_b = spline.pose(t);
         for (std::size_t c = 0; c < renderers.size(); ++c) {
           const auto t0 = Clock::now();
-          renderers[c]->render(T_w_b * cams[c].T_b_c, image, sensor_seed ^ (static_cast<std::uint64_t>(t) * 2 + c));
+          const std::uint64_t noise_seed = sensor_seed ^ (static_cast<std::uint64_t>(t) * 2 + c);
+          if (!real) {
+            renderers[c]->render(T_w_b * render_cams[c].T_b_c, image, noise_seed);
+          } else {
+            // Motion blur: the mean of renders spread over the exposure time,
+            // as many as the image moves pixels meanwhile.
+            const Exposure exposure = real_cameras[c].exposure_at(t);
+            const SplineState state = spline.evaluate(t);
+            const double motion_px_per_s =
+                render_cams[c].fx * (state.omega_b.norm() + state.v_w.norm() / 2.0);  // rotation + translation at 2 m
+            const int n = real_cameras[c].subframes(motion_px_per_s, exposure.exposure_s);
+            const TimestampNs exposure_ns = s_to_ns(exposure.exposure_s);
+            for (int k = 0; k < n; ++k) {
+              TimestampNs tk = t - exposure_ns / 2 + static_cast<TimestampNs>((k + 0.5) / n * static_cast<double>(exposure_ns));
+              tk = std::clamp(tk, spline.start_ns(), spline.end_ns());
+              renderers[c]->render(spline.pose(tk) * render_cams[c].T_b_c, image, noise_seed);
+              image.convertTo(radiance, CV_32FC1);
+              if (k == 0) {
+                sum = radiance.clone();
+              } else {
+                sum += radiance;
+              }
+            }
+            if (n > 1) sum /= static_cast<double>(n);
+            real_cameras[c].develop(sum, exposure, image, noise_seed);
+            subframes_total += n;
+            exposure_us_total += static_cast<std::int64_t>(exposure.exposure_s * 1e6);
+          }
           render_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0).count();
           const auto path = writer.image_path(static_cast<int>(c), t);
           if (!cv::imwrite(path.string(), image, png_params)) throw Error("cannot write " + path.string());
@@ -182,6 +247,10 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   report.frames = stamps.size();
   report.render_s = std::chrono::duration<double>(Clock::now() - render_start).count();
   report.render_ms_per_image = static_cast<double>(render_ns.load()) * 1e-6 / static_cast<double>(2 * stamps.size());
+  if (real) {
+    report.subframes_per_image = static_cast<double>(subframes_total.load()) / static_cast<double>(2 * stamps.size());
+    report.mean_exposure_ms = static_cast<double>(exposure_us_total.load()) * 1e-3 / static_cast<double>(2 * stamps.size());
+  }
   return report;
 }
 

@@ -3,7 +3,10 @@
 // sensor.yaml files) along a real EuRoC trajectory, at the real camera timestamps.
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
+
+#include "core/sim/look.h"
 
 namespace orbatlas::sim {
 
@@ -22,6 +25,9 @@ struct SimulationOptions {
   // Calibration of the rendered rig (ORB-SLAM3-style settings, stereo); empty:
   // the shipped config/euroc/stereo_inertial.yaml (the real EuRoC calibration).
   std::filesystem::path settings;
+  Look look = Look::kClean;
+  // The real look's settings; empty: real_look_for(sequence) (darker MH_04/MH_05).
+  std::optional<RealLookOptions> real;
   int threads = 0;  // 0: all cores
   bool show_progress = true;
 };
@@ -33,6 +39,9 @@ struct SimulationReport {
   double world_build_s = 0.0;
   double render_s = 0.0;              // wall time of rendering and writing the images
   double render_ms_per_image = 0.0;   // CPU time per image (rendering only), averaged
+  // Real look: renders averaged per image (motion blur), and the mean exposure.
+  double subframes_per_image = 1.0;
+  double mean_exposure_ms = 0.0;
 };
 
 // Throws Error on bad options (unknown sequence, --imu real for a sequence other

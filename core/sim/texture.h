@@ -26,6 +26,10 @@ struct TextureRequest {
   TextureStyle style = TextureStyle::kClutter;
   std::uint64_t seed = 1;
   std::uint8_t uniform_value = 255;  // kUniform only
+  // The `real` look (look.h): large weakly textured areas (smooth shading, faint
+  // grain, low-contrast patches) with sparse high-contrast details (marks,
+  // labels, tape strips, bolts), as real walls, floors and machines show.
+  bool sparse = false;
 };
 
 Texture make_texture(const TextureRequest& request);

@@ -33,7 +33,8 @@ float face_shade(const Eigen::Vector3d& n) {
 }
 }  // namespace
 
-void World::add_box(const Box& box, TextureStyle style, std::uint64_t seed, double texel_size_m, bool with_bottom) {
+void World::add_box(const Box& box, TextureStyle style, std::uint64_t seed, double texel_size_m, bool with_bottom,
+                    bool sparse) {
   const Eigen::Vector3d& lo = box.min;
   const Eigen::Vector3d size = box.max - box.min;
   const Eigen::Vector3d ex(size.x(), 0, 0), ey(0, size.y(), 0), ez(0, 0, size.z());
@@ -56,6 +57,7 @@ void World::add_box(const Box& box, TextureStyle style, std::uint64_t seed, doub
     req.texel_size_m = texel_size_m;
     req.style = style;
     req.seed = seed * 16 + f;
+    req.sparse = sparse;
     Quad q;
     q.origin = faces[f].origin;
     q.edge_u = faces[f].u;

@@ -33,8 +33,10 @@ class World {
   // Textures are shared read-only between renderers (and threads).
   int add_texture(Texture texture);
   void add_quad(const Quad& quad) { quads_.push_back(quad); }
-  // Adds a box with one texture per face; `with_bottom` adds the floor face.
-  void add_box(const Box& box, TextureStyle style, std::uint64_t seed, double texel_size_m, bool with_bottom);
+  // Adds a box with one texture per face; `with_bottom` adds the floor face;
+  // `sparse`: textures of the real look (TextureRequest::sparse).
+  void add_box(const Box& box, TextureStyle style, std::uint64_t seed, double texel_size_m, bool with_bottom,
+               bool sparse = false);
 
   const std::vector<Quad>& quads() const { return quads_; }
   const Texture& texture(int id) const { return *textures_[static_cast<std::size_t>(id)]; }

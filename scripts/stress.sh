@@ -1,0 +1,96 @@
+#!/usr/bin/env bash
+# Stress command (not part of the test suite): full-length Machine Hall runs
+# with concurrent local mapping and loop closing, many times, over both
+# simulator looks and several scene and sensor seeds. Prints one line per run
+# (aborted or not, worker errors, slot races, maps, tracked frames, keyframes,
+# ATE, coverage) and a summary. A run "aborts" when `orbatlas run` fails or
+# writes no trajectory. Goal: 0 aborts.
+#
+#   scripts/stress.sh                       # 20 runs: MH_01..MH_05 x {clean, real} x 2 seeds
+#   RUNS=4 scripts/stress.sh MH_03 MH_04    # the first 4 runs of that plan
+#   LOOKS=real SEEDS="1 2 3" scripts/stress.sh MH_05
+#
+# Datasets are rendered once per (sequence, look, seed) into $ORBATLAS_STRESS_DATA
+# (default build/stress_data, ~1.7 GB each) and removed after their run unless
+# KEEP=1. Output: out/stress/ (trajectories, stats, eval JSON, logs, summary.txt).
+set -uo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+"$ROOT/scripts/setup.sh" || exit 1
+BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
+OA="$BUILD_DIR/client/orbatlas"
+DATA="${ORBATLAS_STRESS_DATA:-$BUILD_DIR/stress_data}"
+OUT="$ROOT/out/stress"
+mkdir -p "$DATA" "$OUT"
+SEQUENCES=("$@")
+[ ${#SEQUENCES[@]} -eq 0 ] && SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)
+read -r -a LOOK_LIST <<< "${LOOKS:-clean real}"
+read -r -a SEED_LIST <<< "${SEEDS:-1 2}"
+RUNS="${RUNS:-0}"  # 0: the whole plan
+
+plan=()
+for seed in "${SEED_LIST[@]}"; do
+  for look in "${LOOK_LIST[@]}"; do
+    for s in "${SEQUENCES[@]}"; do plan+=("$s:$look:$seed"); done
+  done
+done
+[ "$RUNS" -gt 0 ] && [ "$RUNS" -lt ${#plan[@]} ] && plan=("${plan[@]:0:$RUNS}")
+echo "stress: ${#plan[@]} full-length runs (sequences ${SEQUENCES[*]}; looks ${LOOK_LIST[*]}; seeds ${SEED_LIST[*]})"
+
+: > "$OUT/runs.tsv"
+n=0
+for item in "${plan[@]}"; do
+  IFS=: read -r s look seed <<< "$item"
+  n=$((n + 1))
+  name="${s}_${look}_s${seed}"
+  dataset="$DATA/$name"
+  if [ ! -f "$dataset/mav0/cam1/data.csv" ]; then
+    rm -rf "$dataset"
+    # Scene seed and sensor seed (image noise, IMU, exposure drift, calibration error) both vary.
+    if ! "$OA" sim --sequence "$s" --look "$look" --scene-seed "$seed" --sensor-seed $((seed * 7919 + 1)) \
+        --out "$dataset" --no-progress > "$OUT/$name.sim.log" 2>&1; then
+      echo "[$n/${#plan[@]}] $name: simulation failed (see $OUT/$name.sim.log)"
+      printf '%s\t%s\t%s\t%s\tsim_failed\n' "$name" "$s" "$look" "$seed" >> "$OUT/runs.tsv"
+      continue
+    fi
+  fi
+  rm -f "$OUT/$name.txt" "$OUT/$name.json" "$OUT/$name.eval.json"
+  start=$(date +%s)
+  "$OA" run --config "$ROOT/config/euroc/stereo.yaml" --dataset "$dataset" --no-progress \
+      --out-trajectory "$OUT/$name.txt" --stats "$OUT/$name.json" > "$OUT/$name.run.log" 2>&1
+  rc=$?
+  secs=$(( $(date +%s) - start ))
+  status=ok
+  if [ $rc -ne 0 ] || [ ! -s "$OUT/$name.txt" ]; then
+    status=ABORTED
+  else
+    "$OA" eval --gt "$dataset" --est "$OUT/$name.txt" --align se3 --json > "$OUT/$name.eval.json" 2>> "$OUT/$name.run.log" ||
+        status=no_eval
+  fi
+  printf '%s\t%s\t%s\t%s\t%s\t%s\n' "$name" "$s" "$look" "$seed" "$status" "$secs" >> "$OUT/runs.tsv"
+  echo "[$n/${#plan[@]}] $name: $status ($secs s)$([ "$status" = ABORTED ] && echo ": $(grep -m1 'error' "$OUT/$name.run.log")")"
+  [ "${KEEP:-0}" = "1" ] || rm -rf "$dataset"
+done
+
+/usr/bin/python3 - "$OUT" <<'PY' | tee "$OUT/summary.txt"
+import json, os, sys
+out = sys.argv[1]
+rows = [l.rstrip("\n").split("\t") for l in open(f"{out}/runs.tsv") if l.strip()]
+print(f"{'run':20} {'status':8} {'wkerr':>5} {'races':>5} {'maps':>4} {'tracked':>11} {'KFs':>5} {'ATE[m]':>8} {'cover':>6} {'s':>5}")
+aborts = errors = races = 0
+for r in rows:
+    name, status = r[0], r[4]
+    secs = r[5] if len(r) > 5 else "-"
+    if status in ("ABORTED", "sim_failed"):
+        aborts += status == "ABORTED"
+        print(f"{name:20} {status:8}")
+        continue
+    j = json.load(open(f"{out}/{name}.json"))
+    e = json.load(open(f"{out}/{name}.eval.json")) if os.path.exists(f"{out}/{name}.eval.json") else {}
+    errors += j.get("worker_errors", 0)
+    races += j.get("slot_races", 0)
+    ate = f"{e['ate_rmse_m']:.4f}" if "ate_rmse_m" in e else "-"
+    cov = f"{e['coverage']:.3f}" if "coverage" in e else "-"
+    print(f"{name:20} {status:8} {j.get('worker_errors', 0):>5} {j.get('slot_races', 0):>5} {j['maps']:>4} "
+          f"{j['tracked']:>5}/{j['frames']:<5} {j['keyframes']:>5} {ate:>8} {cov:>6} {secs:>5}")
+print(f"runs {len(rows)}, aborts {aborts}, worker errors {errors}, slot races handled {races}")
+PY
