@@ -33,6 +33,16 @@ struct AtlasStoreBenchOptions {
 };
 void run_atlas_store_bench(const AtlasStoreBenchOptions& options);
 
+struct PlaceBenchOptions {
+  std::filesystem::path map, queries;  // EuRoC ASL stereo datasets with ground truth in one world frame
+  std::filesystem::path config;        // default: config/euroc/stereo.yaml
+  std::filesystem::path vocabulary;    // default: the shipped vocabulary
+  int every = 10;                      // query every n-th frame
+  bool json = false;
+  bool show_progress = true;
+};
+void run_place_bench(const PlaceBenchOptions& options);
+
 // p in [0, 1] of an unsorted sample (copied).
 double percentile(std::vector<double> values, double p);
 

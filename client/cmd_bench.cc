@@ -36,6 +36,22 @@ void register_bench_command(CLI::App& app) {
   s->add_option("--database", store->database, "Keep the database at this path (default: a removed temporary file)");
   s->add_flag("--json", store->json, "Print one JSON object");
   s->callback([store]() { run_atlas_store_bench(*store); });
+
+  auto place = std::make_shared<PlaceBenchOptions>();
+  auto* p = bench->add_subcommand(
+      "place", "Place recognition and relocalisation recall of another recording's frames against a map");
+  p->add_option("--map", place->map, "EuRoC ASL stereo dataset the map is built from (stereo SLAM)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  p->add_option("--queries", place->queries, "EuRoC ASL stereo dataset whose frames are queried (ground truth in the same world)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  p->add_option("--config", place->config, "Settings (default: config/euroc/stereo.yaml)");
+  p->add_option("--vocabulary", place->vocabulary, "Vocabulary file (default: the shipped one)");
+  p->add_option("--every", place->every, "Query every n-th frame")->capture_default_str();
+  p->add_flag("--json", place->json, "Print one JSON object");
+  p->add_flag("!--no-progress", place->show_progress, "Do not print progress");
+  p->callback([place]() { run_place_bench(*place); });
 }
 
 }  // namespace orbatlas::cli

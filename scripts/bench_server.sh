@@ -3,8 +3,11 @@
 # through the API for one session and for three at once, the latency the server and
 # HTTP add to tracking, and POST /v1/localize latency p50/p95 against the stored maps.
 #   scripts/bench_server.sh [SECONDS]      (default 60 s of each sequence)
+#   LOOK=real scripts/bench_server.sh      (simulator look; default clean)
 # Simulated clips are rendered into out/bench_server/ (or taken from
-# $ORBATLAS_BENCH_DATA/MH_0x when it holds full simulated sequences).
+# $ORBATLAS_BENCH_DATA/MH_0x when it holds full simulated clean sequences).
+# The localisation queries are images of another flight (MH_04, 20-80 s), none
+# of which built the stored maps.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$ROOT/scripts/setup.sh"
@@ -12,7 +15,8 @@ BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
 OA="$BUILD_DIR/client/orbatlas"
 SERVER="$BUILD_DIR/server/orbatlas-server"
 SECONDS_PER_SESSION="${1:-60}"
-OUT="$ROOT/out/bench_server"
+LOOK="${LOOK:-clean}"
+OUT="$ROOT/out/bench_server_$LOOK"
 mkdir -p "$OUT"
 rm -rf "$OUT"/atlas.db* "$OUT"/*.json "$OUT"/port
 SERVER_PID=""
@@ -21,10 +25,10 @@ trap '[ -n "$SERVER_PID" ] && kill -TERM "$SERVER_PID" 2>/dev/null && wait "$SER
 declare -A START=([MH_01]=40 [MH_02]=30 [MH_03]=30)
 clip() {  # the dataset folder of a sequence, and the --start/--duration to stream
   local seq=$1
-  if [ -n "${ORBATLAS_BENCH_DATA:-}" ] && [ -d "$ORBATLAS_BENCH_DATA/$seq/mav0" ]; then
+  if [ "$LOOK" = clean ] && [ -n "${ORBATLAS_BENCH_DATA:-}" ] && [ -d "$ORBATLAS_BENCH_DATA/$seq/mav0" ]; then
     echo "$ORBATLAS_BENCH_DATA/$seq --start ${START[$seq]} --duration $SECONDS_PER_SESSION"
   else
-    [ -d "$OUT/$seq/mav0" ] || "$OA" sim --sequence "$seq" --start "${START[$seq]}" --duration "$SECONDS_PER_SESSION" --out "$OUT/$seq" >&2
+    [ -d "$OUT/$seq/mav0" ] || "$OA" sim --sequence "$seq" --look "$LOOK" --start "${START[$seq]}" --duration "$SECONDS_PER_SESSION" --out "$OUT/$seq" >&2
     echo "$OUT/$seq"
   fi
 }
@@ -57,8 +61,7 @@ print(f"one session: {one['fps']:.1f} frames/s; three sessions: {sum(t['fps'] fo
 print(f"added by the server p50 {one['server_overhead_ms']['p50']:.2f} ms, by HTTP + client p50 {one['client_overhead_ms']['p50']:.2f} ms (one session)")
 PY
 
-echo "== POST /v1/localize: single left images of MH_01 (every 10th frame) against the stored maps"
-# shellcheck disable=SC2046
-set -- $(clip MH_01)
-"$OA" localize --server "$ORBATLAS_SERVER" --config euroc/stereo --dataset "$1" --every 10 --stats "$OUT/localize.json"
+echo "== POST /v1/localize: single left images of another flight (MH_04 20-80 s, every 10th frame; none built the maps)"
+[ -d "$OUT/MH_04_queries/mav0" ] || "$OA" sim --sequence MH_04 --look "$LOOK" --start 20 --duration 60 --out "$OUT/MH_04_queries" >&2
+"$OA" localize --server "$ORBATLAS_SERVER" --config euroc/stereo --dataset "$OUT/MH_04_queries" --every 10 --stats "$OUT/localize.json"
 "$OA" maps

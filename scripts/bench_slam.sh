@@ -7,6 +7,7 @@
 #   scripts/bench_slam.sh                    # MH_01..MH_05
 #   scripts/bench_slam.sh MH_01 MH_03        # some of them
 #   REALTIME=1 scripts/bench_slam.sh MH_01   # frames fed at 20 Hz, late frames counted
+#   LOOKS=real scripts/bench_slam.sh          # one simulator look (default: both, clean and real)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$ROOT/scripts/setup.sh"
@@ -19,31 +20,39 @@ SEQUENCES=("$@")
 [ ${#SEQUENCES[@]} -eq 0 ] && SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)
 EXTRA=(--compare-culling --final-ba)
 [ "${REALTIME:-0}" = "1" ] && EXTRA+=(--realtime)
+read -r -a LOOK_LIST <<< "${LOOKS:-clean real}"
 
-for s in "${SEQUENCES[@]}"; do
-  if [ ! -f "$DATA/$s/mav0/cam1/data.csv" ]; then
-    echo "== simulating $s into $DATA/$s"
-    rm -rf "$DATA/$s"
-    "$OA" sim --sequence "$s" --out "$DATA/$s"
-  fi
-  echo "== orbatlas run on $s"
-  "$OA" run --config "$ROOT/config/euroc/stereo.yaml" --dataset "$DATA/$s" \
-      --out-trajectory "$OUT/$s.txt" --stats "$OUT/$s.json" "${EXTRA[@]}"
-  "$OA" eval --gt "$DATA/$s" --est "$OUT/$s.txt" --align se3 --json > "$OUT/$s.eval.json"
+RUNS=()
+for look in "${LOOK_LIST[@]}"; do
+  for s in "${SEQUENCES[@]}"; do
+    src="$DATA/$s"
+    [ "$look" = clean ] || src="$DATA/${s}_$look"
+    if [ ! -f "$src/mav0/cam1/data.csv" ]; then
+      echo "== simulating $s ($look look) into $src"
+      rm -rf "$src"
+      "$OA" sim --sequence "$s" --look "$look" --out "$src"
+    fi
+    name="${s}_$look"
+    echo "== orbatlas run on $s ($look look)"
+    "$OA" run --config "$ROOT/config/euroc/stereo.yaml" --dataset "$src" \
+        --out-trajectory "$OUT/$name.txt" --stats "$OUT/$name.json" "${EXTRA[@]}"
+    "$OA" eval --gt "$src" --est "$OUT/$name.txt" --align se3 --json > "$OUT/$name.eval.json"
+    RUNS+=("$name")
+  done
 done
 
-/usr/bin/python3 - "$OUT" "${SEQUENCES[@]}" <<'PY'
+/usr/bin/python3 - "$OUT" "${RUNS[@]}" <<'PY'
 import json, sys
 out, seqs = sys.argv[1], sys.argv[2:]
-print(f"{'seq':6} {'frames':>6} {'tracked':>7} {'maps':>4} {'ATE[m]':>7} {'track p50/p95 [ms]':>18} "
-      f"{'map/KF p50 [ms]':>15} {'BA p50 [ms]':>11} {'cull scan/incr [ms/KF]':>22} {'KFs':>5} {'MPs':>6} {'RSS[MB]':>7} {'late':>5}")
+print(f"{'run':12} {'frames':>6} {'tracked':>7} {'cover':>6} {'maps':>4} {'ATE[m]':>7} {'track p50/p95 [ms]':>18} "
+      f"{'map/KF p50 [ms]':>15} {'BA p50 [ms]':>11} {'cull scan/incr [ms/KF]':>22} {'KFs':>5} {'MPs':>6} {'RSS[MB]':>7} {'late':>5} {'wkerr':>5}")
 for s in seqs:
     j = json.load(open(f"{out}/{s}.json")); e = json.load(open(f"{out}/{s}.eval.json"))
     by = j["culling_ms_per_kf_by_scheme"]
     cull = "/".join("-" if by[k] is None else f"{by[k]:.4f}" for k in ("scan", "incremental"))
-    print(f"{s:6} {j['frames']:>6} {j['tracked']:>7} {j['maps']:>4} {e['ate_rmse_m']:>7.4f} "
+    print(f"{s:12} {j['frames']:>6} {j['tracked']:>7} {e['coverage']:>6.3f} {j['maps']:>4} {e['ate_rmse_m']:>7.4f} "
           f"{j['tracking_ms']['p50']:>8.1f}/{j['tracking_ms']['p95']:<9.1f} {j['local_mapping_ms_per_kf']['p50']:>15.1f} "
-          f"{j['local_ba_ms']['p50']:>11.1f} {cull:>22} {j['keyframes']:>5} {j['mappoints']:>6} {j['peak_rss_mb']:>7.0f} {j['late_frames']:>5}")
+          f"{j['local_ba_ms']['p50']:>11.1f} {cull:>22} {j['keyframes']:>5} {j['mappoints']:>6} {j['peak_rss_mb']:>7.0f} {j['late_frames']:>5} {j.get('worker_errors', 0):>5}")
     o = j["objects"]
     print(f"       objects: keyframes {o['keyframes']}, mappoints {o['mappoints']}")
     lc = j.get("loop_closing")

@@ -17,7 +17,7 @@ set -uo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$ROOT/scripts/setup.sh" || exit 1
 BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
-OA="$BUILD_DIR/client/orbatlas"
+OA="${ORBATLAS_BIN:-$BUILD_DIR/client/orbatlas}"  # ORBATLAS_BIN: a copy, to keep building meanwhile
 DATA="${ORBATLAS_STRESS_DATA:-$BUILD_DIR/stress_data}"
 OUT="$ROOT/out/stress"
 mkdir -p "$DATA" "$OUT"

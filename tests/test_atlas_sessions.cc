@@ -1,7 +1,7 @@
 // The persistent atlas through the SLAM runner: a run stored with --atlas, a
 // second run over the same place appending a session whose map is merged live
 // into the first one (one map stored), and localisation
-// of new images of the same hall against the stored map (no keyframe added),
+// of another flight through the stored place (MH_02) against the stored map (no keyframe added),
 // measured in the stored map's own frame; a run with another camera rig keeps
 // out of the stored map.
 #include <gtest/gtest.h>
@@ -73,15 +73,15 @@ TEST(AtlasSessions, RunsAppendSessionsAndLocalizationTracksInTheStoredMapFrame) 
     first_keyframe_t = maps.front()->keyframes().front()->timestamp_ns();
   }
 
-  // New images of the same places (other image noise, a shifted time window),
-  // localised against the stored maps: the database must not change.
+  // Another flight through the stored place (MH_02 at 41-44 s passes 0.3 to
+  // 0.9 m from where MH_01 was at 40-50 s), localised against the stored maps:
+  // the database must not change.
   const auto again = dir / "again";
   sim::SimulationOptions so;
-  so.sequence = "MH_01";
+  so.sequence = "MH_02";
   so.out_dir = again;
-  so.start_s = 42.0;
-  so.duration_s = 6.0;
-  so.sensor_seed = 77;
+  so.start_s = 41.0;
+  so.duration_s = 3.0;
   so.show_progress = false;
   sim::simulate_sequence(so);
   const auto size_before = std::filesystem::file_size(db);
@@ -118,7 +118,7 @@ TEST(AtlasSessions, RunsAppendSessionsAndLocalizationTracksInTheStoredMapFrame) 
   const double ate = std::sqrt(sum2 / static_cast<double>(n));
   std::printf("localised %zu of %zu frames (%.1f%%), ATE in the map frame %.4f m\n", loc.trajectory.size(),
               loc.stats.frames, 100.0 * fraction, ate);
-  EXPECT_LT(ate, 0.03);
+  EXPECT_LT(ate, 0.008);  // measured 0.0037 m
 
   // A run with another rig (the same images, fx 1 px off): local mapping would
   // adjust the stored keyframes with the wrong camera, so it neither enters nor

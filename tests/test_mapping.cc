@@ -306,7 +306,27 @@ TEST(SlamStats, PercentilesOfKnownValues) {
   EXPECT_DOUBLE_EQ(p.p95, 95.0);
   EXPECT_DOUBLE_EQ(p.max, 100.0);
   EXPECT_DOUBLE_EQ(p.mean, 50.0);
-  EXPECT_EQ(percentiles({}).count, 0u);
+  EXPECT_EQ(percentiles(std::vector<double>{}).count, 0u);
+}
+
+// Bounded summaries: exact while the values fit the sample; beyond it count,
+// mean and max stay exact and the percentiles are those of a uniform sample.
+TEST(SlamStats, SampleSummaryIsExactThenBounded) {
+  SampleSummary small(256);
+  for (int i = 100; i >= 0; --i) small.add(i);
+  const Percentiles p = small.percentiles();
+  EXPECT_DOUBLE_EQ(p.p50, 50.0);
+  EXPECT_DOUBLE_EQ(p.p95, 95.0);
+  EXPECT_EQ(p.count, 101u);
+  SampleSummary big(512);
+  for (int i = 0; i < 200000; ++i) big.add(static_cast<double>(i % 1000));  // uniform on 0..999
+  const Percentiles q = big.percentiles();
+  EXPECT_EQ(big.sample().size(), 512u);
+  EXPECT_EQ(q.count, 200000u);
+  EXPECT_DOUBLE_EQ(q.max, 999.0);
+  EXPECT_DOUBLE_EQ(q.mean, 499.5);
+  EXPECT_NEAR(q.p50, 500.0, 60.0);  // a 512-value sample: within a few percent
+  EXPECT_NEAR(q.p95, 950.0, 30.0);
 }
 
 }  // namespace

@@ -89,16 +89,17 @@ TEST(Relocalization, NewImageOfAKnownPlaceGivesItsPose) {
   ASSERT_EQ(map_clip(atlas, vocabulary, frames), frames.size());
   ASSERT_GT(atlas.keyframe_index().size(), 0u);
 
-  // The same places seen again with other sensor noise (another "visit").
+  // Another flight through the mapped place: MH_02 at 41-44 s passes 0.3 to
+  // 0.9 m from where MH_01 was at 40-50 s, looking the same way within 25 deg
+  // (no MH_01 pose that built the map is re-rendered).
   const auto again = std::filesystem::temp_directory_path() / ("orbatlas_test_reloc_" + std::to_string(::getpid()));
   test::ClipCleanup cleanup_again{again};
   sim::SimulationOptions so;
-  so.sequence = "MH_01";
+  so.sequence = "MH_02";
   so.out_dir = again;
-  so.start_s = 43.0;
-  so.duration_s = 4.0;
-  so.every = 20;
-  so.sensor_seed = 99;
+  so.start_s = 41.0;
+  so.duration_s = 3.0;
+  so.every = 10;
   so.show_progress = false;
   sim::simulate_sequence(so);
   const EurocDataset clip_ds = test::stereo_dataset(clip), again_ds = test::stereo_dataset(again);
@@ -109,6 +110,7 @@ TEST(Relocalization, NewImageOfAKnownPlaceGivesItsPose) {
   cam.camera = &frontend.camera();
   cam.bf = frontend.bf();
   int relocalized = 0;
+  double worst_m = 0.0, worst_deg = 0.0;
   for (const auto& f : test::stereo_frames(again)) {
     Frame frame = frontend.make_frame(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
                                       cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
@@ -119,10 +121,14 @@ TEST(Relocalization, NewImageOfAKnownPlaceGivesItsPose) {
     EXPECT_EQ(r.map, atlas.active_map()->id());
     EXPECT_GE(r.inliers, 50);
     const Pose3 expected = T_gt_map.inverse() * ground_truth_at(again_ds, f.t_ns);
-    EXPECT_LT(translation_distance(r.T_w_b, expected), 0.02) << "frame at " << f.t_ns;
-    EXPECT_LT(rotation_distance(r.T_w_b, expected) * 180.0 / M_PI, 0.5) << "frame at " << f.t_ns;
+    worst_m = std::max(worst_m, translation_distance(r.T_w_b, expected));
+    worst_deg = std::max(worst_deg, rotation_distance(r.T_w_b, expected) * 180.0 / M_PI);
   }
-  EXPECT_GE(relocalized, 4);
+  std::printf("another flight: %d frames relocalised, worst %.4f m / %.3f deg from the ground truth\n", relocalized,
+              worst_m, worst_deg);
+  EXPECT_GE(relocalized, 6);
+  EXPECT_LT(worst_m, 0.03);   // measured 0.0148 m (single frames, no tracking)
+  EXPECT_LT(worst_deg, 0.1);  // measured 0.045 deg
 }
 
 // MH_05 where bench_kidnap comes back after 3 s removed (simulator time 64.5 s)
@@ -190,11 +196,10 @@ TEST(MonoLocalizer, ASingleCameraIsTrackedInAStoredMapAndChangesNothing) {
   const auto again = std::filesystem::temp_directory_path() / ("orbatlas_test_mono_" + std::to_string(::getpid()));
   test::ClipCleanup cleanup_again{again};
   sim::SimulationOptions so;
-  so.sequence = "MH_01";
+  so.sequence = "MH_02";  // another flight through the mapped place (0.3-0.9 m away, see above)
   so.out_dir = again;
-  so.start_s = 42.0;
-  so.duration_s = 5.0;
-  so.sensor_seed = 7;  // another visit: other image noise
+  so.start_s = 41.0;
+  so.duration_s = 3.0;
   so.show_progress = false;
   sim::simulate_sequence(so);
 
@@ -228,8 +233,8 @@ TEST(MonoLocalizer, ASingleCameraIsTrackedInAStoredMapAndChangesNothing) {
               "in the map's frame\n", tracked, visit.size(), first, worst_m, worst_deg);
   EXPECT_LE(first, 2u);
   EXPECT_GE(tracked + 3, visit.size());
-  EXPECT_LT(worst_m, 0.02);
-  EXPECT_LT(worst_deg, 0.5);
+  EXPECT_LT(worst_m, 0.015);   // measured 0.0072 m
+  EXPECT_LT(worst_deg, 0.15);  // measured 0.068 deg
   EXPECT_EQ(mono.anchors().size(), tracked);
   // The stored map is read, never changed.
   EXPECT_EQ(atlas.maps().size(), 1u);

@@ -32,6 +32,26 @@ StreamOptions stream_options(const std::filesystem::path& clip) {
   return o;
 }
 
+// Another flight through the place MH_01 maps at 40-50 s: MH_02 at 41-44 s
+// passes 0.3 to 0.9 m from it, looking the same way within 25 deg; no pose
+// that built the map is re-rendered.
+std::filesystem::path another_flight() { return test::simulated_clip("MH_02", 41.0, 3.0); }
+
+// The ground truth of `dataset` at t_ns in the frame of a map whose origin is
+// the body at `origin_t_ns` of `origin_dataset` (all Machine Hall sequences
+// share one world frame).
+Pose3 truth_in_map(const std::filesystem::path& dataset, TimestampNs t_ns, const std::filesystem::path& origin_dataset,
+                   TimestampNs origin_t_ns) {
+  const auto at = [](const std::filesystem::path& d, TimestampNs t) {
+    Trajectory gt;
+    for (const auto& s : test::stereo_dataset(d).ground_truth) gt.push_back({s.t_ns, s.T_w_b});
+    const auto pose = pose_at(gt, t, 50'000'000);
+    EXPECT_TRUE(pose.has_value()) << d << " has no ground truth at " << t;
+    return pose.value_or(Pose3());
+  };
+  return at(origin_dataset, origin_t_ns).inverse() * at(dataset, t_ns);
+}
+
 std::optional<Pose3> pose_at_time(const Trajectory& t, TimestampNs t_ns) {
   for (const auto& p : t)
     if (p.t_ns == t_ns) return p.pose;
@@ -65,7 +85,7 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   EXPECT_EQ(streamed.tracked, streamed.frames);
   ASSERT_EQ(streamed.trajectory.size(), offline.trajectory.size());
   ASSERT_TRUE(streamed.ate_rmse_m.has_value());
-  EXPECT_LT(*streamed.ate_rmse_m, 0.03);
+  EXPECT_LT(*streamed.ate_rmse_m, 0.004);  // measured 0.0020 m
   // Local mapping runs concurrently in both, so they are not bit-identical;
   // both start at the identity and must agree to within a centimetre or two.
   double worst = 0.0;
@@ -74,7 +94,7 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
     ASSERT_TRUE(s.has_value()) << p.t_ns;
     worst = std::max(worst, (s->t - p.pose.t).norm());
   }
-  EXPECT_LT(worst, 0.03);
+  EXPECT_LT(worst, 0.005);  // measured 0.0012-0.0021 m (concurrent mapping)
   EXPECT_NEAR(*streamed.ate_rmse_m, *offline.ate_rmse_m, 0.01);
   std::printf("offline ATE %.4f m, streamed ATE %.4f m, largest position difference %.4f m, %.1f frames/s, "
               "tracking p50 %.1f ms, server p50 %.1f ms, round trip p50 %.1f ms\n",
@@ -93,20 +113,25 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   const std::string tum = client.trajectory_tum(streamed.session);
   EXPECT_EQ(std::count(tum.begin(), tum.end(), '\n'), static_cast<long>(streamed.trajectory.size()) + 2);  // header, "# map"
 
-  // A frame of the clip localises against the stored map, as a pair and as a single image.
-  const auto frames = test::stereo_frames(clip);
-  const StereoFrame& f = frames[120];
+  // A frame of another flight through the place localises against the stored
+  // map, as a pair and as a single image, where the ground truth puts it in the
+  // map's frame (the map starts at the clip's first frame).
+  const auto visit = another_flight();
+  test::ClipCleanup visit_cleanup{visit};
+  const StereoFrame f = test::stereo_frames(visit)[30];
   const cv::Mat left = cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE);
   const cv::Mat right = cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE);
-  const auto expected = pose_at_time(streamed.trajectory, f.t_ns);
-  ASSERT_TRUE(expected.has_value());
+  const std::optional<Pose3> expected = truth_in_map(visit, f.t_ns, clip, test::stereo_frames(clip).front().t_ns);
   for (const bool pair : {true, false}) {
     const auto reply = client.localize("euroc/stereo", left, pair ? right : cv::Mat());
     ASSERT_TRUE(reply["recognised"].get<bool>()) << reply.dump();
     EXPECT_EQ(reply["map"], maps_after["maps"][0]["id"]);
     const Pose3 T_w_b = pose_from_json(reply["T_w_b"]);
-    EXPECT_LT((T_w_b.t - expected->t).norm(), 0.02) << (pair ? "stereo pair" : "single image");
-    EXPECT_LT(rotation_distance(T_w_b, *expected) * 180.0 / M_PI, 0.5);
+    std::printf("another flight's frame localised as a %s: %.4f m / %.3f deg from the ground truth\n",
+                pair ? "pair" : "single image", (T_w_b.t - expected->t).norm(),
+                rotation_distance(T_w_b, *expected) * 180.0 / M_PI);
+    EXPECT_LT((T_w_b.t - expected->t).norm(), 0.01) << (pair ? "stereo pair" : "single image");  // measured 3-4 mm
+    EXPECT_LT(rotation_distance(T_w_b, *expected) * 180.0 / M_PI, 0.1);                            // measured 0.03 deg
     EXPECT_GE(reply["inliers"].get<int>(), 50);
   }
   // An image of nothing the atlas holds is "not recognised", not an error.
@@ -139,7 +164,7 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
     EXPECT_EQ(report.tracked, report.frames);
     EXPECT_GE(report.frames, 80u);
     ASSERT_TRUE(report.ate_rmse_m.has_value());
-    EXPECT_LT(*report.ate_rmse_m, 0.03);
+    EXPECT_LT(*report.ate_rmse_m, 0.006);  // measured 0.0008-0.0031 m
     sessions.insert(report.session);
     maps.insert(report.trajectory_maps.begin(), report.trajectory_maps.end());
     std::printf("session %llu: %zu frames, ATE %.4f m, %.1f frames/s\n", static_cast<unsigned long long>(report.session),
@@ -163,6 +188,8 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
 TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 4.0);
   test::ClipCleanup cleanup{clip};
+  const auto visit = another_flight();  // what the single camera sees: not the images that built the map
+  test::ClipCleanup visit_cleanup{visit};
   test::TempDbPath db("mono");
   {
     test::TestServer server(test::server_options(db.path));
@@ -177,7 +204,7 @@ TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
   const std::uint64_t stored_map = maps_before["maps"][0]["id"];
 
   // Frame by frame: one image is a frame; a pair is refused (422), the session goes on.
-  const auto frames = test::stereo_frames(clip);
+  const auto frames = test::stereo_frames(visit);
   const nlohmann::json started = client.start_session("euroc/mono", "handheld");
   const std::uint64_t id = started["id"];
   EXPECT_EQ(started["session"]["sensor"], "mono");
@@ -208,8 +235,8 @@ TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
 
   // A whole clip through `orbatlas stream --config euroc/mono`, from a recording
   // of the left camera only.
-  std::filesystem::remove_all(clip / "mav0" / "cam1");
-  StreamOptions mono = stream_options(clip);
+  std::filesystem::remove_all(visit / "mav0" / "cam1");
+  StreamOptions mono = stream_options(visit);
   mono.config = "euroc/mono";
   const StreamReport report = stream_dataset(client, mono);
   EXPECT_EQ(report.rejected, 0u);
@@ -217,7 +244,7 @@ TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
   EXPECT_EQ(report.keyframes, 0u);
   for (const auto m : report.reply_maps) EXPECT_EQ(m, stored_map);
   ASSERT_TRUE(report.ate_rmse_m.has_value());
-  EXPECT_LT(*report.ate_rmse_m, 0.03);
+  EXPECT_LT(*report.ate_rmse_m, 0.009);  // measured 0.0041 m
   std::printf("single camera over the API: %zu of %zu frames tracked in map %llu, ATE %.4f m, %.1f frames/s\n",
               report.tracked, report.frames, static_cast<unsigned long long>(stored_map), *report.ate_rmse_m,
               report.fps());
@@ -259,7 +286,9 @@ TEST(ServerUploads, RecordingBecomesAStoredSessionAndBadArchivesFailTheirJobOnly
   EXPECT_EQ(status["tracked"], status["frames_total"]);
   EXPECT_GE(status["frames_total"].get<int>(), 60);
   ASSERT_TRUE(status.contains("ate_rmse_m"));
-  EXPECT_LT(status["ate_rmse_m"].get<double>(), 0.03);
+  std::printf("uploaded recording: %d frames, ATE %.4f m\n", status["frames_total"].get<int>(),
+              status["ate_rmse_m"].get<double>());
+  EXPECT_LT(status["ate_rmse_m"].get<double>(), 0.002);  // measured 0.0007 m
   const auto session = client.get_json("/v1/sessions/" + std::to_string(status["session"].get<std::uint64_t>()));
   EXPECT_EQ(session["state"], "finished");
   EXPECT_EQ(session["name"], "recorded MH_01");
@@ -366,7 +395,7 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
     std::set<std::uint64_t> in_maps;
     ate_live = joint_ate(client, sessions, clips, &in_maps);
     EXPECT_EQ(in_maps, std::set<std::uint64_t>{stream_maps[0]});
-    EXPECT_LT(ate_live, 0.03);
+    EXPECT_LT(ate_live, 0.008);  // measured 0.0040 m
     // The second session's status names the map it is in now.
     EXPECT_EQ(client.get_json("/v1/sessions/" + std::to_string(sessions[1]))["map"], stream_maps[0]);
     EXPECT_NE(client.get_text("/metrics").find("orbatlas_map_merges_total 1"), std::string::npos);
@@ -403,7 +432,7 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
               "made\n",
               compared, worst, again.keyframes);
   EXPECT_GE(compared, again.trajectory.size() * 9 / 10);
-  EXPECT_LT(worst, 0.03);
+  EXPECT_LT(worst, 0.026);  // measured 0.0131 m
   // The merging worker searched only the keyframes this session made.
   const auto merges = wait_for_merges(client);
   EXPECT_LE(merges["keyframes_searched"].get<std::size_t>(), searched_before + again.keyframes);
@@ -460,7 +489,7 @@ TEST(ServerMerging, ASessionsMapIsMergedWhileItStreams) {
     std::set<std::uint64_t> in_maps;
     ate_live = joint_ate(client, sessions, clips, &in_maps);
     EXPECT_EQ(in_maps, std::set<std::uint64_t>{first_map});
-    EXPECT_LT(ate_live, 0.03);
+    EXPECT_LT(ate_live, 0.007);  // measured 0.0031 m
   }
   test::TestServer server(test::server_options(db.path));
   ServerClient client(server.url());

@@ -37,7 +37,7 @@ void expect_counters_consistent(const SlamStats& s) {
   EXPECT_EQ(s.mappoint_objects.created, s.mappoint_objects.culled + s.mappoints);
 }
 
-TEST(StereoSlam, TenSecondClipTracksWithinThreeCentimetres) {
+TEST(StereoSlam, TenSecondClipTracksWithinFourMillimetres) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
   test::ClipCleanup cleanup{clip};
   const DatasetRunReport r = run_stereo_dataset(options_for(clip));
@@ -46,9 +46,9 @@ TEST(StereoSlam, TenSecondClipTracksWithinThreeCentimetres) {
   EXPECT_EQ(r.stats.maps, 1u);
   EXPECT_EQ(r.trajectory.size(), r.stats.tracked);
   ASSERT_TRUE(r.ate_rmse_m.has_value());
-  EXPECT_LT(*r.ate_rmse_m, 0.03);
+  EXPECT_LT(*r.ate_rmse_m, 0.004);  // measured 0.0020 m
   std::printf("10 s clip: ATE %.4f m, %zu keyframes (%zu culled), %zu map points, tracking p50 %.1f ms\n",
-              *r.ate_rmse_m, r.stats.keyframes, r.stats.mapping.culled_keyframes.size(), r.stats.mappoints,
+              *r.ate_rmse_m, r.stats.keyframes, r.stats.mapping.culled_keyframes, r.stats.mappoints,
               percentiles(r.stats.tracking_ms).p50);
   EXPECT_GE(r.stats.keyframes, 5u);
   // No part of this clip is revisited: place recognition runs but closes no loop.
@@ -87,7 +87,7 @@ TEST(StereoSlam, FinalGlobalBundleAdjustmentCoversTheMapAndDoesNotHurt) {
   EXPECT_GT(runs[1].stats.final_ba_s, 0.0);
   EXPECT_EQ(runs[0].stats.keyframes, runs[1].stats.keyframes);
   EXPECT_LT(*runs[1].ate_rmse_m, *runs[0].ate_rmse_m + 0.0005);
-  EXPECT_LT(*runs[1].ate_rmse_m, 0.03);
+  EXPECT_LT(*runs[1].ate_rmse_m, 0.004);  // measured 0.0020 m
   std::printf("ATE without the final global BA %.4f m, with it %.4f m (%zu keyframes, %.2f s)\n", *runs[0].ate_rmse_m,
               *runs[1].ate_rmse_m, runs[1].stats.final_ba_keyframes, runs[1].stats.final_ba_s);
 }
@@ -110,10 +110,11 @@ TEST(StereoSlam, BothCullingSchemesTakeTheSameDecisions) {
     EXPECT_GT(runs[i].stats.mapping.culling_candidates, 0u);
     expect_counters_consistent(runs[i].stats);
   }
-  EXPECT_FALSE(runs[0].stats.mapping.culled_keyframes.empty()) << "no keyframe was culled: the test shows nothing";
-  EXPECT_GT(runs[0].stats.mapping.culling_candidates, runs[0].stats.mapping.culled_keyframes.size())
+  EXPECT_GT(runs[0].stats.mapping.culled_keyframes, 0u) << "no keyframe was culled: the test shows nothing";
+  EXPECT_GT(runs[0].stats.mapping.culling_candidates, runs[0].stats.mapping.culled_keyframes)
       << "every candidate was culled: the test shows only one kind of decision";
   EXPECT_EQ(runs[0].stats.mapping.culled_keyframes, runs[1].stats.mapping.culled_keyframes);
+  EXPECT_EQ(runs[0].stats.mapping.culled_keyframes_digest, runs[1].stats.mapping.culled_keyframes_digest);
   EXPECT_EQ(runs[0].stats.keyframes, runs[1].stats.keyframes);
   EXPECT_EQ(runs[0].stats.mappoints, runs[1].stats.mappoints);
   ASSERT_EQ(runs[0].trajectory.size(), runs[1].trajectory.size());
@@ -121,7 +122,7 @@ TEST(StereoSlam, BothCullingSchemesTakeTheSameDecisions) {
   std::printf("culling per keyframe: scan %.4f ms, incremental %.4f ms (%zu candidates, %zu culled)\n",
               percentiles(runs[0].stats.mapping.culling_scan_ms).mean,
               percentiles(runs[1].stats.mapping.culling_incremental_ms).mean,
-              runs[0].stats.mapping.culling_candidates, runs[0].stats.mapping.culled_keyframes.size());
+              runs[0].stats.mapping.culling_candidates, runs[0].stats.mapping.culled_keyframes);
 }
 
 TEST(StereoSlam, TwoAtlasesInOneProcessRunSideBySide) {

@@ -135,7 +135,7 @@ void LoopCloser::process(const std::shared_ptr<KeyFrame>& keyframe) {
     const PlaceRecognitionStep step = merge_recognizer_->process(keyframe);
     {
       std::lock_guard lock(stats_mutex_);
-      stats_.merge_search_ms.push_back(ms_since(start));
+      stats_.merge_search_ms.add(ms_since(start));
     }
     if (step.match && !step.match->same_map() && merge_live(*step.match)) return;
   }
@@ -144,7 +144,7 @@ void LoopCloser::process(const std::shared_ptr<KeyFrame>& keyframe) {
   {
     std::lock_guard lock(stats_mutex_);
     ++stats_.keyframes;
-    stats_.place_recognition_ms.push_back(ms_since(start));
+    stats_.place_recognition_ms.add(ms_since(start));
     if (step.hypothesis) ++stats_.hypotheses;
   }
   if (step.match && step.match->same_map()) close_loop(*step.match);

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "core/common/bounded_queue.h"
+#include "core/common/sample_summary.h"
 #include "core/common/serial_worker.h"
 #include "core/common/worker_errors.h"
 #include "core/loop/loop_correction.h"
@@ -83,10 +84,10 @@ struct LoopClosingStats {
   std::size_t keyframes = 0;          // run through place recognition
   std::size_t keyframes_skipped = 0;  // the queue was full
   std::size_t hypotheses = 0;         // geometric hypotheses that passed the guided search
-  std::vector<double> place_recognition_ms;  // per keyframe
+  SampleSummary place_recognition_ms;  // per keyframe (bounded)
   std::vector<ClosedLoop> loops;
   std::vector<LiveMerge> merges;         // live merges of the active map into another
-  std::vector<double> merge_search_ms;   // per keyframe, when live merging is on
+  SampleSummary merge_search_ms;         // per keyframe, when live merging is on
   std::vector<GlobalAdjustmentRun> global_adjustments;
   WorkerErrorCounts errors;  // keyframes / adjustments given up after an error
 };

@@ -166,17 +166,19 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
 
   std::lock_guard lock(stats_mutex_);
   ++stats_.keyframes;
-  stats_.keyframe_ms.push_back(ms_since(start));
-  if (ba_ms >= 0.0) stats_.bundle_adjustment_ms.push_back(ba_ms);
+  stats_.keyframe_ms.add(ms_since(start));
+  if (ba_ms >= 0.0) stats_.bundle_adjustment_ms.add(ba_ms);
   if (interrupted) ++stats_.bundle_adjustments_interrupted;
   if (culling_ran) {
     const bool scan = options_.culling.scheme == CullingScheme::kScan || options_.culling.compare_schemes;
     const bool incremental = options_.culling.scheme == CullingScheme::kIncremental || options_.culling.compare_schemes;
-    if (scan) stats_.culling_scan_ms.push_back(culling.scan_us * 1e-3);
-    if (incremental) stats_.culling_incremental_ms.push_back(culling.incremental_us * 1e-3);
+    if (scan) stats_.culling_scan_ms.add(culling.scan_us * 1e-3);
+    if (incremental) stats_.culling_incremental_ms.add(culling.incremental_us * 1e-3);
     stats_.culling_candidates += static_cast<std::size_t>(culling.candidates);
     stats_.culling_disagreements += static_cast<std::size_t>(culling.disagreements);
-    stats_.culled_keyframes.insert(stats_.culled_keyframes.end(), culling.culled.begin(), culling.culled.end());
+    stats_.culled_keyframes += culling.culled.size();
+    for (const KeyframeId id : culling.culled)
+      stats_.culled_keyframes_digest = (stats_.culled_keyframes_digest ^ id) * 1099511628211ULL;
   }
 }
 

@@ -6,6 +6,7 @@
 // covisible keyframes, fuse duplicates with the neighbours, run local bundle
 // adjustment, and cull redundant keyframes. See docs/mapping.md.
 #include <atomic>
+#include <cstdint>
 #include <condition_variable>
 #include <functional>
 #include <map>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "core/common/bounded_queue.h"
+#include "core/common/sample_summary.h"
 #include "core/common/worker_errors.h"
 #include "core/map/atlas.h"
 #include "core/map/keyframe_index.h"
@@ -40,13 +42,17 @@ struct LocalMapperOptions {
 // Figures of a run (copies; safe to read while the mapper runs).
 struct LocalMapperStats {
   std::size_t keyframes = 0;  // processed
-  std::vector<double> keyframe_ms;          // whole processing per keyframe
-  std::vector<double> bundle_adjustment_ms;
-  std::vector<double> culling_scan_ms;         // per keyframe (all candidates), when the scan ran
-  std::vector<double> culling_incremental_ms;  // per keyframe, when the incremental read ran
+  // Bounded (a long-running server keeps the same memory per figure).
+  SampleSummary keyframe_ms;          // whole processing per keyframe
+  SampleSummary bundle_adjustment_ms;
+  SampleSummary culling_scan_ms;         // per keyframe (all candidates), when the scan ran
+  SampleSummary culling_incremental_ms;  // per keyframe, when the incremental read ran
   std::size_t culling_candidates = 0;
   std::size_t culling_disagreements = 0;
-  std::vector<KeyframeId> culled_keyframes;  // in order
+  std::size_t culled_keyframes = 0;
+  // FNV-1a of the culled keyframes' ids in order: two runs culled the same
+  // keyframes in the same order exactly when count and digest agree.
+  std::uint64_t culled_keyframes_digest = 14695981039346656037ULL;
   std::size_t points_triangulated = 0, points_fused = 0, observations_fused = 0, recent_points_culled = 0;
   std::size_t bundle_adjustments_interrupted = 0;
   WorkerErrorCounts errors;  // keyframes whose processing failed (given up, the mapper went on)

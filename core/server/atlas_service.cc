@@ -337,7 +337,8 @@ void AtlasService::merged_live(SessionId session, const LiveMerge& merge) {
   }
   {
     std::lock_guard lock(mutex_);
-    live_merges_.push_back({session, merge});
+    push_recent(live_merges_, LiveMergeRecord{session, merge});
+    ++live_merges_total_;
   }
   // Stored by the next periodic checkpoint (not waited for here: this is the
   // loop-closing thread every session shares).
@@ -365,6 +366,7 @@ nlohmann::json AtlasService::merges_json() const {
       j["session"] = r.session;
       out["live_merges"].push_back(std::move(j));
     }
+    out["live_merges_total"] = live_merges_total_;
   }
   const MapMergeWorkerStats stats = merger_->stats();
   out["pending"] = stats.pending;
@@ -373,6 +375,8 @@ nlohmann::json AtlasService::merges_json() const {
   out["maps_searched"] = stats.maps_searched;
   out["keyframes_searched"] = stats.keyframes_searched;
   out["worker_errors"] = stats.errors;
+  out["merges_total"] = stats.merges_total;
+  out["refinements_total"] = stats.refinements_total;
   if (!stats.last_error.empty()) out["last_error"] = stats.last_error;
   out["refinements"] = nlohmann::json::array();
   for (const MapRefinement& r : stats.refinements)
@@ -604,10 +608,10 @@ std::string AtlasService::metrics_text() const {
     std::size_t live_merged = 0;
     {
       std::lock_guard lock(mutex_);
-      live_merged = live_merges_.size();
+      live_merged = live_merges_total_;
     }
     gauge("orbatlas_map_merges_total", "Maps merged into another map since the server started (live and at a session's end).",
-          "counter", static_cast<double>(merging.merges.size() + live_merged));
+          "counter", static_cast<double>(merging.merges_total + live_merged));
     gauge("orbatlas_map_merge_pending", "Maps waiting for (or in) the merging worker.", "gauge",
           static_cast<double>(merging.pending));
   }

@@ -174,7 +174,8 @@ class AtlasService {
     SessionId session = 0;
     LiveMerge merge;
   };
-  std::vector<LiveMergeRecord> live_merges_;  // guarded by mutex_
+  std::vector<LiveMergeRecord> live_merges_;  // the last kMergeHistory; guarded by mutex_
+  std::size_t live_merges_total_ = 0;         // guarded by mutex_
   SessionId next_session_ = 1;
   bool shut_down_ = false;
 

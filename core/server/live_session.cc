@@ -79,7 +79,7 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
   ++frames_;
   if (out.result.tracked) ++tracked_;
   if (out.result.keyframe) ++keyframes_;
-  tracking_ms_.push_back(out.tracking_ms);
+  tracking_ms_.add(out.tracking_ms);
   last_ = out.result;
   return out;
 }

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "core/common/sample_summary.h"
 #include "core/io/euroc_types.h"
 #include "core/map/frame_anchor.h"
 #include "core/persistence/session_info.h"
@@ -71,7 +72,7 @@ class LiveSession {
   std::optional<TimestampNs> last_frame_t_, last_imu_t_;
   std::size_t frames_ = 0, tracked_ = 0, keyframes_ = 0, rejected_frames_ = 0, imu_samples_ = 0;
   std::optional<TrackResult> last_;
-  std::vector<double> tracking_ms_;
+  SampleSummary tracking_ms_;
   nlohmann::json final_stats_;  // SLAM statistics captured by finish()
   std::atomic<std::size_t> worker_errors_{0};
 };

@@ -115,7 +115,8 @@ void MapMergeWorker::process(const MergeRequest& request) {
       refinement.keyframes = result.keyframes;
       refinement.interrupted = result.stopped;
       std::lock_guard lock(mutex_);
-      stats_.refinements.push_back(refinement);
+      push_recent(stats_.refinements, refinement);
+      ++stats_.refinements_total;
     }
     return;
   }
@@ -145,7 +146,8 @@ void MapMergeWorker::process(const MergeRequest& request) {
   }
   {
     std::lock_guard lock(mutex_);
-    stats_.merges.push_back(record);
+    push_recent(stats_.merges, record);
+    ++stats_.merges_total;
   }
   if (on_merged_) on_merged_(record);
 }

@@ -70,11 +70,23 @@ struct MapRefinement {
   bool interrupted = false;
 };
 
+// A long-running server keeps the most recent records only (and counts all).
+inline constexpr std::size_t kMergeHistory = 100;
+
+// Appends `item`, dropping the oldest beyond kMergeHistory.
+template <typename T>
+void push_recent(std::vector<T>& list, T item) {
+  if (list.size() >= kMergeHistory) list.erase(list.begin(), list.begin() + static_cast<std::ptrdiff_t>(list.size() - kMergeHistory + 1));
+  list.push_back(std::move(item));
+}
+
 struct MapMergeWorkerStats {
   std::size_t requests = 0, skipped = 0;      // handed in / dropped (queue full, stopped)
-  std::vector<MapRefinement> refinements;     // global BAs of maps not merged
+  std::vector<MapRefinement> refinements;     // global BAs of maps not merged (the last kMergeHistory)
+  std::size_t refinements_total = 0;
   std::size_t maps_searched = 0, keyframes_searched = 0;
-  std::vector<MergeRecord> merges;
+  std::vector<MergeRecord> merges;  // the last kMergeHistory
+  std::size_t merges_total = 0;
   std::size_t pending = 0;  // queued or in progress
   std::string last_error;
   std::size_t errors = 0;  // requests given up after an error (the worker went on)

@@ -17,40 +17,24 @@ void add_atlas_counts(const Atlas& atlas, SlamStats& stats) {
   stats.mappoint_objects = atlas.counters()->map_points();
 }
 
-Percentiles percentiles(std::vector<double> values) {
-  Percentiles p;
-  p.count = values.size();
-  if (values.empty()) return p;
-  std::sort(values.begin(), values.end());
-  auto at = [&](double q) {
-    const std::size_t i = static_cast<std::size_t>(std::lround(q * static_cast<double>(values.size() - 1)));
-    return values[std::min(i, values.size() - 1)];
-  };
-  p.p50 = at(0.50);
-  p.p95 = at(0.95);
-  p.max = values.back();
-  p.mean = std::accumulate(values.begin(), values.end(), 0.0) / static_cast<double>(values.size());
-  return p;
-}
-
 namespace {
 
-nlohmann::json summary(const std::vector<double>& values) {
-  const Percentiles p = percentiles(values);
+nlohmann::json summary(const Percentiles& p) {
   return {{"p50", p.p50}, {"p95", p.p95}, {"max", p.max}, {"mean", p.mean}, {"count", p.count}};
 }
+nlohmann::json summary(const std::vector<double>& values) { return summary(percentiles(values)); }
+nlohmann::json summary(const SampleSummary& values) { return summary(values.percentiles()); }
 
 nlohmann::json counters(const CounterSnapshot& c) {
   return {{"created", c.created}, {"culled", c.culled}, {"alive", c.alive()}, {"reclaimed", c.reclaimed}};
 }
 
-double mean(const std::vector<double>& v) {
-  return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
-}
+double mean(const SampleSummary& v) { return v.mean(); }
 
 }  // namespace
 
 nlohmann::json to_json_summary(const std::vector<double>& values) { return summary(values); }
+nlohmann::json to_json_summary(const SampleSummary& values) { return summary(values); }
 
 nlohmann::json to_json(const LiveMerge& m) {
   return {{"source_map", m.merge.source},
@@ -95,7 +79,7 @@ nlohmann::json to_json(const SlamStats& s) {
                                                           : nlohmann::json(incremental)}};
   j["culling_candidates"] = s.mapping.culling_candidates;
   j["culling_disagreements"] = s.mapping.culling_disagreements;
-  j["culled_keyframes"] = s.mapping.culled_keyframes.size();
+  j["culled_keyframes"] = s.mapping.culled_keyframes;
   j["points_triangulated"] = s.mapping.points_triangulated;
   j["points_fused"] = s.mapping.points_fused;
   j["recent_points_culled"] = s.mapping.recent_points_culled;

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "core/common/sample_summary.h"
 #include "core/map/atlas.h"
 #include "core/map/object_counters.h"
 #include "core/loop/loop_closer.h"
@@ -12,13 +13,9 @@
 
 namespace orbatlas {
 
-struct Percentiles {
-  double p50 = 0.0, p95 = 0.0, max = 0.0, mean = 0.0;
-  std::size_t count = 0;
-};
-Percentiles percentiles(std::vector<double> values);
 // {p50, p95, max, mean, count} of the values.
 nlohmann::json to_json_summary(const std::vector<double>& values);
+nlohmann::json to_json_summary(const SampleSummary& summary);
 
 struct SlamStats {
   std::size_t frames = 0, tracked = 0, lost = 0;  // lost: frames without a pose
@@ -26,7 +23,7 @@ struct SlamStats {
   std::size_t keyframes_made = 0;
   std::size_t relocalizations = 0;
   std::size_t maps_started = 0;  // by tracking (the first one included)
-  std::vector<double> tracking_ms;  // per frame: front end + tracking
+  SampleSummary tracking_ms;  // per frame: front end + tracking
   LocalMapperStats mapping;
   bool loop_closing = false;  // the loop closer ran
   LoopClosingStats loop;

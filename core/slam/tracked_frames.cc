@@ -26,7 +26,7 @@ TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, std::mutex* trac
     result.t_ns = t_ns;
     result.state = tracker.state();
   }
-  tracking_ms_.push_back(ms_since(started));
+  tracking_ms_.add(ms_since(started));
   ++frames_;
   if (result.tracked) {
     ++tracked_;

@@ -14,6 +14,7 @@
 #include <mutex>
 #include <vector>
 
+#include "core/common/sample_summary.h"
 #include "core/common/worker_errors.h"
 #include "core/map/frame_anchor.h"
 #include "core/tracking/tracker.h"
@@ -32,12 +33,12 @@ class TrackedFrames {
   std::vector<FrameAnchor> anchors() const;  // any thread
   std::size_t frames() const { return frames_; }
   std::size_t tracked() const { return tracked_; }
-  const std::vector<double>& tracking_ms() const { return tracking_ms_; }
+  const SampleSummary& tracking_ms() const { return tracking_ms_; }
   WorkerErrorCounts errors() const { return errors_.counts(); }
 
  private:
   WorkerErrors errors_{"tracking"};
-  std::vector<double> tracking_ms_;
+  SampleSummary tracking_ms_;
   std::size_t frames_ = 0, tracked_ = 0;
   mutable std::mutex anchors_mutex_;
   std::vector<FrameAnchor> anchors_;  // copy of the tracker's, for other threads
