@@ -131,6 +131,9 @@ void register_run_command(CLI::App& app) {
       std::printf("note: tracking was lost and %zu maps were made; the trajectory mixes their frames\n",
                   report.stats.maps - report.loaded_maps);
     std::printf("trajectory: %zu poses -> %s\n", report.trajectory.size(), args->out_trajectory.c_str());
+    if (!report.failed.empty())
+      throw Error("the session failed after " + std::to_string(report.stats.frames) + " frames (" + report.failed +
+                  "); the trajectory and figures until then were written");
   });
 }
 

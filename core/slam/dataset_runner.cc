@@ -9,6 +9,7 @@
 #include "core/common/log.h"
 #include "core/common/process_memory.h"
 #include "core/common/progress.h"
+#include "core/common/worker_errors.h"
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
 #include "core/io/stereo_pair_loader.h"
@@ -30,6 +31,7 @@ nlohmann::json DatasetRunReport::to_json() const {
   j["late_frames"] = late_frames;
   j["peak_rss_mb"] = peak_rss_mb;
   j["wall_s"] = wall_s;
+  if (!failed.empty()) j["failed"] = failed;
   if (ate_rmse_m) j["ate_rmse_m"] = *ate_rmse_m;
   if (session) j["session"] = *session;
   if (loaded_maps > 0 || session) {
@@ -144,6 +146,11 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
       } catch (const DataError& e) {
         log_warn(std::string("frame at ") + std::to_string(pair->t_ns) + " ns skipped: " + e.what());
         ++report.skipped_frames;
+      } catch (const WorkerFailed& e) {
+        // The map cannot be worked on any more: stop here, keep what was tracked.
+        report.failed = e.what();
+        log_warn(std::string("the run stops at ") + std::to_string(pair->t_ns) + " ns: " + e.what());
+        break;
       }
     }
     if (options.realtime && index < frames.size() &&
@@ -152,7 +159,11 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
     progress.advance();
   }
   progress.finish();
-  slam.finish();
+  try {
+    slam.finish();
+  } catch (const WorkerFailed& e) {
+    if (report.failed.empty()) report.failed = e.what();
+  }
   if (checkpointer) {
     checkpointer->stop();  // the final, durable checkpoint: every keyframe and the whole trajectory
     report.checkpoints = checkpointer->stats();

@@ -48,10 +48,15 @@ struct DatasetRunReport {
   double atlas_load_s = 0.0;
   std::optional<SessionId> session;
   std::optional<CheckpointStats> checkpoints;
-  nlohmann::json to_json() const;    // SlamStats' keys + late_frames, peak_rss_mb, ...
+  // Set when the run stopped early because the session failed (a worker gave up
+  // on the map, WorkerFailed): the frames tracked until then are still reported,
+  // stored and written.
+  std::string failed;
+  nlohmann::json to_json() const;    // SlamStats' keys + late_frames, peak_rss_mb, failed, ...
 };
 
-// Throws Error for unusable settings, a missing dataset or a non-stereo dataset.
+// Throws Error for unusable settings, a missing dataset or a non-stereo dataset;
+// a session that fails while it runs ends the run with `failed` set instead.
 DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options);
 
 }  // namespace orbatlas
