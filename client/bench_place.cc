@@ -89,11 +89,7 @@ void run_place_bench(const PlaceBenchOptions& o) {
   ORBATLAS_CHECK(!keyframes.empty(), "the map recording gave no keyframe with ground truth");
 
   StereoFrontend frontend(settings);
-  FrameCamera cam;
-  cam.camera = &frontend.camera();
-  cam.bf = frontend.bf();
-  cam.pyramid.scale_factor = settings.orb.scale_factor;
-  cam.pyramid.n_levels = settings.orb.n_levels;
+  const FrameCamera cam = frontend.frame_camera();
   const auto query_frames = pair_stereo_frames(query_ds);
   std::size_t queries = 0, recognised = 0, relocalised = 0, false_relocalisations = 0, frames_seen = 0;
   std::vector<double> errors_m, errors_deg;

@@ -97,11 +97,7 @@ TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {
 
   // The camera the maps were made with.
   StereoFrontend frontend(settings, false);
-  FrameCamera cam;
-  cam.camera = &frontend.camera();
-  cam.bf = frontend.bf();
-  cam.pyramid.scale_factor = settings.orb.scale_factor;
-  cam.pyramid.n_levels = settings.orb.n_levels;
+  const FrameCamera cam = frontend.frame_camera();
 
   // A recogniser that may not use map A finds nothing.
   PlaceRecognitionOptions ro;

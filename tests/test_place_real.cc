@@ -88,11 +88,7 @@ RelocalizationResult relocalise_against(const std::filesystem::path& dir, int ma
   EXPECT_TRUE(first.tracked && first.keyframe) << "pair " << map_pair << " did not start a map";
   slam.finish();
   StereoFrontend frontend(settings);
-  FrameCamera cam;
-  cam.camera = &frontend.camera();
-  cam.bf = frontend.bf();
-  cam.pyramid.scale_factor = settings.orb.scale_factor;
-  cam.pyramid.n_levels = settings.orb.n_levels;
+  const FrameCamera cam = frontend.frame_camera();
   Frame frame = frontend.make_frame(2'000'000'000, left(query_pair), right(query_pair));
   return relocalize(frame, vocabulary, atlas.keyframe_index(), cam, frontend.calibration().T_b_c);
 }

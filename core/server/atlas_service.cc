@@ -56,16 +56,13 @@ struct AtlasService::LocalizerContext {
   explicit LocalizerContext(const SlamSettings& settings) {
     if (settings.is_stereo()) {
       stereo.emplace(settings, false);
-      cam.camera = &stereo->camera();
-      cam.bf = stereo->bf();
+      cam = stereo->frame_camera();
       T_b_c = stereo->calibration().T_b_c;
     } else {
       mono.emplace(settings);
-      cam.camera = &mono->camera();
+      cam = mono->frame_camera();
       T_b_c = mono->calibration().T_b_c;
     }
-    cam.pyramid.scale_factor = settings.orb.scale_factor;
-    cam.pyramid.n_levels = settings.orb.n_levels;
   }
   Frame make_frame(const cv::Mat& left, const cv::Mat& right) {
     if (mono) {

@@ -22,10 +22,7 @@ class MonoLocalizer::NoKeyframes final : public KeyframeSink {
 MonoLocalizer::MonoLocalizer(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
                              MonoLocalizerOptions options)
     : atlas_(atlas), frontend_(settings), sink_(std::make_unique<NoKeyframes>()) {
-  cam_.camera = &frontend_.camera();
-  cam_.bf = 0.0;  // no stereo
-  cam_.pyramid.scale_factor = settings.orb.scale_factor;
-  cam_.pyramid.n_levels = settings.orb.n_levels;
+  cam_ = frontend_.frame_camera();  // no stereo: bf 0
   const Pose3 T_b_c = frontend_.calibration().T_b_c;
   relocalizer_ = std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c,
                                                     std::move(options.may_enter_map));

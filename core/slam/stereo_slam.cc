@@ -12,10 +12,7 @@ namespace orbatlas {
 StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
                        StereoSlamOptions options)
     : atlas_(atlas), options_(std::move(options)), frontend_(settings) {
-  cam_.camera = &frontend_.camera();
-  cam_.bf = frontend_.bf();
-  cam_.pyramid.scale_factor = settings.orb.scale_factor;
-  cam_.pyramid.n_levels = settings.orb.n_levels;
+  cam_ = frontend_.frame_camera();
   options_.tracker.th_depth_m = settings.stereo_th_depth * frontend_.baseline();
   options_.tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));
   const Pose3 T_b_c = frontend_.calibration().T_b_c;

@@ -11,6 +11,7 @@
 #include "core/features/orb_extractor.h"
 #include "core/io/settings.h"
 #include "core/tracking/frame.h"
+#include "core/tracking/frame_camera.h"
 
 namespace orbatlas {
 
@@ -26,6 +27,8 @@ class MonoFrontend {
 
   const Camera& camera() const { return *camera_; }
   const CameraCalibration& calibration() const { return calibration_; }
+  // The camera, no stereo (bf 0) and the ORB scale pyramid (see StereoFrontend).
+  FrameCamera frame_camera() const;
 
  private:
   CameraCalibration calibration_;

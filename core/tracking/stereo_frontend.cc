@@ -96,4 +96,13 @@ void finish_frame(const Camera& camera, Frame& f) {
   f.outlier.assign(f.size(), false);
 }
 
+FrameCamera StereoFrontend::frame_camera() const {
+  FrameCamera cam;
+  cam.camera = camera_.get();
+  cam.bf = bf();
+  cam.pyramid.scale_factor = left_extractor_.options().scale_factor;
+  cam.pyramid.n_levels = left_extractor_.options().n_levels;
+  return cam;
+}
+
 }  // namespace orbatlas

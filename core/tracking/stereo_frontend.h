@@ -10,6 +10,7 @@
 #include "core/features/stereo_rectified.h"
 #include "core/io/settings.h"
 #include "core/tracking/frame.h"
+#include "core/tracking/frame_camera.h"
 
 namespace orbatlas {
 
@@ -33,6 +34,9 @@ class StereoFrontend {
   double bf() const { return rectifier_.bf(); }
   double baseline() const { return rectifier_.baseline(); }
   const OrbExtractor& extractor() const { return left_extractor_; }
+  // What tracking and mapping work with: the rectified camera, bf and the ORB
+  // scale pyramid (the camera is this front end's: it must outlive the result).
+  FrameCamera frame_camera() const;
 
  private:
 
