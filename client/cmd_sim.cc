@@ -30,7 +30,7 @@ void register_sim_command(CLI::App& app) {
       ->check(CLI::IsMember({"clean", "real"}))
       ->capture_default_str();
   cmd->add_option("--calib-error", *calib_error,
-                  "Real look: scale of the difference between the rendering and the written calibration (0: none; default 1)")
+                  "Real look: scale of the difference between the rendering and the written calibration (default 0: none; 1: a good real calibration's error)")
       ->check(CLI::Range(0.0, 20.0));
   cmd->add_option("--illumination", *illumination,
                   "Real look: scene illumination relative to a well-lit hall (default 1, MH_04/MH_05 0.12)")

@@ -45,8 +45,11 @@ for item in "${plan[@]}"; do
   dataset="$DATA/$name"
   if [ ! -f "$dataset/mav0/cam1/data.csv" ]; then
     rm -rf "$dataset"
-    # Scene seed and sensor seed (image noise, IMU, exposure drift, calibration error) both vary.
-    if ! "$OA" sim --sequence "$s" --look "$look" --scene-seed "$seed" --sensor-seed $((seed * 7919 + 1)) \
+    # Scene seed and sensor seed (image noise, IMU, exposure drift) both vary;
+    # real-look runs of seed 2 and later also have a miscalibrated rig.
+    CALIB=()
+    [ "$look" = real ] && [ "$seed" -ge 2 ] && CALIB=(--calib-error 1)
+    if ! "$OA" sim --sequence "$s" --look "$look" --scene-seed "$seed" --sensor-seed $((seed * 7919 + 1)) "${CALIB[@]}" \
         --out "$dataset" --no-progress > "$OUT/$name.sim.log" 2>&1; then
       echo "[$n/${#plan[@]}] $name: simulation failed (see $OUT/$name.sim.log)"
       printf '%s\t%s\t%s\t%s\tsim_failed\n' "$name" "$s" "$look" "$seed" >> "$OUT/runs.tsv"
