@@ -2,9 +2,9 @@
 // recording's frames against the map of another (both with ground truth in one
 // world frame, e.g. two Machine Hall sequences). The map is built by stereo SLAM
 // over --map; every --every-th frame of --queries that revisits a mapped place
-// (its camera within 0.75 m and 20 deg of a keyframe's, by the ground truth)
-// is a query. Place recognition: a keyframe within 1.5 m and 35 deg among the
-// bag-of-words top 3. Relocalisation: the relocaliser's pose within 10 cm and
+// (its camera within --revisit-m (0.75 m) and --revisit-deg (20 deg) of a
+// keyframe's, by the ground truth) is a query. Place recognition: a keyframe
+// within twice that distance and 15 deg more among the bag-of-words top 3. Relocalisation: the relocaliser's pose within 10 cm and
 // 2 deg of the ground truth in the map's frame (a pose farther off is a false
 // relocalisation). No query image built the map.
 #include <algorithm>
@@ -102,7 +102,7 @@ void run_place_bench(const PlaceBenchOptions& o) {
     ++frames_seen;
     const Pose3 T_gt_c = *gt * T_b_c;
     const bool revisit = std::any_of(keyframes.begin(), keyframes.end(), [&](const MappedKeyframe& k) {
-      return (k.T_gt_c.t - T_gt_c.t).norm() < 0.75 && axis_angle_deg(k.T_gt_c, T_gt_c) < 20.0;
+      return (k.T_gt_c.t - T_gt_c.t).norm() < o.revisit_m && axis_angle_deg(k.T_gt_c, T_gt_c) < o.revisit_deg;
     });
     if (!revisit) continue;
     ++queries;
@@ -112,7 +112,8 @@ void run_place_bench(const PlaceBenchOptions& o) {
     const bool hit = std::any_of(top.begin(), top.end(), [&](const IndexCandidate& c) {
       const auto k = std::find_if(keyframes.begin(), keyframes.end(),
                                   [&](const MappedKeyframe& m) { return m.keyframe == c.keyframe; });
-      return k != keyframes.end() && (k->T_gt_c.t - T_gt_c.t).norm() < 1.5 && axis_angle_deg(k->T_gt_c, T_gt_c) < 35.0;
+      return k != keyframes.end() && (k->T_gt_c.t - T_gt_c.t).norm() < 2.0 * o.revisit_m &&
+             axis_angle_deg(k->T_gt_c, T_gt_c) < o.revisit_deg + 15.0;
     });
     recognised += hit ? 1 : 0;
     const RelocalizationResult r = relocalize(frame, vocabulary, atlas.keyframe_index(), cam, T_b_c);
@@ -136,6 +137,8 @@ void run_place_bench(const PlaceBenchOptions& o) {
                       {"map_keyframes", keyframes.size()},
                       {"query_frames", frames_seen},
                       {"revisit_queries", queries},
+                      {"revisit_m", o.revisit_m},
+                      {"revisit_deg", o.revisit_deg},
                       {"place_recall_top3", static_cast<double>(recognised) / n},
                       {"relocalisation_recall", static_cast<double>(relocalised) / n},
                       {"false_relocalisations", false_relocalisations},
@@ -147,7 +150,8 @@ void run_place_bench(const PlaceBenchOptions& o) {
   }
   std::printf("place benchmark: map %s (%zu keyframes), queries %s\n", o.map.c_str(), keyframes.size(),
               o.queries.c_str());
-  std::printf("  %zu query frames, %zu revisit a mapped place (none of them built the map)\n", frames_seen, queries);
+  std::printf("  %zu query frames, %zu revisit a mapped place (within %.2f m / %.0f deg of a keyframe; none of them "
+              "built the map)\n", frames_seen, queries, o.revisit_m, o.revisit_deg);
   std::printf("  place recognition: true place in the top 3 for %zu (%.1f%%)\n", recognised, 100.0 * recognised / n);
   std::printf("  relocalisation: %zu within 10 cm / 2 deg (%.1f%%), %zu false; error p50 %.3f m / %.2f deg\n",
               relocalised, 100.0 * relocalised / n, false_relocalisations, j["relocalisation_error_m_p50"].get<double>(),

@@ -38,6 +38,7 @@ struct PlaceBenchOptions {
   std::filesystem::path config;        // default: config/euroc/stereo.yaml
   std::filesystem::path vocabulary;    // default: the shipped vocabulary
   int every = 10;                      // query every n-th frame
+  double revisit_m = 0.75, revisit_deg = 20.0;  // how close to a keyframe a query must be
   bool json = false;
   bool show_progress = true;
 };

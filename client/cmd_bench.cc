@@ -49,6 +49,10 @@ void register_bench_command(CLI::App& app) {
   p->add_option("--config", place->config, "Settings (default: config/euroc/stereo.yaml)");
   p->add_option("--vocabulary", place->vocabulary, "Vocabulary file (default: the shipped one)");
   p->add_option("--every", place->every, "Query every n-th frame")->capture_default_str();
+  p->add_option("--revisit-m", place->revisit_m, "A query is a revisit within this distance of a keyframe [m]")
+      ->capture_default_str();
+  p->add_option("--revisit-deg", place->revisit_deg, "... and this angle between the optical axes [deg]")
+      ->capture_default_str();
   p->add_flag("--json", place->json, "Print one JSON object");
   p->add_flag("!--no-progress", place->show_progress, "Do not print progress");
   p->callback([place]() { run_place_bench(*place); });

@@ -43,6 +43,8 @@ fi
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:halt_on_error=1"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$ROOT/scripts/tsan.supp"
+# CHOLMOD's OpenMP workers: fewer of them (see scripts/tsan.supp for the rest).
+if [ "$MODE" = thread ]; then export OMP_NUM_THREADS=1; fi
 start=$(date +%s)
 "$BUILD/client/orbatlas" run --config "$ROOT/config/euroc/stereo.yaml" --dataset "$CLIP" \
     --out-trajectory "$BUILD/sanitize_trajectory.txt" --stats "$BUILD/sanitize_stats.json" --compare-culling --no-progress

@@ -1,5 +1,7 @@
 #include "core/common/process_memory.h"
 
+#include <malloc.h>
+
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -24,5 +26,12 @@ double status_kb(const std::string& key) {
 
 double peak_rss_mb() { return status_kb("VmHWM") / 1024.0; }
 double current_rss_mb() { return status_kb("VmRSS") / 1024.0; }
+
+double heap_in_use_mb() {
+  const struct mallinfo2 info = mallinfo2();
+  return static_cast<double>(info.uordblks + info.hblkhd) / (1024.0 * 1024.0);
+}
+
+void release_free_heap() { malloc_trim(0); }
 
 }  // namespace orbatlas

@@ -8,6 +8,7 @@
 
 #include "core/common/data_paths.h"
 #include "core/common/log.h"
+#include "core/common/process_memory.h"
 #include "core/io/tum_trajectory.h"
 #include "core/persistence/atlas_store.h"
 #include "core/place/relocalizer.h"
@@ -90,11 +91,13 @@ AtlasService::AtlasService(AtlasServiceOptions options)
     atlas_.index_all_keyframes();
     for (const auto& map : atlas_.maps()) leases_.add_free(map->id());
     for (const SessionInfo& info : store.load_sessions()) {
-      auto anchors = store.load_trajectory(info.id);
+      const auto anchors = store.load_trajectory(info.id);
       // The rig each stored map was made with (for merging, and for entering
       // it): its stereo sessions' cameras (a single camera only localised there).
       record_map_rigs(atlas_, info, anchors, map_rigs_);
-      sessions_[info.id] = std::make_shared<LiveSession>(info, std::move(anchors));
+      // The trajectory itself stays in the database (read when asked for).
+      sessions_[info.id] = std::make_shared<LiveSession>(
+          info, anchors.size(), anchors.empty() ? std::nullopt : std::optional<FrameAnchor>(anchors.back()));
       next_session_ = std::max(next_session_, info.id + 1);
     }
     log_info("atlas " + options_.db.string() + ": " + std::to_string(loaded.maps) + " maps, " +
@@ -270,9 +273,8 @@ nlohmann::json AtlasService::session_status(SessionId id) const {
   const auto live = session(id);
   nlohmann::json j = live->status();
   if (j.contains("map") && !atlas_.map(j["map"].get<MapId>())) {
-    const auto anchors = live->anchors();
-    if (!anchors.empty())
-      if (const auto located = atlas_.locate_frame(anchors.back())) j["map"] = located->first;
+    if (const auto last = live->last_anchor())
+      if (const auto located = atlas_.locate_frame(*last)) j["map"] = located->first;
   }
   return j;
 }
@@ -441,17 +443,29 @@ nlohmann::json AtlasService::finish_session(SessionId id) {
       throw ApiError(500, "storage_failed",
                      "session " + std::to_string(id) + " ended but could not be stored yet: " +
                          checkpointer_->stats().last_error + " (the server keeps retrying)");
+    live->release_anchors();  // stored: the database answers for its trajectory from now on
     // A single camera only read the maps it held: nothing new to merge (and
     // its camera is not the rig the maps were made with).
     if (!is_single_camera(live->info().sensor)) submit_merges(id, held);
+    // The session's SLAM objects (images, pyramids, rectification maps) are
+    // gone: give the allocator's idle pages back, so a server that runs
+    // session after session keeps a flat resident size.
+    release_free_heap();
   }
   return live->status();
 }
 
 std::pair<Trajectory, std::vector<std::uint64_t>> AtlasService::trajectory(SessionId id) const {
   const auto live = session(id);
+  std::vector<FrameAnchor> anchors = live->anchors();
+  if (!live->has_anchors()) {
+    // An ended session's frames are in the database (a reader next to the
+    // checkpointer's connection; WAL lets both work at once).
+    AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());
+    anchors = store.load_trajectory(id);
+  }
   std::pair<Trajectory, std::vector<std::uint64_t>> out;
-  for (const FrameAnchor& a : live->anchors()) {
+  for (const FrameAnchor& a : anchors) {
     if (const auto located = atlas_.locate_frame(a)) {
       out.first.push_back({a.t_ns, located->second});
       out.second.push_back(located->first);  // the map it is in now (after merges)
@@ -591,6 +605,10 @@ std::string AtlasService::metrics_text() const {
   gauge("orbatlas_maps", "Maps in the atlas.", "gauge", static_cast<double>(maps.size()));
   gauge("orbatlas_keyframes", "Keyframes in the atlas.", "gauge", static_cast<double>(keyframes));
   gauge("orbatlas_map_points", "Map points in the atlas.", "gauge", static_cast<double>(points));
+  gauge("orbatlas_resident_bytes", "Resident memory of the server process (VmRSS).", "gauge",
+        current_rss_mb() * 1024.0 * 1024.0);
+  gauge("orbatlas_heap_in_use_bytes", "C heap the server holds now (the allocator keeps the rest of the resident heap).",
+        "gauge", heap_in_use_mb() * 1024.0 * 1024.0);
   gauge("orbatlas_database_bytes", "Size of the atlas database with its write-ahead log.", "gauge",
         static_cast<double>(file_size_or_zero(options_.db) + file_size_or_zero(options_.db.string() + "-wal")));
   gauge("orbatlas_checkpoints_total", "Checkpoints completed.", "counter", static_cast<double>(checkpoints.checkpoints));

@@ -23,9 +23,9 @@ const char* session_state_name(SessionState state) {
 LiveSession::LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam)
     : info_(std::move(info)), config_(std::move(config)), slam_(std::move(slam)), state_(SessionState::kActive) {}
 
-LiveSession::LiveSession(SessionInfo info, std::vector<FrameAnchor> anchors)
-    : info_(std::move(info)), state_(SessionState::kStored), final_anchors_(std::move(anchors)) {
-  frames_ = tracked_ = final_anchors_.size();
+LiveSession::LiveSession(SessionInfo info, std::size_t tracked_frames, std::optional<FrameAnchor> last_frame)
+    : info_(std::move(info)), state_(SessionState::kStored), anchors_released_(true), last_anchor_(last_frame) {
+  frames_ = tracked_ = tracked_frames;
 }
 
 LiveSession::~LiveSession() {
@@ -127,6 +127,27 @@ bool LiveSession::finish() {
 std::vector<FrameAnchor> LiveSession::anchors() const {
   std::lock_guard lock(mutex_);
   return slam_ ? slam_->anchors() : final_anchors_;
+}
+
+bool LiveSession::has_anchors() const {
+  std::lock_guard lock(mutex_);
+  return !anchors_released_;
+}
+
+std::optional<FrameAnchor> LiveSession::last_anchor() const {
+  std::lock_guard lock(mutex_);
+  if (anchors_released_) return last_anchor_;
+  const std::vector<FrameAnchor> all = slam_ ? slam_->anchors() : final_anchors_;
+  if (all.empty()) return std::nullopt;
+  return all.back();
+}
+
+void LiveSession::release_anchors() {
+  std::lock_guard lock(mutex_);
+  if (slam_ || anchors_released_) return;  // still running, or already
+  if (!final_anchors_.empty()) last_anchor_ = final_anchors_.back();
+  std::vector<FrameAnchor>().swap(final_anchors_);
+  anchors_released_ = true;
 }
 
 nlohmann::json LiveSession::status() const {

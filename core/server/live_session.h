@@ -31,8 +31,9 @@ struct FrameOutcome {
 class LiveSession {
  public:
   LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam);
-  // A stored session: its frames only.
-  LiveSession(SessionInfo info, std::vector<FrameAnchor> anchors);
+  // A stored session (an earlier run's): how many frames it tracked and its
+  // last frame; its trajectory stays in the database.
+  LiveSession(SessionInfo info, std::size_t tracked_frames, std::optional<FrameAnchor> last_frame);
   ~LiveSession();
   LiveSession(const LiveSession&) = delete;
   LiveSession& operator=(const LiveSession&) = delete;
@@ -54,7 +55,15 @@ class LiveSession {
   // (the frames' anchors stay). Idempotent; false when it was not active.
   bool finish();
 
-  std::vector<FrameAnchor> anchors() const;  // thread-safe
+  // The tracked frames' anchors while they are in memory (thread-safe); empty
+  // once stored and released (has_anchors() false): read them from the database.
+  std::vector<FrameAnchor> anchors() const;
+  bool has_anchors() const;
+  std::optional<FrameAnchor> last_anchor() const;
+  // An ended session whose trajectory is stored: drop the anchors from memory,
+  // keep the count and the last one (a long-running server keeps the same few
+  // hundred bytes per ended session).
+  void release_anchors();
   // Errors the session's workers contained (as of its last frame; any thread).
   std::size_t worker_errors() const { return worker_errors_.load(); }
   nlohmann::json status() const;             // GET /v1/sessions/{id}
@@ -68,7 +77,9 @@ class LiveSession {
   std::unique_ptr<SessionSlam> slam_;
   SessionState state_;
   std::string error_;
-  std::vector<FrameAnchor> final_anchors_;  // once the SLAM objects are gone
+  std::vector<FrameAnchor> final_anchors_;  // once the SLAM objects are gone, until released
+  bool anchors_released_ = false;
+  std::optional<FrameAnchor> last_anchor_;  // kept when released
   std::optional<TimestampNs> last_frame_t_, last_imu_t_;
   std::size_t frames_ = 0, tracked_ = 0, keyframes_ = 0, rejected_frames_ = 0, imu_samples_ = 0;
   std::optional<TrackResult> last_;

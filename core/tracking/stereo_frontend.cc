@@ -33,11 +33,12 @@ std::size_t Frame::stereo_count() const {
 }
 
 StereoFrontend::StereoFrontend(const SlamSettings& settings, bool parallel)
-    : parallel_(parallel),
-      rectifier_(settings.camera0, require_camera1(settings)),
+    : rectifier_(settings.camera0, require_camera1(settings)),
       camera_(make_camera(rectifier_.rectified_left())),
       left_extractor_(orb_options_from(settings)),
-      right_extractor_(orb_options_from(settings)) {}
+      right_extractor_(orb_options_from(settings)) {
+  if (parallel) right_worker_ = std::make_unique<SerialWorker>(1);
+}
 
 Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
   const cv::Mat& l = as_gray(left, left_gray_, "left");
@@ -53,7 +54,11 @@ Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv
     return right_extractor_.extract(right_rect_);
   };
   std::future<ImageFeatures> right_job;
-  if (parallel_) right_job = std::async(std::launch::async, right_side);
+  if (right_worker_) {
+    auto task = std::make_shared<std::packaged_task<ImageFeatures()>>(right_side);
+    right_job = task->get_future();
+    if (!right_worker_->try_post([task] { (*task)(); })) right_job = {};  // busy: done here below
+  }
   Frame f;
   f.t_ns = t_ns;
   ImageFeatures right_features;
@@ -64,7 +69,7 @@ Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv
     if (right_job.valid()) right_job.wait();  // never leave the job running on our buffers
     throw;
   }
-  right_features = parallel_ ? right_job.get() : right_side();
+  right_features = right_job.valid() ? right_job.get() : right_side();
   StereoDepths depths = match_stereo_rectified(f.features, left_extractor_.pyramid(), right_features,
                                                right_extractor_.pyramid(), left_extractor_.scale_factors(), bf(), baseline());
   f.depth = std::move(depths.depth);

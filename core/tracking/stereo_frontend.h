@@ -6,6 +6,7 @@
 #include <opencv2/core/mat.hpp>
 
 #include "core/camera/camera.h"
+#include "core/common/serial_worker.h"
 #include "core/features/orb_extractor.h"
 #include "core/features/stereo_rectified.h"
 #include "core/io/settings.h"
@@ -17,7 +18,10 @@ namespace orbatlas {
 class StereoFrontend {
  public:
   // Needs a stereo pinhole calibration (camera0 and camera1). Throws Error otherwise.
-  // parallel: extract the right image's features on a second thread.
+  // parallel: extract the right image's features on a second thread (one
+  // thread for the front end's life, not one per frame: OpenCV keeps per-thread
+  // data for every thread that ever ran its parallel code, so a thread per
+  // frame grew a long-running server's memory with every frame).
   explicit StereoFrontend(const SlamSettings& settings, bool parallel = true);
 
   // left/right: CV_8UC1 (or 3-channel, converted) of the calibrated size; throws
@@ -40,11 +44,11 @@ class StereoFrontend {
 
  private:
 
-  bool parallel_;
   StereoRectifier rectifier_;
   std::unique_ptr<Camera> camera_;
   OrbExtractor left_extractor_, right_extractor_;
   cv::Mat left_rect_, right_rect_, left_gray_, right_gray_;
+  std::unique_ptr<SerialWorker> right_worker_;  // when parallel; last: stopped before the buffers go
 };
 
 OrbExtractorOptions orb_options_from(const SlamSettings& settings);
