@@ -192,7 +192,7 @@ void run_atlas_store_bench(const AtlasStoreBenchOptions& o) {
   const auto checkpoint = [&]() {
     ORBATLAS_CHECK(checkpointer.checkpoint_now(), "checkpoint failed: " << checkpointer.stats().last_error);
     const CheckpointStats s = checkpointer.stats();
-    return std::make_pair(s.wall_ms.back(), s.last_rows);
+    return std::make_pair(s.last_ms, s.last_rows);
   };
   const auto [first_ms, first_rows] = checkpoint();
   const auto [unchanged_ms, unchanged_rows] = checkpoint();

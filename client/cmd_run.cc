@@ -71,7 +71,7 @@ void print_run_summary(const DatasetRunReport& r) {
     std::printf("atlas: %zu maps / %zu keyframes loaded in %.2f s; stored as session %llu", r.loaded_maps,
                 r.loaded_keyframes, r.atlas_load_s, static_cast<unsigned long long>(*r.session));
     if (r.checkpoints) {
-      const auto c = percentiles(r.checkpoints->wall_ms);
+      const auto c = r.checkpoints->wall_ms.percentiles();
       std::printf(" by %llu checkpoints (%llu commits, %llu failures; ms p50 %.1f max %.1f, off the tracking thread)",
                   static_cast<unsigned long long>(r.checkpoints->checkpoints),
                   static_cast<unsigned long long>(r.checkpoints->commits),

@@ -71,11 +71,18 @@ int main(int argc, char** argv) {
                  "and at least this often")->capture_default_str();
   app.add_option("--port-file", port_file, "Write the port listened on to this file once listening (tests, scripts)");
   app.add_flag("--log-requests", log_requests, "One log line per request");
+  app.add_option("--idle-timeout", service_options.idle_timeout_s,
+                 "Finish a live session after this many seconds without a frame (its data is stored; 0: never)")
+      ->capture_default_str();
+  bool insecure = false;
+  app.add_flag("--insecure", insecure, "Allow listening on a non-loopback address without --token");
   bool no_merging = false, no_live_merging = false;
   app.add_flag("--no-merging", no_merging, "Never merge maps (not live, not when a session finishes)");
   app.add_flag("--no-live-merging", no_live_merging,
                "Merge a session's maps only when it finishes, not while it runs");
   CLI11_PARSE(app, argc, argv);
+  service_options.merge_maps = !no_merging;
+  service_options.live_merging = !no_live_merging;
 
   // Signals go to one thread that asks the server to stop (no handler state).
   sigset_t signals;
@@ -86,6 +93,12 @@ int main(int argc, char** argv) {
 
   try {
     const Listen listen = parse_listen(listen_text);
+    const bool loopback = listen.host == "127.0.0.1" || listen.host == "localhost" || listen.host == "::1" ||
+                          listen.host.rfind("127.", 0) == 0;
+    if (!loopback && token.empty() && !insecure)
+      throw orbatlas::Error("--listen " + listen_text +
+                            " reaches other machines: give --token (every route but /healthz then needs it), or "
+                            "--insecure to serve without one");
     orbatlas::AtlasService service(service_options);
     job_options.work_dir = service_options.db.string() + ".work";
     orbatlas::UploadJobs jobs(service, job_options);
@@ -98,6 +111,7 @@ int main(int argc, char** argv) {
     api_options.max_body_bytes = max_body_mb << 20;
     api_options.max_upload_bytes = max_upload_gb << 30;
     api_options.log_requests = log_requests;
+    api_options.redactions = orbatlas::server_path_redactions(service);
     orbatlas::install_http_api(server, service, api_options, &jobs);
 
     const int port = listen.port == 0 ? server.bind_to_any_port(listen.host) : (server.bind_to_port(listen.host, listen.port) ? listen.port : -1);

@@ -31,6 +31,7 @@ class TestServer {
         jobs_(std::make_unique<UploadJobs>(*service_, UploadJobOptions{service_->db_path().string() + ".work", 1, 4})) {
     http_.set_payload_max_length(api.max_body_bytes * 4);
     http_.set_tcp_nodelay(true);
+    if (api.redactions.empty()) api.redactions = server_path_redactions(*service_);
     install_http_api(http_, *service_, api, jobs_.get());
     port_ = http_.bind_to_any_port("127.0.0.1");
     thread_ = std::thread([this] { http_.listen_after_bind(); });
@@ -67,7 +68,7 @@ struct TempDbPath {
   ~TempDbPath() { clean(); }
   void clean() const {
     std::error_code ec;
-    for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(path.string() + suffix, ec);
+    for (const char* suffix : {"", "-wal", "-shm", ".lock"}) std::filesystem::remove(path.string() + suffix, ec);
     std::filesystem::remove_all(path.string() + ".work", ec);
   }
 };

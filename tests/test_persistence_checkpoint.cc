@@ -145,7 +145,7 @@ TEST(Checkpoint, WritesOnlyChangedRowsAndLoadsEqual) {
   EXPECT_GT(count_culled_keyframes(atlas), 4u);
   stats = checkpointer.stats();
   EXPECT_EQ(stats.failures, 0u);
-  EXPECT_EQ(stats.wall_ms.size(), stats.checkpoints);
+  EXPECT_EQ(stats.wall_ms.count(), stats.checkpoints);
   EXPECT_EQ(stats.sequence, 11);
   checkpointer.stop();
   EXPECT_EQ(checkpointer.stats().commits, 11u);  // the final checkpoint had nothing to write

@@ -111,7 +111,12 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   const auto session = client.get_json("/v1/sessions/" + std::to_string(streamed.session));
   EXPECT_EQ(session["state"], "stored");
   const std::string tum = client.trajectory_tum(streamed.session);
-  EXPECT_EQ(std::count(tum.begin(), tum.end(), '\n'), static_cast<long>(streamed.trajectory.size()) + 2);  // header, "# map"
+  // The frame count, the header, "# map"; every stored frame resolves.
+  EXPECT_EQ(std::count(tum.begin(), tum.end(), '\n'), static_cast<long>(streamed.trajectory.size()) + 3);
+  EXPECT_NE(tum.find("# " + std::to_string(streamed.trajectory.size()) + " frames tracked, " +
+                     std::to_string(streamed.trajectory.size()) + " below\n"),
+            std::string::npos)
+      << tum.substr(0, 200);
 
   // A frame of another flight through the place localises against the stored
   // map, as a pair and as a single image, where the ground truth puts it in the

@@ -7,40 +7,14 @@
 #include "client/api/server_client.h"
 #include "core/persistence/atlas_store.h"
 #include "tests/server_test_fixture.h"
+#include "tests/server_test_reply.h"
 #include "tests/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
 
 using json = nlohmann::json;
-
-struct Reply {
-  int status = 0;
-  std::string code;
-};
-
-Reply classify(const httplib::Result& r) {
-  if (!r) return {-1, "no reply: " + httplib::to_string(r.error())};
-  if (r->status < 400) return {r->status, ""};
-  try {
-    return {r->status, json::parse(r->body).at("error").at("code").get<std::string>()};
-  } catch (const std::exception&) {
-    return {r->status, "(not a JSON error body: '" + r->body.substr(0, 80) + "')"};
-  }
-}
-
-#define EXPECT_REPLY(result, status_, code_)               \
-  do {                                                     \
-    const Reply got = classify(result);                    \
-    EXPECT_EQ(got.status, status_) << got.code;            \
-    EXPECT_EQ(got.code, code_) << "status " << got.status; \
-  } while (0)
-
-std::string png_of(const cv::Mat& image) {
-  std::vector<unsigned char> bytes;
-  cv::imencode(".png", image, bytes);
-  return std::string(bytes.begin(), bytes.end());
-}
+using test::png_of;
 
 httplib::MultipartFormDataItems frame_form(const std::string& t_ns, const std::string& left, const std::string& right) {
   return {{"t_ns", t_ns, "", ""}, {"left", left, "l.png", "image/png"}, {"right", right, "r.png", "image/png"}};
@@ -131,8 +105,8 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
   EXPECT_REPLY(http.Get("/v1/maps/999"), 404, "not_found");
   EXPECT_REPLY(http.Get("/v1/maps/999/points.ply"), 404, "not_found");
   // Merges: read-only
-  EXPECT_REPLY(http.Post("/v1/merges", "{}", "application/json"), 404, "not_found");
-  EXPECT_REPLY(http.Delete("/v1/merges"), 404, "not_found");
+  EXPECT_REPLY(http.Post("/v1/merges", "{}", "application/json"), 405, "method_not_allowed");
+  EXPECT_REPLY(http.Delete("/v1/merges"), 405, "method_not_allowed");
   // POST /v1/localize
   EXPECT_REPLY(http.Post("/v1/localize", "{}", "application/json"), 400, "bad_request");
   EXPECT_REPLY(http.Post("/v1/localize", httplib::MultipartFormDataItems{{"config", "euroc/stereo", "", ""}}), 400,
@@ -148,7 +122,7 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
                404, "not_found");
   // No such route; wrong method.
   EXPECT_REPLY(http.Get("/v2/everything"), 404, "not_found");
-  EXPECT_REPLY(http.Delete(sid), 404, "not_found");
+  EXPECT_REPLY(http.Delete(sid), 405, "method_not_allowed");
 
   // Alive, and nothing changed: the same sessions, frames and maps.
   EXPECT_EQ(client.get_json("/healthz")["status"], "ok");

@@ -47,4 +47,9 @@ std::string format_seconds_exact(TimestampNs t) {
   return buf;
 }
 
+std::string invalid_timestamp_message(const std::string& what, TimestampNs t) {
+  return what + " " + std::to_string(t) + " ns is outside 0.." + std::to_string(kMaxTimestampNs) +
+         " (nanoseconds since the Unix epoch or since the sensor started, before the year 2100)";
+}
+
 }  // namespace orbatlas

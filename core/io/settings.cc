@@ -32,41 +32,38 @@ std::string opencv_message(const cv::Exception& e) {
 }
 
 // cv::FileStorage only parses YAML that starts with the "%YAML:1.0" directive.
-std::string missing_directive_hint(const std::filesystem::path& path) {
+std::string missing_directive_hint(const std::string& text) {
+  return text.rfind("%YAML", 0) == 0 ? "" : " (the text must start with the line %YAML:1.0)";
+}
+
+std::string file_start(const std::filesystem::path& path) {
   std::ifstream in(path);
   std::string first(5, '\0');
   in.read(first.data(), 5);
-  return first == "%YAML" ? "" : " (the file must start with the line %YAML:1.0)";
+  return first;
 }
 
-// The open settings file: typed access to its keys, and errors naming the file and key.
+// The open settings (a file, or text in memory): typed access to its keys, and
+// errors naming the source and key.
 class SettingsFile {
  public:
-  explicit SettingsFile(const std::filesystem::path& path) : path_(path) {
+  explicit SettingsFile(const std::filesystem::path& path) : label_(path.string()) {
     std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) throw DataError(path.string() + ": settings file not found");
-    if (!std::filesystem::is_regular_file(path, ec)) throw DataError(path.string() + ": not a regular file");
-    try {
-      fs_.open(path.string(), cv::FileStorage::READ | cv::FileStorage::FORMAT_YAML);
-    } catch (const cv::Exception& e) {
-      throw DataError(path.string() + ": malformed YAML" + missing_directive_hint(path) + ": " + opencv_message(e));
-    }
-    if (!fs_.isOpened()) {
-      throw DataError(path.string() + ": cannot open or parse as YAML" + missing_directive_hint(path));
-    }
-    try {
-      for (const cv::FileNode& node : fs_.root()) {
-        if (!node.isNone()) keys_.push_back(node.name());
-      }
-    } catch (const cv::Exception& e) {
-      throw DataError(path.string() + ": malformed YAML: " + opencv_message(e));
-    }
+    if (!std::filesystem::exists(path, ec)) throw DataError(label_ + ": settings file not found");
+    if (!std::filesystem::is_regular_file(path, ec)) throw DataError(label_ + ": not a regular file");
+    open(path.string(), cv::FileStorage::READ | cv::FileStorage::FORMAT_YAML, missing_directive_hint(file_start(path)));
+  }
+  // YAML text parsed in memory (no file is written).
+  SettingsFile(const std::string& text, std::string label) : label_(std::move(label)) {
+    if (text.empty()) throw DataError(label_ + ": the settings text is empty");
+    open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML,
+         missing_directive_hint(text));
   }
 
-  const std::filesystem::path& path() const { return path_; }
+  const std::string& label() const { return label_; }
 
   [[noreturn]] void fail(const std::string& key, const std::string& what) const {
-    throw DataError(path_.string() + ": key '" + key + "' " + what);
+    throw DataError(label_ + ": key '" + key + "' " + what);
   }
 
   bool has(const std::string& key) const { return std::find(keys_.begin(), keys_.end(), key) != keys_.end(); }
@@ -145,7 +142,23 @@ class SettingsFile {
   }
 
  private:
-  std::filesystem::path path_;
+  void open(const std::string& source, int flags, const std::string& hint) {
+    try {
+      fs_.open(source, flags);
+    } catch (const cv::Exception& e) {
+      throw DataError(label_ + ": malformed YAML" + hint + ": " + opencv_message(e));
+    }
+    if (!fs_.isOpened()) throw DataError(label_ + ": cannot open or parse as YAML" + hint);
+    try {
+      for (const cv::FileNode& node : fs_.root()) {
+        if (!node.isNone()) keys_.push_back(node.name());
+      }
+    } catch (const cv::Exception& e) {
+      throw DataError(label_ + ": malformed YAML: " + opencv_message(e));
+    }
+  }
+
+  std::string label_;
   cv::FileStorage fs_;
   std::vector<std::string> keys_;  // top-level keys ("Camera1.fx", ...)
 };
@@ -310,23 +323,47 @@ void SlamSettings::check() const {
                        imu->accel_random_walk > 0,
                    "settings: IMU noise densities and random walks must be positive");
   }
-  ORBATLAS_CHECK(orb.n_features > 0, "settings: ORB n_features must be positive, got " << orb.n_features);
-  ORBATLAS_CHECK(orb.scale_factor > 1.0, "settings: ORB scale_factor must exceed 1, got " << orb.scale_factor);
-  ORBATLAS_CHECK(orb.n_levels > 0, "settings: ORB n_levels must be positive, got " << orb.n_levels);
+  // Upper bounds far above any real use, so that a typo is an error here and
+  // not an allocation failure at the first frame.
+  for (const CameraCalibration* c : {&camera0, camera1 ? &*camera1 : nullptr}) {
+    if (c)
+      ORBATLAS_CHECK(c->width <= kMaxImageSide && c->height <= kMaxImageSide,
+                     "settings: images of at most " << kMaxImageSide << " pixels a side, got " << c->width << "x"
+                                                    << c->height);
+  }
+  ORBATLAS_CHECK(fps <= 1000, "settings: fps must be at most 1000, got " << fps);
+  ORBATLAS_CHECK(orb.n_features > 0 && orb.n_features <= kMaxOrbFeatures,
+                 "settings: ORB n_features must be 1.." << kMaxOrbFeatures << ", got " << orb.n_features);
+  ORBATLAS_CHECK(orb.scale_factor > 1.0 && orb.scale_factor <= 2.0,
+                 "settings: ORB scale_factor must be in (1, 2], got " << orb.scale_factor);
+  ORBATLAS_CHECK(orb.n_levels > 0 && orb.n_levels <= 16, "settings: ORB n_levels must be 1..16, got " << orb.n_levels);
+  ORBATLAS_CHECK(orb.ini_th_fast <= 255, "settings: ORB iniThFAST must be at most 255, got " << orb.ini_th_fast);
   ORBATLAS_CHECK(orb.min_th_fast > 0 && orb.min_th_fast <= orb.ini_th_fast,
                  "settings: ORB FAST thresholds must satisfy 0 < min_th_fast <= ini_th_fast, got "
                      << orb.min_th_fast << " and " << orb.ini_th_fast);
 }
 
-SlamSettings read_settings(const std::filesystem::path& yaml, std::optional<SensorType> sensor_hint) {
-  const SettingsFile file(yaml);
+namespace {
+
+SlamSettings read_checked(const SettingsFile& file, std::optional<SensorType> sensor_hint) {
   SlamSettings s = read(file, sensor_hint);
   try {
     s.check();
   } catch (const Error& e) {
-    throw DataError(yaml.string() + ": " + e.what());
+    throw DataError(file.label() + ": " + e.what());
   }
   return s;
+}
+
+}  // namespace
+
+SlamSettings read_settings(const std::filesystem::path& yaml, std::optional<SensorType> sensor_hint) {
+  return read_checked(SettingsFile(yaml), sensor_hint);
+}
+
+SlamSettings read_settings_text(const std::string& yaml_text, const std::string& label,
+                                std::optional<SensorType> sensor_hint) {
+  return read_checked(SettingsFile(yaml_text, label), sensor_hint);
 }
 
 const char* sensor_type_name(SensorType type) {

@@ -20,6 +20,11 @@ struct OrbSettings {
   int min_th_fast = 7;
 };
 
+// Limits SlamSettings::check() enforces (ORB-SLAM3 uses 1000-2000 features and
+// cameras of at most a few thousand pixels a side).
+inline constexpr int kMaxOrbFeatures = 20000;
+inline constexpr int kMaxImageSide = 8192;
+
 struct SlamSettings {
   SensorType sensor = SensorType::kStereo;
   CameraCalibration camera0;                 // Camera1.* in the file; T_b_c from IMU.T_b_c1
@@ -43,6 +48,9 @@ struct SlamSettings {
 // else stereo when Camera2 / Stereo.* keys are present and mono otherwise,
 // inertial when IMU.* keys are present.
 SlamSettings read_settings(const std::filesystem::path& yaml, std::optional<SensorType> sensor_hint = {});
+// The same from YAML text in memory (a request's settings); errors name `label`.
+SlamSettings read_settings_text(const std::string& yaml_text, const std::string& label,
+                                std::optional<SensorType> sensor_hint = {});
 
 const char* sensor_type_name(SensorType type);
 std::optional<SensorType> parse_sensor_type(const std::string& name);

@@ -1,6 +1,7 @@
 #include "core/persistence/atlas_checkpoint_writer.h"
 
 #include <algorithm>
+#include <unordered_set>
 
 #include "core/common/error.h"
 #include "core/persistence/row_hash.h"
@@ -62,6 +63,24 @@ std::vector<AtlasCheckpointWriter::TrajectoryRow> AtlasCheckpointWriter::current
   return rows;
 }
 
+void AtlasCheckpointWriter::keep_stored_references(std::vector<TrajectoryRow>& rows,
+                                                   const std::vector<TrajectoryRow>& committed,
+                                                   const std::unordered_set<KeyframeId>& stored_keyframes) {
+  std::vector<TrajectoryRow> kept;
+  kept.reserve(rows.size());
+  for (TrajectoryRow& row : rows) {
+    if (stored_keyframes.count(row.anchor.reference)) {
+      kept.push_back(std::move(row));
+      continue;
+    }
+    const auto before = std::lower_bound(committed.begin(), committed.end(), row.anchor.t_ns,
+                                         [](const TrajectoryRow& r, TimestampNs t) { return r.anchor.t_ns < t; });
+    if (before != committed.end() && before->anchor.t_ns == row.anchor.t_ns) kept.push_back(*before);
+    ++deferred_frames_;
+  }
+  rows = std::move(kept);
+}
+
 RowCounts AtlasCheckpointWriter::write_trajectory(AtlasRowWriter& writer, SessionId id,
                                                   const std::vector<TrajectoryRow>& before,
                                                   const std::vector<TrajectoryRow>& now) {
@@ -94,10 +113,24 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   const bool full = !has_committed_;
   if (full) stored_sessions_ = AtlasRowWriter(db).stored_keyframe_sessions();
 
-  // The snapshot is taken before the write lock, which is then held only for writing.
-  AtlasRows rows = collect_atlas_rows(atlas_, [&](KeyframeId id) { return session_of(id); });
+  // The snapshot is taken before the write lock, which is then held only for
+  // writing. The trajectories first: every keyframe their frames reference
+  // existed before the atlas rows were collected, so it is in them (or among
+  // their culled keyframes) unless a merge or a reset removed it meanwhile.
   std::vector<std::vector<TrajectoryRow>> trajectories;
   for (const SessionState& s : sessions_) trajectories.push_back(current_trajectory(s.session));
+  AtlasRows rows = collect_atlas_rows(atlas_, [&](KeyframeId id) { return session_of(id); });
+  // Never a stored frame whose keyframe is not stored: it would resolve through
+  // whatever keyframe later gets that id. Such a frame keeps its committed row
+  // (or waits for the next checkpoint).
+  std::unordered_set<KeyframeId> stored_keyframes;
+  for (const KeyframeRow& k : rows.keyframes) stored_keyframes.insert(k.id);
+  for (const CulledKeyframeRow& c : rows.culled) stored_keyframes.insert(c.anchor.id);
+  if (!full)
+    for (const CulledKeyframeRow& c : committed_.culled) stored_keyframes.insert(c.anchor.id);
+  for (std::size_t i = 0; i < sessions_.size(); ++i)
+    keep_stored_references(trajectories[i], full ? std::vector<TrajectoryRow>{} : sessions_[i].committed,
+                           stored_keyframes);
 
   const AtlasRows nothing;
   const std::vector<TrajectoryRow> no_frames;

@@ -11,6 +11,8 @@
 //
 // Not thread-safe: AtlasCheckpointer runs one on its own thread.
 #include <functional>
+#include <unordered_map>
+#include <unordered_set>
 #include <optional>
 #include <vector>
 
@@ -65,6 +67,9 @@ class AtlasCheckpointWriter {
   void set_durable(bool durable);
 
   AtlasStore& store() { return store_; }
+  // Frames left out of a checkpoint so far because their reference keyframe
+  // was not in its snapshot (they are written by a later one).
+  std::size_t deferred_frames() const { return deferred_frames_; }
 
  private:
   struct TrajectoryRow {
@@ -83,6 +88,10 @@ class AtlasCheckpointWriter {
   static RowCounts write_trajectory(AtlasRowWriter& writer, SessionId id, const std::vector<TrajectoryRow>& before,
                                     const std::vector<TrajectoryRow>& now);
   std::optional<SessionId> session_of(KeyframeId id) const;
+  // Drops (or puts back the committed version of) every row whose reference
+  // keyframe is not in `stored_keyframes`.
+  void keep_stored_references(std::vector<TrajectoryRow>& rows, const std::vector<TrajectoryRow>& committed,
+                              const std::unordered_set<KeyframeId>& stored_keyframes);
 
   const Atlas& atlas_;
   AtlasStore store_;
@@ -94,6 +103,7 @@ class AtlasCheckpointWriter {
 
   bool has_committed_ = false;
   AtlasRows committed_;  // what the file holds for the atlas (objects dropped)
+  std::size_t deferred_frames_ = 0;
 };
 
 }  // namespace orbatlas

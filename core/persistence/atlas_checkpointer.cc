@@ -140,6 +140,7 @@ bool AtlasCheckpointer::checkpoint_once(bool final) {
   if (!error.empty()) {
     ++stats_.failures;
     stats_.last_error = error;
+    stats_.last_failed = true;
     std::ostringstream line;
     line << "atlas checkpoint into " << path_.string()
          << " failed (the file keeps the last committed state; the next checkpoint retries): " << error;
@@ -148,9 +149,11 @@ bool AtlasCheckpointer::checkpoint_once(bool final) {
     return false;
   }
   ++stats_.checkpoints;
+  stats_.last_failed = false;
   stats_.last_rows = result.rows;
   stats_.total_rows += result.rows;
-  stats_.wall_ms.push_back(ms);
+  stats_.wall_ms.add(ms);
+  stats_.last_ms = ms;
   if (result.committed) {
     ++stats_.commits;
     stats_.sequence = result.sequence;

@@ -18,6 +18,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/common/sample_summary.h"
 #include "core/persistence/atlas_checkpoint_writer.h"
 
 namespace orbatlas {
@@ -37,8 +38,10 @@ struct CheckpointStats {
   std::int64_t sequence = 0;  // atlas.checkpoint_seq of the last commit (0 before)
   RowCounts last_rows;        // of the last completed checkpoint
   RowCounts total_rows;
-  std::vector<double> wall_ms;  // per completed checkpoint, in order
+  SampleSummary wall_ms;        // of the completed checkpoints
+  double last_ms = 0.0;         // of the last completed checkpoint
   std::string last_error;       // of the last failure; empty when none
+  bool last_failed = false;     // the latest checkpoint failed (the final one, after stop())
 };
 
 class AtlasCheckpointer {

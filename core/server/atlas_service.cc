@@ -4,7 +4,6 @@
 #include <fstream>
 #include <regex>
 #include <sstream>
-#include <unistd.h>
 
 #include "core/common/data_paths.h"
 #include "core/common/log.h"
@@ -35,6 +34,38 @@ std::uintmax_t file_size_or_zero(const fs::path& path) {
   std::error_code ec;
   const auto size = fs::file_size(path, ec);
   return ec ? 0 : size;
+}
+
+// Valid UTF-8 (no overlong forms or surrogates), no control characters.
+bool is_printable_utf8(const std::string& text) {
+  for (std::size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if (c < 0x80) {
+      if (c < 0x20 || c == 0x7f) return false;
+      ++i;
+      continue;
+    }
+    const int extra = (c & 0xe0) == 0xc0 ? 1 : (c & 0xf0) == 0xe0 ? 2 : (c & 0xf8) == 0xf0 ? 3 : -1;
+    if (extra < 0 || i + static_cast<std::size_t>(extra) >= text.size()) return false;
+    std::uint32_t code = c & (0x3f >> extra);
+    for (int k = 1; k <= extra; ++k) {
+      const auto next = static_cast<unsigned char>(text[i + k]);
+      if ((next & 0xc0) != 0x80) return false;
+      code = (code << 6) | (next & 0x3f);
+    }
+    const std::uint32_t smallest[] = {0, 0x80, 0x800, 0x10000};
+    if (code < smallest[extra] || code > 0x10ffff || (code >= 0xd800 && code <= 0xdfff) || (code >= 0x80 && code < 0xa0))
+      return false;
+    i += 1 + extra;
+  }
+  return true;
+}
+
+void check_session_name(const std::string& name) {
+  if (name.size() > kMaxSessionNameBytes)
+    throw_bad_request("a session name has at most " + std::to_string(kMaxSessionNameBytes) + " bytes, got " +
+                      std::to_string(name.size()));
+  if (!is_printable_utf8(name)) throw_bad_request("a session name must be UTF-8 text without control characters");
 }
 
 }  // namespace
@@ -81,6 +112,7 @@ struct AtlasService::LocalizerContext {
 
 AtlasService::AtlasService(AtlasServiceOptions options)
     : options_(std::move(options)),
+      db_lock_(options_.db.empty() ? nullptr : std::make_unique<DatabaseLock>(options_.db)),
       vocabulary_(Vocabulary::load(options_.vocabulary.empty() ? default_vocabulary_path() : options_.vocabulary)),
       loop_worker_(std::make_shared<SerialWorker>(std::max<std::size_t>(options_.loop_queue, 1))) {
   ORBATLAS_CHECK(!options_.db.empty(), "the server needs a database path (--db)");
@@ -89,6 +121,12 @@ AtlasService::AtlasService(AtlasServiceOptions options)
     AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());
     const AtlasLoadReport loaded = store.load_atlas(atlas_, &vocabulary_);
     atlas_.index_all_keyframes();
+    if (db_lock_->previous_holder_crashed()) {
+      skip_ids_after_crash(atlas_);
+      log_warn("atlas " + options_.db.string() +
+               ": the previous server stopped without its final checkpoint (killed?); what it did after its last "
+               "checkpoint is lost, and new ids continue past any it may have handed out");
+    }
     for (const auto& map : atlas_.maps()) leases_.add_free(map->id());
     for (const SessionInfo& info : store.load_sessions()) {
       const auto anchors = store.load_trajectory(info.id);
@@ -106,10 +144,56 @@ AtlasService::AtlasService(AtlasServiceOptions options)
              std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()) + " s");
   }
   checkpointer_ = std::make_unique<AtlasCheckpointer>(atlas_, options_.db, vocabulary_.hash(), options_.checkpoints);
+  store_.emplace(AtlasStore::open(options_.db, vocabulary_.hash()));
   if (options_.merge_maps)
     merger_ = std::make_unique<MapMergeWorker>(
         atlas_, leases_, [this](MapId a, MapId b) { return rigs_match(a, b); },
         [this](const MergeRecord& r) { merged(r); }, options_.merging);
+  if (options_.idle_timeout_s > 0) idle_thread_ = std::thread([this] { finish_idle_sessions(); });
+}
+
+void AtlasService::finish_idle_sessions() {
+  const auto timeout = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(std::min(options_.idle_timeout_s, 3.15e7)));
+  std::unique_lock lock(mutex_);
+  while (!shut_down_) {
+    const auto now = std::chrono::steady_clock::now();
+    std::vector<SessionId> idle;
+    auto next = std::chrono::steady_clock::time_point::max();
+    for (const auto& [id, s] : sessions_) {
+      if (s->state() != SessionState::kActive) continue;
+      const auto deadline = s->last_activity() + timeout;
+      if (deadline <= now) {
+        idle.push_back(id);
+      } else {
+        next = std::min(next, deadline);
+      }
+    }
+    if (idle.empty()) {
+      // Until the earliest deadline (a new session's is later than all of them).
+      if (next == std::chrono::steady_clock::time_point::max()) {
+        idle_wake_.wait(lock);
+      } else {
+        idle_wake_.wait_until(lock, next);
+      }
+      continue;
+    }
+    lock.unlock();
+    for (const SessionId id : idle) {
+      try {
+        // Activity may have come meanwhile: only a session still idle is ended.
+        const auto live = session(id);
+        if (std::chrono::steady_clock::now() - live->last_activity() < timeout) continue;
+        log_info("session " + std::to_string(id) + ": no frame for " + std::to_string(options_.idle_timeout_s) +
+                 " s; finishing it (its data is stored)");
+        finish_session(id, "idle_timeout");
+        ++sessions_timed_out_;
+      } catch (const std::exception& e) {
+        log_warn("session " + std::to_string(id) + ": finishing it after its idle timeout failed: " + e.what());
+      }
+    }
+    lock.lock();
+  }
 }
 
 AtlasService::~AtlasService() {
@@ -118,6 +202,10 @@ AtlasService::~AtlasService() {
   } catch (const std::exception& e) {
     log_warn(std::string("server shutdown: ") + e.what());
   }
+}
+
+fs::path AtlasService::config_dir() const {
+  return options_.config_dir.empty() ? shipped_config_dir() : options_.config_dir;
 }
 
 AtlasService::LoadedSettings AtlasService::load_settings(const SettingsSource& source) const {
@@ -130,27 +218,22 @@ AtlasService::LoadedSettings AtlasService::load_settings(const SettingsSource& s
       static const std::regex kName("[A-Za-z0-9_\\-]+(/[A-Za-z0-9_\\-]+)*");
       if (!std::regex_match(source.config, kName))
         throw_bad_request("config name '" + source.config + "' is not of the form \"euroc/stereo\"");
-      const fs::path dir = options_.config_dir.empty() ? shipped_config_dir() : options_.config_dir;
-      const fs::path file = dir / (source.config + ".yaml");
+      const fs::path file = config_dir() / (source.config + ".yaml");
       if (!fs::is_regular_file(file)) throw_not_found("no config named '" + source.config + "'");
-      return {read_settings(file), source.config};
-    }
-    // cv::FileStorage reads files: the text goes through a private temporary one.
-    const fs::path file = fs::temp_directory_path() / ("orbatlas-settings-" + std::to_string(::getpid()) + "-" +
-                                                       std::to_string(temp_files_.fetch_add(1)) + ".yaml");
-    {
-      std::ofstream out(file, std::ios::binary);
-      out << source.settings_yaml;
-      if (!out) throw Error("cannot write " + file.string());
-    }
-    struct Remove {
-      fs::path p;
-      ~Remove() {
-        std::error_code ec;
-        fs::remove(p, ec);
+      try {
+        return {read_settings(file), source.config};
+      } catch (const std::exception& e) {
+        // Named by the config, not by the server's file path.
+        std::string message = e.what();
+        if (const auto at = message.find(file.string()); at != std::string::npos)
+          message.replace(at, file.string().size(), "config '" + source.config + "'");
+        throw ApiError(400, "bad_config", "unusable settings: " + message);
       }
-    } remove{file};
-    return {read_settings(file), "inline"};
+    }
+    // Parsed in memory: no file is written for a request's text.
+    ORBATLAS_DATA_CHECK(source.settings_yaml.size() <= kMaxSettingsBytes,
+                        "settings_yaml has " << source.settings_yaml.size() << " bytes; at most " << kMaxSettingsBytes);
+    return {read_settings_text(source.settings_yaml, "settings_yaml"), "inline"};
   } catch (const ApiError&) {
     throw;
   } catch (const std::exception& e) {
@@ -159,6 +242,7 @@ AtlasService::LoadedSettings AtlasService::load_settings(const SettingsSource& s
 }
 
 void AtlasService::check_upload(const SessionRequest& request) const {
+  check_session_name(request.name);
   const LoadedSettings loaded = load_settings(request.settings);
   const SensorType sensor = session_sensor(request, loaded.settings);
   if (is_single_camera(sensor))
@@ -200,6 +284,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
 }
 
 SessionId AtlasService::create_session(const SessionRequest& request) {
+  check_session_name(request.name);
   const LoadedSettings loaded = load_settings(request.settings);
   const SensorType sensor = session_sensor(request, loaded.settings);
   // A single camera localises in the stored maps (no map of its own: mapping
@@ -242,12 +327,21 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   } else {
     slam = make_stereo_slam(id, info, loaded.settings);
   }
+  // Stored before its id is handed out: an id is never given twice, even when
+  // the server dies before the session's first checkpoint.
+  try {
+    std::lock_guard lock(store_mutex_);
+    store_->save_session(info);
+  } catch (const std::exception& e) {
+    throw ApiError(503, "storage_failed", std::string("cannot store the new session: ") + e.what());
+  }
   auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam));
   {
     std::lock_guard lock(mutex_);
     sessions_[id] = live;
     session_starts_[id] = {request.settings, atlas_.ids().peek(IdKind::keyframe)};
   }
+  idle_wake_.notify_all();
   // The checkpoint thread reads the frames through its own reference.
   checkpointer_->add_session(CheckpointSession{info, [live] { return live->anchors(); }});
   ++sessions_created_;
@@ -431,11 +525,13 @@ std::size_t AtlasService::add_imu(SessionId id, const std::vector<ImuSample>& sa
   return session(id)->add_imu(samples, options_.max_imu_gap_s);
 }
 
-nlohmann::json AtlasService::finish_session(SessionId id) {
+nlohmann::json AtlasService::finish_session(SessionId id) { return finish_session(id, std::string()); }
+
+nlohmann::json AtlasService::finish_session(SessionId id, const std::string& ended_by) {
   const auto live = session(id);
   if (live->state() == SessionState::kStored)
     throw_conflict("session " + std::to_string(id) + " was stored by an earlier run; there is nothing to finish");
-  const bool ended = live->finish();
+  const bool ended = live->finish(ended_by);
   if (ended) {
     const std::vector<MapId> held = end_session_storage(id);
     // The session's last frames and keyframes are on disk before the reply.
@@ -455,20 +551,24 @@ nlohmann::json AtlasService::finish_session(SessionId id) {
   return live->status();
 }
 
-std::pair<Trajectory, std::vector<std::uint64_t>> AtlasService::trajectory(SessionId id) const {
+SessionTrajectory AtlasService::trajectory(SessionId id) const {
   const auto live = session(id);
   std::vector<FrameAnchor> anchors = live->anchors();
   if (!live->has_anchors()) {
     // An ended session's frames are in the database (a reader next to the
     // checkpointer's connection; WAL lets both work at once).
-    AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());
-    anchors = store.load_trajectory(id);
+    std::lock_guard lock(store_mutex_);
+    if (!store_) throw ApiError(503, "shutting_down", "the server is shutting down");
+    anchors = store_->load_trajectory(id);
   }
-  std::pair<Trajectory, std::vector<std::uint64_t>> out;
+  SessionTrajectory out;
+  out.frames = anchors.size();
   for (const FrameAnchor& a : anchors) {
     if (const auto located = atlas_.locate_frame(a)) {
-      out.first.push_back({a.t_ns, located->second});
-      out.second.push_back(located->first);  // the map it is in now (after merges)
+      out.poses.push_back({a.t_ns, located->second});
+      out.maps.push_back(located->first);
+    } else {
+      ++out.unresolved;
     }
   }
   return out;
@@ -528,6 +628,11 @@ std::shared_ptr<AtlasService::LocalizerContext> AtlasService::localizer_for(cons
   if (localizers_.size() >= kMaxLocalizers) localizers_.erase(localizers_.begin());
   localizers_[key] = context;
   return context;
+}
+
+cv::Size AtlasService::localize_image_size(const SettingsSource& settings) {
+  const Camera& camera = *localizer_for(settings)->cam.camera;
+  return {camera.calibration().width, camera.calibration().height};
 }
 
 LocalizeReply AtlasService::localize(const LocalizeRequest& request) {
@@ -595,6 +700,8 @@ std::string AtlasService::metrics_text() const {
   gauge("orbatlas_sessions_ended", "Sessions finished, failed or stored by earlier runs.", "gauge", static_cast<double>(stored));
   gauge("orbatlas_sessions_created_total", "Sessions created since the server started.", "counter",
         static_cast<double>(sessions_created_.load()));
+  gauge("orbatlas_sessions_timed_out_total", "Live sessions the server finished after their idle timeout.", "counter",
+        static_cast<double>(sessions_timed_out_.load()));
   gauge("orbatlas_frames_total", "Frames processed.", "counter", static_cast<double>(frames_.load()));
   gauge("orbatlas_worker_errors_total",
         "Errors contained inside tracking, local mapping, loop closing and map merging (the unit of work was "
@@ -639,6 +746,11 @@ void AtlasService::shutdown() {
     std::lock_guard lock(mutex_);
     if (shut_down_) return;
     shut_down_ = true;
+  }
+  idle_wake_.notify_all();
+  if (idle_thread_.joinable()) idle_thread_.join();  // it may be finishing a session: let it end
+  {
+    std::lock_guard lock(mutex_);
     for (const auto& [_, s] : sessions_)
       if (s->state() == SessionState::kActive) live.push_back(s);
   }
@@ -657,6 +769,18 @@ void AtlasService::shutdown() {
   checkpointer_->stop();  // the final, durable checkpoint
   const CheckpointStats stats = checkpointer_->stats();
   if (stats.failures > 0) log_warn("atlas checkpoints failed " + std::to_string(stats.failures) + " times; last: " + stats.last_error);
+  {
+    std::lock_guard lock(store_mutex_);
+    store_.reset();
+  }
+  // Only a final checkpoint that stored everything counts as a clean stop.
+  if (!stats.last_failed) {
+    try {
+      db_lock_->mark_stopped();
+    } catch (const std::exception& e) {
+      log_warn(e.what());
+    }
+  }
 }
 
 }  // namespace orbatlas

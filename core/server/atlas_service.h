@@ -6,6 +6,8 @@
 // replies. Errors are ApiError (status + code), DataError (bad input: 422) or
 // Error (500).
 #include <atomic>
+#include <condition_variable>
+#include <thread>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -18,6 +20,8 @@
 #include "core/geometry/trajectory.h"
 #include "core/map/atlas.h"
 #include "core/persistence/atlas_checkpointer.h"
+#include "core/persistence/atlas_store.h"
+#include "core/persistence/database_lock.h"
 #include "core/server/latency_histogram.h"
 #include "core/server/live_session.h"
 #include "core/server/map_leases.h"
@@ -27,6 +31,10 @@
 
 namespace orbatlas {
 
+// Request limits checked at the edge (400 beyond them).
+inline constexpr std::size_t kMaxSettingsBytes = 1 << 20;  // a settings_yaml text
+inline constexpr std::size_t kMaxSessionNameBytes = 200;   // UTF-8, no control characters
+
 struct AtlasServiceOptions {
   std::filesystem::path db;          // created when missing
   std::filesystem::path config_dir;  // named configs: <config_dir>/<name>.yaml; empty: the shipped ones
@@ -34,6 +42,10 @@ struct AtlasServiceOptions {
   CheckpointOptions checkpoints;
   StereoSlamOptions slam;
   std::size_t max_live_sessions = 8;
+  // A live session without a frame or IMU batch for this long is finished by
+  // the server (stored like any other, status "ended_by": "idle_timeout"), so
+  // abandoned sessions cannot hold the live-session slots. <= 0: never.
+  double idle_timeout_s = 300.0;
   double max_imu_gap_s = 0.05;  // EuRoC's IMU runs at 200 Hz: 10 samples missing
   // A finished session's maps are handed to the server-wide merging worker,
   // which merges them into a map of the atlas they share a place with.
@@ -70,6 +82,13 @@ struct FrameReply {
   SessionId session = 0;
   TrackResult result;
   double tracking_ms = 0.0;
+};
+
+struct SessionTrajectory {
+  Trajectory poses;                 // the frames that resolve, by time
+  std::vector<std::uint64_t> maps;  // the map each is in now (after merges)
+  std::size_t frames = 0;           // frames the session tracked
+  std::size_t unresolved = 0;       // of them, anchored to a keyframe no map has any more
 };
 
 struct LocalizeRequest {
@@ -111,8 +130,10 @@ class AtlasService {
   // Ends the session and stores it (a durable checkpoint); idempotent for a
   // finished session, ApiError 409 for a stored one. Returns its status.
   nlohmann::json finish_session(SessionId id);
+  // The same on the server's behalf: `ended_by` is shown in the status.
+  nlohmann::json finish_session(SessionId id, const std::string& ended_by);
   // The session's frames in their maps' frames (poses follow later corrections).
-  std::pair<Trajectory, std::vector<std::uint64_t>> trajectory(SessionId id) const;
+  SessionTrajectory trajectory(SessionId id) const;
 
   nlohmann::json maps_json() const;
   nlohmann::json map_json(MapId id) const;  // ApiError 404
@@ -123,6 +144,9 @@ class AtlasService {
   void wait_for_merges();
 
   LocalizeReply localize(const LocalizeRequest& request);
+  // The image size a localisation with these settings takes (ApiError for
+  // unusable settings): requests are checked against it before decoding.
+  cv::Size localize_image_size(const SettingsSource& settings);
 
   std::string metrics_text() const;  // Prometheus exposition format
   nlohmann::json health() const;
@@ -132,6 +156,7 @@ class AtlasService {
   Atlas& atlas() { return atlas_; }
   const Vocabulary& vocabulary() const { return vocabulary_; }
   const std::filesystem::path& db_path() const { return options_.db; }
+  std::filesystem::path config_dir() const;  // where named configs are read (the shipped ones by default)
 
  private:
   struct LoadedSettings {
@@ -152,13 +177,23 @@ class AtlasService {
   bool rigs_match(MapId source, MapId target) const;
   bool rig_matches(const std::vector<CameraCalibration>& rig, MapId target) const;
   void merged(const MergeRecord& record);  // on the worker thread
+  // The idle-session thread: waits for the earliest idle deadline, finishes
+  // the sessions past it.
+  void finish_idle_sessions();
   void merged_live(SessionId session, const LiveMerge& merge);  // on the loop-closing thread
 
   const AtlasServiceOptions options_;
+  // First: held while anything below may write the database; destroyed last.
+  std::unique_ptr<DatabaseLock> db_lock_;
   const Vocabulary vocabulary_;
   Atlas atlas_;
   MapLeases leases_;
   std::unique_ptr<AtlasCheckpointer> checkpointer_;
+  // A connection of the request threads (the checkpointer has its own): a new
+  // session's row is stored before its id is handed out; ended sessions'
+  // trajectories are read from it.
+  mutable std::mutex store_mutex_;
+  mutable std::optional<AtlasStore> store_;
 
   // The server-wide loop-closing thread (before sessions_: destroyed after them).
   const std::shared_ptr<SerialWorker> loop_worker_;
@@ -178,6 +213,8 @@ class AtlasService {
   std::size_t live_merges_total_ = 0;         // guarded by mutex_
   SessionId next_session_ = 1;
   bool shut_down_ = false;
+  std::condition_variable idle_wake_;  // with mutex_: a session was created, or shutdown
+  std::atomic<std::uint64_t> sessions_timed_out_{0};
 
   std::mutex localizers_mutex_;
   // One per configuration seen, at most kMaxLocalizers (inline settings vary:
@@ -189,11 +226,11 @@ class AtlasService {
   std::map<MapId, std::vector<CameraCalibration>> map_rigs_;  // the camera rig each map was made with
 
   std::unique_ptr<MapMergeWorker> merger_;  // null when merging is off
+  std::thread idle_thread_;  // started last in the constructor, joined by shutdown()
 
   LatencyHistogram tracking_latency_, localize_latency_;
   std::atomic<std::uint64_t> sessions_created_{0}, frames_{0}, frames_rejected_{0}, localize_requests_{0},
       localize_recognised_{0};
-  mutable std::atomic<std::uint64_t> temp_files_{0};  // names of inline-settings files
 };
 
 }  // namespace orbatlas

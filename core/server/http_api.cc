@@ -5,9 +5,14 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <memory>
+#include <regex>
+#include <sys/socket.h>
 #include <nlohmann/json.hpp>
 
 #include "core/common/log.h"
+#include "core/common/timestamp.h"
+#include "core/io/settings.h"
 #include "core/io/tum_trajectory.h"
 #include "core/server/api_error.h"
 #include "core/server/atlas_service.h"
@@ -23,37 +28,105 @@ namespace {
 
 using httplib::Request;
 using httplib::Response;
+using HandlerResponse = httplib::Server::HandlerResponse;
 using json = nlohmann::json;
 
 void reply_json(Response& res, const json& body, int status = 200) {
   res.status = status;
-  res.set_content(body.dump(), "application/json");
+  // Text that is not UTF-8 (from an older database) is replaced, never a 500.
+  res.set_content(body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
 }
+
+using Redactions = std::vector<std::pair<std::string, std::string>>;
+
+std::string redacted(std::string message, const Redactions& redactions) {
+  for (const auto& [from, to] : redactions) {
+    if (from.empty()) continue;
+    for (std::size_t at = 0; (at = message.find(from, at)) != std::string::npos; at += to.size())
+      message.replace(at, from.size(), to);
+  }
+  return message;
+}
+
+// Set once by install_http_api, read by every handler (the options outlive the server).
+struct ErrorContext {
+  Redactions redactions;
+};
 
 void reply_error(Response& res, int status, const std::string& code, const std::string& message) {
   reply_json(res, {{"error", {{"code", code}, {"message", message}}}}, status);
 }
 
-// Every handler runs inside this: service errors become JSON replies.
-void run_guarded(const Request& req, Response& res, const std::function<void()>& handler) {
+// Every handler runs inside this: service errors become JSON replies, with no
+// server path in their messages.
+void run_guarded(const ErrorContext& context, const Request& req, Response& res,
+                 const std::function<void()>& handler) {
+  const auto error = [&](int status, const std::string& code, const std::string& message) {
+    reply_error(res, status, code, redacted(message, context.redactions));
+  };
   try {
     handler();
   } catch (const ApiError& e) {
-    reply_error(res, e.status(), e.code(), e.what());
+    error(e.status(), e.code(), e.what());
   } catch (const DataError& e) {
-    reply_error(res, 422, "bad_input", e.what());
+    error(422, "bad_input", e.what());
   } catch (const json::exception& e) {
-    reply_error(res, 400, "bad_json", std::string("malformed request: ") + e.what());
+    error(400, "bad_json", std::string("malformed request: ") + e.what());
+  } catch (const std::bad_alloc&) {
+    log_warn(req.method + " " + req.path + ": out of memory");
+    error(503, "unavailable", "the server ran out of memory for this request");
   } catch (const std::exception& e) {
     log_warn(req.method + " " + req.path + ": " + e.what());
-    reply_error(res, 500, "internal", e.what());
+    error(500, "internal", e.what());
   }
 }
 
-template <class Handler>
-auto guarded(Handler handler) {
-  return [handler](const Request& req, Response& res) { run_guarded(req, res, [&] { handler(req, res); }); };
-}
+// The routes, for telling a wrong method (405) from a wrong path (404).
+struct RouteTable {
+  std::vector<std::pair<std::regex, std::string>> routes;  // pattern, method
+  std::vector<std::string> methods_for(const std::string& path) const {
+    std::vector<std::string> out;
+    for (const auto& [pattern, method] : routes)
+      if (std::regex_match(path, pattern) && std::find(out.begin(), out.end(), method) == out.end())
+        out.push_back(method);
+    return out;
+  }
+};
+
+// Registers a route on the server and in the table.
+class Router {
+ public:
+  Router(httplib::Server& server, std::shared_ptr<ErrorContext> context, std::shared_ptr<RouteTable> table)
+      : server_(server), context_(std::move(context)), table_(std::move(table)) {}
+
+  template <class Handler>
+  void get(const std::string& pattern, Handler handler) {
+    table_->routes.emplace_back(std::regex(pattern), "GET");
+    server_.Get(pattern, guarded(handler));
+  }
+  template <class Handler>
+  void post(const std::string& pattern, Handler handler) {
+    table_->routes.emplace_back(std::regex(pattern), "POST");
+    server_.Post(pattern, guarded(handler));
+  }
+  // A POST route that reads its body itself (uploads).
+  void post_streaming(const std::string& pattern, httplib::Server::HandlerWithContentReader handler) {
+    table_->routes.emplace_back(std::regex(pattern), "POST");
+    server_.Post(pattern, std::move(handler));
+  }
+  const ErrorContext& context() const { return *context_; }
+
+ private:
+  template <class Handler>
+  auto guarded(Handler handler) {
+    return [handler, context = context_](const Request& req, Response& res) {
+      run_guarded(*context, req, res, [&] { handler(req, res); });
+    };
+  }
+  httplib::Server& server_;
+  std::shared_ptr<ErrorContext> context_;
+  std::shared_ptr<RouteTable> table_;
+};
 
 std::uint64_t id_from(const Request& req, std::size_t group, const char* what) {
   const std::string& text = req.matches[group];
@@ -96,8 +169,11 @@ std::int64_t form_integer(const Request& req, const char* key, bool required) {
 
 std::optional<RawImageSize> raw_size(const Request& req) {
   if (!req.has_file("width") && !req.has_file("height")) return std::nullopt;
-  return RawImageSize{static_cast<int>(form_integer(req, "width", true)),
-                      static_cast<int>(form_integer(req, "height", true))};
+  const std::int64_t width = form_integer(req, "width", true), height = form_integer(req, "height", true);
+  if (width <= 0 || height <= 0 || width > kMaxImageSide || height > kMaxImageSide)
+    throw_bad_request("'width' and 'height' must be 1.." + std::to_string(kMaxImageSide) + ", got " +
+                      std::to_string(width) + " and " + std::to_string(height));
+  return RawImageSize{static_cast<int>(width), static_cast<int>(height)};
 }
 
 void require_multipart(const Request& req, const char* fields) {
@@ -120,8 +196,8 @@ bool authorised(const Request& req, const std::string& token) {
   return diff == 0;
 }
 
-void install_session_routes(httplib::Server& server, AtlasService& service) {
-  server.Post("/v1/sessions", guarded([&service](const Request& req, Response& res) {
+void install_session_routes(Router& router, AtlasService& service) {
+  router.post("/v1/sessions", ([&service](const Request& req, Response& res) {
     const json body = parse_json_body(req);
     SessionRequest request;
     request.name = optional_string(body, "name");
@@ -131,23 +207,25 @@ void install_session_routes(httplib::Server& server, AtlasService& service) {
     const SessionId id = service.create_session(request);
     reply_json(res, {{"id", id}, {"session", service.session_status(id)}}, 201);
   }));
-  server.Get("/v1/sessions", guarded([&service](const Request&, Response& res) { reply_json(res, session_list(service)); }));
-  server.Get(R"(/v1/sessions/(\d+))", guarded([&service](const Request& req, Response& res) {
+  router.get("/v1/sessions", ([&service](const Request&, Response& res) { reply_json(res, session_list(service)); }));
+  router.get(R"(/v1/sessions/(\d+))", ([&service](const Request& req, Response& res) {
     reply_json(res, service.session_status(id_from(req, 1, "session")));
   }));
-  server.Post(R"(/v1/sessions/(\d+)/frames)", guarded([&service](const Request& req, Response& res) {
+  router.post(R"(/v1/sessions/(\d+)/frames)", ([&service](const Request& req, Response& res) {
     const auto start = std::chrono::steady_clock::now();
     const SessionId id = id_from(req, 1, "session");
-    service.session(id);  // 404 before looking at the body
+    const auto session = service.session(id);  // 404 before looking at the body
+    const CameraCalibration& camera = session->info().cameras.at(0);
+    const cv::Size expected(camera.width, camera.height);
     require_multipart(req, "'t_ns', 'left', 'right' (and 'width', 'height' for raw pixels)");
     const TimestampNs t_ns = form_integer(req, "t_ns", true);
     if (!req.has_file("left"))
       throw_bad_request("a frame needs the image 'left' (and 'right' for a stereo session)");
     const auto raw = raw_size(req);
-    const cv::Mat left = decode_request_image(req.get_file_value("left").content, raw, "left image");
+    const cv::Mat left = decode_request_image(req.get_file_value("left").content, raw, "left image", expected);
     // A single-camera session takes 'left' alone; the session says which it needs.
     const cv::Mat right = req.has_file("right")
-                              ? decode_request_image(req.get_file_value("right").content, raw, "right image")
+                              ? decode_request_image(req.get_file_value("right").content, raw, "right image", expected)
                               : cv::Mat();
     const FrameReply r = service.process_frame(id, t_ns, left, right);
     json body = {{"t_ns", r.result.t_ns},
@@ -163,7 +241,7 @@ void install_session_routes(httplib::Server& server, AtlasService& service) {
     body["server_ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     reply_json(res, body);
   }));
-  server.Post(R"(/v1/sessions/(\d+)/imu)", guarded([&service](const Request& req, Response& res) {
+  router.post(R"(/v1/sessions/(\d+)/imu)", ([&service](const Request& req, Response& res) {
     const SessionId id = id_from(req, 1, "session");
     service.session(id);
     const json body = parse_json_body(req);
@@ -173,6 +251,9 @@ void install_session_routes(httplib::Server& server, AtlasService& service) {
     for (const json& row : body["samples"]) {
       if (!row.is_array() || row.size() != 7 || !row[0].is_number_integer())
         throw_bad_request("each IMU sample is [t_ns (integer), gx, gy, gz (rad/s), ax, ay, az (m/s^2)]");
+      // An integer above INT64_MAX would wrap around into a negative time.
+      if (row[0].is_number_unsigned() && row[0].get<std::uint64_t>() > static_cast<std::uint64_t>(kMaxTimestampNs))
+        throw DataError("IMU sample t_ns " + row[0].dump() + " is outside 0.." + std::to_string(kMaxTimestampNs));
       ImuSample s;
       s.t_ns = row[0].get<TimestampNs>();
       for (int k = 0; k < 3; ++k) {
@@ -183,27 +264,34 @@ void install_session_routes(httplib::Server& server, AtlasService& service) {
     }
     reply_json(res, {{"accepted", service.add_imu(id, samples)}});
   }));
-  server.Post(R"(/v1/sessions/(\d+)/finish)", guarded([&service](const Request& req, Response& res) {
+  router.post(R"(/v1/sessions/(\d+)/finish)", ([&service](const Request& req, Response& res) {
     reply_json(res, service.finish_session(id_from(req, 1, "session")));
   }));
-  server.Get(R"(/v1/sessions/(\d+)/trajectory)", guarded([&service](const Request& req, Response& res) {
-    const auto [trajectory, maps] = service.trajectory(id_from(req, 1, "session"));
-    res.set_content(format_tum_trajectory(trajectory, maps), "text/plain");
+  router.get(R"(/v1/sessions/(\d+)/trajectory)", ([&service](const Request& req, Response& res) {
+    const SessionTrajectory t = service.trajectory(id_from(req, 1, "session"));
+    // Frames that no longer resolve are said, never silently dropped.
+    res.set_header("X-Orbatlas-Frames", std::to_string(t.frames));
+    res.set_header("X-Orbatlas-Unresolved-Frames", std::to_string(t.unresolved));
+    std::string text = "# " + std::to_string(t.frames) + " frames tracked, " + std::to_string(t.poses.size()) +
+                       " below" + (t.unresolved ? ", " + std::to_string(t.unresolved) +
+                                                      " not resolvable (their keyframe is in no map)"
+                                                : std::string()) + "\n";
+    res.set_content(text + format_tum_trajectory(t.poses, t.maps), "text/plain");
   }));
 }
 
-void install_map_routes(httplib::Server& server, AtlasService& service) {
-  server.Get("/v1/maps", guarded([&service](const Request&, Response& res) {
+void install_map_routes(Router& router, AtlasService& service) {
+  router.get("/v1/maps", ([&service](const Request&, Response& res) {
     reply_json(res, {{"maps", service.maps_json()}});
   }));
-  server.Get(R"(/v1/maps/(\d+))", guarded([&service](const Request& req, Response& res) {
+  router.get(R"(/v1/maps/(\d+))", ([&service](const Request& req, Response& res) {
     reply_json(res, service.map_json(id_from(req, 1, "map")));
   }));
-  server.Get("/v1/merges", guarded([&service](const Request&, Response& res) { reply_json(res, service.merges_json()); }));
-  server.Get(R"(/v1/maps/(\d+)/points\.ply)", guarded([&service](const Request& req, Response& res) {
+  router.get("/v1/merges", ([&service](const Request&, Response& res) { reply_json(res, service.merges_json()); }));
+  router.get(R"(/v1/maps/(\d+)/points\.ply)", ([&service](const Request& req, Response& res) {
     res.set_content(service.map_points_ply(id_from(req, 1, "map")), "application/ply");
   }));
-  server.Post("/v1/localize", guarded([&service](const Request& req, Response& res) {
+  router.post("/v1/localize", ([&service](const Request& req, Response& res) {
     require_multipart(req, "'image' (or 'left' and 'right'), 'config' or 'settings_yaml', optional 'map'");
     LocalizeRequest request;
     request.settings.config = form_text(req, "config");
@@ -212,8 +300,10 @@ void install_map_routes(httplib::Server& server, AtlasService& service) {
     const auto raw = raw_size(req);
     const char* left_key = req.has_file("image") ? "image" : "left";
     if (!req.has_file(left_key)) throw_bad_request("localisation needs an 'image' (or a 'left' and 'right' pair)");
-    request.left = decode_request_image(req.get_file_value(left_key).content, raw, "image");
-    if (req.has_file("right")) request.right = decode_request_image(req.get_file_value("right").content, raw, "right image");
+    const cv::Size expected = service.localize_image_size(request.settings);
+    request.left = decode_request_image(req.get_file_value(left_key).content, raw, "image", expected);
+    if (req.has_file("right"))
+      request.right = decode_request_image(req.get_file_value("right").content, raw, "right image", expected);
     const LocalizeReply r = service.localize(request);
     json body = {{"recognised", r.recognised}, {"candidates", r.candidates}, {"ms", r.ms}};
     if (r.recognised) {
@@ -228,13 +318,13 @@ void install_map_routes(httplib::Server& server, AtlasService& service) {
   }));
 }
 
-void install_upload_routes(httplib::Server& server, AtlasService& service, UploadJobs* jobs, std::uint64_t max_bytes) {
-  server.Post("/v1/uploads", [&service, jobs, max_bytes](const Request& req, Response& res,
-                                                         const httplib::ContentReader& reader) {
+void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jobs, std::uint64_t max_bytes) {
+  router.post_streaming("/v1/uploads", [&service, jobs, max_bytes, &context = router.context()](
+                                           const Request& req, Response& res, const httplib::ContentReader& reader) {
     // A refusal comes before the body is read; what is left of it must not be
     // taken for the next request on this connection: the client closes it.
     res.set_header("Connection", "close");
-    run_guarded(req, res, [&] {
+    run_guarded(context, req, res, [&] {
       if (!jobs) throw ApiError(503, "unavailable", "this server takes no uploads");
       SessionRequest request;
       request.name = req.get_param_value("name");
@@ -273,10 +363,10 @@ void install_upload_routes(httplib::Server& server, AtlasService& service, Uploa
       reply_json(res, {{"job", id}, {"status", jobs->job_json(id)}}, 202);
     });
   });
-  server.Get("/v1/jobs", guarded([jobs](const Request&, Response& res) {
+  router.get("/v1/jobs", ([jobs](const Request&, Response& res) {
     reply_json(res, {{"jobs", jobs ? jobs->jobs_json() : json::array()}});
   }));
-  server.Get(R"(/v1/jobs/(\d+))", guarded([jobs](const Request& req, Response& res) {
+  router.get(R"(/v1/jobs/(\d+))", ([jobs](const Request& req, Response& res) {
     const JobId id = id_from(req, 1, "job");
     if (!jobs) throw_not_found("no job " + std::to_string(id));
     reply_json(res, jobs->job_json(id));
@@ -285,59 +375,126 @@ void install_upload_routes(httplib::Server& server, AtlasService& service, Uploa
 
 }  // namespace
 
+std::vector<std::pair<std::string, std::string>> server_path_redactions(const AtlasService& service) {
+  const std::filesystem::path db = std::filesystem::absolute(service.db_path()).lexically_normal();
+  // Longest first: the work folder and the file before the folder holding them.
+  return {{db.string() + ".work", "<work>"},
+          {db.string(), "<atlas>"},
+          {service.config_dir().string(), "<configs>"},
+          {db.parent_path().string(), "<data>"},
+          {service.db_path().string() + ".work", "<work>"},
+          {service.db_path().string(), "<atlas>"}};
+}
+
+namespace {
+
+HandlerResponse refuse(Response& res, int status, const std::string& code, const std::string& message) {
+  reply_error(res, status, code, message);
+  res.set_header("Connection", "close");  // the body was not read: the connection cannot carry another request
+  return HandlerResponse::Handled;
+}
+
+// The codes of the errors httplib answers itself (before any route runs).
+std::pair<std::string, std::string> status_code_and_message(int status, const Request& req) {
+  switch (status) {
+    case 400: return {"bad_request", "malformed HTTP request"};
+    case 404: return {"not_found", "no route " + req.method + " " + req.path};
+    case 408: return {"timeout", "the request did not arrive in time"};
+    case 413: return {"too_large", req.get_header_value("Content-Type").find("x-www-form-urlencoded") != std::string::npos
+                                       ? "form-urlencoded bodies are limited to 8 kB: send JSON with "
+                                         "'Content-Type: application/json'"
+                                       : "the request is too large"};
+    case 414: return {"too_large", "the request line is too long"};
+    case 415: return {"unsupported_media_type", "unsupported Content-Type or Content-Encoding"};
+    case 416: return {"bad_request", "bad Range header"};
+    case 503: return {"unavailable", "the server cannot take this request now"};
+    default: return {status >= 500 ? "internal" : "bad_request", "HTTP status " + std::to_string(status)};
+  }
+}
+
+}  // namespace
+
 void install_http_api(httplib::Server& server, AtlasService& service, const HttpApiOptions& options,
                       UploadJobs* jobs) {
   const HttpApiOptions opts = options;
+  auto context = std::make_shared<ErrorContext>();
+  context->redactions = options.redactions;
+  auto table = std::make_shared<RouteTable>();
+  Router router(server, context, table);
+
+  // SO_REUSEADDR only: httplib's default adds SO_REUSEPORT, with which a second
+  // server on the same port starts silently and the kernel splits the clients.
+  server.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
   server.set_pre_routing_handler([opts](const Request& req, Response& res) {
+    if (opts.on_request_start) opts.on_request_start(req.path);
     if (!opts.token.empty() && req.path != "/healthz" && !authorised(req, opts.token)) {
       res.set_header("WWW-Authenticate", "Bearer");
-      res.set_header("Connection", "close");  // the body was not read: the connection cannot carry another request
-      reply_error(res, 401, "unauthorized",
-                  req.has_header("Authorization") ? "wrong token" : "this server needs 'Authorization: Bearer <token>'");
-      return httplib::Server::HandlerResponse::Handled;
+      return refuse(res, 401, "unauthorized",
+                    req.has_header("Authorization") ? "wrong token" : "this server needs 'Authorization: Bearer <token>'");
     }
-    if (req.path.rfind("/v1/uploads", 0) != 0) {
-      if (req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos) {
-        reply_error(res, 411, "length_required", "send this request with a Content-Length (chunked bodies are for uploads)");
-        res.set_header("Connection", "close");
-        return httplib::Server::HandlerResponse::Handled;
-      }
-      const std::string length = req.get_header_value("Content-Length");
-      std::uint64_t bytes = 0;
-      std::from_chars(length.data(), length.data() + length.size(), bytes);
-      if (bytes > opts.max_body_bytes) {
-        reply_error(res, 413, "too_large",
-                    "the body has " + length + " bytes; this route takes at most " + std::to_string(opts.max_body_bytes));
-        res.set_header("Connection", "close");
-        return httplib::Server::HandlerResponse::Handled;
-      }
+    // One length, said once: two Content-Length headers (or one next to a
+    // chunked encoding) are how requests are smuggled past proxies.
+    const std::size_t lengths = req.get_header_value_count("Content-Length");
+    const bool chunked = req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos;
+    if (lengths > 1) return refuse(res, 400, "bad_request", "the request has more than one Content-Length header");
+    if (lengths == 1 && req.has_header("Transfer-Encoding"))
+      return refuse(res, 400, "bad_request", "the request has both Content-Length and Transfer-Encoding");
+    const std::string length = req.get_header_value("Content-Length");
+    std::uint64_t bytes = 0;
+    if (lengths == 1) {
+      const auto [end, ec] = std::from_chars(length.data(), length.data() + length.size(), bytes);
+      if (ec != std::errc() || end != length.data() + length.size())
+        return refuse(res, 400, "bad_request", "Content-Length is not a number");
     }
-    return httplib::Server::HandlerResponse::Unhandled;
+    const bool upload = req.path == "/v1/uploads";
+    if (upload) {
+      if (bytes > opts.max_upload_bytes)
+        return refuse(res, 413, "too_large",
+                      "the upload has " + length + " bytes; uploads are limited to " + std::to_string(opts.max_upload_bytes));
+    } else {
+      if (chunked) return refuse(res, 411, "length_required", "send this request with a Content-Length (chunked bodies are for uploads)");
+      if (bytes > opts.max_body_bytes)
+        return refuse(res, 413, "too_large",
+                      "the body has " + length + " bytes; this route takes at most " + std::to_string(opts.max_body_bytes));
+    }
+    return HandlerResponse::Unhandled;
   });
-  // Errors httplib produces itself (no route, a body over its limit...) get a JSON body too.
-  server.set_error_handler(httplib::Server::HandlerWithResponse([](const Request& req, Response& res) {
-    if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
-    const std::string message = res.status == 404 ? "no route " + req.method + " " + req.path
-                                                  : "HTTP status " + std::to_string(res.status);
-    reply_error(res, res.status, res.status == 404 ? "not_found" : "http_error", message);
-    return httplib::Server::HandlerResponse::Handled;
+  // Errors httplib produces itself (no route, a body over its limit...) get a
+  // JSON body with a documented code; a known path with another method is 405.
+  server.set_error_handler(httplib::Server::HandlerWithResponse([table](const Request& req, Response& res) {
+    if (!res.body.empty()) return HandlerResponse::Unhandled;
+    if (res.status == 404) {
+      const std::vector<std::string> methods = table->methods_for(req.path);
+      if (!methods.empty()) {
+        std::string allow;
+        for (const auto& m : methods) allow += (allow.empty() ? "" : ", ") + m;
+        res.set_header("Allow", allow);
+        reply_error(res, 405, "method_not_allowed", req.method + " " + req.path + ": this route takes " + allow);
+        return HandlerResponse::Handled;
+      }
+    }
+    const auto [code, message] = status_code_and_message(res.status, req);
+    reply_error(res, res.status, code, message);
+    return HandlerResponse::Handled;
   }));
-  if (options.log_requests) {
-    server.set_logger([](const Request& req, const Response& res) {
-      log_info(req.method + " " + req.path + " -> " + std::to_string(res.status));
-    });
-  }
-  server.Get("/healthz", guarded([&service](const Request&, Response& res) { reply_json(res, service.health()); }));
-  server.Get("/metrics", guarded([&service, jobs](const Request&, Response& res) {
+  server.set_logger([opts](const Request& req, const Response& res) {
+    if (opts.log_requests) log_info(req.method + " " + req.path + " -> " + std::to_string(res.status));
+    if (opts.on_request_end) opts.on_request_end();
+  });
+  router.get("/healthz", ([&service](const Request&, Response& res) { reply_json(res, service.health()); }));
+  router.get("/metrics", ([&service, jobs](const Request&, Response& res) {
     std::string text = service.metrics_text();
     text += "# HELP orbatlas_jobs Upload jobs by state.\n# TYPE orbatlas_jobs gauge\n";
     for (const char* state : {"queued", "extracting", "running", "done", "failed", "cancelled"})
       text += std::string("orbatlas_jobs{state=\"") + state + "\"} " + std::to_string(jobs ? jobs->count(state) : 0) + "\n";
     res.set_content(text, "text/plain; version=0.0.4");
   }));
-  install_session_routes(server, service);
-  install_map_routes(server, service);
-  install_upload_routes(server, service, jobs, options.max_upload_bytes);
+  install_session_routes(router, service);
+  install_map_routes(router, service);
+  install_upload_routes(router, service, jobs, options.max_upload_bytes);
 }
 
 }  // namespace orbatlas

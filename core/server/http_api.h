@@ -4,7 +4,10 @@
 // {"error": {"code": "...", "message": "..."}}.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace httplib {
 class Server;
@@ -20,7 +23,17 @@ struct HttpApiOptions {
   std::size_t max_body_bytes = 64u << 20;  // frames, localisation, JSON
   std::uint64_t max_upload_bytes = 32ull << 30;  // POST /v1/uploads (the server's payload limit must allow it)
   bool log_requests = false;               // one line per request on stderr
+  // Text replaced in every error message a client sees (server file paths:
+  // the database, its work folder, the config folder).
+  std::vector<std::pair<std::string, std::string>> redactions;
+  // Called on the connection's thread once a request's headers are read (with
+  // its path), and once its reply is written (connection_guard.h).
+  std::function<void(const std::string& path)> on_request_start;
+  std::function<void()> on_request_end;
 };
+
+// The redactions for a service's paths (its database, work folder, configs).
+std::vector<std::pair<std::string, std::string>> server_path_redactions(const AtlasService& service);
 
 // `service` and `jobs` must outlive `server`; without `jobs` uploads are refused (503).
 void install_http_api(httplib::Server& server, AtlasService& service, const HttpApiOptions& options,

@@ -54,9 +54,14 @@ void LiveSession::fail(const std::string& why) {
 
 FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
   std::lock_guard lock(mutex_);
+  last_activity_.store(std::chrono::steady_clock::now().time_since_epoch().count());
   if (state_ != SessionState::kActive)
     throw_conflict("session " + std::to_string(info_.id) + " is " + session_state_name(state_) +
                    (error_.empty() ? "" : " (" + error_ + ")") + "; it takes no more frames");
+  if (!is_valid_timestamp(t_ns)) {
+    ++rejected_frames_;
+    throw DataError(invalid_timestamp_message("frame timestamp", t_ns));
+  }
   if (last_frame_t_ && t_ns <= *last_frame_t_) {
     ++rejected_frames_;
     throw DataError("frame timestamp " + std::to_string(t_ns) + " ns is not after the previous frame's (" +
@@ -86,6 +91,7 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
 
 std::size_t LiveSession::add_imu(const std::vector<ImuSample>& samples, double max_gap_s) {
   std::lock_guard lock(mutex_);
+  last_activity_.store(std::chrono::steady_clock::now().time_since_epoch().count());
   if (state_ != SessionState::kActive)
     throw_conflict("session " + std::to_string(info_.id) + " is " + session_state_name(state_) + "; it takes no IMU");
   std::optional<TimestampNs> previous = last_imu_t_;
@@ -94,6 +100,8 @@ std::size_t LiveSession::add_imu(const std::vector<ImuSample>& samples, double m
     const ImuSample& s = samples[i];
     if (!s.gyro.allFinite() || !s.accel.allFinite())
       throw DataError("IMU sample " + std::to_string(i) + " has a value that is not a finite number");
+    if (!is_valid_timestamp(s.t_ns))
+      throw DataError(invalid_timestamp_message("IMU sample " + std::to_string(i) + " at", s.t_ns));
     if (previous && s.t_ns <= *previous)
       throw DataError("IMU sample " + std::to_string(i) + " at " + std::to_string(s.t_ns) +
                       " ns is not after the previous sample (" + std::to_string(*previous) + " ns)");
@@ -107,9 +115,12 @@ std::size_t LiveSession::add_imu(const std::vector<ImuSample>& samples, double m
   return samples.size();
 }
 
-bool LiveSession::finish() {
+bool LiveSession::finish() { return finish(std::string()); }
+
+bool LiveSession::finish(const std::string& ended_by) {
   std::lock_guard lock(mutex_);
   if (state_ != SessionState::kActive) return false;
+  ended_by_ = ended_by;
   try {
     slam_->finish();
     worker_errors_.store(slam_->worker_errors());
@@ -164,6 +175,7 @@ nlohmann::json LiveSession::status() const {
                       {"worker_errors", worker_errors_.load()}};
   if (!config_.empty()) j["config"] = config_;
   if (!error_.empty()) j["error"] = error_;
+  if (!ended_by_.empty()) j["ended_by"] = ended_by_;
   if (last_) {
     j["map"] = last_->map;
     j["last_frame"] = {{"t_ns", last_->t_ns}, {"tracked", last_->tracked}};

@@ -5,6 +5,7 @@
 // with what the API reports about it. A session from an earlier run of the
 // server (read from the database) is a LiveSession without SLAM, state "stored".
 #include <atomic>
+#include <chrono>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -54,6 +55,12 @@ class LiveSession {
   // Lets mapping finish what is queued, stops it and drops the SLAM objects
   // (the frames' anchors stay). Idempotent; false when it was not active.
   bool finish();
+  // finish() on behalf of the server, saying why ("idle_timeout"), shown in the status.
+  bool finish(const std::string& ended_by);
+  // When the client last sent a frame or IMU (or created the session).
+  std::chrono::steady_clock::time_point last_activity() const {
+    return std::chrono::steady_clock::time_point(std::chrono::steady_clock::duration(last_activity_.load()));
+  }
 
   // The tracked frames' anchors while they are in memory (thread-safe); empty
   // once stored and released (has_anchors() false): read them from the database.
@@ -86,6 +93,8 @@ class LiveSession {
   SampleSummary tracking_ms_;
   nlohmann::json final_stats_;  // SLAM statistics captured by finish()
   std::atomic<std::size_t> worker_errors_{0};
+  std::atomic<std::chrono::steady_clock::rep> last_activity_{std::chrono::steady_clock::now().time_since_epoch().count()};
+  std::string ended_by_;  // under mutex_; empty: the client finished it
 };
 
 }  // namespace orbatlas

@@ -98,9 +98,15 @@ void UploadJobs::work() {
       run(*id);
     } catch (const std::exception& e) {
       log_warn("upload job " + std::to_string(*id) + " failed: " + e.what());
+      // Paths inside the archive, not the server's folders.
+      std::string message = e.what();
+      for (const std::string& folder : {(options_.work_dir / ("job-" + std::to_string(*id))).string() + "/",
+                                        options_.work_dir.string()})
+        for (std::size_t at; (at = message.find(folder)) != std::string::npos;)
+          message.replace(at, folder.size(), folder.back() == '/' ? "" : "<work>");
       update(*id, [&](Job& j) {
         j.state = "failed";
-        j.error = e.what();
+        j.error = message;
       });
     }
   }
@@ -153,7 +159,7 @@ void UploadJobs::run(JobId id) {
   service_.finish_session(session);
   std::optional<double> ate;
   if (!dataset.ground_truth.empty()) {
-    const auto [trajectory, maps] = service_.trajectory(session);
+    const Trajectory trajectory = service_.trajectory(session).poses;
     try {
       if (trajectory.size() >= 3) ate = evaluate_trajectory(trajectory, from_ground_truth_states(dataset.ground_truth)).ate.rmse;
     } catch (const Error& e) {

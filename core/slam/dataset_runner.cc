@@ -15,6 +15,7 @@
 #include "core/io/stereo_pair_loader.h"
 #include "core/io/tum_trajectory.h"
 #include "core/persistence/atlas_store.h"
+#include "core/persistence/database_lock.h"
 #include "core/persistence/map_rigs.h"
 #include "core/vocabulary/default_vocabulary.h"
 
@@ -65,12 +66,19 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   DatasetRunReport report;
   std::optional<SessionInfo> session;
   std::map<MapId, CameraRig> stored_rigs;  // of the stored maps, by their sessions
+  std::unique_ptr<DatabaseLock> db_lock;   // while this run may write the atlas
   if (!options.atlas.empty()) {
+    if (!options.localize_only) db_lock = std::make_unique<DatabaseLock>(options.atlas);
     const auto load_start = Clock::now();
     if (options.localize_only) ORBATLAS_CHECK(std::filesystem::exists(options.atlas), options.atlas << " does not exist");
     AtlasStore store = AtlasStore::open(options.atlas, vocabulary.hash());
     const AtlasLoadReport loaded = store.load_atlas(atlas, &vocabulary);
     atlas.index_all_keyframes();
+    if (db_lock && db_lock->previous_holder_crashed()) {
+      skip_ids_after_crash(atlas);
+      log_warn(options.atlas.string() + ": its previous writer stopped without a final checkpoint; new ids continue "
+                                        "past any it may have handed out");
+    }
     report.loaded_maps = loaded.maps;
     report.loaded_keyframes = loaded.keyframes;
     report.atlas_load_s = std::chrono::duration<double>(Clock::now() - load_start).count();
@@ -167,6 +175,7 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   if (checkpointer) {
     checkpointer->stop();  // the final, durable checkpoint: every keyframe and the whole trajectory
     report.checkpoints = checkpointer->stats();
+    if (!report.checkpoints->last_failed) db_lock->mark_stopped();
     if (report.checkpoints->failures > 0)
       log_warn("atlas checkpoints failed " + std::to_string(report.checkpoints->failures) +
                " times; last error: " + report.checkpoints->last_error);

@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# Runs every curl example of docs/api.md, as a user would paste it, against a
+# test server on a fresh atlas, and fails on the first one that gets an error
+# reply (curl --fail-with-body). The examples' placeholders (session 3, the
+# frame files, /data/MH_01, frame.png) are replaced with a one-second simulated
+# clip. Part of the test suite (ctest: api_examples); needs the build and curl.
+#   scripts/check_api_examples.sh [BUILD_DIR]
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+BUILD="${1:-${ORBATLAS_BUILD_DIR:-$ROOT/build}}"
+command -v curl >/dev/null || { echo "check_api_examples: curl is missing (scripts/setup.sh installs it)" >&2; exit 1; }
+WORK="$(mktemp -d)"
+SERVER_PID=""
+cleanup() {
+  [ -n "$SERVER_PID" ] && kill "$SERVER_PID" 2>/dev/null && wait "$SERVER_PID" 2>/dev/null
+  rm -rf "$WORK"
+}
+trap cleanup EXIT
+
+CLIP="$WORK/MH_01"
+"$BUILD/client/orbatlas" sim --sequence MH_01 --start 40 --duration 1 --out "$CLIP" --no-progress >/dev/null
+FIRST_T="$(sed -n 2p "$CLIP/mav0/cam0/data.csv" | cut -d, -f1)"
+cp "$CLIP/mav0/cam0/data/$FIRST_T.png" "$WORK/frame.png"
+
+"$BUILD/server/orbatlas-server" --db "$WORK/atlas.db" --listen 127.0.0.1:0 --port-file "$WORK/port" \
+    --no-merging 2>"$WORK/server.log" &
+SERVER_PID=$!
+for _ in $(seq 1 200); do [ -s "$WORK/port" ] && break; sleep 0.05; done
+[ -s "$WORK/port" ] || { cat "$WORK/server.log" >&2; echo "check_api_examples: the server did not start" >&2; exit 1; }
+export S="http://127.0.0.1:$(cat "$WORK/port")"
+
+# The ```sh blocks of docs/api.md, continuation lines joined, curl and tar lines only.
+mapfile -t EXAMPLES < <(/usr/bin/python3 - "$ROOT/docs/api.md" <<'PY'
+import sys
+lines, inside, joined = open(sys.argv[1]).read().split("\n"), False, ""
+for line in lines:
+    if line.startswith("```"):
+        inside = line == "```sh"
+        continue
+    if not inside:
+        continue
+    joined += line.rstrip("\\").rstrip() + " " if line.endswith("\\") else line
+    if line.endswith("\\"):
+        continue
+    if joined.startswith(("curl ", "tar ")):
+        print(joined)
+    joined = ""
+PY
+)
+[ "${#EXAMPLES[@]}" -ge 8 ] || { echo "check_api_examples: found only ${#EXAMPLES[@]} examples in docs/api.md" >&2; exit 1; }
+
+curl() { command curl --fail-with-body --max-time 120 "$@"; }
+cd "$CLIP"
+SESSION=""
+n=0
+for example in "${EXAMPLES[@]}"; do
+  command="${example//1403636580863555584/$FIRST_T}"
+  command="${command//\/data\/MH_01/$CLIP}"
+  command="${command//@frame.png/@$WORK/frame.png}"
+  command="${command//> map0.ply/> $WORK/map0.ply}"
+  [ -n "$SESSION" ] && command="${command//\/v1\/sessions\/3\//\/v1\/sessions\/$SESSION\/}"
+  n=$((n + 1))
+  echo "[$n] $command"
+  if ! reply="$(eval "$command" 2>&1)"; then
+    echo "check_api_examples: example $n failed: $reply" >&2
+    exit 1
+  fi
+  echo "    -> ${reply:0:160}"
+  if [ -z "$SESSION" ] && [[ "$command" == *"/v1/sessions -H"* ]]; then
+    SESSION="$(/usr/bin/python3 -c 'import json,sys; print(json.loads(sys.argv[1])["id"])' "$reply")"
+  fi
+done
+echo "check_api_examples: all $n examples of docs/api.md answered without an error"

@@ -1,0 +1,299 @@
+// What an outside probe of the server found (issue 24), each as a test that
+// fails on the code before its fix: ids and rows after a crash, one writer per
+// database and per port, refusals before work (image headers, limits,
+// timestamps, names), settings parsed in memory, idle sessions, HTTP details.
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <fstream>
+#include <thread>
+
+#include "client/api/server_client.h"
+#include "core/common/data_paths.h"
+#include "core/io/settings.h"
+#include "core/persistence/atlas_checkpoint_writer.h"
+#include "core/persistence/atlas_store.h"
+#include "core/persistence/database_lock.h"
+#include "core/server/image_decode.h"
+#include "tests/server_test_fixture.h"
+#include "tests/server_test_reply.h"
+
+namespace orbatlas {
+namespace {
+
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+// One raw HTTP exchange on a fresh connection: sends `request`, returns what
+// came back until the server closed or `wait` passed (status line first).
+std::string raw_exchange(int port, const std::string& request, std::chrono::milliseconds wait) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<std::uint16_t>(port));
+  ::inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return "connect failed";
+  }
+  ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+  timeval tv{static_cast<time_t>(wait.count() / 1000), static_cast<suseconds_t>((wait.count() % 1000) * 1000)};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  std::string reply;
+  char chunk[4096];
+  for (ssize_t n; (n = ::recv(fd, chunk, sizeof chunk, 0)) > 0;) {
+    reply.append(chunk, static_cast<std::size_t>(n));
+    if (reply.find("\r\n\r\n") != std::string::npos && reply.find("}") != std::string::npos) break;
+  }
+  ::close(fd);
+  return reply;
+}
+
+int port_of(const std::string& url) { return std::stoi(url.substr(url.rfind(':') + 1)); }
+
+std::string settings_text(const std::string& config) {
+  std::ifstream in(shipped_config_dir() / (config + ".yaml"));
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// A PNG header declaring a width x height 8-bit grey image, with no pixel data.
+std::string png_header(std::uint32_t width, std::uint32_t height) {
+  std::string b = "\x89PNG\r\n\x1a\n";
+  b += std::string("\0\0\0\x0d", 4) + "IHDR";
+  for (const std::uint32_t v : {width, height})
+    for (int shift = 24; shift >= 0; shift -= 8) b += static_cast<char>((v >> shift) & 0xff);
+  b += std::string("\x08\x00\x00\x00\x00", 5) + std::string(4, '\0');  // depth 8, grey; a CRC
+  return b;
+}
+
+TEST(ServerHardening, AFrameNeverReferencesAKeyframeTheCheckpointDidNotStore) {
+  // A session whose last frame is anchored to a keyframe the atlas does not
+  // have (made after the snapshot, or never): the checkpoint leaves it out
+  // (before: stored, later resolved through whatever got that id).
+  test::TempDbPath db("dangling");
+  Atlas atlas;
+  const auto map = atlas.add_map(atlas.ids().next_map_id());
+  const std::vector<FrameAnchor> frames = {{100, map->id(), 7777, Pose3()}};
+  SessionInfo info;
+  info.id = 1;
+  info.name = "dangling";
+  AtlasCheckpointWriter writer(atlas, AtlasStore::open(db.path, "test"), CheckpointSession{info, [&] { return frames; }});
+  writer.checkpoint();
+  EXPECT_EQ(writer.deferred_frames(), 1u);
+  AtlasStore store = AtlasStore::open(db.path, "test");
+  EXPECT_TRUE(store.load_trajectory(1).empty()) << "a frame referencing keyframe 7777, which is stored nowhere";
+  ASSERT_EQ(store.load_sessions().size(), 1u);
+}
+
+TEST(ServerHardening, OneServerPerDatabaseAndIdsSkipWhatACrashedOneHandedOut) {
+  test::TempDbPath db("lock");
+  std::uint64_t keyframe_id_before = 0;
+  {
+    AtlasService first(test::server_options(db.path));
+    keyframe_id_before = first.atlas().ids().peek(IdKind::keyframe);
+    try {
+      AtlasService second(test::server_options(db.path));
+      FAIL() << "a second server opened the same database";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("in use by another process"), std::string::npos) << e.what();
+    }
+  }
+  {
+    // A clean stop: the ids continue where they were.
+    AtlasService again(test::server_options(db.path));
+    EXPECT_EQ(again.atlas().ids().peek(IdKind::keyframe), keyframe_id_before);
+  }
+  { DatabaseLock crashed(db.path); }  // taken and dropped without mark_stopped(): what SIGKILL leaves
+  AtlasService after_crash(test::server_options(db.path));
+  EXPECT_GE(after_crash.atlas().ids().peek(IdKind::keyframe), keyframe_id_before + kKeyframeIdGapAfterCrash);
+  EXPECT_GE(after_crash.atlas().ids().peek(IdKind::map_point), kMapPointIdGapAfterCrash);
+  EXPECT_GE(after_crash.atlas().ids().peek(IdKind::map), kMapIdGapAfterCrash);
+}
+
+TEST(ServerHardening, ASessionIsStoredWhenCreatedSoItsIdIsNeverReused) {
+  test::TempDbPath db("session_rows");
+  AtlasServiceOptions options = test::server_options(db.path);
+  options.checkpoints.every_keyframes = 0;  // no checkpoint until shutdown
+  options.checkpoints.every_seconds = 0;
+  AtlasService service(options);
+  SessionRequest request;
+  request.name = "short";
+  request.settings.config = "euroc/stereo";
+  const SessionId id = service.create_session(request);
+  // Before any checkpoint, the database has the row (a crash now keeps the id taken).
+  AtlasStore store = AtlasStore::open(db.path, service.vocabulary().hash());
+  const auto stored = store.load_session(id);
+  ASSERT_TRUE(stored.has_value());
+  EXPECT_EQ(stored->name, "short");
+}
+
+TEST(ServerHardening, TwoServersCannotShareAPort) {
+  test::TempDbPath db_a("port_a"), db_b("port_b");
+  test::TestServer first(test::server_options(db_a.path));
+  AtlasService service(test::server_options(db_b.path));
+  httplib::Server second;
+  install_http_api(second, service, {});
+  // Before: SO_REUSEPORT let the second bind succeed and split the clients.
+  EXPECT_FALSE(second.bind_to_port("127.0.0.1", port_of(first.url())));
+}
+
+TEST(ServerHardening, RequestsAreRefusedBeforeTheWorkTheyWouldCause) {
+  test::TempDbPath db("limits");
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  httplib::Client& http = client.http();
+  const std::uint64_t id = client.create_session("euroc/stereo", "target");
+  const std::string sid = "/v1/sessions/" + std::to_string(id);
+  const auto form = [](const std::string& t, const std::string& left, const std::string& right) {
+    return httplib::MultipartFormDataItems{
+        {"t_ns", t, "", ""}, {"left", left, "l.png", "image/png"}, {"right", right, "r.png", "image/png"}};
+  };
+
+  // A small PNG declaring 16384 x 16384 pixels: refused from its header (before:
+  // decoded first, +524 MB of resident memory).
+  const std::string bomb = png_header(16384, 16384);
+  EXPECT_REPLY(http.Post(sid + "/frames", form("1000", bomb, bomb)), 422, "bad_input");
+  auto reply = http.Post(sid + "/frames", form("1000", bomb, bomb));
+  ASSERT_TRUE(reply);
+  EXPECT_NE(reply->body.find("refused before decoding"), std::string::npos) << reply->body;
+  EXPECT_REPLY(http.Post("/v1/localize", httplib::MultipartFormDataItems{{"config", "euroc/stereo", "", ""},
+                                                                          {"image", bomb, "i.png", "image/png"}}),
+               422, "bad_input");
+  EXPECT_EQ(encoded_image_size(bomb), cv::Size(16384, 16384));
+
+  // A raw width past 32 bits (before: truncated to 752 and accepted).
+  auto raw = form("1000", std::string(752 * 480, '\1'), std::string(752 * 480, '\1'));
+  raw.push_back({"width", "4294968048", "", ""});
+  raw.push_back({"height", "480", "", ""});
+  EXPECT_REPLY(http.Post(sid + "/frames", raw), 400, "bad_request");
+
+  // Timestamps that wrap or block every later frame.
+  const cv::Mat grey(480, 752, CV_8UC1, cv::Scalar(90));
+  const std::string png = test::png_of(grey);
+  EXPECT_REPLY(http.Post(sid + "/frames", form("9223372036854775807", png, png)), 422, "bad_input");
+  EXPECT_REPLY(http.Post(sid + "/frames", form("-5", png, png)), 422, "bad_input");
+  EXPECT_REPLY(http.Post(sid + "/imu", R"({"samples": [[9223372036854775808, 0,0,0, 0,0,9.8]]})", "application/json"),
+               422, "bad_input");
+  EXPECT_REPLY(http.Post(sid + "/imu", R"({"samples": [[18446744073709551615, 0,0,0, 0,0,9.8]]})", "application/json"),
+               422, "bad_input");
+  EXPECT_EQ(client.post_frame(id, 1'000'000'000, grey, grey)["t_ns"], 1'000'000'000);  // later frames still come in
+
+  // Settings that would fail at the first frame with bad_alloc (500).
+  std::string yaml = settings_text("euroc/stereo");
+  const auto at = yaml.find("ORBextractor.nFeatures: 1200");
+  ASSERT_NE(at, std::string::npos);
+  yaml.replace(at, std::string("ORBextractor.nFeatures: 1200").size(), "ORBextractor.nFeatures: 1000000000");
+  EXPECT_REPLY(http.Post("/v1/sessions", json{{"settings_yaml", yaml}}.dump(), "application/json"), 400, "bad_config");
+
+  // Names: at most 200 bytes of UTF-8 text (before: 5 MB stored and listed).
+  EXPECT_REPLY(http.Post("/v1/sessions", json{{"config", "euroc/stereo"}, {"name", std::string(5u << 20, 'n')}}.dump(),
+                         "application/json"),
+               400, "bad_request");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/stereo", "name": "tab\there"})", "application/json"), 400,
+               "bad_request");
+  EXPECT_REPLY(http.Post("/v1/uploads?name=%FF%FE", "x", "application/x-tar"), 400, "bad_request");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/stereo", "name": "Halle 3 – Süd"})", "application/json"),
+               201, "");
+  EXPECT_EQ(client.get_json("/v1/sessions")["sessions"].size(), 2u);
+}
+
+TEST(ServerHardening, InlineSettingsNeverTouchAFile) {
+  // Before: written to /tmp/orbatlas-settings-<pid>-<n>.yaml, following a
+  // planted symlink. Now parsed in memory: the planted target keeps its text.
+  test::TempDbPath db("settings");
+  const auto target = std::filesystem::temp_directory_path() / ("orbatlas_test_target_" + std::to_string(::getpid()));
+  { std::ofstream(target) << "keep me\n"; }
+  std::vector<std::filesystem::path> planted;
+  for (int n = 0; n < 4; ++n) {
+    planted.push_back(std::filesystem::temp_directory_path() /
+                      ("orbatlas-settings-" + std::to_string(::getpid()) + "-" + std::to_string(n) + ".yaml"));
+    std::error_code ec;
+    std::filesystem::remove(planted.back(), ec);
+    std::filesystem::create_symlink(target, planted.back());
+  }
+  {
+    test::TestServer server(test::server_options(db.path));
+    ServerClient client(server.url());
+    const auto reply = client.post_json("/v1/sessions", {{"settings_yaml", settings_text("euroc/stereo")}});
+    EXPECT_EQ(reply["session"]["config"], "inline");
+  }
+  std::ifstream in(target);
+  std::string text((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_EQ(text, "keep me\n");
+  for (const auto& p : planted) std::filesystem::remove(p);
+  std::filesystem::remove(target);
+}
+
+TEST(ServerHardening, IdleSessionsAreFinishedAndFreeTheirSlot) {
+  test::TempDbPath db("idle");
+  AtlasServiceOptions options = test::server_options(db.path);
+  options.idle_timeout_s = 0.3;
+  options.max_live_sessions = 1;
+  test::TestServer server(options);
+  ServerClient client(server.url());
+  const std::uint64_t abandoned = client.create_session("euroc/stereo", "abandoned");
+  // Before: no timeout; the one slot stayed taken for good.
+  const auto deadline = Clock::now() + std::chrono::seconds(20);
+  json status;
+  while (Clock::now() < deadline) {
+    status = client.get_json("/v1/sessions/" + std::to_string(abandoned));
+    if (status["state"] != "active") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_EQ(status["state"], "finished");
+  EXPECT_EQ(status.value("ended_by", ""), "idle_timeout");
+  EXPECT_NO_THROW(client.create_session("euroc/stereo", "next"));
+  EXPECT_NE(client.get_text("/metrics").find("orbatlas_sessions_timed_out_total 1"), std::string::npos);
+}
+
+TEST(ServerHardening, HttpDetails) {
+  test::TempDbPath db("http");
+  const auto configs = std::filesystem::temp_directory_path() / ("orbatlas_test_configs_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(configs);
+  { std::ofstream(configs / "broken.yaml") << "%YAML:1.0\nCamera1.fx: -3\n"; }
+  AtlasServiceOptions options = test::server_options(db.path);
+  options.config_dir = configs;
+  HttpApiOptions api;
+  api.max_upload_bytes = 1u << 20;
+  test::TestServer server(options, api);
+  const int port = port_of(server.url());
+  ServerClient client(server.url());
+
+  // An upload over the limit: 413 at once, from its Content-Length (before: 400
+  // after a 5 s read timeout).
+  const auto start = Clock::now();
+  const std::string big = raw_exchange(
+      port, "POST /v1/uploads?name=big HTTP/1.1\r\nHost: x\r\nContent-Length: 99999999999\r\n\r\n", std::chrono::seconds(10));
+  EXPECT_EQ(big.substr(0, 12), "HTTP/1.1 413") << big;
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - start).count(), 2.0);
+  // Two Content-Length headers (request smuggling): 400.
+  const std::string twice = raw_exchange(
+      port, "POST /v1/sessions HTTP/1.1\r\nHost: x\r\nContent-Length: 2\r\nContent-Length: 40\r\n\r\n{}",
+      std::chrono::seconds(5));
+  EXPECT_EQ(twice.substr(0, 12), "HTTP/1.1 400") << twice;
+  EXPECT_NE(twice.find("more than one Content-Length"), std::string::npos) << twice;
+  // A known route with another method: 405 with Allow; the undocumented
+  // code "http_error" is gone (a malformed request is bad_request).
+  EXPECT_REPLY(client.http().Put("/v1/sessions", "{}", "application/json"), 405, "method_not_allowed");
+  const std::string garbage = raw_exchange(port, "NONSENSE\r\n\r\n", std::chrono::seconds(5));
+  EXPECT_EQ(garbage.find("http_error"), std::string::npos) << garbage;
+  // A form-urlencoded JSON body (curl -d) over httplib's 8 kB limit says what to do.
+  const auto form = client.http().Post("/v1/sessions/1/imu", std::string(9000, 'x'), "application/x-www-form-urlencoded");
+  ASSERT_TRUE(form);
+  EXPECT_EQ(form->status, 413);
+  EXPECT_NE(form->body.find("application/json"), std::string::npos) << form->body;
+  // Error messages name configs, never the server's files.
+  const auto broken = client.http().Post("/v1/sessions", R"({"config": "broken"})", "application/json");
+  ASSERT_TRUE(broken);
+  EXPECT_EQ(broken->status, 400);
+  EXPECT_EQ(broken->body.find(configs.string()), std::string::npos) << broken->body;
+  EXPECT_NE(broken->body.find("config 'broken'"), std::string::npos) << broken->body;
+  std::filesystem::remove_all(configs);
+}
+
+}  // namespace
+}  // namespace orbatlas
