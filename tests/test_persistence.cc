@@ -97,14 +97,15 @@ TEST(Persistence, VersionOneAtlasMigratesForward) {
   {
     // Back to what schema 1 held: its tables and rows, user_version 1.
     SqliteDb raw(db.path());
-    raw.exec("PRAGMA foreign_keys = OFF; BEGIN; DROP TRIGGER keyframes_not_culled; DROP TABLE culled_keyframes; "
-             "ALTER TABLE atlas DROP COLUMN "
-             "checkpoint_seq; DELETE FROM schema_migrations WHERE version = 2; PRAGMA user_version = 1; COMMIT");
+    raw.exec("PRAGMA foreign_keys = OFF; BEGIN; DROP TABLE upload_jobs; DROP TRIGGER keyframes_not_culled; "
+             "DROP TABLE culled_keyframes; ALTER TABLE atlas DROP COLUMN "
+             "checkpoint_seq; DELETE FROM schema_migrations WHERE version >= 2; PRAGMA user_version = 1; COMMIT");
     ASSERT_EQ(raw.query_int64("SELECT count(*) FROM sqlite_schema WHERE name = 'keyframes_not_culled'"), 0);
   }
   AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
-  EXPECT_EQ(store.schema_version(), 2);
+  EXPECT_EQ(store.schema_version(), latest_schema_version());
   EXPECT_EQ(store.checkpoint_sequence(), 0);
+  EXPECT_TRUE(store.load_jobs().empty());
   Atlas loaded;
   const AtlasLoadReport report = store.load_atlas(loaded, nullptr);
   EXPECT_EQ(report.keyframes, count_keyframes(atlas));

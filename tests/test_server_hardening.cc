@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "client/api/server_client.h"
+#include "core/archive/tar_writer.h"
 #include "core/common/data_paths.h"
 #include "core/io/settings.h"
 #include "core/persistence/atlas_checkpoint_writer.h"
@@ -129,6 +130,54 @@ TEST(ServerHardening, ASessionIsStoredWhenCreatedSoItsIdIsNeverReused) {
   const auto stored = store.load_session(id);
   ASSERT_TRUE(stored.has_value());
   EXPECT_EQ(stored->name, "short");
+}
+
+TEST(ServerHardening, JobIdsSurviveARestartAndNoJobReadsAnotherOnesFiles) {
+  // What a kill during an upload left: a job stored as running, and its
+  // extracted folder with a previous client's recording.
+  test::TempDbPath db("jobs");
+  {
+    AtlasService service(test::server_options(db.path));
+    AtlasStore store = AtlasStore::open(db.path, service.vocabulary().hash());
+    StoredJob interrupted;
+    interrupted.id = 1;
+    interrupted.name = "theirs";
+    interrupted.state = "running";
+    interrupted.frames_total = 40;
+    store.save_job(interrupted);
+  }
+  const std::filesystem::path leftover = db.path.string() + ".work/job-2/mav0/cam0";
+  std::filesystem::create_directories(leftover);
+  { std::ofstream(leftover.parent_path() / "data.csv") << "#timestamp [ns],filename\n"; }
+
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  // Before: job ids restarted at 1 and nothing said what happened to the old job.
+  const json old = client.get_json("/v1/jobs/1");
+  EXPECT_EQ(old["state"], "failed");
+  EXPECT_NE(old.value("error", "").find("interrupted"), std::string::npos) << old.dump();
+  EXPECT_FALSE(std::filesystem::exists(leftover)) << "the earlier run's files were kept";
+  // A tar without mav0/: before, job 2 "finished" with the leftover folder's frames.
+  std::string tar;
+  {
+    TarWriter writer([&](const char* d, std::size_t n) { tar.append(d, n); });
+    writer.add_directory_entry("nothing-here/");
+    writer.finish();
+  }
+  const auto reply = client.http().Post("/v1/uploads?name=mine", tar, "application/x-tar");
+  ASSERT_TRUE(reply);
+  ASSERT_EQ(reply->status, 202) << reply->body;
+  const std::uint64_t job = json::parse(reply->body)["job"].get<std::uint64_t>();
+  EXPECT_EQ(job, 2u);
+  json status;
+  for (const auto deadline = Clock::now() + std::chrono::seconds(30); Clock::now() < deadline;) {
+    status = client.get_json("/v1/jobs/" + std::to_string(job));
+    if (status["state"] == "failed" || status["state"] == "done") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(status["state"], "failed") << status.dump();
+  EXPECT_NE(status.value("error", "").find("no EuRoC ASL folder"), std::string::npos) << status.dump();
+  EXPECT_EQ(status.value("error", "").find(db.path.string()), std::string::npos) << "a server path in the message";
 }
 
 TEST(ServerHardening, TwoServersCannotShareAPort) {

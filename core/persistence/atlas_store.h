@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "core/map/atlas.h"
+#include "core/persistence/job_rows.h"
 #include "core/persistence/session_info.h"
 #include "core/persistence/sqlite_db.h"
 #include "core/map/frame_anchor.h"
@@ -82,6 +83,10 @@ class AtlasStore {
   // Timestamps must be distinct. References may name keyframes culled since.
   void save_trajectory(SessionId session, const std::vector<FrameAnchor>& anchors);
   std::vector<FrameAnchor> load_trajectory(SessionId session);  // by timestamp
+
+  // --- upload jobs (job_rows.h) ---
+  void save_job(const StoredJob& job) { write_job(db_, job); }
+  std::vector<StoredJob> load_jobs() { return read_jobs(db_); }
 
  private:
   friend class AtlasCheckpointWriter;  // writes through this connection, in its own transactions

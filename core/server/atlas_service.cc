@@ -186,8 +186,8 @@ void AtlasService::finish_idle_sessions() {
         if (std::chrono::steady_clock::now() - live->last_activity() < timeout) continue;
         log_info("session " + std::to_string(id) + ": no frame for " + std::to_string(options_.idle_timeout_s) +
                  " s; finishing it (its data is stored)");
+        ++sessions_timed_out_;  // counted as it ends (the status says finished right after)
         finish_session(id, "idle_timeout");
-        ++sessions_timed_out_;
       } catch (const std::exception& e) {
         log_warn("session " + std::to_string(id) + ": finishing it after its idle timeout failed: " + e.what());
       }

@@ -1,5 +1,6 @@
 #include "core/server/upload_jobs.h"
 
+#include <chrono>
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/archive/tar_reader.h"
@@ -37,7 +38,36 @@ struct RemoveOnExit {
 UploadJobs::UploadJobs(AtlasService& service, UploadJobOptions options)
     : service_(service), options_(std::move(options)), queue_(std::max<std::size_t>(1, options_.max_queued)) {
   ORBATLAS_CHECK(!options_.work_dir.empty(), "uploads need a work folder");
+  // What an earlier run left (a killed upload, an extraction cut short) is
+  // nobody's any more: no job reads what it did not write itself.
+  std::error_code ec;
+  std::size_t leftovers = 0;
+  if (fs::is_directory(options_.work_dir, ec)) {
+    for (const auto& entry : fs::directory_iterator(options_.work_dir)) {
+      fs::remove_all(entry.path(), ec);
+      ++leftovers;
+    }
+  }
+  if (leftovers > 0)
+    log_warn("uploads: removed " + std::to_string(leftovers) + " leftovers of an earlier run from " +
+             options_.work_dir.string());
   fs::create_directories(options_.work_dir);
+  store_.emplace(AtlasStore::open(service_.db_path(), service_.vocabulary().hash()));
+  for (StoredJob& row : store_->load_jobs()) {
+    if (row.state == "queued" || row.state == "extracting" || row.state == "running") {
+      row.error = "interrupted: the server stopped without finishing this job (it was killed or crashed) while it was " +
+                  row.state + (row.session ? "; the frames processed before are stored in session " +
+                                                 std::to_string(*row.session)
+                                           : std::string());
+      row.state = "failed";
+      store_->save_job(row);
+    }
+    next_job_ = std::max(next_job_, row.id + 1);
+    Job job;
+    job.request.name = row.name;
+    job.row = std::move(row);
+    jobs_[job.row.id] = std::move(job);
+  }
   for (std::size_t i = 0; i < std::max<std::size_t>(1, options_.workers); ++i) workers_.emplace_back([this] { work(); });
 }
 
@@ -48,14 +78,28 @@ void UploadJobs::stop() {
   queue_.close();
   for (auto& w : workers_)
     if (w.joinable()) w.join();
-  std::lock_guard lock(mutex_);
-  for (auto& [_, job] : jobs_) {
-    if (job.state == "queued") {
-      job.state = "cancelled";
-      job.error = "the server stopped before this job started";
-      std::error_code ec;
-      fs::remove(job.archive, ec);
+  std::vector<StoredJob> cancelled;
+  {
+    std::lock_guard lock(mutex_);
+    for (auto& [_, job] : jobs_) {
+      if (job.row.state == "queued") {
+        job.row.state = "cancelled";
+        job.row.error = "the server stopped before this job started";
+        std::error_code ec;
+        fs::remove(job.archive, ec);
+        cancelled.push_back(job.row);
+      }
     }
+  }
+  for (const StoredJob& row : cancelled) store_row(row);
+}
+
+void UploadJobs::store_row(const StoredJob& row) {
+  try {
+    std::lock_guard lock(store_mutex_);
+    store_->save_job(row);
+  } catch (const std::exception& e) {
+    log_warn("upload job " + std::to_string(row.id) + ": cannot store its state: " + e.what());
   }
 }
 
@@ -65,31 +109,41 @@ fs::path UploadJobs::new_upload_path() {
 }
 
 JobId UploadJobs::submit(const fs::path& archive, SessionRequest request) {
-  JobId id = 0;
+  Job job;
+  job.request = std::move(request);
+  job.archive = archive;
+  job.row.name = job.request.name;
+  job.row.state = "queued";
+  job.row.created_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                           std::chrono::system_clock::now().time_since_epoch())
+                           .count();
+  std::error_code ec;
+  job.row.archive_bytes = fs::file_size(archive, ec);
   {
     std::lock_guard lock(mutex_);
-    id = next_job_++;
-    Job job;
-    job.id = id;
-    job.request = std::move(request);
-    job.archive = archive;
-    std::error_code ec;
-    job.archive_bytes = fs::file_size(archive, ec);
-    jobs_[id] = std::move(job);
+    job.row.id = next_job_++;
+    jobs_[job.row.id] = job;
   }
+  const JobId id = job.row.id;
   if (!queue_.try_push(id)) {
     std::lock_guard lock(mutex_);
     jobs_.erase(id);
-    std::error_code ec;
     fs::remove(archive, ec);
     throw ApiError(503, "busy", "the upload queue is full (" + std::to_string(options_.max_queued) + " jobs); retry later");
   }
+  store_row(job.row);  // the id is taken for good (the worker's first update comes after)
   return id;
 }
 
-void UploadJobs::update(JobId id, const std::function<void(Job&)>& change) {
-  std::lock_guard lock(mutex_);
-  change(jobs_.at(id));
+void UploadJobs::update(JobId id, const std::function<void(Job&)>& change, bool store) {
+  StoredJob row;
+  {
+    std::lock_guard lock(mutex_);
+    Job& job = jobs_.at(id);
+    change(job);
+    row = job.row;
+  }
+  if (store) store_row(row);
 }
 
 void UploadJobs::work() {
@@ -105,8 +159,8 @@ void UploadJobs::work() {
         for (std::size_t at; (at = message.find(folder)) != std::string::npos;)
           message.replace(at, folder.size(), folder.back() == '/' ? "" : "<work>");
       update(*id, [&](Job& j) {
-        j.state = "failed";
-        j.error = message;
+        j.row.state = "failed";
+        j.row.error = message;
       });
     }
   }
@@ -116,12 +170,14 @@ void UploadJobs::run(JobId id) {
   fs::path archive;
   SessionRequest request;
   update(id, [&](Job& j) {
-    j.state = "extracting";
+    j.row.state = "extracting";
     archive = j.archive;
     request = j.request;
   });
   const fs::path folder = options_.work_dir / ("job-" + std::to_string(id));
   const RemoveOnExit remove_folder{folder}, remove_archive{archive};
+  // A folder of its own, new: the job reads nothing it did not extract itself.
+  ORBATLAS_CHECK(fs::create_directory(folder), "the work folder of job " << id << " exists already");
   extract_tar(archive, folder);
   std::error_code ec;
   fs::remove(archive, ec);
@@ -134,9 +190,10 @@ void UploadJobs::run(JobId id) {
   if (request.name.empty()) request.name = "upload " + std::to_string(id);
   const SessionId session = service_.create_session(request);
   update(id, [&](Job& j) {
-    j.state = "running";
-    j.session = session;
-    j.frames_total = frames.size();
+    j.row.state = "running";
+    j.row.name = request.name;
+    j.row.session = session;
+    j.row.frames_total = frames.size();
   });
   std::size_t tracked = 0, rejected = 0;
   for (std::size_t i = 0; i < frames.size(); ++i) {
@@ -150,11 +207,14 @@ void UploadJobs::run(JobId id) {
       ++rejected;
       log_warn("upload job " + std::to_string(id) + ": frame skipped: " + e.what());
     }
-    update(id, [&](Job& j) {
-      j.frames_done = i + 1;
-      j.tracked = tracked;
-      j.rejected = rejected;
-    });
+    update(
+        id,
+        [&](Job& j) {
+          j.row.frames_done = i + 1;
+          j.row.tracked = tracked;
+          j.row.rejected = rejected;
+        },
+        (i + 1) % 200 == 0);  // the progress is stored now and then, the states always
   }
   service_.finish_session(session);
   std::optional<double> ate;
@@ -167,16 +227,16 @@ void UploadJobs::run(JobId id) {
     }
   }
   update(id, [&](Job& j) {
-    j.state = stopping_ ? "cancelled" : "done";
-    if (stopping_) j.error = "the server stopped; the frames processed so far are stored";
-    j.ate_rmse_m = ate;
+    j.row.state = stopping_ ? "cancelled" : "done";
+    if (stopping_) j.row.error = "the server stopped; the frames processed so far are stored";
+    j.row.ate_rmse_m = ate;
   });
 }
 
-nlohmann::json UploadJobs::to_json(const Job& job) {
+nlohmann::json UploadJobs::to_json(const StoredJob& job) {
   nlohmann::json j = {{"id", job.id},
                       {"state", job.state},
-                      {"name", job.request.name},
+                      {"name", job.name},
                       {"archive_bytes", job.archive_bytes},
                       {"frames_total", job.frames_total},
                       {"frames_done", job.frames_done},
@@ -193,20 +253,20 @@ nlohmann::json UploadJobs::job_json(JobId id) const {
   std::lock_guard lock(mutex_);
   const auto it = jobs_.find(id);
   if (it == jobs_.end()) throw_not_found("no job " + std::to_string(id));
-  return to_json(it->second);
+  return to_json(it->second.row);
 }
 
 nlohmann::json UploadJobs::jobs_json() const {
   std::lock_guard lock(mutex_);
   nlohmann::json list = nlohmann::json::array();
-  for (const auto& [_, job] : jobs_) list.push_back(to_json(job));
+  for (const auto& [_, job] : jobs_) list.push_back(to_json(job.row));
   return list;
 }
 
 std::size_t UploadJobs::count(const std::string& state) const {
   std::lock_guard lock(mutex_);
   std::size_t n = 0;
-  for (const auto& [_, job] : jobs_) n += job.state == state ? 1 : 0;
+  for (const auto& [_, job] : jobs_) n += job.row.state == state ? 1 : 0;
   return n;
 }
 

@@ -5,6 +5,12 @@
 // (stores) the session, and evaluates it when the recording has ground truth.
 // `workers` threads take jobs from a bounded queue; a full queue refuses uploads
 // (503) instead of piling them on disk.
+//
+// Jobs are rows of the atlas database (upload_jobs), written at every change of
+// state: job ids are never handed out twice, and a job that was queued or
+// running when the server died is reported as failed ("interrupted") after the
+// restart. The work folder belongs to the server: it is emptied at start, and a
+// job only reads the folder it extracted itself.
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -15,6 +21,7 @@
 #include <vector>
 
 #include "core/common/bounded_queue.h"
+#include "core/persistence/atlas_store.h"
 #include "core/server/atlas_service.h"
 
 namespace orbatlas {
@@ -29,7 +36,8 @@ struct UploadJobOptions {
 
 class UploadJobs {
  public:
-  // `service` must outlive the jobs. Creates `work_dir`.
+  // `service` must outlive the jobs. Creates `work_dir` (emptied when it
+  // exists), reads the stored jobs and marks the interrupted ones failed.
   UploadJobs(AtlasService& service, UploadJobOptions options);
   ~UploadJobs();  // stop()
   UploadJobs(const UploadJobs&) = delete;
@@ -47,23 +55,21 @@ class UploadJobs {
 
  private:
   struct Job {
-    JobId id = 0;
+    StoredJob row;  // what is stored and reported
     SessionRequest request;
     std::filesystem::path archive;
-    std::string state = "queued";  // queued, extracting, running, done, failed, cancelled
-    std::size_t frames_total = 0, frames_done = 0, tracked = 0, rejected = 0;
-    std::uint64_t archive_bytes = 0;
-    std::optional<SessionId> session;
-    std::optional<double> ate_rmse_m;
-    std::string error;
   };
   void work();
   void run(JobId id);
-  void update(JobId id, const std::function<void(Job&)>& change);
-  static nlohmann::json to_json(const Job& job);
+  // Changes a job under the mutex; `store`: then writes its row (outside the mutex).
+  void update(JobId id, const std::function<void(Job&)>& change, bool store = true);
+  void store_row(const StoredJob& row);
+  static nlohmann::json to_json(const StoredJob& job);
 
   AtlasService& service_;
   const UploadJobOptions options_;
+  std::mutex store_mutex_;  // guards store_ (a connection of its own)
+  std::optional<AtlasStore> store_;
   mutable std::mutex mutex_;  // guards jobs_, next_job_, next_upload_
   std::map<JobId, Job> jobs_;
   JobId next_job_ = 1;
