@@ -11,6 +11,7 @@
 #include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/server/atlas_service.h"
+#include "core/server/guarded_http_server.h"
 #include "core/server/http_api.h"
 #include "core/server/upload_jobs.h"
 
@@ -74,6 +75,12 @@ int main(int argc, char** argv) {
   app.add_option("--idle-timeout", service_options.idle_timeout_s,
                  "Finish a live session after this many seconds without a frame (its data is stored; 0: never)")
       ->capture_default_str();
+  orbatlas::ConnectionLimits limits;
+  app.add_option("--header-timeout", limits.header_timeout_s,
+                 "Seconds a request's line and headers may take once it started")->capture_default_str();
+  app.add_option("--body-timeout", limits.body_timeout_s,
+                 "Seconds the body of a request may take (not uploads: each of their reads is bounded)")
+      ->capture_default_str();
   bool insecure = false;
   app.add_flag("--insecure", insecure, "Allow listening on a non-loopback address without --token");
   bool no_merging = false, no_live_merging = false;
@@ -102,7 +109,10 @@ int main(int argc, char** argv) {
     orbatlas::AtlasService service(service_options);
     job_options.work_dir = service_options.db.string() + ".work";
     orbatlas::UploadJobs jobs(service, job_options);
-    httplib::Server server;
+    // At most half the HTTP threads wait for slow or idle clients: the others
+    // stay free for requests that arrive whole (health checks, frames).
+    limits.max_waiting = std::max(1, threads / 2);
+    orbatlas::GuardedHttpServer server(limits);
     server.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<std::size_t>(threads)); };
     server.set_payload_max_length(max_upload_gb << 30);  // other routes: max_body_bytes, checked per request
     server.set_tcp_nodelay(true);
@@ -112,6 +122,7 @@ int main(int argc, char** argv) {
     api_options.max_upload_bytes = max_upload_gb << 30;
     api_options.log_requests = log_requests;
     api_options.redactions = orbatlas::server_path_redactions(service);
+    api_options.extra_metrics = [&server] { return server.metrics_text(); };
     orbatlas::install_http_api(server, service, api_options, &jobs);
 
     const int port = listen.port == 0 ? server.bind_to_any_port(listen.host) : (server.bind_to_port(listen.host, listen.port) ? listen.port : -1);

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "core/server/atlas_service.h"
+#include "core/server/guarded_http_server.h"
 #include "core/server/http_api.h"
 #include "core/server/upload_jobs.h"
 
@@ -26,12 +27,16 @@ inline AtlasServiceOptions server_options(const std::filesystem::path& db) {
 
 class TestServer {
  public:
-  explicit TestServer(AtlasServiceOptions service_options, HttpApiOptions api = {})
+  explicit TestServer(AtlasServiceOptions service_options, HttpApiOptions api = {}, ConnectionLimits limits = {},
+                      int threads = 8)
       : service_(std::make_unique<AtlasService>(std::move(service_options))),
-        jobs_(std::make_unique<UploadJobs>(*service_, UploadJobOptions{service_->db_path().string() + ".work", 1, 4})) {
+        jobs_(std::make_unique<UploadJobs>(*service_, UploadJobOptions{service_->db_path().string() + ".work", 1, 4})),
+        http_(limits) {
     http_.set_payload_max_length(api.max_body_bytes * 4);
     http_.set_tcp_nodelay(true);
     if (api.redactions.empty()) api.redactions = server_path_redactions(*service_);
+    api.extra_metrics = [this] { return http_.metrics_text(); };
+    http_.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<std::size_t>(threads)); };
     install_http_api(http_, *service_, api, jobs_.get());
     port_ = http_.bind_to_any_port("127.0.0.1");
     thread_ = std::thread([this] { http_.listen_after_bind(); });
@@ -52,7 +57,7 @@ class TestServer {
  private:
   std::unique_ptr<AtlasService> service_;
   std::unique_ptr<UploadJobs> jobs_;
-  httplib::Server http_;
+  GuardedHttpServer http_;
   int port_ = 0;
   std::thread thread_;
 };

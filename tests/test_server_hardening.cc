@@ -8,6 +8,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <fstream>
 #include <thread>
@@ -297,6 +298,62 @@ TEST(ServerHardening, IdleSessionsAreFinishedAndFreeTheirSlot) {
   EXPECT_EQ(status.value("ended_by", ""), "idle_timeout");
   EXPECT_NO_THROW(client.create_session("euroc/stereo", "next"));
   EXPECT_NE(client.get_text("/metrics").find("orbatlas_sessions_timed_out_total 1"), std::string::npos);
+}
+
+TEST(ServerHardening, SlowClientsCannotStarveHealthChecks) {
+  // Ten connections sending one header line every 0.5 s (before: they held all
+  // 8 HTTP threads, and /healthz timed out for as long as they went on).
+  test::TempDbPath db("slow");
+  ConnectionLimits limits;
+  limits.header_timeout_s = 2.0;
+  limits.max_waiting = 4;
+  test::TestServer server(test::server_options(db.path), {}, limits, 8);
+  const int port = port_of(server.url());
+  std::atomic<bool> stop{false};
+  std::atomic<int> cut_off{0};
+  std::vector<std::thread> slow;
+  for (int i = 0; i < 10; ++i) {
+    slow.emplace_back([&] {
+      const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+      sockaddr_in addr{};
+      addr.sin_family = AF_INET;
+      addr.sin_port = htons(static_cast<std::uint16_t>(port));
+      ::inet_pton(AF_INET, "127.0.0.1", &addr.sin_addr);
+      if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0) {
+        ::send(fd, "GET /healthz HTTP/1.1\r\n", 23, MSG_NOSIGNAL);
+        while (!stop) {
+          std::this_thread::sleep_for(std::chrono::milliseconds(500));
+          if (::send(fd, "X-Slow: 1\r\n", 11, MSG_NOSIGNAL) < 0) {
+            ++cut_off;
+            break;
+          }
+        }
+      }
+      ::close(fd);
+    });
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  // Health checks during the next 4 s all answer, and quickly.
+  double worst_s = 0.0;
+  int answered = 0;
+  for (const auto until = Clock::now() + std::chrono::seconds(4); Clock::now() < until;) {
+    httplib::Client health(server.url());
+    health.set_read_timeout(std::chrono::seconds(5));
+    const auto t0 = Clock::now();
+    const auto r = health.Get("/healthz");
+    worst_s = std::max(worst_s, std::chrono::duration<double>(Clock::now() - t0).count());
+    if (r && r->status == 200) ++answered;
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  stop = true;
+  for (auto& t : slow) t.join();
+  std::printf("slow clients: %d health checks answered, the slowest in %.3f s; %d of 10 slow connections cut off\n",
+              answered, worst_s, cut_off.load());
+  EXPECT_GE(answered, 10);
+  EXPECT_LT(worst_s, 0.5);
+  EXPECT_GT(cut_off.load(), 0);  // past their header deadline, or to make room
+  const std::string metrics = ServerClient(server.url()).get_text("/metrics");
+  EXPECT_NE(metrics.find("orbatlas_http_connections_closed_total{reason=\"slow\"}"), std::string::npos);
 }
 
 TEST(ServerHardening, HttpDetails) {

@@ -485,8 +485,9 @@ void install_http_api(httplib::Server& server, AtlasService& service, const Http
     if (opts.on_request_end) opts.on_request_end();
   });
   router.get("/healthz", ([&service](const Request&, Response& res) { reply_json(res, service.health()); }));
-  router.get("/metrics", ([&service, jobs](const Request&, Response& res) {
+  router.get("/metrics", ([&service, jobs, opts](const Request&, Response& res) {
     std::string text = service.metrics_text();
+    if (opts.extra_metrics) text += opts.extra_metrics();
     text += "# HELP orbatlas_jobs Upload jobs by state.\n# TYPE orbatlas_jobs gauge\n";
     for (const char* state : {"queued", "extracting", "running", "done", "failed", "cancelled"})
       text += std::string("orbatlas_jobs{state=\"") + state + "\"} " + std::to_string(jobs ? jobs->count(state) : 0) + "\n";

@@ -226,6 +226,9 @@ void UploadJobs::run(JobId id) {
       log_warn("upload job " + std::to_string(id) + ": no ATE: " + e.what());
     }
   }
+  // The files go before the job is reported done (a client may look at once).
+  fs::remove_all(folder, ec);
+  fs::remove(archive, ec);
   update(id, [&](Job& j) {
     j.row.state = stopping_ ? "cancelled" : "done";
     if (stopping_) j.row.error = "the server stopped; the frames processed so far are stored";

@@ -1,0 +1,71 @@
+#pragma once
+// An httplib::Server whose connections cannot be held by slow clients.
+//
+// httplib bounds each read (5 s) but not a whole request: a client sending one
+// header line every two seconds held an HTTP thread forever, and ten of them
+// held all of them (health checks included). This server runs each connection
+// on a stream of its own (GuardedStream in the .cc) with deadlines:
+//   - a request's line and headers must arrive within `header_timeout_s` of its
+//     first byte; the rest of a request (its body) within `body_timeout_s` of its
+//     headers, except uploads (their size is bounded, and each read is);
+//   - at most `max_waiting` connections may wait for a request (idle kept-alive
+//     ones, or ones whose headers are still coming): beyond that the one waiting
+//     longest is closed, so the other threads stay free for requests that arrive
+//     whole (a health check always gets a thread).
+// Writing a reply is bounded by httplib's write timeout only (a slow handler is
+// not the client's fault).
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <string>
+
+// Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
+#include <httplib.h>
+
+namespace orbatlas {
+
+struct ConnectionLimits {
+  double header_timeout_s = 10.0;
+  double body_timeout_s = 60.0;
+  std::size_t max_waiting = 4;
+  std::string unbounded_body_prefix = "/v1/uploads";  // paths whose body has no total deadline
+};
+
+struct ConnectionStats {
+  std::uint64_t connections = 0;
+  std::uint64_t closed_slow = 0;      // past a header or body deadline
+  std::uint64_t closed_for_room = 0;  // the longest-waiting, when too many waited
+};
+
+class GuardedHttpServer : public httplib::Server {
+ public:
+  explicit GuardedHttpServer(ConnectionLimits limits = {});
+  ConnectionStats connection_stats() const;
+  // The figures in Prometheus text (HttpApiOptions::extra_metrics).
+  std::string metrics_text() const;
+
+  // A connection's phase, shared between its thread and the others (which may
+  // close it to make room). Public for the stream in the .cc file.
+  struct Connection {
+    socket_t sock = INVALID_SOCKET;
+    bool waiting = true;  // for a request (idle, or its headers coming)
+    std::chrono::steady_clock::time_point waiting_since;
+    bool closed = false;  // shut down by another thread
+  };
+
+ private:
+  bool process_and_close_socket(socket_t sock) override;
+  // Marks the connection waiting (or not); when too many wait, shuts the one
+  // waiting longest down.
+  void set_waiting(std::uint64_t id, bool waiting);
+
+  const ConnectionLimits limits_;
+  mutable std::mutex mutex_;  // guards connections_, next_id_, stats_
+  std::map<std::uint64_t, Connection> connections_;
+  std::uint64_t next_id_ = 0;
+  ConnectionStats stats_;
+};
+
+}  // namespace orbatlas

@@ -1,0 +1,228 @@
+// The map server killed (SIGKILL) at random moments while clients stream
+// sessions and upload recordings, many times over one database. After every
+// kill the file must pass SQLite's integrity check and hold no trajectory row
+// whose keyframe it does not hold; over the whole run no session or job id may
+// be handed out twice, every session a client was given must exist, and no
+// upload may finish with data it did not bring (a tar without mav0/ must fail).
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <fstream>
+#include <random>
+#include <set>
+#include <thread>
+
+#include "client/api/server_client.h"
+#include "core/archive/tar_writer.h"
+#include "core/persistence/sqlite_db.h"
+#include "tests/server_test_fixture.h"
+#include "tests/slam_test_clip.h"
+
+extern char** environ;
+
+namespace orbatlas {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using json = nlohmann::json;
+
+// ORBATLAS_KILL_ITERATIONS overrides the count (scripts/stress.sh-style long runs).
+int iterations() {
+  const char* text = std::getenv("ORBATLAS_KILL_ITERATIONS");
+  return text ? std::max(1, std::atoi(text)) : 50;
+}
+
+// orbatlas-server as a child process, its log appended to a file.
+class ServerProcess {
+ public:
+  ServerProcess(const std::filesystem::path& db, const std::filesystem::path& log) {
+    port_file_ = db.string() + ".port";
+    std::filesystem::remove(port_file_);
+    std::vector<std::string> args = {ORBATLAS_SERVER_BINARY, "--db", db.string(), "--listen", "127.0.0.1:0",
+                                     "--port-file", port_file_.string(), "--checkpoint-keyframes", "2",
+                                     "--checkpoint-seconds", "0.2"};
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    const int rc = posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    if (rc != 0) throw std::runtime_error("cannot start " + args[0]);
+  }
+  ~ServerProcess() { kill(); }
+
+  // The URL once listening; empty when the server exited or took too long.
+  std::string wait_until_listening() {
+    for (const auto until = Clock::now() + std::chrono::seconds(30); Clock::now() < until;) {
+      std::ifstream in(port_file_);
+      int port = 0;
+      if (in >> port && port > 0) return "http://127.0.0.1:" + std::to_string(port);
+      int status = 0;
+      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        return {};
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return {};
+  }
+
+  void kill() {
+    if (pid_ <= 0) return;
+    ::kill(pid_, SIGKILL);
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    pid_ = -1;
+  }
+
+ private:
+  pid_t pid_ = -1;
+  std::filesystem::path port_file_;
+};
+
+std::string tar_without_mav0() {
+  std::string tar;
+  TarWriter writer([&](const char* d, std::size_t n) { tar.append(d, n); });
+  writer.add_directory_entry("not-a-recording/");
+  writer.finish();
+  return tar;
+}
+
+struct Handed {
+  std::mutex mutex;
+  std::vector<std::uint64_t> sessions, jobs;
+  std::set<std::uint64_t> bad_jobs;  // jobs of tars without mav0/
+};
+
+// Integrity and references of the file as a killed server left it.
+void check_file(const std::filesystem::path& db, int iteration) {
+  SqliteDb raw(db);  // recovers the WAL
+  SqliteStatement check = raw.prepare("PRAGMA integrity_check");
+  ASSERT_TRUE(check.step());
+  EXPECT_EQ(check.text(0), "ok") << "after kill " << iteration;
+  const std::int64_t dangling = raw.query_int64(
+      "SELECT count(*) FROM trajectory t WHERE NOT EXISTS (SELECT 1 FROM keyframes k WHERE k.id = "
+      "t.reference_keyframe_id) AND NOT EXISTS (SELECT 1 FROM culled_keyframes c WHERE c.id = t.reference_keyframe_id)");
+  EXPECT_EQ(dangling, 0) << "trajectory rows referencing a keyframe the file does not hold, after kill " << iteration;
+}
+
+TEST(ServerKill, RandomKillsDuringStreamsAndUploadsLeaveAConsistentAtlas) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 2.0);
+  test::ClipCleanup cleanup{clip};
+  const auto frames = test::stereo_frames(clip);
+  std::vector<std::pair<cv::Mat, cv::Mat>> images;
+  for (const auto& f : frames)
+    images.emplace_back(cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE), cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+  const std::string bad_tar = tar_without_mav0();
+  test::TempDbPath db("kill");
+  const std::filesystem::path log = db.path.string() + ".log";
+  std::mt19937_64 rng(20261123);
+  Handed handed;
+  const int kills = iterations();
+  int stream_frames = 0;
+  const auto t_start = Clock::now();
+  for (int iteration = 0; iteration < kills; ++iteration) {
+    SCOPED_TRACE("iteration " + std::to_string(iteration));
+    ServerProcess server(db.path, log);
+    const std::string url = server.wait_until_listening();
+    ASSERT_FALSE(url.empty()) << "the server did not start after kill " << iteration << " (log: " << log << ")";
+    std::atomic<bool> stop{false};
+    std::atomic<int> streamed{0};
+    // A live session streaming the clip from a random frame on.
+    std::thread streamer([&, start = static_cast<std::size_t>(rng() % (images.size() / 2))] {
+      try {
+        ServerClient client(url);
+        const std::uint64_t id = client.create_session("euroc/stereo", "kill " + std::to_string(iteration));
+        {
+          std::lock_guard lock(handed.mutex);
+          handed.sessions.push_back(id);
+        }
+        for (std::size_t i = start; i < images.size() && !stop; ++i) {
+          client.post_frame(id, frames[i].t_ns, images[i].first, images[i].second);
+          ++streamed;
+        }
+        client.finish_session(id);
+      } catch (const std::exception&) {
+        // The server was killed under it.
+      }
+    });
+    // Every other iteration an upload: the clip, or a tar without mav0/.
+    std::thread uploader([&, kind = rng() % 4] {
+      if (kind >= 2) return;
+      try {
+        ServerClient client(url);
+        std::uint64_t job = 0;
+        if (kind == 0) {
+          job = client.upload(clip, "euroc/stereo", "clip " + std::to_string(iteration));
+        } else {
+          const auto r = client.http().Post("/v1/uploads?name=bad-" + std::to_string(iteration), bad_tar,
+                                            "application/x-tar");
+          if (!r || r->status != 202) return;
+          job = json::parse(r->body)["job"].get<std::uint64_t>();
+        }
+        std::lock_guard lock(handed.mutex);
+        handed.jobs.push_back(job);
+        if (kind == 1) handed.bad_jobs.insert(job);
+      } catch (const std::exception&) {
+      }
+    });
+    // Killed 0.05 .. 1.2 s later: during session creation, streaming, checkpoints, uploads.
+    std::this_thread::sleep_for(std::chrono::milliseconds(50 + rng() % 1150));
+    server.kill();
+    stop = true;
+    streamer.join();
+    uploader.join();
+    stream_frames += streamed.load();
+    check_file(db.path, iteration);
+    if (HasFailure()) return;
+  }
+
+  // No id handed out twice over all the restarts.
+  std::set<std::uint64_t> sessions(handed.sessions.begin(), handed.sessions.end());
+  std::set<std::uint64_t> jobs(handed.jobs.begin(), handed.jobs.end());
+  EXPECT_EQ(sessions.size(), handed.sessions.size()) << "a session id was handed out twice";
+  EXPECT_EQ(jobs.size(), handed.jobs.size()) << "a job id was handed out twice";
+
+  // A last, clean start: every session a client was given exists; no tar
+  // without mav0/ ever produced a finished job.
+  ServerProcess server(db.path, log);
+  const std::string url = server.wait_until_listening();
+  ASSERT_FALSE(url.empty());
+  ServerClient client(url);
+  std::set<std::uint64_t> listed;
+  const json session_list = client.get_json("/v1/sessions");  // kept: a range over a temporary's member dangles
+  for (const auto& s : session_list["sessions"]) listed.insert(s["id"].get<std::uint64_t>());
+  for (const std::uint64_t id : sessions)
+    EXPECT_TRUE(listed.count(id)) << "session " << id << " vanished";
+  int interrupted = 0;
+  const json job_list = client.get_json("/v1/jobs");
+  for (const auto& j : job_list["jobs"]) {
+    const std::uint64_t id = j["id"].get<std::uint64_t>();
+    EXPECT_NE(j["state"], "queued");
+    EXPECT_NE(j["state"], "running");
+    if (handed.bad_jobs.count(id)) {
+      EXPECT_EQ(j["state"], "failed") << j.dump();
+    }
+    if (j.value("error", "").rfind("interrupted", 0) == 0) ++interrupted;
+  }
+  server.kill();
+  check_file(db.path, kills);
+  std::printf("server kills: %d in %.0f s; %zu sessions and %zu upload jobs handed out (all distinct, every session "
+              "stored), %d frames streamed, %d jobs reported as interrupted; integrity ok and no dangling trajectory "
+              "reference after every kill\n",
+              kills, std::chrono::duration<double>(Clock::now() - t_start).count(), sessions.size(), jobs.size(),
+              stream_frames, interrupted);
+  std::filesystem::remove(log);
+}
+
+}  // namespace
+}  // namespace orbatlas
