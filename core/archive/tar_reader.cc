@@ -1,11 +1,16 @@
 #include "core/archive/tar_reader.h"
 
+#include <archive.h>
+#include <archive_entry.h>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
-#include <array>
+#include <cerrno>
 #include <cstring>
+#include <exception>
 #include <fstream>
-#include <optional>
-#include <string_view>
 #include <system_error>
 #include <vector>
 
@@ -15,165 +20,58 @@ namespace orbatlas {
 namespace {
 
 namespace fs = std::filesystem;
-using ProgressFn = std::function<void(std::uint64_t, std::uint64_t)>;
 
-// A tar archive is a sequence of 512-byte blocks: a header block per entry, then the
-// entry's data padded with zeros to a whole block. A zero block ends the archive
-// (writers put two; one is accepted, none means the archive was cut short).
-constexpr std::size_t kBlock = 512;
 constexpr std::size_t kChunk = 64 * 1024;
-constexpr std::uint64_t kMaxMetadataBytes = 1 << 20;  // GNU long names and pax records
+constexpr std::size_t kBlock = 512;
 
-struct Field {
-  std::size_t offset, length;
+// libarchive pulls the archive through a C callback. Exceptions must not cross
+// C frames: the callback keeps the source's exception and reports a read error,
+// and the caller rethrows it.
+struct SourceState {
+  const TarSource* source = nullptr;
+  std::vector<char> buffer = std::vector<char>(kChunk);
+  std::uint64_t bytes = 0;
+  bool ended = false;                 // the source said there is no more
+  unsigned char first[2] = {0, 0};    // the first two bytes, for the gzip hint
+  std::exception_ptr error;
 };
-constexpr Field kName{0, 100}, kSize{124, 12}, kChecksum{148, 8}, kTypeflag{156, 1}, kMagic{257, 6}, kPrefix{345, 155};
 
-using Block = std::array<char, kBlock>;
-
-std::uint64_t padded(std::uint64_t size) { return (size + kBlock - 1) / kBlock * kBlock; }
-
-std::string text_field(const Block& h, Field f) {
-  const char* p = h.data() + f.offset;
-  return std::string(p, std::find(p, p + f.length, '\0'));
-}
-
-// Numeric fields are octal text (optionally space-padded, ended by NUL or space),
-// or GNU base-256 for values too large for the digits: first byte 0x80 (0xff marks
-// a negative number), value big-endian in the remaining bits.
-std::optional<std::uint64_t> number_field(const Block& h, Field f) {
-  const auto* p = reinterpret_cast<const unsigned char*>(h.data() + f.offset);
-  if (p[0] & 0x80) {
-    if (p[0] & 0x40) return std::nullopt;  // negative
-    std::uint64_t v = p[0] & 0x3f;
-    for (std::size_t i = 1; i < f.length; ++i) {
-      if (v >> 56) return std::nullopt;
-      v = (v << 8) | p[i];
-    }
-    return v;
+la_ssize_t read_callback(archive* a, void* client, const void** out) {
+  auto* s = static_cast<SourceState*>(client);
+  try {
+    const std::size_t n = (*s->source)(s->buffer.data(), s->buffer.size());
+    for (std::size_t i = 0; i < n && s->bytes + i < 2; ++i)
+      s->first[s->bytes + i] = static_cast<unsigned char>(s->buffer[i]);
+    s->bytes += n;
+    s->ended = n == 0;
+    *out = s->buffer.data();
+    return static_cast<la_ssize_t>(n);
+  } catch (...) {
+    s->error = std::current_exception();
+    archive_set_error(a, EIO, "the archive's source failed");
+    return ARCHIVE_FATAL;
   }
-  std::size_t i = 0;
-  while (i < f.length && p[i] == ' ') ++i;
-  std::uint64_t v = 0;
-  for (; i < f.length && p[i] >= '0' && p[i] <= '7'; ++i) {
-    if (v >> 61) return std::nullopt;
-    v = (v << 3) | (p[i] - '0');
-  }
-  if (i < f.length && p[i] != ' ' && p[i] != '\0') return std::nullopt;
-  return v;
 }
 
-// The checksum is the sum of the header bytes with the checksum field counted as
-// spaces. Historic writers summed signed chars, so both sums are accepted.
-bool checksum_ok(const Block& h) {
-  const auto stored = number_field(h, kChecksum);
-  if (!stored || h[kChecksum.offset] == '\0') return false;
-  std::uint64_t unsigned_sum = 0;
-  std::int64_t signed_sum = 0;
-  for (std::size_t i = 0; i < kBlock; ++i) {
-    const bool in_field = i >= kChecksum.offset && i < kChecksum.offset + kChecksum.length;
-    const char c = in_field ? ' ' : h[i];
-    unsigned_sum += static_cast<unsigned char>(c);
-    signed_sum += static_cast<signed char>(c);
-  }
-  return *stored == unsigned_sum || static_cast<std::int64_t>(*stored) == signed_sum;
-}
-
-bool all_zero(const Block& h) {
-  return std::all_of(h.begin(), h.end(), [](char c) { return c == '\0'; });
-}
-
-// The archive file, read block by block, with the offset for messages and progress.
-class ArchiveInput {
+class Reader {  // owns the libarchive handle
  public:
-  ArchiveInput(const fs::path& path, const ProgressFn& progress)
-      : path_(path), in_(path, std::ios::binary), progress_(progress) {
-    std::error_code ec;
-    size_ = fs::file_size(path, ec);
-    if (ec || !in_) throw DataError("tar: cannot open archive " + path.string());
+  Reader() : a_(archive_read_new()) {
+    if (!a_) throw std::bad_alloc();
+    // Plain tar only (every dialect): no compression filters, no other formats.
+    archive_read_support_format_tar(a_);
   }
-  std::uint64_t offset() const { return offset_; }
-  std::uint64_t remaining() const { return size_ > offset_ ? size_ - offset_ : 0; }
-  // Whether `size` bytes of data and their padding are still in the file.
-  bool holds(std::uint64_t size) const { return size <= remaining() && padded(size) <= remaining(); }
-
-  // At the end-of-archive marker: whatever follows it is ignored, so all is done.
-  void finish() {
-    if (progress_) progress_(size_, size_);
-  }
-
-  // One block; false at the end of the file (nothing left to read).
-  bool read_block(Block& b) {
-    if (remaining() == 0) return false;
-    read_exact(b.data(), kBlock);
-    return true;
-  }
-
-  // An entry's data followed by its padding; data goes to out in chunks.
-  void read_data(std::uint64_t size, const std::function<void(const char*, std::size_t)>& out) {
-    std::vector<char> buffer(kChunk);
-    for (std::uint64_t left = padded(size); left > 0;) {
-      const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(left, kChunk));
-      read_exact(buffer.data(), n);
-      const std::uint64_t used = padded(size) - left;  // data bytes before this chunk
-      if (used < size) out(buffer.data(), static_cast<std::size_t>(std::min<std::uint64_t>(n, size - used)));
-      left -= n;
-    }
+  ~Reader() { archive_read_free(a_); }
+  Reader(const Reader&) = delete;
+  Reader& operator=(const Reader&) = delete;
+  archive* get() const { return a_; }
+  std::string error() const {
+    const char* e = archive_error_string(a_);
+    return e ? e : "unknown error";
   }
 
  private:
-  void read_exact(char* dst, std::size_t n) {
-    in_.read(dst, static_cast<std::streamsize>(n));
-    if (in_.gcount() != static_cast<std::streamsize>(n))
-      throw DataError("tar: " + path_.string() + ": truncated archive (ends at byte " +
-                      std::to_string(offset_ + static_cast<std::uint64_t>(in_.gcount())) + " inside a block)");
-    offset_ += n;
-    if (progress_) progress_(offset_, size_);
-  }
-
-  fs::path path_;
-  std::ifstream in_;
-  ProgressFn progress_;
-  std::uint64_t size_ = 0, offset_ = 0;
+  archive* a_;
 };
-
-// Metadata that applies to the next real entry: a GNU long name ('L') or pax
-// extended header ('x') records. The pax path wins over the GNU name.
-struct Pending {
-  std::optional<std::string> gnu_name, pax_path;
-  std::optional<std::uint64_t> pax_size;
-};
-
-std::optional<std::uint64_t> decimal(std::string_view text) {
-  if (text.empty()) return std::nullopt;
-  std::uint64_t v = 0;
-  for (char c : text) {
-    if (c < '0' || c > '9' || v > (UINT64_MAX - 9) / 10) return std::nullopt;
-    v = v * 10 + static_cast<std::uint64_t>(c - '0');
-  }
-  return v;
-}
-
-// pax records are "<length> <key>=<value>\n", the decimal length counting the whole
-// record including itself. Only "path" (and "size", which moves the data) matter.
-void parse_pax(std::string_view data, Pending& pending, const std::string& where) {
-  while (!data.empty() && data.front() != '\0') {
-    const std::size_t space = data.find(' ');
-    const auto length = space == std::string_view::npos ? std::nullopt : decimal(data.substr(0, space));
-    if (!length || *length < space + 2 || *length > data.size() || data[*length - 1] != '\n')
-      throw DataError(where + ": malformed pax extended header");
-    const std::string_view record = data.substr(space + 1, *length - space - 2);
-    const std::size_t eq = record.find('=');
-    if (eq == std::string_view::npos) throw DataError(where + ": malformed pax record '" + std::string(record) + "'");
-    const std::string_view key = record.substr(0, eq), value = record.substr(eq + 1);
-    if (key == "path") pending.pax_path = std::string(value);
-    if (key == "size") {  // written for files of 8 GiB or more
-      pending.pax_size = decimal(value);
-      if (!pending.pax_size) throw DataError(where + ": bad pax size '" + std::string(value) + "'");
-    }
-    data.remove_prefix(*length);
-  }
-}
 
 // Drops empty and "." components ("./a//b" -> "a/b"); refuses absolute paths and
 // ".." components, the two ways an entry could land outside the destination.
@@ -185,11 +83,16 @@ std::vector<std::string> safe_components(const std::string& name, const std::str
     const std::size_t end = std::min(name.find('/', start), name.size());
     const std::string part = name.substr(start, end - start);
     if (part == "..") throw DataError(where + ": '..' path component refused");
-    if (part.find('\0') != std::string::npos) throw DataError(where + ": NUL byte in path");
     if (!part.empty() && part != ".") parts.push_back(part);
     start = end + 1;
   }
   return parts;
+}
+
+std::string joined(const std::vector<std::string>& parts, std::size_t count) {
+  std::string s;
+  for (std::size_t i = 0; i < count; ++i) s += (i ? "/" : "") + parts[i];
+  return s;
 }
 
 // Creates destination/parts[0]/.../parts[count-1], refusing to go through a symlink
@@ -201,162 +104,210 @@ fs::path make_directories(const fs::path& destination, const std::vector<std::st
     p /= parts[i];
     std::error_code ec;
     const auto status = fs::symlink_status(p, ec);
-    if (fs::is_symlink(status)) throw DataError(where + ": refusing to write through the symlink " + p.string());
+    if (fs::is_symlink(status)) throw DataError(where + ": refusing to write through the symlink " + joined(parts, i + 1));
     if (!fs::exists(status)) {
       fs::create_directory(p, ec);
-      if (ec) throw Error("tar: cannot create directory " + p.string() + ": " + ec.message());
+      if (ec) throw Error("tar: cannot create the directory " + joined(parts, i + 1) + ": " + ec.message());
     } else if (!fs::is_directory(status)) {
-      throw DataError(where + ": " + p.string() + " exists and is not a directory");
+      throw DataError(where + ": " + joined(parts, i + 1) + " exists and is not a directory");
     }
   }
   return p;
 }
 
-const char* skipped_kind(char type) {
-  switch (type) {
-    case '1':
-      return "hard link";
-    case '2':
+// A new regular file, never opened through a symlink; written at offsets, so the
+// holes of a sparse entry stay holes.
+class OutputFile {
+ public:
+  OutputFile(const fs::path& target, const std::string& relative, const std::string& where) : relative_(relative) {
+    std::error_code ec;
+    const auto status = fs::symlink_status(target, ec);
+    if (fs::is_symlink(status) || fs::is_directory(status))
+      throw DataError(where + ": " + relative + " already exists as a " +
+                      (fs::is_symlink(status) ? "symlink" : "directory"));
+    fs::remove(target, ec);  // a later duplicate replaces the file (and never writes into a hard link)
+    fd_ = ::open(target.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
+    if (fd_ < 0) throw Error("tar: cannot create " + relative + ": " + std::strerror(errno));
+  }
+  ~OutputFile() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  OutputFile(const OutputFile&) = delete;
+  OutputFile& operator=(const OutputFile&) = delete;
+
+  void write_at(const char* data, std::size_t size, std::uint64_t offset) {
+    while (size > 0) {
+      const ssize_t n = ::pwrite(fd_, data, size, static_cast<off_t>(offset));
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) throw Error("tar: cannot write " + relative_ + ": " + std::strerror(errno));
+      data += n;
+      size -= static_cast<std::size_t>(n);
+      offset += static_cast<std::uint64_t>(n);
+    }
+  }
+  // Sets the final size (a sparse file may end in a hole) and closes.
+  void finish(std::uint64_t size) {
+    const bool ok = ::ftruncate(fd_, static_cast<off_t>(size)) == 0;
+    const int closed = ::close(fd_);
+    fd_ = -1;
+    if (!ok || closed != 0) throw Error("tar: cannot write " + relative_ + ": " + std::strerror(errno));
+  }
+
+ private:
+  std::string relative_;
+  int fd_ = -1;
+};
+
+// What is skipped: anything that is neither a regular file nor a directory.
+std::string skipped_kind(archive_entry* entry) {
+  if (archive_entry_hardlink(entry)) return "hard link";
+  switch (archive_entry_filetype(entry)) {
+    case AE_IFLNK:
       return "symlink";
-    case '3':
+    case AE_IFCHR:
       return "character device";
-    case '4':
+    case AE_IFBLK:
       return "block device";
-    case '6':
+    case AE_IFIFO:
       return "fifo";
-    default:
-      return nullptr;
+    case AE_IFSOCK:
+      return "socket";
+    default: {
+      char text[32];
+      std::snprintf(text, sizeof text, "type 0%o", static_cast<unsigned>(archive_entry_filetype(entry)));
+      return text;
+    }
   }
-}
-
-// The path in a header block. POSIX ustar (magic "ustar\0") keeps a long path's
-// leading part in `prefix`; the GNU format (magic "ustar  ") uses those bytes for
-// other things, so they are ignored there.
-std::string header_path(const Block& h) {
-  std::string name = text_field(h, kName);
-  if (std::memcmp(h.data() + kMagic.offset, "ustar", kMagic.length) == 0 && h[kPrefix.offset] != '\0')
-    name = text_field(h, kPrefix) + "/" + name;
-  return name;
-}
-
-// Checks the header's checksum; a bad first header means the file is no tar at all.
-void check_header(const Block& h, std::uint64_t offset, std::uint64_t entries, const std::string& file) {
-  if (checksum_ok(h)) return;
-  if (offset == 0) {
-    const bool gzip = static_cast<unsigned char>(h[0]) == 0x1f && static_cast<unsigned char>(h[1]) == 0x8b;
-    throw DataError(file + ": not a tar archive (bad header checksum at the start" +
-                    (gzip ? "; the file is gzip-compressed, send the uncompressed .tar)" : ")"));
-  }
-  throw DataError(file + ": bad header checksum at byte " + std::to_string(offset) + " (after " +
-                  std::to_string(entries) + " entries; corrupted or not a tar archive)");
 }
 
 void check_limits(std::uint64_t size, const TarExtractReport& report, const TarLimits& limits,
-                  const std::string& entry) {
+                  const std::string& where) {
   if (size > limits.max_file_bytes)
-    throw DataError(entry + ": " + std::to_string(size) + " bytes, over the max_file_bytes limit of " +
+    throw DataError(where + ": " + std::to_string(size) + " bytes, over the max_file_bytes limit of " +
                     std::to_string(limits.max_file_bytes));
   if (size > limits.max_total_bytes - std::min(report.bytes, limits.max_total_bytes))
-    throw DataError(entry + ": extracted size would exceed the max_total_bytes limit of " +
+    throw DataError(where + ": extracted size would exceed the max_total_bytes limit of " +
                     std::to_string(limits.max_total_bytes));
-}
-
-void write_file(ArchiveInput& in, std::uint64_t size, const fs::path& target, const std::string& entry) {
-  std::error_code ec;
-  const auto status = fs::symlink_status(target, ec);
-  if (fs::is_symlink(status) || fs::is_directory(status))
-    throw DataError(entry + ": " + target.string() + " already exists as a " +
-                    (fs::is_symlink(status) ? "symlink" : "directory"));
-  fs::remove(target, ec);  // a later duplicate replaces the file (and never writes into a hard link)
-  std::ofstream out(target, std::ios::binary | std::ios::trunc);
-  if (!out) throw Error("tar: cannot create " + target.string());
-  in.read_data(size, [&](const char* p, std::size_t n) { out.write(p, static_cast<std::streamsize>(n)); });
-  out.close();
-  if (!out) throw Error("tar: cannot write " + target.string());
 }
 
 }  // namespace
 
-TarExtractReport extract_tar(const fs::path& archive, const fs::path& destination, const TarLimits& limits,
-                             const std::function<void(std::uint64_t, std::uint64_t)>& progress) {
-  ArchiveInput in(archive, progress);
+TarExtractReport extract_tar(const TarSource& source, const fs::path& destination, const TarLimits& limits,
+                             const std::string& archive_name) {
   std::error_code ec;
   fs::create_directories(destination, ec);
-  if (ec) throw Error("tar: cannot create " + destination.string() + ": " + ec.message());
-  const std::string file = "tar: " + archive.string();
+  if (ec) throw Error("tar: cannot create the destination folder: " + ec.message());
+  const std::string file = "tar: " + archive_name;
+  SourceState state;
+  state.source = &source;
+  Reader reader;
+  archive* a = reader.get();
+  const auto rethrow_source_error = [&] {
+    if (state.error) std::rethrow_exception(state.error);
+  };
+  // A failure once the source has ended is a truncation, whatever libarchive's words.
+  const auto read_error = [&](const std::string& where) {
+    rethrow_source_error();
+    if (state.ended)
+      return DataError(where + ": truncated archive (it ends at byte " + std::to_string(state.bytes) + ": " +
+                       reader.error() + ")");
+    return DataError(where + ": " + reader.error());
+  };
+
+  if (archive_read_open(a, &state, nullptr, read_callback, nullptr) != ARCHIVE_OK) {
+    rethrow_source_error();
+    std::string why = state.bytes == 0       ? "empty"
+                      : state.bytes < kBlock ? "shorter than one tar header"
+                                             : reader.error();
+    if (state.bytes >= 2 && state.first[0] == 0x1f && state.first[1] == 0x8b)
+      why += "; the data is gzip-compressed, send the uncompressed .tar";
+    throw DataError(file + ": not a tar archive (" + why + ")");
+  }
+
   TarExtractReport report;
-  Pending pending;
   std::uint64_t entries = 0;
-  for (Block h;;) {
-    const std::uint64_t header_offset = in.offset();
-    if (header_offset == 0 && in.remaining() < kBlock)
-      throw DataError(file + ": not a tar archive (" +
-                      (in.remaining() == 0 ? std::string("empty file") : "shorter than one tar header") + ")");
-    if (!in.read_block(h))
-      throw DataError(file + ": truncated archive (no end-of-archive marker after " + std::to_string(entries) +
-                      " entries)");
-    if (all_zero(h)) {
-      in.finish();
+  std::vector<char> unused;
+  for (;;) {
+    archive_entry* entry = nullptr;
+    const int r = archive_read_next_header(a, &entry);
+    rethrow_source_error();
+    if (r == ARCHIVE_EOF) {
+      // libarchive also ends cleanly at a cut between two entries; a whole
+      // archive has its end-of-archive zero blocks after the last entry.
+      if (archive_filter_bytes(a, 0) <= archive_read_header_position(a))
+        throw DataError(file + ": truncated archive (no end-of-archive marker after " + std::to_string(entries) +
+                        " entries)");
       break;
     }
-    check_header(h, header_offset, entries, file);
-    const char type = h[kTypeflag.offset];
-    std::string name = header_path(h);
-    const auto header_size = number_field(h, kSize);
-    if (!header_size) throw DataError(file + ": entry '" + name + "': bad size field");
-    std::uint64_t size = *header_size;
-
-    if (type == 'L' || type == 'K' || type == 'x' || type == 'g') {  // metadata for the next entry
-      const std::string where = file + ": entry '" + name + "'";
-      if (size > kMaxMetadataBytes) throw DataError(where + ": metadata entry too large");
-      if (!in.holds(size)) throw DataError(where + ": truncated archive (metadata cut short)");
-      std::string data;
-      in.read_data(size, [&](const char* p, std::size_t n) { data.append(p, n); });
-      if (type == 'L') pending.gnu_name = data.substr(0, data.find('\0'));  // NUL-terminated
-      if (type == 'x') parse_pax(data, pending, where);                     // 'K' (long link target) and 'g': unused
-      continue;
+    if (r != ARCHIVE_OK && r != ARCHIVE_WARN) {  // ARCHIVE_RETRY included: a damaged header
+      throw read_error(file + ": damaged header at byte " + std::to_string(archive_read_header_position(a)) +
+                       " (after " + std::to_string(entries) + " entries)");
     }
-    if (pending.pax_path)
-      name = *pending.pax_path;
-    else if (pending.gnu_name)
-      name = *pending.gnu_name;
-    if (pending.pax_size) size = *pending.pax_size;
-    pending = {};
-    const std::string entry = file + ": entry '" + name + "'";
+    const char* raw_name = archive_entry_pathname(entry);
+    if (!raw_name) throw DataError(file + ": entry " + std::to_string(entries + 1) + " has no readable path");
+    const std::string name = raw_name;
+    const std::string where = file + ": entry '" + name + "'";
     if (++entries > limits.max_entries)
-      throw DataError(entry + ": too many entries (limit " + std::to_string(limits.max_entries) + ")");
-    if (type == 'S') throw DataError(entry + ": GNU sparse files are not supported (archive without --sparse)");
-
-    const bool regular = type == '0' || type == '\0' || type == '7';  // '7': contiguous file, a regular file
-    // Old writers mark directories only by a trailing '/' on a regular entry.
-    const bool directory = type == '5' || (regular && !name.empty() && name.back() == '/');
-    // Only regular files and unknown types carry data blocks; links, devices, fifos
-    // and directories have none whatever their size field says.
-    const bool has_data = !directory && !skipped_kind(type);
-    if (has_data && !in.holds(size))
-      throw DataError(entry + ": truncated archive (" + std::to_string(size) + " bytes of data, " +
-                      std::to_string(in.remaining()) + " left in the file)");
-    const auto parts = safe_components(name, entry);
+      throw DataError(where + ": too many entries (limit " + std::to_string(limits.max_entries) + ")");
+    const auto parts = safe_components(name, where);
+    const bool regular = archive_entry_filetype(entry) == AE_IFREG && !archive_entry_hardlink(entry);
+    const bool directory = archive_entry_filetype(entry) == AE_IFDIR && !archive_entry_hardlink(entry);
 
     if (directory) {
       if (parts.empty()) continue;  // "./": the destination itself
-      make_directories(destination, parts, parts.size(), entry);
+      make_directories(destination, parts, parts.size(), where);
       ++report.directories;
     } else if (regular) {
-      if (parts.empty()) throw DataError(entry + ": empty file name");
-      check_limits(size, report, limits, entry);
-      const fs::path parent = make_directories(destination, parts, parts.size() - 1, entry);
-      write_file(in, size, parent / parts.back(), entry);
+      if (parts.empty()) throw DataError(where + ": empty file name");
+      if (!archive_entry_size_is_set(entry) || archive_entry_size(entry) < 0)
+        throw DataError(where + ": no file size in its header");
+      const auto size = static_cast<std::uint64_t>(archive_entry_size(entry));
+      check_limits(size, report, limits, where);
+      const fs::path parent = make_directories(destination, parts, parts.size() - 1, where);
+      OutputFile out(parent / parts.back(), joined(parts, parts.size()), where);
+      for (;;) {
+        const void* data = nullptr;
+        std::size_t n = 0;
+        la_int64_t offset = 0;
+        const int d = archive_read_data_block(a, &data, &n, &offset);
+        rethrow_source_error();
+        if (d == ARCHIVE_EOF) break;
+        if (d != ARCHIVE_OK && d != ARCHIVE_WARN) throw read_error(where);
+        if (offset < 0 || static_cast<std::uint64_t>(offset) + n > size)
+          throw DataError(where + ": data beyond the entry's size of " + std::to_string(size) + " bytes");
+        out.write_at(static_cast<const char*>(data), n, static_cast<std::uint64_t>(offset));
+      }
+      out.finish(size);
       ++report.files;
       report.bytes += size;
-    } else {  // links, devices, fifos, unknown types (e.g. a GNU volume label)
+    } else {  // links, devices, fifos, sockets: never created
       ++report.skipped;
-      const char* kind = skipped_kind(type);
       if (report.skipped_names.size() < TarExtractReport::kMaxSkippedNames)
-        report.skipped_names.push_back(name + " (" + (kind ? kind : "type '" + std::string(1, type) + "'") + ")");
-      if (has_data) in.read_data(size, [](const char*, std::size_t) {});
+        report.skipped_names.push_back(name + " (" + skipped_kind(entry) + ")");
+      // libarchive skips whatever data such an entry carries at the next header.
     }
   }
+  report.archive_bytes = state.bytes;
+  return report;
+}
+
+TarExtractReport extract_tar(const fs::path& archive, const fs::path& destination, const TarLimits& limits,
+                             const std::function<void(std::uint64_t, std::uint64_t)>& progress) {
+  std::error_code ec;
+  const std::uint64_t total = fs::file_size(archive, ec);
+  std::ifstream in(archive, std::ios::binary);
+  if (ec || !in) throw DataError("tar: cannot open archive " + archive.string());
+  std::uint64_t done = 0;
+  const TarSource source = [&](char* buffer, std::size_t size) {
+    in.read(buffer, static_cast<std::streamsize>(size));
+    const auto n = static_cast<std::size_t>(in.gcount());
+    if (n == 0 && in.bad()) throw Error("tar: cannot read " + archive.string());
+    done += n;
+    if (progress) progress(done, total);
+    return n;
+  };
+  TarExtractReport report = extract_tar(source, destination, limits, archive.string());
+  if (progress) progress(total, total);  // whatever follows the end-of-archive marker is not read
   return report;
 }
 

@@ -10,6 +10,7 @@
 #include <sys/socket.h>
 #include <nlohmann/json.hpp>
 
+#include "core/archive/tar_stream_extractor.h"
 #include "core/common/log.h"
 #include "core/common/timestamp.h"
 #include "core/io/settings.h"
@@ -331,17 +332,20 @@ void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jo
       request.settings.config = req.has_param("config") ? req.get_param_value("config") : "euroc/stereo";
       if (req.has_param("sensor")) request.sensor = req.get_param_value("sensor");
       service.check_upload(request);  // before receiving gigabytes for nothing
-      const std::filesystem::path path = jobs->new_upload_path();
-      struct Discard {  // the archive, unless a job took it
+      // Extracted while it arrives: no copy of the archive on disk. Its files may
+      // not add up to more than the upload limit (sparse entries could).
+      const std::filesystem::path folder = jobs->new_upload_folder();
+      struct Discard {  // the extracted files, unless a job took them
         std::filesystem::path path;
         bool keep = false;
         ~Discard() {
           std::error_code ec;
-          if (!keep) std::filesystem::remove(path, ec);
+          if (!keep) std::filesystem::remove_all(path, ec);
         }
-      } discard{path};
-      std::ofstream out(path, std::ios::binary);
-      if (!out) throw Error("cannot store an upload in " + path.parent_path().string());
+      } discard{folder};
+      TarLimits limits;
+      limits.max_total_bytes = max_bytes;
+      TarStreamExtractor extractor(folder, limits, "the upload");
       std::uint64_t bytes = 0;
       bool too_large = false;
       const bool complete = reader([&](const char* data, std::size_t n) {
@@ -350,15 +354,22 @@ void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jo
           too_large = true;
           return false;
         }
-        out.write(data, static_cast<std::streamsize>(n));
-        return static_cast<bool>(out);
+        return extractor.write(data, n);  // false once the archive proved bad
       });
-      out.close();
-      if (too_large) throw ApiError(413, "too_large", "uploads are limited to " + std::to_string(max_bytes) + " bytes");
-      if (!out) throw Error("cannot store the upload (disk full?)");
-      if (!complete) throw_bad_request("the upload was cut short after " + std::to_string(bytes) + " bytes");
-      if (bytes == 0) throw_bad_request("the upload is empty: send a tar of an EuRoC ASL folder");
-      const JobId id = jobs->submit(path, request);
+      if (too_large) {
+        extractor.cancel();
+        throw ApiError(413, "too_large", "uploads are limited to " + std::to_string(max_bytes) + " bytes");
+      }
+      if (bytes == 0) {
+        extractor.cancel();
+        throw_bad_request("the upload is empty: send a tar of an EuRoC ASL folder");
+      }
+      if (!complete && extractor.state() == TarStreamExtractor::State::kReading) {  // the client stopped
+        extractor.cancel();
+        throw_bad_request("the upload was cut short after " + std::to_string(bytes) + " bytes");
+      }
+      const TarExtractReport report = extractor.finish();  // a bad archive: DataError, 400
+      const JobId id = jobs->submit(folder, request, report.archive_bytes);
       discard.keep = true;
       reply_json(res, {{"job", id}, {"status", jobs->job_json(id)}}, 202);
     });
@@ -489,7 +500,7 @@ void install_http_api(httplib::Server& server, AtlasService& service, const Http
     std::string text = service.metrics_text();
     if (opts.extra_metrics) text += opts.extra_metrics();
     text += "# HELP orbatlas_jobs Upload jobs by state.\n# TYPE orbatlas_jobs gauge\n";
-    for (const char* state : {"queued", "extracting", "running", "done", "failed", "cancelled"})
+    for (const char* state : {"queued", "running", "done", "failed", "cancelled"})
       text += std::string("orbatlas_jobs{state=\"") + state + "\"} " + std::to_string(jobs ? jobs->count(state) : 0) + "\n";
     res.set_content(text, "text/plain; version=0.0.4");
   }));

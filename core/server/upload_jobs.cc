@@ -3,7 +3,6 @@
 #include <chrono>
 #include <opencv2/imgcodecs.hpp>
 
-#include "core/archive/tar_reader.h"
 #include "core/common/log.h"
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
@@ -86,7 +85,7 @@ void UploadJobs::stop() {
         job.row.state = "cancelled";
         job.row.error = "the server stopped before this job started";
         std::error_code ec;
-        fs::remove(job.archive, ec);
+        fs::remove_all(job.folder, ec);
         cancelled.push_back(job.row);
       }
     }
@@ -103,22 +102,27 @@ void UploadJobs::store_row(const StoredJob& row) {
   }
 }
 
-fs::path UploadJobs::new_upload_path() {
-  std::lock_guard lock(mutex_);
-  return options_.work_dir / ("upload-" + std::to_string(next_upload_++) + ".tar");
+fs::path UploadJobs::new_upload_folder() {
+  fs::path folder;
+  {
+    std::lock_guard lock(mutex_);
+    folder = options_.work_dir / ("upload-" + std::to_string(next_upload_++));
+  }
+  // New: an upload reads nothing it did not extract itself.
+  ORBATLAS_CHECK(fs::create_directory(folder), "the upload folder " << folder.filename().string() << " exists already");
+  return folder;
 }
 
-JobId UploadJobs::submit(const fs::path& archive, SessionRequest request) {
+JobId UploadJobs::submit(const fs::path& folder, SessionRequest request, std::uint64_t archive_bytes) {
   Job job;
   job.request = std::move(request);
-  job.archive = archive;
+  job.folder = folder;
   job.row.name = job.request.name;
   job.row.state = "queued";
   job.row.created_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                            std::chrono::system_clock::now().time_since_epoch())
                            .count();
-  std::error_code ec;
-  job.row.archive_bytes = fs::file_size(archive, ec);
+  job.row.archive_bytes = archive_bytes;
   {
     std::lock_guard lock(mutex_);
     job.row.id = next_job_++;
@@ -128,7 +132,8 @@ JobId UploadJobs::submit(const fs::path& archive, SessionRequest request) {
   if (!queue_.try_push(id)) {
     std::lock_guard lock(mutex_);
     jobs_.erase(id);
-    fs::remove(archive, ec);
+    std::error_code ec;
+    fs::remove_all(folder, ec);
     throw ApiError(503, "busy", "the upload queue is full (" + std::to_string(options_.max_queued) + " jobs); retry later");
   }
   store_row(job.row);  // the id is taken for good (the worker's first update comes after)
@@ -148,16 +153,20 @@ void UploadJobs::update(JobId id, const std::function<void(Job&)>& change, bool 
 
 void UploadJobs::work() {
   while (auto id = queue_.pop()) {
+    fs::path folder;
+    {
+      std::lock_guard lock(mutex_);
+      folder = jobs_.at(*id).folder;
+    }
     try {
       run(*id);
     } catch (const std::exception& e) {
       log_warn("upload job " + std::to_string(*id) + " failed: " + e.what());
       // Paths inside the archive, not the server's folders.
       std::string message = e.what();
-      for (const std::string& folder : {(options_.work_dir / ("job-" + std::to_string(*id))).string() + "/",
-                                        options_.work_dir.string()})
-        for (std::size_t at; (at = message.find(folder)) != std::string::npos;)
-          message.replace(at, folder.size(), folder.back() == '/' ? "" : "<work>");
+      for (const std::string& prefix : {folder.string() + "/", options_.work_dir.string()})
+        for (std::size_t at; (at = message.find(prefix)) != std::string::npos;)
+          message.replace(at, prefix.size(), prefix.back() == '/' ? "" : "<work>");
       update(*id, [&](Job& j) {
         j.row.state = "failed";
         j.row.error = message;
@@ -167,20 +176,14 @@ void UploadJobs::work() {
 }
 
 void UploadJobs::run(JobId id) {
-  fs::path archive;
+  fs::path folder;
   SessionRequest request;
   update(id, [&](Job& j) {
-    j.row.state = "extracting";
-    archive = j.archive;
+    j.row.state = "running";
+    folder = j.folder;
     request = j.request;
   });
-  const fs::path folder = options_.work_dir / ("job-" + std::to_string(id));
-  const RemoveOnExit remove_folder{folder}, remove_archive{archive};
-  // A folder of its own, new: the job reads nothing it did not extract itself.
-  ORBATLAS_CHECK(fs::create_directory(folder), "the work folder of job " << id << " exists already");
-  extract_tar(archive, folder);
-  std::error_code ec;
-  fs::remove(archive, ec);
+  const RemoveOnExit remove_folder{folder};
   const fs::path root = dataset_root(folder);
   EurocReadOptions read_options;
   read_options.require_cam1 = true;
@@ -190,7 +193,6 @@ void UploadJobs::run(JobId id) {
   if (request.name.empty()) request.name = "upload " + std::to_string(id);
   const SessionId session = service_.create_session(request);
   update(id, [&](Job& j) {
-    j.row.state = "running";
     j.row.name = request.name;
     j.row.session = session;
     j.row.frames_total = frames.size();
@@ -227,8 +229,8 @@ void UploadJobs::run(JobId id) {
     }
   }
   // The files go before the job is reported done (a client may look at once).
+  std::error_code ec;
   fs::remove_all(folder, ec);
-  fs::remove(archive, ec);
   update(id, [&](Job& j) {
     j.row.state = stopping_ ? "cancelled" : "done";
     if (stopping_) j.row.error = "the server stopped; the frames processed so far are stored";

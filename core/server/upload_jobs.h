@@ -1,6 +1,7 @@
 #pragma once
-// Uploaded recordings processed in the background (POST /v1/uploads): each job
-// extracts a tar of an EuRoC ASL folder into the server's work folder, feeds its
+// Uploaded recordings processed in the background (POST /v1/uploads): the HTTP
+// layer extracts the tar of an EuRoC ASL folder into a new folder of the server's
+// work folder while it arrives (tar_stream_extractor.h); each job then feeds its
 // stereo frames to a new session of the service (as a live client would), finishes
 // (stores) the session, and evaluates it when the recording has ground truth.
 // `workers` threads take jobs from a bounded queue; a full queue refuses uploads
@@ -43,10 +44,11 @@ class UploadJobs {
   UploadJobs(const UploadJobs&) = delete;
   UploadJobs& operator=(const UploadJobs&) = delete;
 
-  // A fresh path for an incoming archive (the HTTP layer streams into it).
-  std::filesystem::path new_upload_path();
-  // Queues the archive (now owned by the job). ApiError 503 when the queue is full.
-  JobId submit(const std::filesystem::path& archive, SessionRequest request);
+  // A new, empty folder for an incoming upload (the HTTP layer extracts into it).
+  std::filesystem::path new_upload_folder();
+  // Queues the extracted upload (the folder is now the job's; it is deleted when
+  // the job ends). ApiError 503 when the queue is full (the folder is deleted).
+  JobId submit(const std::filesystem::path& folder, SessionRequest request, std::uint64_t archive_bytes);
   nlohmann::json job_json(JobId id) const;  // ApiError 404
   nlohmann::json jobs_json() const;
   // Jobs not started are dropped; running ones end at their next frame. Idempotent.
@@ -57,7 +59,7 @@ class UploadJobs {
   struct Job {
     StoredJob row;  // what is stored and reported
     SessionRequest request;
-    std::filesystem::path archive;
+    std::filesystem::path folder;  // the extracted upload
   };
   void work();
   void run(JobId id);
