@@ -6,7 +6,7 @@
 
 #include "core/common/error.h"
 #include "core/server/image_decode.h"
-#include "core/server/latency_histogram.h"
+#include "core/server/metrics_registry.h"
 #include "core/server/map_leases.h"
 #include "core/server/pose_json.h"
 
@@ -83,17 +83,27 @@ TEST(RequestImage, DecodesPngAndRawAndRefusesTheRest) {
             std::string::npos);
 }
 
-TEST(LatencyHistogram, CumulativeBucketsCountAndSum) {
-  LatencyHistogram h;
-  for (const double ms : {0.5, 3.0, 3.0, 40.0, 5000.0}) h.record(ms);
-  EXPECT_EQ(h.count(), 5u);
-  const std::string text = h.prometheus("x_seconds", "test");
+TEST(MetricsRegistry, CumulativeBucketsCountersAndLabelsInTheTextFormat) {
+  MetricsRegistry metrics;
+  prometheus::Histogram& h = metrics.histogram("x_seconds", "test", latency_buckets_seconds());
+  for (const double ms : {0.5, 3.0, 3.0, 40.0, 5000.0}) h.Observe(ms / 1000.0);
+  metrics.counter("x_total", "events").Increment(3);
+  metrics.counter("y_total", "by reason", {{"reason", "slow"}}).Increment();
+  metrics.counter("y_total", "by reason", {{"reason", "room"}});
+  metrics.counter("y_total", "by reason", {{"reason", "slow"}}).Increment();  // the same series again
+  metrics.gauge("z_bytes", "size").Set(151234567);
+  const std::string text = metrics.text();
   EXPECT_NE(text.find("x_seconds_bucket{le=\"0.001\"} 1\n"), std::string::npos) << text;
   EXPECT_NE(text.find("x_seconds_bucket{le=\"0.005\"} 3\n"), std::string::npos) << text;
   EXPECT_NE(text.find("x_seconds_bucket{le=\"0.05\"} 4\n"), std::string::npos) << text;
   EXPECT_NE(text.find("x_seconds_bucket{le=\"+Inf\"} 5\n"), std::string::npos) << text;
   EXPECT_NE(text.find("x_seconds_count 5\n"), std::string::npos) << text;
   EXPECT_NE(text.find("x_seconds_sum 5.0465\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("# TYPE x_seconds histogram\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("# TYPE x_total counter\nx_total 3\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("y_total{reason=\"slow\"} 2\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("y_total{reason=\"room\"} 0\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("# TYPE z_bytes gauge\nz_bytes 151234567\n"), std::string::npos) << text;
 }
 
 TEST(PoseJson, RoundTrip) {

@@ -1,6 +1,7 @@
 #include "core/eval/alignment.h"
 
-#include <Eigen/SVD>
+#include <Eigen/Geometry>
+#include <cmath>
 
 #include "core/common/error.h"
 
@@ -32,38 +33,25 @@ Similarity3 align_positions(const std::vector<Eigen::Vector3d>& estimate,
   ORBATLAS_CHECK(estimate.size() >= 3, "alignment needs at least 3 matched poses, got " << estimate.size());
   if (mode == AlignMode::kNone) return {};
 
-  const double n = static_cast<double>(estimate.size());
-  Eigen::Vector3d mean_e = Eigen::Vector3d::Zero(), mean_g = Eigen::Vector3d::Zero();
+  // Eigen's Umeyama (columns are points): the rotation without reflection, and
+  // the scale with kSim3; the 4x4 result is [c R, t; 0 1].
+  Eigen::Matrix3Xd src(3, estimate.size()), dst(3, ground_truth.size());
   for (std::size_t i = 0; i < estimate.size(); ++i) {
-    mean_e += estimate[i];
-    mean_g += ground_truth[i];
+    src.col(static_cast<Eigen::Index>(i)) = estimate[i];
+    dst.col(static_cast<Eigen::Index>(i)) = ground_truth[i];
   }
-  mean_e /= n;
-  mean_g /= n;
-
-  Eigen::Matrix3d sigma = Eigen::Matrix3d::Zero();  // cross-covariance (gt x est)
-  double var_e = 0.0;                               // variance of the estimate
-  for (std::size_t i = 0; i < estimate.size(); ++i) {
-    const Eigen::Vector3d e = estimate[i] - mean_e;
-    sigma += (ground_truth[i] - mean_g) * e.transpose();
-    var_e += e.squaredNorm();
+  const bool with_scale = mode == AlignMode::kSim3;
+  if (with_scale) {
+    const double spread = (src.colwise() - src.rowwise().mean()).squaredNorm();
+    ORBATLAS_CHECK(spread > 0.0, "sim3 alignment: the estimated positions are all equal");
   }
-  sigma /= n;
-  var_e /= n;
-
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(sigma, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Vector3d s(1.0, 1.0, 1.0);
-  if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0) s(2) = -1.0;  // no reflection
-  const Eigen::Matrix3d r = svd.matrixU() * s.asDiagonal() * svd.matrixV().transpose();
-
+  const Eigen::Matrix4d T = Eigen::umeyama(src, dst, with_scale);
   Similarity3 result;
-  result.rotation = Eigen::Quaterniond(r).normalized();
-  if (mode == AlignMode::kSim3) {
-    ORBATLAS_CHECK(var_e > 0.0, "sim3 alignment: the estimated positions are all equal");
-    result.scale = svd.singularValues().dot(s) / var_e;
-    ORBATLAS_CHECK(result.scale > 0.0, "sim3 alignment: degenerate scale " << result.scale);
-  }
-  result.translation = mean_g - result.scale * (result.rotation * mean_e);
+  const Eigen::Matrix3d scaled_rotation = T.topLeftCorner<3, 3>();
+  result.scale = with_scale ? scaled_rotation.col(0).norm() : 1.0;
+  ORBATLAS_CHECK(std::isfinite(result.scale) && result.scale > 0.0, "sim3 alignment: degenerate scale " << result.scale);
+  result.rotation = Eigen::Quaterniond(scaled_rotation / result.scale).normalized();
+  result.translation = T.topRightCorner<3, 1>();
   return result;
 }
 

@@ -186,7 +186,7 @@ void AtlasService::finish_idle_sessions() {
         if (std::chrono::steady_clock::now() - live->last_activity() < timeout) continue;
         log_info("session " + std::to_string(id) + ": no frame for " + std::to_string(options_.idle_timeout_s) +
                  " s; finishing it (its data is stored)");
-        ++sessions_timed_out_;  // counted as it ends (the status says finished right after)
+        sessions_timed_out_.Increment();  // counted as it ends (the status says finished right after)
         finish_session(id, "idle_timeout");
       } catch (const std::exception& e) {
         log_warn("session " + std::to_string(id) + ": finishing it after its idle timeout failed: " + e.what());
@@ -344,7 +344,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   idle_wake_.notify_all();
   // The checkpoint thread reads the frames through its own reference.
   checkpointer_->add_session(CheckpointSession{info, [live] { return live->anchors(); }});
-  ++sessions_created_;
+  sessions_created_.Increment();
   log_info("session " + std::to_string(id) + " started (" + info.name + ", config " + loaded.label + ")");
   return id;
 }
@@ -511,13 +511,13 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     if (e.code() == "session_failed") end_session_storage(id);
     throw;
   } catch (const DataError&) {
-    ++frames_rejected_;
+    frames_rejected_.Increment();
     throw;
   }
   leases_.settle(id, reply.result.tracked ? std::optional<MapId>(reply.result.map) : std::nullopt);
   if (reply.result.keyframe) checkpointer_->notify_keyframe(id, reply.result.keyframe_id);
-  ++frames_;
-  tracking_latency_.record(reply.tracking_ms);
+  frames_.Increment();
+  tracking_latency_.Observe(reply.tracking_ms / 1000.0);
   return reply;
 }
 
@@ -657,9 +657,9 @@ LocalizeReply AtlasService::localize(const LocalizeRequest& request) {
     reply.candidates = r.candidates;
   }
   reply.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  ++localize_requests_;
-  if (reply.recognised) ++localize_recognised_;
-  localize_latency_.record(reply.ms);
+  localize_requests_.Increment();
+  if (reply.recognised) localize_recognised_.Increment();
+  localize_latency_.Observe(reply.ms / 1000.0);
   return reply;
 }
 
@@ -692,39 +692,30 @@ std::string AtlasService::metrics_text() const {
     points += m->map_point_count();
   }
   const CheckpointStats checkpoints = checkpointer_->stats();
-  std::ostringstream out;
-  const auto gauge = [&](const char* name, const char* help, const char* type, double value) {
-    out << "# HELP " << name << " " << help << "\n# TYPE " << name << " " << type << "\n" << name << " " << value << "\n";
+  // What is a state, not an event, is read now; totals other parts keep
+  // (checkpoints, merges, worker errors) advance their counters to the total.
+  std::lock_guard scrape(scrape_mutex_);
+  const auto set = [&](const char* name, const char* help, double value) { metrics_.gauge(name, help).Set(value); };
+  const auto total = [&](const char* name, const char* help, double value) {
+    prometheus::Counter& counter = metrics_.counter(name, help);
+    if (value > counter.Value()) counter.Increment(value - counter.Value());
   };
-  gauge("orbatlas_sessions_live", "Sessions taking frames.", "gauge", static_cast<double>(live));
-  gauge("orbatlas_sessions_ended", "Sessions finished, failed or stored by earlier runs.", "gauge", static_cast<double>(stored));
-  gauge("orbatlas_sessions_created_total", "Sessions created since the server started.", "counter",
-        static_cast<double>(sessions_created_.load()));
-  gauge("orbatlas_sessions_timed_out_total", "Live sessions the server finished after their idle timeout.", "counter",
-        static_cast<double>(sessions_timed_out_.load()));
-  gauge("orbatlas_frames_total", "Frames processed.", "counter", static_cast<double>(frames_.load()));
-  gauge("orbatlas_worker_errors_total",
-        "Errors contained inside tracking, local mapping, loop closing and map merging (the unit of work was "
-        "given up, the session and the server went on), over the sessions this server holds.",
-        "counter", static_cast<double>(worker_errors));
-  gauge("orbatlas_frames_rejected_total", "Frames refused as bad input.", "counter", static_cast<double>(frames_rejected_.load()));
-  out << tracking_latency_.prometheus("orbatlas_tracking_latency_seconds", "Time to track one frame (features included).");
-  gauge("orbatlas_maps", "Maps in the atlas.", "gauge", static_cast<double>(maps.size()));
-  gauge("orbatlas_keyframes", "Keyframes in the atlas.", "gauge", static_cast<double>(keyframes));
-  gauge("orbatlas_map_points", "Map points in the atlas.", "gauge", static_cast<double>(points));
-  gauge("orbatlas_resident_bytes", "Resident memory of the server process (VmRSS).", "gauge",
-        current_rss_mb() * 1024.0 * 1024.0);
-  gauge("orbatlas_heap_in_use_bytes", "C heap the server holds now (the allocator keeps the rest of the resident heap).",
-        "gauge", heap_in_use_mb() * 1024.0 * 1024.0);
-  gauge("orbatlas_database_bytes", "Size of the atlas database with its write-ahead log.", "gauge",
-        static_cast<double>(file_size_or_zero(options_.db) + file_size_or_zero(options_.db.string() + "-wal")));
-  gauge("orbatlas_checkpoints_total", "Checkpoints completed.", "counter", static_cast<double>(checkpoints.checkpoints));
-  gauge("orbatlas_checkpoint_failures_total", "Checkpoints that failed (retried).", "counter",
-        static_cast<double>(checkpoints.failures));
-  gauge("orbatlas_localize_requests_total", "Localisation requests.", "counter", static_cast<double>(localize_requests_.load()));
-  gauge("orbatlas_localize_recognised_total", "Localisation requests that recognised the place.", "counter",
-        static_cast<double>(localize_recognised_.load()));
-  out << localize_latency_.prometheus("orbatlas_localize_latency_seconds", "Time to answer a localisation request.");
+  set("orbatlas_sessions_live", "Sessions taking frames.", static_cast<double>(live));
+  set("orbatlas_sessions_ended", "Sessions finished, failed or stored by earlier runs.", static_cast<double>(stored));
+  total("orbatlas_worker_errors_total",
+      "Errors contained inside tracking, local mapping, loop closing and map merging (the unit of work was given up, "
+      "the session and the server went on), over the sessions this server holds.",
+      static_cast<double>(worker_errors));
+  set("orbatlas_maps", "Maps in the atlas.", static_cast<double>(maps.size()));
+  set("orbatlas_keyframes", "Keyframes in the atlas.", static_cast<double>(keyframes));
+  set("orbatlas_map_points", "Map points in the atlas.", static_cast<double>(points));
+  set("orbatlas_resident_bytes", "Resident memory of the server process (VmRSS).", current_rss_mb() * 1024.0 * 1024.0);
+  set("orbatlas_heap_in_use_bytes", "C heap the server holds now (the allocator keeps the rest of the resident heap).",
+      heap_in_use_mb() * 1024.0 * 1024.0);
+  set("orbatlas_database_bytes", "Size of the atlas database with its write-ahead log.",
+      static_cast<double>(file_size_or_zero(options_.db) + file_size_or_zero(options_.db.string() + "-wal")));
+  total("orbatlas_checkpoints_total", "Checkpoints completed.", static_cast<double>(checkpoints.checkpoints));
+  total("orbatlas_checkpoint_failures_total", "Checkpoints that failed (retried).", static_cast<double>(checkpoints.failures));
   if (merger_) {
     const MapMergeWorkerStats merging = merger_->stats();
     std::size_t live_merged = 0;
@@ -732,12 +723,11 @@ std::string AtlasService::metrics_text() const {
       std::lock_guard lock(mutex_);
       live_merged = live_merges_total_;
     }
-    gauge("orbatlas_map_merges_total", "Maps merged into another map since the server started (live and at a session's end).",
-          "counter", static_cast<double>(merging.merges_total + live_merged));
-    gauge("orbatlas_map_merge_pending", "Maps waiting for (or in) the merging worker.", "gauge",
-          static_cast<double>(merging.pending));
+    total("orbatlas_map_merges_total", "Maps merged into another map since the server started (live and at a session's end).",
+        static_cast<double>(merging.merges_total + live_merged));
+    set("orbatlas_map_merge_pending", "Maps waiting for (or in) the merging worker.", static_cast<double>(merging.pending));
   }
-  return out.str();
+  return metrics_.text();
 }
 
 void AtlasService::shutdown() {

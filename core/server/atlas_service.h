@@ -22,7 +22,7 @@
 #include "core/persistence/atlas_checkpointer.h"
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/database_lock.h"
-#include "core/server/latency_histogram.h"
+#include "core/server/metrics_registry.h"
 #include "core/server/live_session.h"
 #include "core/server/map_leases.h"
 #include "core/server/map_merge_worker.h"
@@ -214,7 +214,6 @@ class AtlasService {
   SessionId next_session_ = 1;
   bool shut_down_ = false;
   std::condition_variable idle_wake_;  // with mutex_: a session was created, or shutdown
-  std::atomic<std::uint64_t> sessions_timed_out_{0};
 
   std::mutex localizers_mutex_;
   // One per configuration seen, at most kMaxLocalizers (inline settings vary:
@@ -228,9 +227,22 @@ class AtlasService {
   std::unique_ptr<MapMergeWorker> merger_;  // null when merging is off
   std::thread idle_thread_;  // started last in the constructor, joined by shutdown()
 
-  LatencyHistogram tracking_latency_, localize_latency_;
-  std::atomic<std::uint64_t> sessions_created_{0}, frames_{0}, frames_rejected_{0}, localize_requests_{0},
-      localize_recognised_{0};
+  // GET /metrics: counters counted as things happen, the gauges set when asked.
+  mutable MetricsRegistry metrics_;
+  mutable std::mutex scrape_mutex_;  // one metrics_text() at a time (totals kept elsewhere are synced)
+  prometheus::Counter& sessions_created_ =
+      metrics_.counter("orbatlas_sessions_created_total", "Sessions created since the server started.");
+  prometheus::Counter& sessions_timed_out_ = metrics_.counter(
+      "orbatlas_sessions_timed_out_total", "Live sessions the server finished after their idle timeout.");
+  prometheus::Counter& frames_ = metrics_.counter("orbatlas_frames_total", "Frames processed.");
+  prometheus::Counter& frames_rejected_ = metrics_.counter("orbatlas_frames_rejected_total", "Frames refused as bad input.");
+  prometheus::Histogram& tracking_latency_ = metrics_.histogram(
+      "orbatlas_tracking_latency_seconds", "Time to track one frame (features included).", latency_buckets_seconds());
+  prometheus::Counter& localize_requests_ = metrics_.counter("orbatlas_localize_requests_total", "Localisation requests.");
+  prometheus::Counter& localize_recognised_ =
+      metrics_.counter("orbatlas_localize_recognised_total", "Localisation requests that recognised the place.");
+  prometheus::Histogram& localize_latency_ = metrics_.histogram(
+      "orbatlas_localize_latency_seconds", "Time to answer a localisation request.", latency_buckets_seconds());
 };
 
 }  // namespace orbatlas

@@ -134,15 +134,16 @@ ConnectionStats GuardedHttpServer::connection_stats() const {
 }
 
 std::string GuardedHttpServer::metrics_text() const {
-  const ConnectionStats s = connection_stats();
-  return "# HELP orbatlas_http_connections_total HTTP connections accepted.\n"
-         "# TYPE orbatlas_http_connections_total counter\n"
-         "orbatlas_http_connections_total " + std::to_string(s.connections) + "\n" +
-         "# HELP orbatlas_http_connections_closed_total Connections the server closed: past a header or body "
-         "deadline (slow), or the longest-waiting one when too many waited (room).\n"
-         "# TYPE orbatlas_http_connections_closed_total counter\n"
-         "orbatlas_http_connections_closed_total{reason=\"slow\"} " + std::to_string(s.closed_slow) + "\n" +
-         "orbatlas_http_connections_closed_total{reason=\"room\"} " + std::to_string(s.closed_for_room) + "\n";
+  {
+    std::lock_guard lock(mutex_);
+    const auto sync = [](prometheus::Counter& counter, std::uint64_t total) {
+      if (static_cast<double>(total) > counter.Value()) counter.Increment(static_cast<double>(total) - counter.Value());
+    };
+    sync(connections_total_, stats_.connections);
+    sync(closed_slow_, stats_.closed_slow);
+    sync(closed_for_room_, stats_.closed_for_room);
+  }
+  return metrics_.text();
 }
 
 void GuardedHttpServer::set_waiting(std::uint64_t id, bool waiting) {

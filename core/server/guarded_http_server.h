@@ -21,6 +21,8 @@
 #include <mutex>
 #include <string>
 
+#include "core/server/metrics_registry.h"
+
 // Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
 #include <httplib.h>
 
@@ -66,6 +68,19 @@ class GuardedHttpServer : public httplib::Server {
   std::map<std::uint64_t, Connection> connections_;
   std::uint64_t next_id_ = 0;
   ConnectionStats stats_;
+  mutable MetricsRegistry metrics_;  // synced with stats_ when asked (under mutex_)
+  prometheus::Counter& connections_total_ =
+      metrics_.counter("orbatlas_http_connections_total", "HTTP connections accepted.");
+  prometheus::Counter& closed_slow_ = metrics_.counter(
+      "orbatlas_http_connections_closed_total",
+      "Connections the server closed: past a header or body deadline (slow), or the longest-waiting one when too many "
+      "waited (room).",
+      {{"reason", "slow"}});
+  prometheus::Counter& closed_for_room_ = metrics_.counter(
+      "orbatlas_http_connections_closed_total",
+      "Connections the server closed: past a header or body deadline (slow), or the longest-waiting one when too many "
+      "waited (room).",
+      {{"reason", "room"}});
 };
 
 }  // namespace orbatlas

@@ -499,9 +499,7 @@ void install_http_api(httplib::Server& server, AtlasService& service, const Http
   router.get("/metrics", ([&service, jobs, opts](const Request&, Response& res) {
     std::string text = service.metrics_text();
     if (opts.extra_metrics) text += opts.extra_metrics();
-    text += "# HELP orbatlas_jobs Upload jobs by state.\n# TYPE orbatlas_jobs gauge\n";
-    for (const char* state : {"queued", "running", "done", "failed", "cancelled"})
-      text += std::string("orbatlas_jobs{state=\"") + state + "\"} " + std::to_string(jobs ? jobs->count(state) : 0) + "\n";
+    if (jobs) text += jobs->metrics_text();
     res.set_content(text, "text/plain; version=0.0.4");
   }));
   install_session_routes(router, service);

@@ -238,6 +238,12 @@ void UploadJobs::run(JobId id) {
   });
 }
 
+std::string UploadJobs::metrics_text() const {
+  for (const char* state : {"queued", "running", "done", "failed", "cancelled"})
+    metrics_.gauge("orbatlas_jobs", "Upload jobs by state.", {{"state", state}}).Set(static_cast<double>(count(state)));
+  return metrics_.text();
+}
+
 nlohmann::json UploadJobs::to_json(const StoredJob& job) {
   nlohmann::json j = {{"id", job.id},
                       {"state", job.state},

@@ -24,6 +24,7 @@
 #include "core/common/bounded_queue.h"
 #include "core/persistence/atlas_store.h"
 #include "core/server/atlas_service.h"
+#include "core/server/metrics_registry.h"
 
 namespace orbatlas {
 
@@ -53,7 +54,8 @@ class UploadJobs {
   nlohmann::json jobs_json() const;
   // Jobs not started are dropped; running ones end at their next frame. Idempotent.
   void stop();
-  std::size_t count(const std::string& state) const;  // metrics
+  std::size_t count(const std::string& state) const;
+  std::string metrics_text() const;  // orbatlas_jobs{state=...}
 
  private:
   struct Job {
@@ -77,6 +79,7 @@ class UploadJobs {
   JobId next_job_ = 1;
   std::uint64_t next_upload_ = 0;
   std::atomic<bool> stopping_{false};
+  mutable MetricsRegistry metrics_;
   BoundedQueue<JobId> queue_;
   std::vector<std::thread> workers_;  // last: started once everything above exists
 };

@@ -1,0 +1,41 @@
+#pragma once
+// The Prometheus metrics of one component, kept by prometheus-cpp (Debian
+// `prometheus-cpp-dev`, core library only): its counters, gauges and histograms
+// are thread-safe, and its serializer writes the text exposition format that
+// GET /metrics returns (the HTTP route is ours). Each component (the service, the
+// HTTP server, the upload jobs) owns one; /metrics concatenates their texts, so
+// the metric names must differ between components.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <prometheus/counter.h>
+#include <prometheus/gauge.h>
+#include <prometheus/histogram.h>
+#include <prometheus/registry.h>
+
+namespace orbatlas {
+
+class MetricsRegistry {
+ public:
+  MetricsRegistry();
+  MetricsRegistry(const MetricsRegistry&) = delete;
+  MetricsRegistry& operator=(const MetricsRegistry&) = delete;
+
+  // The metric `name` with `labels` (created at the first call; the same name
+  // again returns the same family). References stay valid for the registry's life.
+  prometheus::Counter& counter(const std::string& name, const std::string& help, const prometheus::Labels& labels = {});
+  prometheus::Gauge& gauge(const std::string& name, const std::string& help, const prometheus::Labels& labels = {});
+  // Bucket upper bounds in the metric's unit (seconds for latencies), increasing.
+  prometheus::Histogram& histogram(const std::string& name, const std::string& help, std::vector<double> buckets);
+
+  std::string text() const;  // the Prometheus text exposition format
+
+ private:
+  std::shared_ptr<prometheus::Registry> registry_;
+};
+
+// Latency buckets of the server's request histograms, in seconds (1 ms .. 1 s).
+std::vector<double> latency_buckets_seconds();
+
+}  // namespace orbatlas
