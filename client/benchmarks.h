@@ -33,6 +33,12 @@ struct AtlasStoreBenchOptions {
 };
 void run_atlas_store_bench(const AtlasStoreBenchOptions& options);
 
+struct AlignmentBenchOptions {
+  int problems = 2000;  // random Sim(3) problems per size
+  bool json = false;
+};
+void run_alignment_bench(const AlignmentBenchOptions& options);
+
 struct PlaceBenchOptions {
   std::filesystem::path map, queries;  // EuRoC ASL stereo datasets with ground truth in one world frame
   std::filesystem::path config;        // default: config/euroc/stereo.yaml

@@ -37,6 +37,12 @@ void register_bench_command(CLI::App& app) {
   s->add_flag("--json", store->json, "Print one JSON object");
   s->callback([store]() { run_atlas_store_bench(*store); });
 
+  auto alignment = std::make_shared<AlignmentBenchOptions>();
+  auto* a = bench->add_subcommand("alignment", "Horn's absolute orientation against Eigen::umeyama (microseconds, errors)");
+  a->add_option("--problems", alignment->problems, "Random problems per size")->capture_default_str()->check(CLI::Range(1, 1000000));
+  a->add_flag("--json", alignment->json, "Print one JSON object");
+  a->callback([alignment]() { run_alignment_bench(*alignment); });
+
   auto place = std::make_shared<PlaceBenchOptions>();
   auto* p = bench->add_subcommand(
       "place", "Place recognition and relocalisation recall of another recording's frames against a map");

@@ -203,16 +203,17 @@ TEST(TarWriter, HeaderLayoutAndFinish) {
   std::string archive;
   TarWriter writer([&](const char* d, std::size_t n) { archive.append(d, n); });
   write_bytes(tmp.path() / "f.bin", "hello");
-  const std::string split = std::string(120, 'p') + "/" + std::string(90, 'n');  // prefix + name
-  const std::string gnu = std::string(300, 'g');                                 // no usable '/'
+  const std::string split = std::string(120, 'p') + "/" + std::string(90, 'n');  // ustar prefix + name
+  const std::string long_path = std::string(300, 'g');                           // no usable '/': a pax record
   writer.add_file(split, tmp.path() / "f.bin");
-  EXPECT_EQ(archive.size(), 1024u);  // header + one data block, no long-name entry
+  EXPECT_EQ(archive.size(), 1024u);  // header + one data block, no extended header
   EXPECT_EQ(tar_entry_bytes(split, 5), 1024u);
   EXPECT_EQ(archive.compare(345, 120, std::string(120, 'p')), 0);  // ustar prefix field
-  writer.add_file(gnu, tmp.path() / "f.bin");
-  EXPECT_EQ(tar_entry_bytes(gnu, 5), 512u + 512u + 512u + 512u);  // 'L' header + name + header + data
-  EXPECT_EQ(archive.size(), 1024u + tar_entry_bytes(gnu, 5));
-  EXPECT_EQ(archive[1024 + 156], 'L');
+  EXPECT_EQ(archive.compare(257, 6, std::string("ustar", 6)), 0);  // POSIX magic
+  writer.add_file(long_path, tmp.path() / "f.bin");
+  EXPECT_EQ(archive.size(), 1024u + tar_entry_bytes(long_path, 5));
+  EXPECT_EQ(archive[1024 + 156], 'x');  // pax extended header
+  EXPECT_NE(archive.find("path=" + long_path + "\n"), std::string::npos);
   writer.add_directory_entry("dir");
   EXPECT_EQ(archive.compare(archive.size() - 512, 4, "dir/"), 0);
   EXPECT_EQ(archive[archive.size() - 512 + 156], '5');
@@ -228,6 +229,25 @@ TEST(TarWriter, HeaderLayoutAndFinish) {
   EXPECT_THROW(other.add_file("dir", tmp.path()), Error);
   EXPECT_THROW(other.add_file("../up", tmp.path() / "f.bin"), Error);
   EXPECT_THROW(write_directory_tar(tmp.path() / "f.bin", [](const char*, std::size_t) {}), Error);
+
+  // A sink that fails (a closed connection) is an Error of the writer, not a crash.
+  TarWriter broken([](const char*, std::size_t) { throw Error("the connection closed"); });
+  try {
+    broken.add_file("f.bin", tmp.path() / "f.bin");
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_CONTAINS(e.what(), "the connection closed");
+  }
+}
+
+// Files of 8 GiB and more get their size in a pax record (ustar's field holds
+// less); the measured size is exact without reading any data.
+TEST(TarWriter, EntrySizesAreExactForHugeFiles) {
+  const std::uint64_t huge = (9ull << 30) + 7;
+  EXPECT_EQ(tar_entry_bytes("mav0/huge.bin", huge) % 512, 0u);
+  EXPECT_GT(tar_entry_bytes("mav0/huge.bin", huge), 512 + huge + 511);  // a pax header in front
+  EXPECT_EQ(tar_entry_bytes("mav0/small.bin", 1000), 512u + 1024u);
+  EXPECT_EQ(tar_entry_bytes("mav0/", 0), 512u);
 }
 
 bool have_gnu_tar() { return fs::exists("/usr/bin/tar"); }

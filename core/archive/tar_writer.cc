@@ -1,9 +1,11 @@
 #include "core/archive/tar_writer.h"
 
+#include <archive.h>
+#include <archive_entry.h>
+
 #include <algorithm>
-#include <array>
 #include <chrono>
-#include <cstring>
+#include <exception>
 #include <fstream>
 #include <system_error>
 #include <vector>
@@ -13,58 +15,7 @@
 namespace orbatlas {
 namespace {
 
-// A tar archive is a sequence of 512-byte blocks: a header block per entry, then the
-// entry's data padded with zeros to a whole block; two zero blocks end the archive.
-constexpr std::size_t kBlock = 512;
 constexpr std::size_t kChunk = 64 * 1024;
-
-// ustar header fields: offset and length of each within the header block.
-struct Field {
-  std::size_t offset, length;
-};
-constexpr Field kName{0, 100}, kMode{100, 8}, kUid{108, 8}, kGid{116, 8}, kSize{124, 12}, kMtime{136, 12},
-    kChecksum{148, 8}, kTypeflag{156, 1}, kMagic{257, 6}, kVersion{263, 2}, kPrefix{345, 155};
-
-using Header = std::array<char, kBlock>;
-
-std::uint64_t padded(std::uint64_t size) { return (size + kBlock - 1) / kBlock * kBlock; }
-
-// Where a path goes in the header. ustar stores up to 100 bytes in `name` and,
-// when the path is longer, up to 155 more in `prefix`: the reader joins them as
-// prefix + "/" + name, so the split must fall on a '/'. Longer paths (or ones with
-// no usable '/') need a GNU 'L' entry whose data is the full name.
-struct NameLayout {
-  std::string prefix, name;
-  bool long_name_entry = false;
-};
-
-NameLayout layout_name(const std::string& path) {
-  if (path.size() <= kName.length) return {"", path, false};
-  // The longest usable prefix gives the shortest name. A '/' at the very end (a
-  // directory's) would leave an empty name, so it is not a split point.
-  const std::size_t pos = path.rfind('/', std::min(path.size() - 2, kPrefix.length));
-  if (pos != std::string::npos && pos > 0 && path.size() - pos - 1 <= kName.length)
-    return {path.substr(0, pos), path.substr(pos + 1), false};
-  return {"", path.substr(0, kName.length), true};
-}
-
-// Numbers are octal text, NUL-terminated. Values too large for the field (a file of
-// 8 GiB or more in the 12-byte size field) use GNU base-256: the first byte is 0x80
-// and the value follows big-endian.
-void put_number(Header& h, Field f, std::uint64_t value) {
-  const std::size_t digits = f.length - 1;
-  if (digits * 3 >= 64 || value < (std::uint64_t{1} << (3 * digits))) {
-    for (std::size_t i = digits; i-- > 0; value >>= 3) h[f.offset + i] = static_cast<char>('0' + (value & 7));
-    h[f.offset + digits] = '\0';
-    return;
-  }
-  for (std::size_t i = f.length; i-- > 1; value >>= 8) h[f.offset + i] = static_cast<char>(value & 0xff);
-  h[f.offset] = static_cast<char>(0x80);
-}
-
-void put_text(Header& h, Field f, const std::string& text) {
-  std::memcpy(h.data() + f.offset, text.data(), std::min(text.size(), f.length));
-}
 
 void check_archive_path(const std::string& path) {
   ORBATLAS_CHECK(!path.empty(), "tar: empty archive path");
@@ -126,62 +77,94 @@ std::vector<TreeEntry> list_tree(const std::filesystem::path& root) {
   return entries;
 }
 
-std::uint64_t tree_tar_size(const std::vector<TreeEntry>& entries) {
-  std::uint64_t total = 2 * kBlock;
-  for (const auto& e : entries)
-    total += e.directory ? tar_entry_bytes(directory_path(e.relative.generic_string()), 0)
-                         : tar_entry_bytes(e.relative.generic_string(), e.size);
-  return total;
-}
-
 }  // namespace
 
-TarWriter::TarWriter(TarSink sink) : sink_(std::move(sink)) {
-  ORBATLAS_CHECK(static_cast<bool>(sink_), "TarWriter: no sink");
-}
+// libarchive's writer with our sink. Not in the header: it needs <archive.h>.
+class TarArchiveWriter {
+ public:
+  TarSink sink;
+  archive* a = nullptr;
+  std::uint64_t bytes = 0;
+  bool finished = false;
+  bool discard = false;  // set before freeing an unfinished archive: nothing more reaches the sink
+  std::exception_ptr sink_error;
 
-void TarWriter::emit(const char* data, std::size_t size) {
-  sink_(data, size);
-  bytes_written_ += size;
-}
-
-void TarWriter::pad_to_block(std::uint64_t data_size) {
-  static constexpr std::array<char, kBlock> zeros{};
-  const std::size_t rest = static_cast<std::size_t>(padded(data_size) - data_size);
-  if (rest > 0) emit(zeros.data(), rest);
-}
-
-void TarWriter::write_header(const std::string& archive_path, char typeflag, std::uint32_t mode, std::uint64_t size,
-                             std::int64_t mtime) {
-  ORBATLAS_CHECK(!finished_, "TarWriter: entry '" << archive_path << "' added after finish()");
-  const NameLayout layout = layout_name(archive_path);
-  if (layout.long_name_entry) {
-    // GNU long name: a pseudo-entry named "././@LongLink" whose data is the full
-    // path plus a terminating NUL; the real header that follows has it truncated.
-    const std::string data = archive_path + '\0';
-    write_header("././@LongLink", 'L', 0, data.size(), 0);
-    emit(data.data(), data.size());
-    pad_to_block(data.size());
+  explicit TarArchiveWriter(TarSink s) : sink(std::move(s)), a(archive_write_new()) {
+    if (!a) throw std::bad_alloc();
+    // pax restricted: ustar headers, pax records only where ustar cannot hold a
+    // value; no blocking (the output is exactly the entries and the end marker).
+    if (archive_write_set_format_pax_restricted(a) != ARCHIVE_OK || archive_write_set_bytes_per_block(a, 0) != ARCHIVE_OK ||
+        archive_write_open(a, this, nullptr, &TarArchiveWriter::write_callback, nullptr) != ARCHIVE_OK) {
+      const std::string why = archive_error_string(a) ? archive_error_string(a) : "unknown error";
+      archive_write_free(a);
+      throw Error("tar: cannot start an archive: " + why);
+    }
   }
-  Header h{};
-  put_text(h, kName, layout.name);
-  put_text(h, kPrefix, layout.prefix);
-  put_number(h, kMode, mode);
-  put_number(h, kUid, 0);
-  put_number(h, kGid, 0);
-  put_number(h, kSize, size);
-  put_number(h, kMtime, static_cast<std::uint64_t>(std::max<std::int64_t>(mtime, 0)));
-  h[kTypeflag.offset] = typeflag;
-  put_text(h, kMagic, std::string("ustar", 6));  // "ustar\0" then version "00": POSIX ustar
-  put_text(h, kVersion, "00");
-  // The checksum is the sum of the header's bytes (unsigned) with the checksum field
-  // itself counted as 8 spaces; stored as 6 octal digits, NUL, space.
-  std::memset(h.data() + kChecksum.offset, ' ', kChecksum.length);
-  unsigned sum = 0;
-  for (char c : h) sum += static_cast<unsigned char>(c);
-  put_number(h, Field{kChecksum.offset, 7}, sum);
-  emit(h.data(), h.size());
+  ~TarArchiveWriter() {
+    discard = true;
+    archive_write_free(a);
+  }
+
+  // libarchive writes through this C callback: the sink's exception is kept and
+  // rethrown by check(), never thrown across C frames.
+  static la_ssize_t write_callback(archive*, void* client, const void* buffer, size_t length) {
+    auto* self = static_cast<TarArchiveWriter*>(client);
+    if (self->discard) return static_cast<la_ssize_t>(length);
+    try {
+      self->sink(static_cast<const char*>(buffer), length);
+      self->bytes += length;
+      return static_cast<la_ssize_t>(length);
+    } catch (...) {
+      self->sink_error = std::current_exception();
+      return -1;
+    }
+  }
+
+  void check(bool ok, const std::string& what) const {
+    if (sink_error) std::rethrow_exception(sink_error);
+    if (!ok) throw Error("tar: " + what + ": " + (archive_error_string(a) ? archive_error_string(a) : "unknown error"));
+  }
+
+  // An entry's header; its data follows (write_data), or finish_entry() fills
+  // what was not written with zeros (used to measure an archive's size).
+  void header(const std::string& path, bool directory, std::uint64_t size, std::int64_t mtime) {
+    ORBATLAS_CHECK(!finished, "TarWriter: entry '" << path << "' added after finish()");
+    archive_entry* entry = archive_entry_new();
+    if (!entry) throw std::bad_alloc();
+    archive_entry_copy_pathname(entry, path.c_str());
+    archive_entry_set_filetype(entry, directory ? AE_IFDIR : AE_IFREG);
+    archive_entry_set_perm(entry, directory ? 0755 : 0644);
+    archive_entry_set_size(entry, static_cast<la_int64_t>(size));
+    archive_entry_set_mtime(entry, std::max<std::int64_t>(mtime, 0), 0);
+    archive_entry_set_uid(entry, 0);
+    archive_entry_set_gid(entry, 0);
+    const int r = archive_write_header(a, entry);
+    archive_entry_free(entry);
+    check(r == ARCHIVE_OK || r == ARCHIVE_WARN, "cannot write the header of '" + path + "'");
+  }
+  void write_data(const char* data, std::size_t size, const std::string& path) {
+    const la_ssize_t n = archive_write_data(a, data, size);
+    check(n == static_cast<la_ssize_t>(size), "cannot write the data of '" + path + "'");
+  }
+  void finish_entry(const std::string& path) {
+    const int r = archive_write_finish_entry(a);
+    check(r == ARCHIVE_OK || r == ARCHIVE_WARN, "cannot end the entry '" + path + "'");
+  }
+  void close() {
+    if (finished) return;
+    finished = true;
+    check(archive_write_close(a) == ARCHIVE_OK, "cannot end the archive");
+  }
+};
+
+TarWriter::TarWriter(TarSink sink) {
+  ORBATLAS_CHECK(static_cast<bool>(sink), "TarWriter: no sink");
+  impl_ = std::make_unique<TarArchiveWriter>(std::move(sink));
 }
+
+TarWriter::~TarWriter() = default;
+
+std::uint64_t TarWriter::bytes_written() const { return impl_->bytes; }
 
 void TarWriter::add_file(const std::string& archive_path, const std::filesystem::path& source) {
   check_archive_path(archive_path);
@@ -191,41 +174,56 @@ void TarWriter::add_file(const std::string& archive_path, const std::filesystem:
   ORBATLAS_CHECK(!ec, "tar: cannot stat " << source << ": " << ec.message());
   std::ifstream in(source, std::ios::binary);
   ORBATLAS_CHECK(in, "tar: cannot open " << source);
-  write_header(archive_path, '0', 0644, size, mtime_seconds(source));
+  impl_->header(archive_path, false, size, mtime_seconds(source));
   // Exactly `size` bytes follow the header, whatever happens to the file meanwhile.
   std::vector<char> buffer(kChunk);
   for (std::uint64_t left = size; left > 0;) {
     const auto want = static_cast<std::streamsize>(std::min<std::uint64_t>(left, kChunk));
     in.read(buffer.data(), want);
     ORBATLAS_CHECK(in.gcount() == want, "tar: cannot read " << source << " (read error, or it shrank while archived)");
-    emit(buffer.data(), static_cast<std::size_t>(want));
+    impl_->write_data(buffer.data(), static_cast<std::size_t>(want), archive_path);
     left -= static_cast<std::uint64_t>(want);
   }
-  pad_to_block(size);
+  impl_->finish_entry(archive_path);
 }
 
 void TarWriter::add_directory_entry(const std::string& archive_path, std::int64_t mtime) {
   const std::string path = directory_path(archive_path);
   check_archive_path(path);
-  write_header(path, '5', 0755, 0, mtime);
+  impl_->header(path, true, 0, mtime);
+  impl_->finish_entry(path);
 }
 
-void TarWriter::finish() {
-  if (finished_) return;
-  static constexpr std::array<char, 2 * kBlock> zeros{};
-  emit(zeros.data(), zeros.size());
-  finished_ = true;
+void TarWriter::finish() { impl_->close(); }
+
+namespace {
+
+// The bytes an archive of these entries takes: the same writer with the data left
+// out (libarchive fills each entry's data with zeros), the bytes only counted.
+std::uint64_t measured_size(const std::vector<TreeEntry>& entries) {
+  TarArchiveWriter counter([](const char*, std::size_t) {});
+  for (const auto& e : entries) {
+    const std::string path = e.directory ? directory_path(e.relative.generic_string()) : e.relative.generic_string();
+    counter.header(path, e.directory, e.size, mtime_seconds(e.source));
+    counter.finish_entry(path);
+  }
+  counter.close();
+  return counter.bytes;
 }
+
+}  // namespace
 
 std::uint64_t tar_entry_bytes(const std::string& archive_path, std::uint64_t data_size) {
-  const std::uint64_t long_name =
-      layout_name(archive_path).long_name_entry ? kBlock + padded(archive_path.size() + 1) : 0;
-  return long_name + kBlock + padded(data_size);
+  TarArchiveWriter counter([](const char*, std::size_t) {});
+  const bool directory = !archive_path.empty() && archive_path.back() == '/';
+  counter.header(archive_path, directory, directory ? 0 : data_size, 0);
+  counter.finish_entry(archive_path);
+  return counter.bytes;
 }
 
 void write_directory_tar(const std::filesystem::path& root, const TarSink& sink, const TarProgress& progress) {
   const auto entries = list_tree(root);
-  const std::uint64_t total = tree_tar_size(entries);
+  const std::uint64_t total = measured_size(entries);
   std::uint64_t done = 0;
   TarWriter writer([&](const char* data, std::size_t size) {
     sink(data, size);
@@ -244,6 +242,6 @@ void write_directory_tar(const std::filesystem::path& root, const TarSink& sink,
                                                           << " announced)");
 }
 
-std::uint64_t directory_tar_size(const std::filesystem::path& root) { return tree_tar_size(list_tree(root)); }
+std::uint64_t directory_tar_size(const std::filesystem::path& root) { return measured_size(list_tree(root)); }
 
 }  // namespace orbatlas
