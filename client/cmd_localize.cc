@@ -16,7 +16,7 @@
 #include "client/commands.h"
 #include "core/common/text_file.h"
 #include "core/io/euroc_reader.h"
-#include "core/server/pose_json.h"
+#include "wire/pose_json.h"
 #include "core/slam/slam_stats.h"
 #include "core/common/error.h"
 #include "core/io/tum_trajectory.h"

@@ -10,8 +10,8 @@
 #include <unistd.h>
 
 #include "core/server/atlas_service.h"
-#include "core/server/guarded_http_server.h"
-#include "core/server/http_api.h"
+#include "server/http/guarded_http_server.h"
+#include "server/http/http_api.h"
 #include "core/server/upload_jobs.h"
 
 // Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.

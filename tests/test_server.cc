@@ -16,7 +16,7 @@
 #include "core/common/data_paths.h"
 #include "core/eval/evaluate.h"
 #include "core/io/tum_trajectory.h"
-#include "core/server/pose_json.h"
+#include "wire/pose_json.h"
 #include "core/slam/dataset_runner.h"
 #include "core/slam/slam_stats.h"
 #include "tests/server_test_fixture.h"

@@ -20,7 +20,7 @@
 #include "core/persistence/atlas_checkpoint_writer.h"
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/database_lock.h"
-#include "core/server/image_decode.h"
+#include "server/http/image_decode.h"
 #include "tests/server_test_fixture.h"
 #include "tests/server_test_reply.h"
 

@@ -5,10 +5,10 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/common/error.h"
-#include "core/server/image_decode.h"
+#include "server/http/image_decode.h"
 #include "core/server/metrics_registry.h"
 #include "core/server/map_leases.h"
-#include "core/server/pose_json.h"
+#include "wire/pose_json.h"
 
 namespace orbatlas {
 namespace {

@@ -16,7 +16,7 @@
 #include "core/tracking/mono_frontend.h"
 #include "core/slam/slam_stats.h"
 #include "core/slam/stereo_slam.h"
-#include "core/server/api_error.h"
+#include "core/server/service_error.h"
 #include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
 
@@ -227,17 +227,17 @@ AtlasService::LoadedSettings AtlasService::load_settings(const SettingsSource& s
         std::string message = e.what();
         if (const auto at = message.find(file.string()); at != std::string::npos)
           message.replace(at, file.string().size(), "config '" + source.config + "'");
-        throw ApiError(400, "bad_config", "unusable settings: " + message);
+        throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", "unusable settings: " + message);
       }
     }
     // Parsed in memory: no file is written for a request's text.
     ORBATLAS_DATA_CHECK(source.settings_yaml.size() <= kMaxSettingsBytes,
                         "settings_yaml has " << source.settings_yaml.size() << " bytes; at most " << kMaxSettingsBytes);
     return {read_settings_text(source.settings_yaml, "settings_yaml"), "inline"};
-  } catch (const ApiError&) {
+  } catch (const ServiceError&) {
     throw;
   } catch (const std::exception& e) {
-    throw ApiError(400, "bad_config", std::string("unusable settings: ") + e.what());
+    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", std::string("unusable settings: ") + e.what());
   }
 }
 
@@ -246,10 +246,10 @@ void AtlasService::check_upload(const SessionRequest& request) const {
   const LoadedSettings loaded = load_settings(request.settings);
   const SensorType sensor = session_sensor(request, loaded.settings);
   if (is_single_camera(sensor))
-    throw ApiError(422, "unsupported_sensor",
+    throw ServiceError(ServiceErrorKind::kUnprocessable, "unsupported_sensor",
                    "uploads are mapped as stereo sequences; a single camera only localises in stored maps (stream it as a session)");
   if (!loaded.settings.is_stereo())
-    throw ApiError(400, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
+    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
 }
 
 std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const SessionInfo& info,
@@ -279,7 +279,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
   try {
     return std::make_unique<StereoSlam>(atlas_, settings, vocabulary_, slam_options);
   } catch (const std::exception& e) {
-    throw ApiError(400, "bad_config", std::string("cannot start a stereo session with these settings: ") + e.what());
+    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", std::string("cannot start a stereo session with these settings: ") + e.what());
   }
 }
 
@@ -293,16 +293,16 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   // first camera of a stereo config.
   const bool single_camera = is_single_camera(sensor);
   if (!single_camera && !loaded.settings.is_stereo())
-    throw ApiError(400, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
+    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
 
   SessionId id = 0;
   {
     std::lock_guard lock(mutex_);
-    if (shut_down_) throw ApiError(503, "shutting_down", "the server is shutting down");
+    if (shut_down_) throw ServiceError(ServiceErrorKind::kUnavailable, "shutting_down", "the server is shutting down");
     std::size_t live = 0;
     for (const auto& [_, s] : sessions_) live += s->state() == SessionState::kActive ? 1 : 0;
     if (live >= options_.max_live_sessions)
-      throw ApiError(503, "too_many_sessions", std::to_string(live) + " sessions are live; the limit is " +
+      throw ServiceError(ServiceErrorKind::kUnavailable, "too_many_sessions", std::to_string(live) + " sessions are live; the limit is " +
                                                    std::to_string(options_.max_live_sessions) + " (finish one first)");
     id = next_session_++;
   }
@@ -322,7 +322,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
     try {
       slam = std::make_unique<MonoLocalizer>(atlas_, loaded.settings, vocabulary_, mono);
     } catch (const std::exception& e) {
-      throw ApiError(400, "bad_config", std::string("cannot start a single-camera session with these settings: ") + e.what());
+      throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", std::string("cannot start a single-camera session with these settings: ") + e.what());
     }
   } else {
     slam = make_stereo_slam(id, info, loaded.settings);
@@ -333,7 +333,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
     std::lock_guard lock(store_mutex_);
     store_->save_session(info);
   } catch (const std::exception& e) {
-    throw ApiError(503, "storage_failed", std::string("cannot store the new session: ") + e.what());
+    throw ServiceError(ServiceErrorKind::kUnavailable, "storage_failed", std::string("cannot store the new session: ") + e.what());
   }
   auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam));
   {
@@ -507,7 +507,7 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     const FrameOutcome out = live->process(t_ns, left, right);
     reply.result = out.result;
     reply.tracking_ms = out.tracking_ms;
-  } catch (const ApiError& e) {
+  } catch (const ServiceError& e) {
     if (e.code() == "session_failed") end_session_storage(id);
     throw;
   } catch (const DataError&) {
@@ -536,7 +536,7 @@ nlohmann::json AtlasService::finish_session(SessionId id, const std::string& end
     const std::vector<MapId> held = end_session_storage(id);
     // The session's last frames and keyframes are on disk before the reply.
     if (!checkpointer_->checkpoint_now())
-      throw ApiError(500, "storage_failed",
+      throw ServiceError(ServiceErrorKind::kFailed, "storage_failed",
                      "session " + std::to_string(id) + " ended but could not be stored yet: " +
                          checkpointer_->stats().last_error + " (the server keeps retrying)");
     live->release_anchors();  // stored: the database answers for its trajectory from now on
@@ -558,7 +558,7 @@ SessionTrajectory AtlasService::trajectory(SessionId id) const {
     // An ended session's frames are in the database (a reader next to the
     // checkpointer's connection; WAL lets both work at once).
     std::lock_guard lock(store_mutex_);
-    if (!store_) throw ApiError(503, "shutting_down", "the server is shutting down");
+    if (!store_) throw ServiceError(ServiceErrorKind::kUnavailable, "shutting_down", "the server is shutting down");
     anchors = store_->load_trajectory(id);
   }
   SessionTrajectory out;
@@ -623,7 +623,7 @@ std::shared_ptr<AtlasService::LocalizerContext> AtlasService::localizer_for(cons
   try {
     context = std::make_shared<LocalizerContext>(loaded.settings);
   } catch (const std::exception& e) {
-    throw ApiError(400, "bad_config", std::string("unusable settings: ") + e.what());
+    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", std::string("unusable settings: ") + e.what());
   }
   if (localizers_.size() >= kMaxLocalizers) localizers_.erase(localizers_.begin());
   localizers_[key] = context;

@@ -3,7 +3,7 @@
 // its database, the vocabulary, the live and stored sessions, map leases, the
 // incremental checkpointer and the localisation service. Every method is
 // thread-safe; the HTTP layer (http_api.h) only parses requests and formats
-// replies. Errors are ApiError (status + code), DataError (bad input: 422) or
+// replies. Errors are ServiceError (status + code), DataError (bad input: 422) or
 // Error (500).
 #include <atomic>
 #include <condition_variable>
@@ -116,19 +116,19 @@ class AtlasService {
   AtlasService& operator=(const AtlasService&) = delete;
 
   SessionId create_session(const SessionRequest& request);
-  // ApiError when the settings cannot be used (uploads check before receiving).
-  // Uploads run stereo sessions: ApiError 400/404 for settings that cannot be
+  // ServiceError when the settings cannot be used (uploads check before receiving).
+  // Uploads run stereo sessions: ServiceError 400/404 for settings that cannot be
   // used, 422 for a single camera (it only localises; stream it instead).
   void check_upload(const SessionRequest& request) const;
-  std::shared_ptr<LiveSession> session(SessionId id) const;  // ApiError 404
+  std::shared_ptr<LiveSession> session(SessionId id) const;  // ServiceError 404
   std::vector<std::shared_ptr<LiveSession>> sessions() const;  // by id
   // GET /v1/sessions/{id}: LiveSession::status with "map" the map the session's
-  // last frame is in now (a merge may have moved it). ApiError 404.
+  // last frame is in now (a merge may have moved it). ServiceError 404.
   nlohmann::json session_status(SessionId id) const;
   FrameReply process_frame(SessionId id, TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
   std::size_t add_imu(SessionId id, const std::vector<ImuSample>& samples);
   // Ends the session and stores it (a durable checkpoint); idempotent for a
-  // finished session, ApiError 409 for a stored one. Returns its status.
+  // finished session, ServiceError 409 for a stored one. Returns its status.
   nlohmann::json finish_session(SessionId id);
   // The same on the server's behalf: `ended_by` is shown in the status.
   nlohmann::json finish_session(SessionId id, const std::string& ended_by);
@@ -136,7 +136,7 @@ class AtlasService {
   SessionTrajectory trajectory(SessionId id) const;
 
   nlohmann::json maps_json() const;
-  nlohmann::json map_json(MapId id) const;  // ApiError 404
+  nlohmann::json map_json(MapId id) const;  // ServiceError 404
   std::string map_points_ply(MapId id) const;
   // GET /v1/merges: the merging worker's queue and the merges done.
   nlohmann::json merges_json() const;
@@ -144,7 +144,7 @@ class AtlasService {
   void wait_for_merges();
 
   LocalizeReply localize(const LocalizeRequest& request);
-  // The image size a localisation with these settings takes (ApiError for
+  // The image size a localisation with these settings takes (ServiceError for
   // unusable settings): requests are checked against it before decoding.
   cv::Size localize_image_size(const SettingsSource& settings);
 

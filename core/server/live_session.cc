@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "core/common/log.h"
-#include "core/server/api_error.h"
+#include "core/server/service_error.h"
 #include "core/slam/slam_stats.h"
 
 namespace orbatlas {
@@ -76,7 +76,7 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
     throw;
   } catch (const std::exception& e) {
     fail(e.what());
-    throw ApiError(500, "session_failed", "session " + std::to_string(info_.id) + " failed: " + e.what());
+    throw ServiceError(ServiceErrorKind::kFailed, "session_failed", "session " + std::to_string(info_.id) + " failed: " + e.what());
   }
   out.tracking_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   worker_errors_.store(slam_->worker_errors());
@@ -130,7 +130,7 @@ bool LiveSession::finish(const std::string& ended_by) {
     state_ = SessionState::kFinished;
   } catch (const std::exception& e) {
     fail(e.what());
-    throw ApiError(500, "session_failed", "session " + std::to_string(info_.id) + " failed while finishing: " + e.what());
+    throw ServiceError(ServiceErrorKind::kFailed, "session_failed", "session " + std::to_string(info_.id) + " failed while finishing: " + e.what());
   }
   return true;
 }

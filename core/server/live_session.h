@@ -43,10 +43,10 @@ class LiveSession {
   const SessionInfo& info() const { return info_; }
   SessionState state() const;
 
-  // One stereo pair, or one image (`right` empty) for a single-camera session. ApiError 409 when the session is not active; DataError for
+  // One stereo pair, or one image (`right` empty) for a single-camera session. ServiceError 409 when the session is not active; DataError for
   // a bad frame (timestamp not after the previous one, wrong size...): the
   // session goes on. Any other failure of tracking or mapping fails the session
-  // (state "failed", ApiError 500 naming the cause); the server goes on.
+  // (state "failed", ServiceError 500 naming the cause); the server goes on.
   FrameOutcome process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
   // A batch of IMU samples, checked (finite, strictly increasing across
   // batches, no gap over `max_gap_s`) and counted; DataError otherwise, and then

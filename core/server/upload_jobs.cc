@@ -7,7 +7,7 @@
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
 #include "core/io/tum_trajectory.h"
-#include "core/server/api_error.h"
+#include "core/server/service_error.h"
 
 namespace orbatlas {
 namespace {
@@ -134,7 +134,7 @@ JobId UploadJobs::submit(const fs::path& folder, SessionRequest request, std::ui
     jobs_.erase(id);
     std::error_code ec;
     fs::remove_all(folder, ec);
-    throw ApiError(503, "busy", "the upload queue is full (" + std::to_string(options_.max_queued) + " jobs); retry later");
+    throw ServiceError(ServiceErrorKind::kUnavailable, "busy", "the upload queue is full (" + std::to_string(options_.max_queued) + " jobs); retry later");
   }
   store_row(job.row);  // the id is taken for good (the worker's first update comes after)
   return id;

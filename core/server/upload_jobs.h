@@ -48,9 +48,9 @@ class UploadJobs {
   // A new, empty folder for an incoming upload (the HTTP layer extracts into it).
   std::filesystem::path new_upload_folder();
   // Queues the extracted upload (the folder is now the job's; it is deleted when
-  // the job ends). ApiError 503 when the queue is full (the folder is deleted).
+  // the job ends). ServiceError 503 when the queue is full (the folder is deleted).
   JobId submit(const std::filesystem::path& folder, SessionRequest request, std::uint64_t archive_bytes);
-  nlohmann::json job_json(JobId id) const;  // ApiError 404
+  nlohmann::json job_json(JobId id) const;  // ServiceError 404
   nlohmann::json jobs_json() const;
   // Jobs not started are dropped; running ones end at their next frame. Idempotent.
   void stop();

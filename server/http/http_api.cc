@@ -1,4 +1,4 @@
-#include "core/server/http_api.h"
+#include "server/http/http_api.h"
 
 #include <charconv>
 #include <chrono>
@@ -15,10 +15,10 @@
 #include "core/common/timestamp.h"
 #include "core/io/settings.h"
 #include "core/io/tum_trajectory.h"
-#include "core/server/api_error.h"
+#include "core/server/service_error.h"
 #include "core/server/atlas_service.h"
-#include "core/server/image_decode.h"
-#include "core/server/pose_json.h"
+#include "server/http/image_decode.h"
+#include "wire/pose_json.h"
 #include "core/server/upload_jobs.h"
 
 // Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
@@ -54,6 +54,27 @@ struct ErrorContext {
   Redactions redactions;
 };
 
+// The HTTP status of each kind of service error (docs/api.md, "Errors").
+int http_status(ServiceErrorKind kind) {
+  switch (kind) {
+    case ServiceErrorKind::kBadRequest:
+      return 400;
+    case ServiceErrorKind::kNotFound:
+      return 404;
+    case ServiceErrorKind::kConflict:
+      return 409;
+    case ServiceErrorKind::kTooLarge:
+      return 413;
+    case ServiceErrorKind::kUnprocessable:
+      return 422;
+    case ServiceErrorKind::kFailed:
+      return 500;
+    case ServiceErrorKind::kUnavailable:
+      return 503;
+  }
+  return 500;
+}
+
 void reply_error(Response& res, int status, const std::string& code, const std::string& message) {
   reply_json(res, {{"error", {{"code", code}, {"message", message}}}}, status);
 }
@@ -67,8 +88,8 @@ void run_guarded(const ErrorContext& context, const Request& req, Response& res,
   };
   try {
     handler();
-  } catch (const ApiError& e) {
-    error(e.status(), e.code(), e.what());
+  } catch (const ServiceError& e) {
+    error(http_status(e.kind()), e.code(), e.what());
   } catch (const DataError& e) {
     error(422, "bad_input", e.what());
   } catch (const json::exception& e) {
@@ -326,7 +347,7 @@ void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jo
     // taken for the next request on this connection: the client closes it.
     res.set_header("Connection", "close");
     run_guarded(context, req, res, [&] {
-      if (!jobs) throw ApiError(503, "unavailable", "this server takes no uploads");
+      if (!jobs) throw ServiceError(ServiceErrorKind::kUnavailable, "unavailable", "this server takes no uploads");
       SessionRequest request;
       request.name = req.get_param_value("name");
       request.settings.config = req.has_param("config") ? req.get_param_value("config") : "euroc/stereo";
@@ -358,7 +379,7 @@ void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jo
       });
       if (too_large) {
         extractor.cancel();
-        throw ApiError(413, "too_large", "uploads are limited to " + std::to_string(max_bytes) + " bytes");
+        throw ServiceError(ServiceErrorKind::kTooLarge, "too_large", "uploads are limited to " + std::to_string(max_bytes) + " bytes");
       }
       if (bytes == 0) {
         extractor.cancel();

@@ -1,4 +1,4 @@
-#include "core/server/image_decode.h"
+#include "server/http/image_decode.h"
 
 #include <cctype>
 #include <cstring>

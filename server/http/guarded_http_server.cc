@@ -1,4 +1,4 @@
-#include "core/server/guarded_http_server.h"
+#include "server/http/guarded_http_server.h"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>

@@ -1,4 +1,4 @@
-#include "core/server/pose_json.h"
+#include "wire/pose_json.h"
 
 #include "core/common/error.h"
 
