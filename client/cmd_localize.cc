@@ -45,8 +45,7 @@ void localize_dataset_on_server(const LocalizeArgs& args) {
   ORBATLAS_CHECK(!dataset.cameras.empty() && !dataset.cameras[0].frames.empty(), args.dataset << " has no cam0 images");
   const std::vector<ImageFrame>& images = dataset.cameras[0].frames;
   ServerClient client(args.server, args.token);
-  const bool is_file = std::filesystem::is_regular_file(args.config);
-  const std::string yaml = is_file ? read_text_file(args.config) : std::string();
+  const SettingsChoice settings = choose_settings(args.config);  // a local file is read once
   Trajectory poses;
   std::vector<std::uint64_t> maps;
   std::vector<double> ms, server_ms;
@@ -56,8 +55,8 @@ void localize_dataset_on_server(const LocalizeArgs& args) {
     if (left.empty()) continue;
     ++asked;
     const auto start = std::chrono::steady_clock::now();
-    const auto reply = client.localize(is_file ? std::string() : args.config, left, cv::Mat(), args.map,
-                                       ImageEncoding::kPng, yaml);
+    const auto reply =
+        client.localize(settings.config, left, cv::Mat(), args.map, ImageEncoding::kPng, settings.settings_yaml);
     ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
     server_ms.push_back(reply.at("ms").get<double>());
     if (!reply.at("recognised").get<bool>()) continue;
@@ -86,9 +85,7 @@ void localize_on_server(const LocalizeArgs& args) {
   }
   ServerClient client(args.server, args.token);
   // A local YAML file travels inline; anything else is a config name the server knows.
-  const bool is_file = std::filesystem::is_regular_file(args.config);
-  const auto reply = client.localize(is_file ? std::string() : args.config, left, right, args.map, ImageEncoding::kPng,
-                                     is_file ? read_text_file(args.config) : std::string());
+  const auto reply = client.localize(args.config, left, right, args.map, ImageEncoding::kPng);
   if (!reply.at("recognised").get<bool>()) {
     std::printf("not recognised: %s (%zu candidates, %.1f ms)\n", reply.value("reason", "").c_str(),
                 reply.value("candidates", std::size_t{0}), reply.value("ms", 0.0));

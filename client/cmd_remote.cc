@@ -81,7 +81,9 @@ void register_stream(CLI::App& app) {
   auto* cmd = app.add_subcommand("stream", "Stream a recorded stereo sequence to a map server as a live session");
   add_server_options(cmd, args->server);
   cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)")->required()->check(CLI::ExistingDirectory);
-  cmd->add_option("--config", args->stream.config, "Config name on the server")->capture_default_str();
+  cmd->add_option("--config", args->stream.config,
+                  "Settings: a config name the server knows, or a settings file here (sent as its text)")
+      ->capture_default_str();
   cmd->add_option("--sensor", args->stream.sensor,
                   "stereo or mono (default: the config's Sensor.type); mono sends the left images and localises in the stored maps");
   cmd->add_option("--name", args->stream.name, "Session name (default: the dataset folder's name)");
@@ -120,7 +122,8 @@ void register_upload(CLI::App& app) {
   auto* cmd = app.add_subcommand("upload", "Upload a recorded EuRoC ASL sequence; the server runs it as a stored session");
   add_server_options(cmd, args->server);
   cmd->add_option("--dataset", args->dataset, "Folder holding mav0/")->required()->check(CLI::ExistingDirectory);
-  cmd->add_option("--config", args->config, "Config name on the server")->capture_default_str();
+  cmd->add_option("--config", args->config, "Config name the server knows (an upload cannot carry a settings file)")
+      ->capture_default_str();
   cmd->add_option("--name", args->name, "Session name");
   cmd->add_flag("!--no-wait", args->wait, "Return once uploaded (do not follow the job)");
   cmd->add_flag("!--no-progress", args->progress, "Do not print progress");

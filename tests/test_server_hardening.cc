@@ -401,5 +401,39 @@ TEST(ServerHardening, HttpDetails) {
   std::filesystem::remove_all(configs);
 }
 
+// --config means the same in every client command: a settings file on this
+// machine is sent as its text, anything else is a name the server knows (before:
+// `orbatlas stream --config config/euroc/stereo.yaml` got 400 from the server).
+TEST(ServerHardening, ConfigIsANameOrALocalSettingsFileInEveryCommand) {
+  const std::filesystem::path file = shipped_config_dir() / "euroc" / "stereo.yaml";
+  const SettingsChoice from_file = choose_settings(file.string());
+  EXPECT_TRUE(from_file.config.empty());
+  EXPECT_NE(from_file.settings_yaml.find("Camera1.fx"), std::string::npos);
+  const SettingsChoice by_name = choose_settings("euroc/stereo");
+  EXPECT_EQ(by_name.config, "euroc/stereo");
+  EXPECT_TRUE(by_name.settings_yaml.empty());
+  EXPECT_THROW(choose_settings("no/such/settings.yaml"), Error);  // a typo is named here, not sent
+
+  test::TempDbPath db("config_choice");
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  const json started = client.start_session(file.string(), "from a file");
+  EXPECT_EQ(started["session"]["sensor"], "stereo") << started.dump();
+  client.finish_session(started["id"].get<std::uint64_t>());
+  const json by_config = client.start_session("euroc/stereo", "by name");
+  EXPECT_EQ(by_config["session"]["sensor"], "stereo") << by_config.dump();
+  client.finish_session(by_config["id"].get<std::uint64_t>());
+  // An upload's body is the recording: a settings file is refused by the client, saying so.
+  const std::filesystem::path recording = db.path.string() + "_recording";
+  std::filesystem::create_directories(recording / "mav0");
+  try {
+    client.upload(recording, file.string());
+    ADD_FAILURE() << "an upload took a settings file";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("config name"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(recording);
+}
+
 }  // namespace
 }  // namespace orbatlas

@@ -3,6 +3,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/archive/tar_writer.h"
+#include "core/common/error.h"
+#include "core/common/text_file.h"
 
 // Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
 #include <httplib.h>
@@ -94,8 +96,21 @@ json ServerClient::post_json(const std::string& path, const json& body) {
   return json::parse(checked(client_->Post(path, body.dump(), "application/json"), url_, path).body);
 }
 
+SettingsChoice choose_settings(const std::string& config) {
+  std::error_code ec;
+  if (std::filesystem::is_regular_file(config, ec)) return {"", read_text_file(config)};
+  const std::string ext = std::filesystem::path(config).extension().string();
+  ORBATLAS_CHECK(ext != ".yaml" && ext != ".yml",
+                 "no settings file " << config << " (give an existing file, or a config name the server knows such as "
+                                        "euroc/stereo)");
+  return {config, ""};
+}
+
 json ServerClient::start_session(const std::string& config, const std::string& name, const std::string& sensor) {
-  json body = {{"config", config}};
+  const SettingsChoice settings = choose_settings(config);
+  json body = json::object();
+  if (!settings.config.empty()) body["config"] = settings.config;
+  if (!settings.settings_yaml.empty()) body["settings_yaml"] = settings.settings_yaml;
   if (!name.empty()) body["name"] = name;
   if (!sensor.empty()) body["sensor"] = sensor;
   return post_json("/v1/sessions", body);
@@ -122,9 +137,10 @@ std::string ServerClient::trajectory_tum(std::uint64_t session) {
 
 json ServerClient::localize(const std::string& config, const cv::Mat& left, const cv::Mat& right,
                             std::optional<std::uint64_t> map, ImageEncoding encoding, const std::string& settings_yaml) {
+  const SettingsChoice settings = settings_yaml.empty() ? choose_settings(config) : SettingsChoice{"", settings_yaml};
   httplib::MultipartFormDataItems items;
-  if (!config.empty()) items.push_back({"config", config, "", ""});
-  if (!settings_yaml.empty()) items.push_back({"settings_yaml", settings_yaml, "", ""});
+  if (!settings.config.empty()) items.push_back({"config", settings.config, "", ""});
+  if (!settings.settings_yaml.empty()) items.push_back({"settings_yaml", settings.settings_yaml, "", ""});
   if (map) items.push_back({"map", std::to_string(*map), "", ""});
   add_image(items, right.empty() ? "image" : "left", left, encoding);
   if (!right.empty()) add_image(items, "right", right, encoding);
@@ -136,6 +152,9 @@ std::uint64_t ServerClient::upload(const std::filesystem::path& dataset, const s
                                   const std::string& name,
                                   const std::function<void(std::uint64_t, std::uint64_t)>& progress) {
   ORBATLAS_CHECK(std::filesystem::is_directory(dataset / "mav0"), dataset << " holds no mav0/ folder (EuRoC ASL)");
+  ORBATLAS_CHECK(choose_settings(config).settings_yaml.empty(),
+                 "an upload takes a config name the server knows (such as euroc/stereo), not the settings file "
+                     << config << ": the body of an upload is the recording");
   const std::uint64_t total = directory_tar_size(dataset);
   std::string path = "/v1/uploads?config=" + url_encode(config);
   if (!name.empty()) path += "&name=" + url_encode(name);

@@ -37,6 +37,16 @@ class ServerError : public Error {
 
 enum class ImageEncoding { kRaw, kPng };  // raw: 8-bit pixels as they are (no decoding on the server)
 
+// What `--config` means in every command: a settings file on this machine (an
+// existing file, or a name ending in .yaml / .yml, which must then exist) is sent
+// as its text (`settings_yaml`); anything else is a config name the server knows
+// ("euroc/stereo"). Throws Error for a .yaml path that does not exist.
+struct SettingsChoice {
+  std::string config;         // a name the server knows, or empty
+  std::string settings_yaml;  // the text of a local file, or empty
+};
+SettingsChoice choose_settings(const std::string& config);
+
 class ServerClient {
  public:
   // url: "http://127.0.0.1:8080" (https needs a build with OpenSSL, as Debian's).
@@ -49,8 +59,9 @@ class ServerClient {
   std::string get_text(const std::string& path);
   nlohmann::json post_json(const std::string& path, const nlohmann::json& body);
 
-  // POST /v1/sessions with a config name (and a sensor: empty takes the
-  // config's Sensor.type); returns the reply: {"id", "session": {... "sensor"}}.
+  // POST /v1/sessions with a config name or a local settings file
+  // (choose_settings), and a sensor (empty takes the config's Sensor.type);
+  // returns the reply: {"id", "session": {... "sensor"}}.
   nlohmann::json start_session(const std::string& config, const std::string& name = {},
                                const std::string& sensor = {});
   // The same; returns the session id.
@@ -63,14 +74,15 @@ class ServerClient {
                             ImageEncoding encoding = ImageEncoding::kRaw);
   nlohmann::json finish_session(std::uint64_t session);
   std::string trajectory_tum(std::uint64_t session);
-  // POST /v1/localize: a single image when `right` is empty. The settings are a
-  // config name the server knows, or (config empty) the text of a YAML file.
+  // POST /v1/localize: a single image when `right` is empty. The settings are
+  // `settings_yaml` when given, else `config` as choose_settings reads it.
   nlohmann::json localize(const std::string& config, const cv::Mat& left, const cv::Mat& right = {},
                           std::optional<std::uint64_t> map = std::nullopt, ImageEncoding encoding = ImageEncoding::kPng,
                           const std::string& settings_yaml = {});
 
   // POST /v1/uploads: streams `dataset` (a folder holding mav0/) as a tar; returns
-  // the job id. `progress(bytes_sent, bytes_total)` is called as it goes.
+  // the job id. `config` must be a name the server knows (Error for a local
+  // settings file: an upload's body is the archive). `progress(bytes_sent, bytes_total)` is called as it goes.
   std::uint64_t upload(const std::filesystem::path& dataset, const std::string& config, const std::string& name = {},
                        const std::function<void(std::uint64_t, std::uint64_t)>& progress = {});
 
