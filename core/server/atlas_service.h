@@ -2,9 +2,9 @@
 // The map server's state, without HTTP (docs/server.md): the atlas loaded from
 // its database, the vocabulary, the live and stored sessions, map leases, the
 // incremental checkpointer and the localisation service. Every method is
-// thread-safe; the HTTP layer (http_api.h) only parses requests and formats
-// replies. Errors are ServiceError (status + code), DataError (bad input: 422) or
-// Error (500).
+// thread-safe; the HTTP layer (server/http/http_api.h) only parses requests and
+// formats replies. Errors are ServiceError (a kind and a code, which the HTTP
+// layer maps to a status), DataError (bad input: 422 there) or Error (500).
 #include <atomic>
 #include <condition_variable>
 #include <thread>
