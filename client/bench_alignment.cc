@@ -26,8 +26,9 @@ struct Problem {
 Problem make_problem(std::mt19937& rng, int points) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   Problem pr;
-  pr.truth = Sim3(Eigen::Quaterniond(Eigen::AngleAxisd(2.0 * u(rng), Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized())),
-                  Eigen::Vector3d(u(rng), u(rng), u(rng)) * 5.0, 1.0 + 0.3 * u(rng));
+  pr.truth =
+      Sim3(Eigen::Quaterniond(Eigen::AngleAxisd(2.0 * u(rng), Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized())),
+           Eigen::Vector3d(u(rng), u(rng), u(rng)) * 5.0, 1.0 + 0.3 * u(rng));
   for (int i = 0; i < points; ++i) {
     pr.p2.emplace_back(Eigen::Vector3d(u(rng), u(rng), 3.0 + u(rng)) * 2.0);
     pr.p1.push_back(pr.truth * pr.p2.back());
@@ -84,8 +85,10 @@ void run_alignment_bench(const AlignmentBenchOptions& options) {
       return horn_absolute_orientation(pr.p1, pr.p2, true).value_or(Sim3());
     });
     const Timing umeyama = time_solver(problems, repeats, by_umeyama);
-    out[std::to_string(points) + "_points"] = {{"horn_us", horn.us_per_call},       {"umeyama_us", umeyama.us_per_call},
-                                                {"horn_worst_m", horn.worst_error}, {"umeyama_worst_m", umeyama.worst_error}};
+    out[std::to_string(points) + "_points"] = {{"horn_us", horn.us_per_call},
+                                               {"umeyama_us", umeyama.us_per_call},
+                                               {"horn_worst_m", horn.worst_error},
+                                               {"umeyama_worst_m", umeyama.worst_error}};
   }
   // A degenerate minimal set: three collinear points (the rotation about the line is free).
   Problem line = make_problem(rng, 3);
@@ -95,10 +98,10 @@ void run_alignment_bench(const AlignmentBenchOptions& options) {
   }
   const bool horn_refuses = !horn_absolute_orientation(line.p1, line.p2, true).has_value();
   const Sim3 ume = by_umeyama(line);
-  out["collinear"] = {{"horn_reports_degenerate", horn_refuses},
-                      {"umeyama_answers", ume.q.coeffs().allFinite()},
-                      {"umeyama_rotation_error_deg",
-                       Eigen::AngleAxisd(ume.q * line.truth.q.inverse()).angle() * 180.0 / M_PI}};
+  out["collinear"] = {
+      {"horn_reports_degenerate", horn_refuses},
+      {"umeyama_answers", ume.q.coeffs().allFinite()},
+      {"umeyama_rotation_error_deg", Eigen::AngleAxisd(ume.q * line.truth.q.inverse()).angle() * 180.0 / M_PI}};
   if (options.json) {
     std::printf("%s\n", out.dump().c_str());
     return;
@@ -110,7 +113,8 @@ void run_alignment_bench(const AlignmentBenchOptions& options) {
                 r["umeyama_worst_m"].get<double>());
   }
   std::printf("collinear minimal set: Horn %s; Eigen::umeyama returns a rotation %.1f deg off the truth\n",
-              horn_refuses ? "reports it degenerate" : "answers", out["collinear"]["umeyama_rotation_error_deg"].get<double>());
+              horn_refuses ? "reports it degenerate" : "answers",
+              out["collinear"]["umeyama_rotation_error_deg"].get<double>());
 }
 
 }  // namespace orbatlas::cli

@@ -32,8 +32,7 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 // Builds the synthetic atlas, and later the keyframes tracking adds to it.
 class SyntheticAtlas {
  public:
-  SyntheticAtlas(Atlas& atlas, const AtlasStoreBenchOptions& o)
-      : map_(atlas.create_map()), o_(o), rng_(42) {}
+  SyntheticAtlas(Atlas& atlas, const AtlasStoreBenchOptions& o) : map_(atlas.create_map()), o_(o), rng_(42) {}
 
   // A keyframe 10 cm further along a straight path, with its keypoints.
   void add_keyframe() {
@@ -238,10 +237,11 @@ void run_atlas_store_bench(const AtlasStoreBenchOptions& o) {
     return std::to_string(r.inserted) + " inserted, " + std::to_string(r.updated) + " updated, " +
            std::to_string(r.deleted) + " deleted";
   };
-  std::printf("atlas store benchmark: %d keyframes x %d keypoints (stereo, descriptors), %zu map points,\n"
-              "  %.1f observations per point, %.1f covisibility links per keyframe (database %s)\n",
-              o.keyframes, o.keypoints, points, static_cast<double>(observations) / static_cast<double>(points),
-              static_cast<double>(links) / o.keyframes, db.c_str());
+  std::printf(
+      "atlas store benchmark: %d keyframes x %d keypoints (stereo, descriptors), %zu map points,\n"
+      "  %.1f observations per point, %.1f covisibility links per keyframe (database %s)\n",
+      o.keyframes, o.keypoints, points, static_cast<double>(observations) / static_cast<double>(points),
+      static_cast<double>(links) / o.keyframes, db.c_str());
   std::printf("  %-38s %10.2f s\n", "build in memory", build_s);
   std::printf("  %-38s %10.1f MB   (%.1f MB per 1000 keyframes; features blobs %.1f MB)\n", "database size", size_mb,
               per_1000, blob_mb);

@@ -56,7 +56,8 @@ void run_feature_bench(const FeatureBenchOptions& o) {
 
   // Timed frames, spread over the dataset; the database gets up to N keyframes.
   const std::size_t n_time = std::min<std::size_t>(frames.size(), static_cast<std::size_t>(std::max(1, o.frames)));
-  const std::size_t n_db = std::min<std::size_t>(frames.size(), static_cast<std::size_t>(std::max(1, o.database_keyframes)));
+  const std::size_t n_db =
+      std::min<std::size_t>(frames.size(), static_cast<std::size_t>(std::max(1, o.database_keyframes)));
   std::vector<double> extract_ms, stereo_ms, rectify_ms, bow_ms, query_ms;
   std::vector<BowVector> bows;
   std::size_t features_total = 0, stereo_total = 0, corners_total = 0;
@@ -83,8 +84,9 @@ void run_feature_bench(const FeatureBenchOptions& o) {
     if (timed) {
       const ImageFeatures fr = right_extractor.extract(right_rect);
       t0 = Clock::now();
-      const StereoDepths depths = match_stereo_rectified(fl, left_extractor.pyramid(), fr, right_extractor.pyramid(),
-                                                         left_extractor.scale_factors(), rectifier.bf(), rectifier.baseline());
+      const StereoDepths depths =
+          match_stereo_rectified(fl, left_extractor.pyramid(), fr, right_extractor.pyramid(),
+                                 left_extractor.scale_factors(), rectifier.bf(), rectifier.baseline());
       stereo_ms.push_back(ms_since(t0));
       rectify_ms.push_back(t_rect);
       extract_ms.push_back(t_extract);
@@ -137,8 +139,9 @@ void run_feature_bench(const FeatureBenchOptions& o) {
     return;
   }
   std::printf("feature benchmark on %s (%zu stereo frames timed, one thread)\n", o.dataset.c_str(), extract_ms.size());
-  std::printf("  texture          %.0f FAST corners per frame (threshold %d, level 0), grey mean %.0f, contrast (std) %.0f\n",
-              static_cast<double>(corners_total) / n, settings.orb.ini_th_fast, mean_total / n, contrast_total / n);
+  std::printf(
+      "  texture          %.0f FAST corners per frame (threshold %d, level 0), grey mean %.0f, contrast (std) %.0f\n",
+      static_cast<double>(corners_total) / n, settings.orb.ini_th_fast, mean_total / n, contrast_total / n);
   std::printf("  ORB extraction   p50 %.2f ms  p95 %.2f ms  (%.0f features per frame)\n", percentile(extract_ms, 0.5),
               percentile(extract_ms, 0.95), static_cast<double>(features_total) / n);
   std::printf("  rectification    p50 %.2f ms per pair\n", percentile(rectify_ms, 0.5));

@@ -4,9 +4,9 @@
 // over --map; every --every-th frame of --queries that revisits a mapped place
 // (its camera within --revisit-m (0.75 m) and --revisit-deg (20 deg) of a
 // keyframe's, by the ground truth) is a query. Place recognition: a keyframe
-// within twice that distance and 15 deg more among the bag-of-words top 3. Relocalisation: the relocaliser's pose within 10 cm and
-// 2 deg of the ground truth in the map's frame (a pose farther off is a false
-// relocalisation). No query image built the map.
+// within twice that distance and 15 deg more among the bag-of-words top 3. Relocalisation: the relocaliser's pose
+// within 10 cm and 2 deg of the ground truth in the map's frame (a pose farther off is a false relocalisation). No
+// query image built the map.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -150,12 +150,14 @@ void run_place_bench(const PlaceBenchOptions& o) {
   }
   std::printf("place benchmark: map %s (%zu keyframes), queries %s\n", o.map.c_str(), keyframes.size(),
               o.queries.c_str());
-  std::printf("  %zu query frames, %zu revisit a mapped place (within %.2f m / %.0f deg of a keyframe; none of them "
-              "built the map)\n", frames_seen, queries, o.revisit_m, o.revisit_deg);
+  std::printf(
+      "  %zu query frames, %zu revisit a mapped place (within %.2f m / %.0f deg of a keyframe; none of them "
+      "built the map)\n",
+      frames_seen, queries, o.revisit_m, o.revisit_deg);
   std::printf("  place recognition: true place in the top 3 for %zu (%.1f%%)\n", recognised, 100.0 * recognised / n);
   std::printf("  relocalisation: %zu within 10 cm / 2 deg (%.1f%%), %zu false; error p50 %.3f m / %.2f deg\n",
-              relocalised, 100.0 * relocalised / n, false_relocalisations, j["relocalisation_error_m_p50"].get<double>(),
-              j["relocalisation_error_deg_p50"].get<double>());
+              relocalised, 100.0 * relocalised / n, false_relocalisations,
+              j["relocalisation_error_m_p50"].get<double>(), j["relocalisation_error_deg_p50"].get<double>());
 }
 
 }  // namespace orbatlas::cli

@@ -48,14 +48,21 @@ void run_render_bench(const RenderBenchOptions& o) {
   double mean = 0;
   for (const double m : ms) mean += m / static_cast<double>(ms.size());
   if (o.json) {
-    nlohmann::json j = {{"benchmark", "render"}, {"sequence", seq.name}, {"images", ms.size()},
-                        {"width", camera->width()}, {"height", camera->height()}, {"render_ms_p50", percentile(ms, 0.5)},
-                        {"render_ms_p95", percentile(ms, 0.95)}, {"render_ms_mean", mean}, {"world_build_s", world_s},
-                        {"world_quads", world.quads().size()}, {"world_texels", world.texel_count()}};
+    nlohmann::json j = {{"benchmark", "render"},
+                        {"sequence", seq.name},
+                        {"images", ms.size()},
+                        {"width", camera->width()},
+                        {"height", camera->height()},
+                        {"render_ms_p50", percentile(ms, 0.5)},
+                        {"render_ms_p95", percentile(ms, 0.95)},
+                        {"render_ms_mean", mean},
+                        {"world_build_s", world_s},
+                        {"world_quads", world.quads().size()},
+                        {"world_texels", world.texel_count()}};
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("render benchmark: %zu images of %dx%d along %s, one thread\n", ms.size(), camera->width(), camera->height(),
-                seq.name.c_str());
+    std::printf("render benchmark: %zu images of %dx%d along %s, one thread\n", ms.size(), camera->width(),
+                camera->height(), seq.name.c_str());
     std::printf("  ms per image: p50 %.2f  p95 %.2f  mean %.2f\n", percentile(ms, 0.5), percentile(ms, 0.95), mean);
     std::printf("  world: %zu quads, %.1f M texels, built in %.2f s\n", world.quads().size(),
                 static_cast<double>(world.texel_count()) * 1e-6, world_s);

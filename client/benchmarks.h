@@ -25,8 +25,8 @@ void run_feature_bench(const FeatureBenchOptions& options);
 
 struct AtlasStoreBenchOptions {
   int keyframes = 1000;
-  int keypoints = 1200;            // per keyframe (EuRoC stereo settings)
-  int points_per_keyframe = 60;    // new map points per keyframe, each seen by ~5 keyframes
+  int keypoints = 1200;              // per keyframe (EuRoC stereo settings)
+  int points_per_keyframe = 60;      // new map points per keyframe, each seen by ~5 keyframes
   std::filesystem::path vocabulary;  // default: the shipped vocabulary (loading recomputes BoW with it)
   std::filesystem::path database;    // default: a temporary file, removed at the end
   bool json = false;
@@ -40,10 +40,10 @@ struct AlignmentBenchOptions {
 void run_alignment_bench(const AlignmentBenchOptions& options);
 
 struct PlaceBenchOptions {
-  std::filesystem::path map, queries;  // EuRoC ASL stereo datasets with ground truth in one world frame
-  std::filesystem::path config;        // default: config/euroc/stereo.yaml
-  std::filesystem::path vocabulary;    // default: the shipped vocabulary
-  int every = 10;                      // query every n-th frame
+  std::filesystem::path map, queries;           // EuRoC ASL stereo datasets with ground truth in one world frame
+  std::filesystem::path config;                 // default: config/euroc/stereo.yaml
+  std::filesystem::path vocabulary;             // default: the shipped vocabulary
+  int every = 10;                               // query every n-th frame
   double revisit_m = 0.75, revisit_deg = 20.0;  // how close to a keyframe a query must be
   bool json = false;
   bool show_progress = true;

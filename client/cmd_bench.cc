@@ -18,12 +18,16 @@ void register_bench_command(CLI::App& app) {
   r->callback([render]() { run_render_bench(*render); });
 
   auto features = std::make_shared<FeatureBenchOptions>();
-  auto* f = bench->add_subcommand("features", "ORB extraction, stereo matching, BoW transform and database query times");
-  f->add_option("--dataset", features->dataset, "EuRoC ASL stereo dataset (e.g. from orbatlas sim)")->required()->check(CLI::ExistingDirectory);
+  auto* f =
+      bench->add_subcommand("features", "ORB extraction, stereo matching, BoW transform and database query times");
+  f->add_option("--dataset", features->dataset, "EuRoC ASL stereo dataset (e.g. from orbatlas sim)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
   f->add_option("--config", features->config, "Settings (default: config/euroc/stereo.yaml)");
   f->add_option("--vocabulary", features->vocabulary, "Vocabulary file (default: the shipped one)");
   f->add_option("--frames", features->frames, "Stereo frames to time (spread over the dataset)")->capture_default_str();
-  f->add_option("--database-keyframes", features->database_keyframes, "Keyframes in the queried database")->capture_default_str();
+  f->add_option("--database-keyframes", features->database_keyframes, "Keyframes in the queried database")
+      ->capture_default_str();
   f->add_flag("--json", features->json, "Print one JSON object");
   f->callback([features]() { run_feature_bench(*features); });
 
@@ -31,15 +35,19 @@ void register_bench_command(CLI::App& app) {
   auto* s = bench->add_subcommand("atlas-store", "Atlas database size, full save / load and checkpoint times");
   s->add_option("--keyframes", store->keyframes, "Keyframes of the synthetic atlas")->capture_default_str();
   s->add_option("--keypoints", store->keypoints, "ORB keypoints per keyframe")->capture_default_str();
-  s->add_option("--points-per-keyframe", store->points_per_keyframe, "New map points per keyframe")->capture_default_str();
+  s->add_option("--points-per-keyframe", store->points_per_keyframe, "New map points per keyframe")
+      ->capture_default_str();
   s->add_option("--vocabulary", store->vocabulary, "Vocabulary file (default: the shipped one)");
   s->add_option("--database", store->database, "Keep the database at this path (default: a removed temporary file)");
   s->add_flag("--json", store->json, "Print one JSON object");
   s->callback([store]() { run_atlas_store_bench(*store); });
 
   auto alignment = std::make_shared<AlignmentBenchOptions>();
-  auto* a = bench->add_subcommand("alignment", "Horn's absolute orientation against Eigen::umeyama (microseconds, errors)");
-  a->add_option("--problems", alignment->problems, "Random problems per size")->capture_default_str()->check(CLI::Range(1, 1000000));
+  auto* a =
+      bench->add_subcommand("alignment", "Horn's absolute orientation against Eigen::umeyama (microseconds, errors)");
+  a->add_option("--problems", alignment->problems, "Random problems per size")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000000));
   a->add_flag("--json", alignment->json, "Print one JSON object");
   a->callback([alignment]() { run_alignment_bench(*alignment); });
 
@@ -49,7 +57,8 @@ void register_bench_command(CLI::App& app) {
   p->add_option("--map", place->map, "EuRoC ASL stereo dataset the map is built from (stereo SLAM)")
       ->required()
       ->check(CLI::ExistingDirectory);
-  p->add_option("--queries", place->queries, "EuRoC ASL stereo dataset whose frames are queried (ground truth in the same world)")
+  p->add_option("--queries", place->queries,
+                "EuRoC ASL stereo dataset whose frames are queried (ground truth in the same world)")
       ->required()
       ->check(CLI::ExistingDirectory);
   p->add_option("--config", place->config, "Settings (default: config/euroc/stereo.yaml)");

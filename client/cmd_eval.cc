@@ -19,7 +19,7 @@ namespace orbatlas::cli {
 namespace {
 
 struct EvalArgs {
-  std::vector<std::string> gt;   // several: sessions in one world frame, joined
+  std::vector<std::string> gt;  // several: sessions in one world frame, joined
   std::vector<std::string> est;
   std::string align = "se3";
   double max_gap_s = 0.1;
@@ -28,20 +28,13 @@ struct EvalArgs {
 };
 
 nlohmann::ordered_json to_json(const EvalResult& r) {
-  return {{"ate_rmse_m", r.ate.rmse},
-          {"ate_mean_m", r.ate.mean},
-          {"ate_median_m", r.ate.median},
-          {"ate_max_m", r.ate.max},
-          {"rpe_trans_m", r.rpe.trans_rmse_m},
-          {"rpe_rot_deg", r.rpe.rot_rmse_deg},
-          {"rpe_pairs", r.rpe.pairs},
-          {"scale", r.alignment.scale},
-          {"align", align_mode_name(r.align)},
-          {"matched", r.matched},
-          {"est_poses", r.est_poses},
-          {"gt_poses", r.gt_poses},
-          {"coverage", r.coverage.fraction},
-          {"covered_s", r.coverage.covered_s},
+  return {{"ate_rmse_m", r.ate.rmse},          {"ate_mean_m", r.ate.mean},
+          {"ate_median_m", r.ate.median},      {"ate_max_m", r.ate.max},
+          {"rpe_trans_m", r.rpe.trans_rmse_m}, {"rpe_rot_deg", r.rpe.rot_rmse_deg},
+          {"rpe_pairs", r.rpe.pairs},          {"scale", r.alignment.scale},
+          {"align", align_mode_name(r.align)}, {"matched", r.matched},
+          {"est_poses", r.est_poses},          {"gt_poses", r.gt_poses},
+          {"coverage", r.coverage.fraction},   {"covered_s", r.coverage.covered_s},
           {"span_s", r.coverage.span_s}};
 }
 
@@ -61,8 +54,8 @@ void print_human(const EvalArgs& args, const EvalResult& r) {
                 "  ATE [m]        rmse %.4f  mean %.4f  median %.4f  max %.4f\n"
                 "  RPE over 1 s   trans %.4f m  rot %.4f deg  (%zu pairs)\n",
                 align_mode_name(r.align), r.alignment.scale, r.matched, r.est_poses, r.gt_poses, r.coverage.fraction,
-                r.coverage.covered_s, r.coverage.span_s, r.ate.rmse,
-                r.ate.mean, r.ate.median, r.ate.max, r.rpe.trans_rmse_m, r.rpe.rot_rmse_deg, r.rpe.pairs);
+                r.coverage.covered_s, r.coverage.span_s, r.ate.rmse, r.ate.mean, r.ate.median, r.ate.max,
+                r.rpe.trans_rmse_m, r.rpe.rot_rmse_deg, r.rpe.pairs);
   std::cout << buf;
 }
 
@@ -77,9 +70,9 @@ void write_plot(const EvalArgs& args, const Trajectory& est, const Trajectory& g
   char title[256];
   std::snprintf(title, sizeof title, "%s   ATE RMSE %.4f m (%s)   %zu poses",
                 (args.est.size() == 1 ? std::filesystem::path(args.est.front()).filename().string()
-                                        : std::to_string(args.est.size()) + " trajectories")
-                    .c_str(), r.ate.rmse, align_mode_name(r.align),
-                r.matched);
+                                      : std::to_string(args.est.size()) + " trajectories")
+                    .c_str(),
+                r.ate.rmse, align_mode_name(r.align), r.matched);
   plot.title = title;
   write_trajectory_plot(args.plot, plot);
 }
@@ -143,14 +136,15 @@ void register_eval_command(CLI::App& app) {
                   "(and --est) for several sessions in one world frame: they are joined in time order and aligned "
                   "with ONE transform")
       ->required();
-  cmd->add_option("--est", args->est, "Estimated trajectory: TUM (seconds or ORB-SLAM3 nanoseconds), or an ASL csv or dataset folder (repeatable)")
+  cmd->add_option(
+         "--est", args->est,
+         "Estimated trajectory: TUM (seconds or ORB-SLAM3 nanoseconds), or an ASL csv or dataset folder (repeatable)")
       ->required()
       ->check(CLI::ExistingPath);
   cmd->add_option("--align", args->align, "Alignment before ATE: se3 (rigid), sim3 (with scale) or none")
       ->check(CLI::IsMember({"se3", "sim3", "none"}))
       ->capture_default_str();
-  cmd->add_option("--max-gap", args->max_gap_s,
-                  "Largest ground-truth gap [s] to interpolate across when associating")
+  cmd->add_option("--max-gap", args->max_gap_s, "Largest ground-truth gap [s] to interpolate across when associating")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   cmd->add_flag("--json", args->json, "Print the result as one JSON object");

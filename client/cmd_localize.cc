@@ -65,12 +65,16 @@ void localize_dataset_on_server(const LocalizeArgs& args) {
   }
   ORBATLAS_CHECK(asked > 0, "no readable image in " << args.dataset);
   const Percentiles p = percentiles(ms), ps = percentiles(server_ms);
-  std::printf("recognised %zu of %zu images (%.1f%%); POST /v1/localize p50 %.1f / p95 %.1f ms (in the server p50 %.1f / p95 %.1f ms)\n",
-              poses.size(), asked, 100.0 * static_cast<double>(poses.size()) / static_cast<double>(asked), p.p50, p.p95,
-              ps.p50, ps.p95);
+  std::printf(
+      "recognised %zu of %zu images (%.1f%%); POST /v1/localize p50 %.1f / p95 %.1f ms (in the server p50 %.1f / p95 "
+      "%.1f ms)\n",
+      poses.size(), asked, 100.0 * static_cast<double>(poses.size()) / static_cast<double>(asked), p.p50, p.p95, ps.p50,
+      ps.p95);
   if (!args.out_trajectory.empty()) write_tum_trajectory(args.out_trajectory, poses, maps);
   if (!args.stats.empty())
-    write_stats_file(args.stats, {{"asked", asked}, {"recognised", poses.size()}, {"request_ms", to_json_summary(ms)},
+    write_stats_file(args.stats, {{"asked", asked},
+                                  {"recognised", poses.size()},
+                                  {"request_ms", to_json_summary(ms)},
                                   {"server_ms", to_json_summary(server_ms)}});
 }
 
@@ -122,7 +126,8 @@ void register_localize_command(CLI::App& app) {
   cmd->add_option("--start", args->start_s, "Seconds of the sequence to skip")->capture_default_str();
   cmd->add_option("--duration", args->duration_s, "Seconds to run (default: to the end)");
   cmd->add_flag("!--no-progress", args->run.show_progress, "Do not print progress");
-  cmd->add_option("--every", args->every, "With --server and --dataset: localise every N-th frame")->capture_default_str();
+  cmd->add_option("--every", args->every, "With --server and --dataset: localise every N-th frame")
+      ->capture_default_str();
   cmd->callback([args]() {
     if (!args->server.empty() && !args->dataset.empty()) return localize_dataset_on_server(*args);
     if (!args->server.empty()) return localize_on_server(*args);
@@ -143,9 +148,9 @@ void register_localize_command(CLI::App& app) {
     std::map<MapId, std::size_t> per_map;
     for (const MapId m : report.trajectory_maps) ++per_map[m];
     j["localized"] = report.trajectory.size();
-    j["localized_fraction"] =
-        report.stats.frames > 0 ? static_cast<double>(report.trajectory.size()) / static_cast<double>(report.stats.frames)
-                                : 0.0;
+    j["localized_fraction"] = report.stats.frames > 0 ? static_cast<double>(report.trajectory.size()) /
+                                                            static_cast<double>(report.stats.frames)
+                                                      : 0.0;
     if (!args->stats.empty()) write_stats_file(args->stats, j);
     print_run_summary(report);
     std::printf("localised %zu of %zu frames (%.1f%%)", report.trajectory.size(), report.stats.frames,

@@ -67,29 +67,37 @@ void print_stream_summary(const nlohmann::json& j) {
   if (j["frames"].get<std::size_t>() > 0) {
     std::printf("  tracking p50 %.1f / p95 %.1f ms; round trip p50 %.1f / p95 %.1f ms\n", p("tracking_ms", "p50"),
                 p("tracking_ms", "p95"), p("round_trip_ms", "p50"), p("round_trip_ms", "p95"));
-    std::printf("  added by the server (request - tracking) p50 %.2f / p95 %.2f ms; by HTTP and the client p50 %.2f ms\n",
-                p("server_overhead_ms", "p50"), p("server_overhead_ms", "p95"), p("client_overhead_ms", "p50"));
+    std::printf(
+        "  added by the server (request - tracking) p50 %.2f / p95 %.2f ms; by HTTP and the client p50 %.2f ms\n",
+        p("server_overhead_ms", "p50"), p("server_overhead_ms", "p95"), p("client_overhead_ms", "p50"));
   }
   std::string maps;
   for (const auto& m : j["maps"]) maps += (maps.empty() ? "" : ", ") + std::to_string(m.get<std::uint64_t>());
   std::printf("  maps: %s\n", maps.empty() ? "none" : maps.c_str());
-  if (j.contains("ate_rmse_m")) std::printf("  ATE %.4f m (RMSE, SE3-aligned to the ground truth)\n", j["ate_rmse_m"].get<double>());
+  if (j.contains("ate_rmse_m"))
+    std::printf("  ATE %.4f m (RMSE, SE3-aligned to the ground truth)\n", j["ate_rmse_m"].get<double>());
 }
 
 void register_stream(CLI::App& app) {
   auto args = std::make_shared<StreamArgs>();
   auto* cmd = app.add_subcommand("stream", "Stream a recorded stereo sequence to a map server as a live session");
   add_server_options(cmd, args->server);
-  cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
   cmd->add_option("--config", args->stream.config,
                   "Settings: a config name the server knows, or a settings file here (sent as its text)")
       ->capture_default_str();
   cmd->add_option("--sensor", args->stream.sensor,
-                  "stereo or mono (default: the config's Sensor.type); mono sends the left images and localises in the stored maps");
+                  "stereo or mono (default: the config's Sensor.type); mono sends the left images and localises in the "
+                  "stored maps");
   cmd->add_option("--name", args->stream.name, "Session name (default: the dataset folder's name)");
-  cmd->add_option("--rate", args->stream.rate, "1: at the sensor rate, 2: twice as fast, 0: as fast as the server answers")
-      ->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd->add_option("--encoding", args->encoding, "Images as 'raw' 8-bit pixels or 'png'")->capture_default_str()
+  cmd->add_option("--rate", args->stream.rate,
+                  "1: at the sensor rate, 2: twice as fast, 0: as fast as the server answers")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--encoding", args->encoding, "Images as 'raw' 8-bit pixels or 'png'")
+      ->capture_default_str()
       ->check(CLI::IsMember({"raw", "png"}));
   cmd->add_option("--start", args->stream.start_s, "Seconds of the sequence to skip")->capture_default_str();
   cmd->add_option("--duration", args->duration_s, "Seconds to stream (default: to the end)");
@@ -119,7 +127,8 @@ struct UploadArgs {
 
 void register_upload(CLI::App& app) {
   auto args = std::make_shared<UploadArgs>();
-  auto* cmd = app.add_subcommand("upload", "Upload a recorded EuRoC ASL sequence; the server runs it as a stored session");
+  auto* cmd =
+      app.add_subcommand("upload", "Upload a recorded EuRoC ASL sequence; the server runs it as a stored session");
   add_server_options(cmd, args->server);
   cmd->add_option("--dataset", args->dataset, "Folder holding mav0/")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--config", args->config, "Config name the server knows (an upload cannot carry a settings file)")
@@ -155,12 +164,13 @@ void register_upload(CLI::App& app) {
       std::this_thread::sleep_for(std::chrono::milliseconds(500));
     }
     running.finish();
-    if (status["state"] != "done") throw Error("job " + std::to_string(job) + " " + status["state"].get<std::string>() +
-                                               ": " + status.value("error", std::string("(no reason given)")));
-    std::printf("job %llu done: session %llu, %zu of %zu frames tracked, %zu refused",
-                static_cast<unsigned long long>(job), static_cast<unsigned long long>(status["session"].get<std::uint64_t>()),
-                status["tracked"].get<std::size_t>(), status["frames_total"].get<std::size_t>(),
-                status["rejected"].get<std::size_t>());
+    if (status["state"] != "done")
+      throw Error("job " + std::to_string(job) + " " + status["state"].get<std::string>() + ": " +
+                  status.value("error", std::string("(no reason given)")));
+    std::printf(
+        "job %llu done: session %llu, %zu of %zu frames tracked, %zu refused", static_cast<unsigned long long>(job),
+        static_cast<unsigned long long>(status["session"].get<std::uint64_t>()), status["tracked"].get<std::size_t>(),
+        status["frames_total"].get<std::size_t>(), status["rejected"].get<std::size_t>());
     if (status.contains("ate_rmse_m")) std::printf(", ATE %.4f m", status["ate_rmse_m"].get<double>());
     std::printf("\n");
   });
@@ -181,7 +191,8 @@ void register_listing(CLI::App& app, const char* name, const char* help, const c
       return;
     }
     for (const auto& item : reply.at(list_key)) {
-      std::string line = list_key.substr(0, list_key.size() - 1) + " " + std::to_string(item["id"].get<std::uint64_t>());
+      std::string line =
+          list_key.substr(0, list_key.size() - 1) + " " + std::to_string(item["id"].get<std::uint64_t>());
       for (const auto& [k, v] : item.items()) {
         if (k == "id" || v.is_object() || v.is_array()) continue;
         line += "  " + k + "=" + (v.is_string() ? v.get<std::string>() : v.dump());
@@ -195,24 +206,24 @@ void register_listing(CLI::App& app, const char* name, const char* help, const c
 void print_merges(const nlohmann::json& reply) {
   const auto live = reply.value("live_merges", nlohmann::json::array());
   for (const auto& m : live)
-    std::printf("map %llu merged live into map %llu (session %llu still running): keyframe %llu ~ %llu, %d matches "
-                "(%d keyframes agree), %zu keyframes and %zu points moved, %zu points fused, merge %.1f ms\n",
-                m["source_map"].get<unsigned long long>(), m["target_map"].get<unsigned long long>(),
-                m["session"].get<unsigned long long>(), m["keyframe"].get<unsigned long long>(),
-                m["matched_keyframe"].get<unsigned long long>(), m["matches"].get<int>(),
-                m["verified_keyframes"].get<int>(), m["keyframes_moved"].get<std::size_t>(),
-                m["map_points_moved"].get<std::size_t>(), m["points_fused"].get<std::size_t>(),
-                m["merge_ms"].get<double>());
+    std::printf(
+        "map %llu merged live into map %llu (session %llu still running): keyframe %llu ~ %llu, %d matches "
+        "(%d keyframes agree), %zu keyframes and %zu points moved, %zu points fused, merge %.1f ms\n",
+        m["source_map"].get<unsigned long long>(), m["target_map"].get<unsigned long long>(),
+        m["session"].get<unsigned long long>(), m["keyframe"].get<unsigned long long>(),
+        m["matched_keyframe"].get<unsigned long long>(), m["matches"].get<int>(), m["verified_keyframes"].get<int>(),
+        m["keyframes_moved"].get<std::size_t>(), m["map_points_moved"].get<std::size_t>(),
+        m["points_fused"].get<std::size_t>(), m["merge_ms"].get<double>());
   for (const auto& m : reply.at("merges")) {
-    std::printf("map %llu merged into map %llu: keyframe %llu ~ %llu, %d matches (%d keyframes agree), %zu keyframes "
-                "and %zu points moved, %zu points fused; search %.0f ms, merge %.1f ms, global BA %zu keyframes %.2f s%s\n",
-                m["source_map"].get<unsigned long long>(), m["target_map"].get<unsigned long long>(),
-                m["keyframe"].get<unsigned long long>(), m["matched_keyframe"].get<unsigned long long>(),
-                m["matches"].get<int>(), m["verified_keyframes"].get<int>(), m["keyframes_moved"].get<std::size_t>(),
-                m["map_points_moved"].get<std::size_t>(), m["points_fused"].get<std::size_t>(),
-                m["search_ms"].get<double>(), m["merge_ms"].get<double>(),
-                m["global_ba"]["keyframes"].get<std::size_t>(), m["global_ba"]["seconds"].get<double>(),
-                m["global_ba"]["interrupted"].get<bool>() ? " (interrupted)" : "");
+    std::printf(
+        "map %llu merged into map %llu: keyframe %llu ~ %llu, %d matches (%d keyframes agree), %zu keyframes "
+        "and %zu points moved, %zu points fused; search %.0f ms, merge %.1f ms, global BA %zu keyframes %.2f s%s\n",
+        m["source_map"].get<unsigned long long>(), m["target_map"].get<unsigned long long>(),
+        m["keyframe"].get<unsigned long long>(), m["matched_keyframe"].get<unsigned long long>(),
+        m["matches"].get<int>(), m["verified_keyframes"].get<int>(), m["keyframes_moved"].get<std::size_t>(),
+        m["map_points_moved"].get<std::size_t>(), m["points_fused"].get<std::size_t>(), m["search_ms"].get<double>(),
+        m["merge_ms"].get<double>(), m["global_ba"]["keyframes"].get<std::size_t>(),
+        m["global_ba"]["seconds"].get<double>(), m["global_ba"]["interrupted"].get<bool>() ? " (interrupted)" : "");
   }
   if (reply.at("merges").empty() && live.empty()) std::printf("no merges\n");
   for (const auto& r : reply.value("refinements", nlohmann::json::array()))
@@ -227,7 +238,8 @@ void register_merges(CLI::App& app) {
   auto args = std::make_shared<ServerArgs>();
   auto json_out = std::make_shared<bool>(false);
   auto wait_s = std::make_shared<double>(0.0);
-  auto* cmd = app.add_subcommand("merges", "List the map merges of a map server (live ones and the server-wide merging worker's)");
+  auto* cmd = app.add_subcommand(
+      "merges", "List the map merges of a map server (live ones and the server-wide merging worker's)");
   add_server_options(cmd, *args);
   cmd->add_flag("--json", *json_out, "Print the server's JSON reply");
   cmd->add_option("--wait", *wait_s, "First wait up to this many seconds until no map waits for the merging worker")
@@ -238,7 +250,8 @@ void register_merges(CLI::App& app) {
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(*wait_s);
     bool told = false;
     while (reply.value("pending", std::size_t{0}) > 0 && std::chrono::steady_clock::now() < deadline) {
-      if (!told && !*json_out) std::printf("waiting for the merging worker (%zu map(s))...\n", reply["pending"].get<std::size_t>());
+      if (!told && !*json_out)
+        std::printf("waiting for the merging worker (%zu map(s))...\n", reply["pending"].get<std::size_t>());
       told = true;
       std::this_thread::sleep_for(std::chrono::milliseconds(200));
       reply = client.get_json("/v1/merges");
@@ -255,7 +268,8 @@ void register_trajectory(CLI::App& app) {
   auto args = std::make_shared<ServerArgs>();
   auto session = std::make_shared<std::uint64_t>(0);
   auto out = std::make_shared<std::string>();
-  auto* cmd = app.add_subcommand("trajectory", "Download a session's trajectory (TUM; poses as the atlas holds them now)");
+  auto* cmd =
+      app.add_subcommand("trajectory", "Download a session's trajectory (TUM; poses as the atlas holds them now)");
   add_server_options(cmd, *args);
   cmd->add_option("--session", *session, "Session id")->required();
   cmd->add_option("--out", *out, "Write it to this file (default: print it)");

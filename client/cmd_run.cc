@@ -87,7 +87,8 @@ void register_run_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("run", "Stereo SLAM over an EuRoC ASL dataset (real or simulated)");
   cmd->add_option("--config", args->config, "ORB-SLAM3-style settings, e.g. config/euroc/stereo.yaml")->required();
   cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)")->required();
-  cmd->add_option("--out-trajectory", args->out_trajectory, "Trajectory to write (TUM, body frame, seconds)")->required();
+  cmd->add_option("--out-trajectory", args->out_trajectory, "Trajectory to write (TUM, body frame, seconds)")
+      ->required();
   cmd->add_option("--stats", args->stats, "Write run figures as JSON here");
   cmd->add_flag("--realtime", args->run.realtime, "Feed frames at the sensor rate and count late frames");
   cmd->add_option("--vocabulary", args->vocabulary, "Vocabulary file (default: the shipped one)");

@@ -13,8 +13,10 @@ void register_sim_command(CLI::App& app) {
   auto look = std::make_shared<std::string>("clean");
   auto calib_error = std::make_shared<double>(-1.0);
   auto illumination = std::make_shared<double>(-1.0);
-  auto* cmd = app.add_subcommand("sim", "Render an EuRoC ASL dataset (stereo, IMU, ground truth) along a real EuRoC trajectory");
-  cmd->add_option("--sequence", opts->sequence, "MH_01..MH_05 (one shared Machine Hall) or V1_01")->capture_default_str();
+  auto* cmd = app.add_subcommand(
+      "sim", "Render an EuRoC ASL dataset (stereo, IMU, ground truth) along a real EuRoC trajectory");
+  cmd->add_option("--sequence", opts->sequence, "MH_01..MH_05 (one shared Machine Hall) or V1_01")
+      ->capture_default_str();
   cmd->add_option("--out", opts->out_dir, "Output folder (created; must not already hold a dataset)")->required();
   cmd->add_option("--start", opts->start_s, "Seconds to skip from the sequence's first frame")->capture_default_str();
   cmd->add_option("--duration", opts->duration_s, "Seconds to render (default: to the end)");
@@ -30,14 +32,16 @@ void register_sim_command(CLI::App& app) {
       ->check(CLI::IsMember({"clean", "real"}))
       ->capture_default_str();
   cmd->add_option("--calib-error", *calib_error,
-                  "Real look: scale of the difference between the rendering and the written calibration (default 0: none; 1: a good real calibration's error)")
+                  "Real look: scale of the difference between the rendering and the written calibration (default 0: "
+                  "none; 1: a good real calibration's error)")
       ->check(CLI::Range(0.0, 20.0));
   cmd->add_option("--illumination", *illumination,
                   "Real look: scene illumination relative to a well-lit hall (default 1, MH_04/MH_05 0.12)")
       ->check(CLI::Range(0.01, 10.0));
   cmd->add_option("--noise", opts->noise_sigma, "Clean look: image noise sigma in grey levels")->capture_default_str();
   cmd->add_option("--sensor-seed", opts->sensor_seed, "Seed of IMU and image noise (default: from the sequence name)");
-  cmd->add_option("--config", opts->settings, "Rig calibration, ORB-SLAM3-style YAML (default: config/euroc/stereo_inertial.yaml)");
+  cmd->add_option("--config", opts->settings,
+                  "Rig calibration, ORB-SLAM3-style YAML (default: config/euroc/stereo_inertial.yaml)");
   cmd->add_option("--threads", opts->threads, "Render threads (default: all cores)");
   cmd->add_flag("!--no-progress", opts->show_progress, "Do not print progress");
   cmd->callback([opts, imu, look, calib_error, illumination]() {
@@ -58,7 +62,8 @@ void register_sim_command(CLI::App& app) {
     if (opts->look == sim::Look::kReal)
       std::printf("real look: %.2f renders per image (motion blur), mean exposure %.1f ms\n", r.subframes_per_image,
                   r.mean_exposure_ms);
-    if (r.frames_outside_gt > 0) std::printf("skipped %zu camera timestamps outside the ground truth\n", r.frames_outside_gt);
+    if (r.frames_outside_gt > 0)
+      std::printf("skipped %zu camera timestamps outside the ground truth\n", r.frames_outside_gt);
   });
 }
 

@@ -48,7 +48,8 @@ struct VocabInfoOptions {
 
 bool is_image_file(const fs::path& p) {
   std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return ext == ".png" || ext == ".jpg" || ext == ".jpeg";
 }
 
@@ -76,8 +77,8 @@ std::vector<fs::path> images_of(const fs::path& dir, int max_images) {
   } else {
     images = images_directly_in(dir);
   }
-  ORBATLAS_CHECK(!images.empty(), "--images: no png/jpg/jpeg images in " << dir.string()
-                                                                            << " (nor in mav0/cam0/data, mav0/cam1/data)");
+  ORBATLAS_CHECK(!images.empty(),
+                 "--images: no png/jpg/jpeg images in " << dir.string() << " (nor in mav0/cam0/data, mav0/cam1/data)");
   if (max_images > 0 && images.size() > static_cast<std::size_t>(max_images)) {
     std::vector<fs::path> picked;
     const auto n = static_cast<std::size_t>(max_images);
@@ -94,7 +95,8 @@ struct Extraction {
 };
 
 // ORB descriptors of every image, one extractor per thread.
-Extraction extract_all(const std::vector<fs::path>& images, const OrbExtractorOptions& eo, int threads, bool show_progress) {
+Extraction extract_all(const std::vector<fs::path>& images, const OrbExtractorOptions& eo, int threads,
+                       bool show_progress) {
   std::vector<std::vector<Descriptor>> per_image(images.size());
   std::vector<char> readable(images.size(), 0);
   std::atomic<std::size_t> next{0};
@@ -169,13 +171,15 @@ void run_vocab_train(const VocabTrainOptions& o) {
   constexpr std::size_t kListed = 20;
   for (std::size_t i = 0; i < ex.unreadable.size() && i < kListed; ++i)
     log_warn("skipped unreadable image " + ex.unreadable[i].string());
-  if (ex.unreadable.size() > kListed) log_warn("... and " + std::to_string(ex.unreadable.size() - kListed) + " more unreadable images");
+  if (ex.unreadable.size() > kListed)
+    log_warn("... and " + std::to_string(ex.unreadable.size() - kListed) + " more unreadable images");
   ORBATLAS_CHECK(ex.total_descriptors > 0, "no ORB features in the " << ex.descriptors.size() << " readable images");
 
   std::unique_ptr<Progress> bar;
   std::size_t reported = 0;
   to.progress = [&](std::size_t done, std::size_t total) {
-    if (!bar) bar = std::make_unique<Progress>("training vocabulary", static_cast<std::int64_t>(total), o.show_progress);
+    if (!bar)
+      bar = std::make_unique<Progress>("training vocabulary", static_cast<std::int64_t>(total), o.show_progress);
     bar->advance(static_cast<std::int64_t>(done - reported));
     reported = done;
   };
@@ -189,8 +193,8 @@ void run_vocab_train(const VocabTrainOptions& o) {
   const VocabularyInfo& info = vocabulary.info();
   std::printf("trained on %zu images (%zu ORB descriptors, %zu unreadable images skipped)\n", ex.descriptors.size(),
               ex.total_descriptors, ex.unreadable.size());
-  std::printf("vocabulary: k %d, %d levels: %zu words, %zu nodes, hash %s\n", info.k, info.levels, info.words, info.nodes,
-              info.hash.c_str());
+  std::printf("vocabulary: k %d, %d levels: %zu words, %zu nodes, hash %s\n", info.k, info.levels, info.words,
+              info.nodes, info.hash.c_str());
   std::printf("extraction %.1f s, training %.1f s (%.2f M descriptors/s over %d levels)\n", extract_s, train_s,
               static_cast<double>(ex.total_descriptors) * 1e-6 / std::max(train_s, 1e-9), info.levels);
   std::printf("wrote %s (%.1f MB)\n", o.out.string().c_str(), static_cast<double>(fs::file_size(o.out)) * 1e-6);
@@ -244,7 +248,8 @@ void register_vocab_command(CLI::App& app) {
   t->add_option("--k", train->k, "Branching factor")->capture_default_str();
   t->add_option("--levels", train->levels, "Depth of the tree (words are at most k^levels)")->capture_default_str();
   t->add_option("--iterations", train->iterations, "k-medians iterations per node (at most)")->capture_default_str();
-  t->add_option("--max-images-per-dir", train->max_images_per_dir, "Use at most N images of each folder, evenly spread (0: all)")
+  t->add_option("--max-images-per-dir", train->max_images_per_dir,
+                "Use at most N images of each folder, evenly spread (0: all)")
       ->capture_default_str();
   t->add_option("--features", train->features, "ORB features per image")->capture_default_str();
   t->add_option("--seed", train->seed, "Seed of the k-means++ seeding (same seed and images, same vocabulary)")

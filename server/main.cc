@@ -58,18 +58,21 @@ int main(int argc, char** argv) {
   app.add_option("--listen", listen_text, "HOST:PORT to listen on (port 0: any free port)")->capture_default_str();
   app.add_option("--token", token, "Require 'Authorization: Bearer TOKEN' on every route but /healthz");
   app.add_option("--workers", job_options.workers, "Background workers processing uploaded recordings")
-      ->capture_default_str()->check(CLI::Range(1, 64));
+      ->capture_default_str()
+      ->check(CLI::Range(1, 64));
   app.add_option("--max-sessions", service_options.max_live_sessions,
-                 "Live sessions at most (each has its own mapping threads)")->capture_default_str();
+                 "Live sessions at most (each has its own mapping threads)")
+      ->capture_default_str();
   app.add_option("--max-upload-gb", max_upload_gb, "Largest upload")->capture_default_str();
   app.add_option("--threads", threads, "HTTP worker threads")->capture_default_str()->check(CLI::Range(2, 256));
   app.add_option("--max-body-mb", max_body_mb, "Largest request body (frames, localisation)")->capture_default_str();
   app.add_option("--config-dir", service_options.config_dir, "Folder of named configs (default: the shipped ones)");
   app.add_option("--vocabulary", service_options.vocabulary, "ORB vocabulary (default: the shipped one)");
   app.add_option("--checkpoint-keyframes", service_options.checkpoints.every_keyframes,
-                 "Checkpoint after this many new keyframes")->capture_default_str();
-  app.add_option("--checkpoint-seconds", service_options.checkpoints.every_seconds,
-                 "and at least this often")->capture_default_str();
+                 "Checkpoint after this many new keyframes")
+      ->capture_default_str();
+  app.add_option("--checkpoint-seconds", service_options.checkpoints.every_seconds, "and at least this often")
+      ->capture_default_str();
   app.add_option("--port-file", port_file, "Write the port listened on to this file once listening (tests, scripts)");
   app.add_flag("--log-requests", log_requests, "One log line per request");
   app.add_option("--idle-timeout", service_options.idle_timeout_s,
@@ -77,7 +80,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   orbatlas::ConnectionLimits limits;
   app.add_option("--header-timeout", limits.header_timeout_s,
-                 "Seconds a request's line and headers may take once it started")->capture_default_str();
+                 "Seconds a request's line and headers may take once it started")
+      ->capture_default_str();
   app.add_option("--body-timeout", limits.body_timeout_s,
                  "Seconds the body of a request may take (not uploads: each of their reads is bounded)")
       ->capture_default_str();
@@ -85,8 +89,7 @@ int main(int argc, char** argv) {
   app.add_flag("--insecure", insecure, "Allow listening on a non-loopback address without --token");
   bool no_merging = false, no_live_merging = false;
   app.add_flag("--no-merging", no_merging, "Never merge maps (not live, not when a session finishes)");
-  app.add_flag("--no-live-merging", no_live_merging,
-               "Merge a session's maps only when it finishes, not while it runs");
+  app.add_flag("--no-live-merging", no_live_merging, "Merge a session's maps only when it finishes, not while it runs");
   CLI11_PARSE(app, argc, argv);
   service_options.merge_maps = !no_merging;
   service_options.live_merging = !no_live_merging;
@@ -125,8 +128,10 @@ int main(int argc, char** argv) {
     api_options.extra_metrics = [&server] { return server.metrics_text(); };
     orbatlas::install_http_api(server, service, api_options, &jobs);
 
-    const int port = listen.port == 0 ? server.bind_to_any_port(listen.host) : (server.bind_to_port(listen.host, listen.port) ? listen.port : -1);
-    ORBATLAS_CHECK(port > 0, "cannot listen on " << listen.host << ":" << listen.port << " (in use, or not an address of this machine)");
+    const int port = listen.port == 0 ? server.bind_to_any_port(listen.host)
+                                      : (server.bind_to_port(listen.host, listen.port) ? listen.port : -1);
+    ORBATLAS_CHECK(port > 0, "cannot listen on " << listen.host << ":" << listen.port
+                                                 << " (in use, or not an address of this machine)");
     if (!port_file.empty()) {
       std::ofstream out(port_file);
       out << port << "\n";

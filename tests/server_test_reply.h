@@ -27,11 +27,11 @@ inline Reply classify(const httplib::Result& r) {
   }
 }
 
-#define EXPECT_REPLY(result, status_, code_)               \
-  do {                                                     \
+#define EXPECT_REPLY(result, status_, code_)                                \
+  do {                                                                      \
     const ::orbatlas::test::Reply got = ::orbatlas::test::classify(result); \
-    EXPECT_EQ(got.status, status_) << got.code;            \
-    EXPECT_EQ(got.code, code_) << "status " << got.status; \
+    EXPECT_EQ(got.status, status_) << got.code;                             \
+    EXPECT_EQ(got.code, code_) << "status " << got.status;                  \
   } while (0)
 
 inline std::string png_of(const cv::Mat& image) {

@@ -12,9 +12,10 @@
 namespace orbatlas::test {
 
 inline std::filesystem::path simulated_clip(const std::string& sequence, double start_s, double duration_s) {
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("orbatlas_test_slam_" + std::to_string(::getpid()) + "_" + sequence + "_" +
-                    std::to_string(static_cast<int>(start_s * 10)) + "_" + std::to_string(static_cast<int>(duration_s * 10)));
+  const auto dir =
+      std::filesystem::temp_directory_path() /
+      ("orbatlas_test_slam_" + std::to_string(::getpid()) + "_" + sequence + "_" +
+       std::to_string(static_cast<int>(start_s * 10)) + "_" + std::to_string(static_cast<int>(duration_s * 10)));
   if (std::filesystem::exists(dir / "mav0" / "cam1" / "data.csv")) return dir;
   std::filesystem::remove_all(dir);
   sim::SimulationOptions o;

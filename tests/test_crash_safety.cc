@@ -104,7 +104,7 @@ class Writer {
 };
 
 struct Events {
-  int acknowledged = 0;    // last "C k"
+  int acknowledged = 0;         // last "C k"
   bool in_transaction = false;  // the last event was "B k" (no "C k" after it)
   void add(const std::string& line) {
     int k = 0;
@@ -172,10 +172,11 @@ TEST(CrashSafety, KilledCheckpointWriterLeavesTheLastCommittedState) {
   const double seconds = std::chrono::duration<double>(Clock::now() - t_start).count();
   std::string list;
   for (const int k : states) list.append(" ").append(std::to_string(k));
-  std::printf("crash safety: %d kills in %.1f s; %d inside a checkpoint's transaction (after its BEGIN, before "
-              "its acknowledgement), %d writers had finished; state in the file = last acknowledged in %d, one "
-              "more (committed, not yet acknowledged) in %d; states:%s\n",
-              kIterations - exited, seconds, mid_transaction, exited, exact_ack, kIterations - exact_ack, list.c_str());
+  std::printf(
+      "crash safety: %d kills in %.1f s; %d inside a checkpoint's transaction (after its BEGIN, before "
+      "its acknowledgement), %d writers had finished; state in the file = last acknowledged in %d, one "
+      "more (committed, not yet acknowledged) in %d; states:%s\n",
+      kIterations - exited, seconds, mid_transaction, exited, exact_ack, kIterations - exact_ack, list.c_str());
   EXPECT_GT(mid_transaction, 0);  // the test must exercise what it is about
 }
 

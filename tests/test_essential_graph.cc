@@ -65,13 +65,14 @@ PoseGraphEdge exact_edge(const std::vector<Sim3>& truth, std::size_t i, std::siz
 std::vector<PoseGraphEdge> exact_edges(const std::vector<Sim3>& truth, int covisibility_span, int loops) {
   const std::size_t n = truth.size();
   std::vector<PoseGraphEdge> edges;
-  for (std::size_t i = 0; i + 1 < n; ++i) edges.push_back(exact_edge(truth, i + 1, i, PoseGraphEdgeKind::kSpanningTree));
+  for (std::size_t i = 0; i + 1 < n; ++i)
+    edges.push_back(exact_edge(truth, i + 1, i, PoseGraphEdgeKind::kSpanningTree));
   for (int k = 2; k <= covisibility_span; ++k)
     for (std::size_t i = 0; i + static_cast<std::size_t>(k) < n; ++i)
       edges.push_back(exact_edge(truth, i, i + static_cast<std::size_t>(k), PoseGraphEdgeKind::kCovisibility));
   for (int l = 0; l < loops; ++l)
-    edges.push_back(exact_edge(truth, n - 1 - static_cast<std::size_t>(l), static_cast<std::size_t>(l),
-                               PoseGraphEdgeKind::kLoop));
+    edges.push_back(
+        exact_edge(truth, n - 1 - static_cast<std::size_t>(l), static_cast<std::size_t>(l), PoseGraphEdgeKind::kLoop));
   return edges;
 }
 
@@ -113,11 +114,11 @@ void run_loop_case(bool fix_scale) {
 
   const Errors before = errors(to_nodes(initial), truth);
   const Errors after = errors(r.nodes, truth);
-  std::printf("[ info   ] essential graph %s, 50 nodes, %zu edges: worst error %.3g deg %.3g m %.3g log-scale "
-              "-> %.3g deg %.3g m %.3g log-scale, %d iterations, cost %.3g -> %.3g, %.2f ms\n",
-              fix_scale ? "SE3" : "Sim3", edges.size(), before.rotation / kDegree, before.position,
-              before.log_scale, after.rotation / kDegree, after.position, after.log_scale, r.iterations,
-              r.initial_cost, r.final_cost, r.time_ms);
+  std::printf(
+      "[ info   ] essential graph %s, 50 nodes, %zu edges: worst error %.3g deg %.3g m %.3g log-scale "
+      "-> %.3g deg %.3g m %.3g log-scale, %d iterations, cost %.3g -> %.3g, %.2f ms\n",
+      fix_scale ? "SE3" : "Sim3", edges.size(), before.rotation / kDegree, before.position, before.log_scale,
+      after.rotation / kDegree, after.position, after.log_scale, r.iterations, r.initial_cost, r.final_cost, r.time_ms);
   EXPECT_GT(before.position, 0.3);  // the drift is real
   EXPECT_LE(after.rotation, 1e-6);
   EXPECT_LE(after.position, 1e-6);
@@ -154,10 +155,11 @@ TEST(EssentialGraph, SpreadsLoopErrorOverDriftedOdometry) {
   // The loop edge itself is (nearly) satisfied.
   const Sim3 loop = r.nodes[49].S_n_w * r.nodes[0].S_n_w.inverse();
   const Sim3 loop_true = truth[49] * truth[0].inverse();
-  std::printf("[ info   ] drifted odometry + true loop edge: worst error %.3g deg %.3g m -> %.3g deg %.3g m; "
-              "loop edge residual %.3g deg %.3g m\n",
-              before.rotation / kDegree, before.position, after.rotation / kDegree, after.position,
-              sim3_rotation_distance(loop, loop_true) / kDegree, sim3_translation_distance(loop, loop_true));
+  std::printf(
+      "[ info   ] drifted odometry + true loop edge: worst error %.3g deg %.3g m -> %.3g deg %.3g m; "
+      "loop edge residual %.3g deg %.3g m\n",
+      before.rotation / kDegree, before.position, after.rotation / kDegree, after.position,
+      sim3_rotation_distance(loop, loop_true) / kDegree, sim3_translation_distance(loop, loop_true));
   EXPECT_LT(after.position, 0.5 * before.position);
   EXPECT_LT(after.rotation, 0.5 * before.rotation);
   EXPECT_LT(sim3_rotation_distance(loop, loop_true), 0.1 * before.rotation);
@@ -227,10 +229,11 @@ TEST(EssentialGraph, Timing500Nodes2000Edges) {
     const EssentialGraphResult r = optimize_essential_graph(make_nodes(initial, 0), edges, options);
     const Errors before = errors(to_nodes(initial), truth);
     const Errors after = errors(r.nodes, truth);
-    std::printf("[ timing ] essential graph %s, 500 nodes, 2,000 edges: %.1f ms, %d iterations, worst error "
-                "%.3g deg %.3g m %.3g log-scale -> %.3g deg %.3g m %.3g log-scale\n",
-                fix_scale ? "SE3" : "Sim3", r.time_ms, r.iterations, before.rotation / kDegree, before.position,
-                before.log_scale, after.rotation / kDegree, after.position, after.log_scale);
+    std::printf(
+        "[ timing ] essential graph %s, 500 nodes, 2,000 edges: %.1f ms, %d iterations, worst error "
+        "%.3g deg %.3g m %.3g log-scale -> %.3g deg %.3g m %.3g log-scale\n",
+        fix_scale ? "SE3" : "Sim3", r.time_ms, r.iterations, before.rotation / kDegree, before.position,
+        before.log_scale, after.rotation / kDegree, after.position, after.log_scale);
     EXPECT_GT(before.position, 1.0);
     EXPECT_LE(after.position, 1e-6);
     EXPECT_LE(after.rotation, 1e-6);

@@ -33,9 +33,7 @@ Trajectory make_wavy_trajectory() {
   return out;
 }
 
-Pose3 known_transform() {
-  return Pose3(so3_exp(Eigen::Vector3d(0.3, -1.2, 2.0)), Eigen::Vector3d(5.0, -3.0, 0.7));
-}
+Pose3 known_transform() { return Pose3(so3_exp(Eigen::Vector3d(0.3, -1.2, 2.0)), Eigen::Vector3d(5.0, -3.0, 0.7)); }
 
 Trajectory transformed(const Trajectory& in, const Pose3& T) {
   Trajectory out = in;
@@ -225,10 +223,9 @@ TEST(Eval, InterpolatesA200HzGroundTruthAt20HzEstimates) {
 
 TEST(Eval, NearbyGroundTruthSampleIsUsedExactly) {
   Trajectory gt;
-  for (int i = 0; i < 10; ++i) gt.push_back({kT0 + i * 5 * kMs, Pose3(Eigen::Quaterniond::Identity(),
-                                                                         Eigen::Vector3d(i * i, 0, 0))});
-  const Trajectory est = {{kT0 + 5 * kMs + 500, Pose3()}, {kT0 + 10 * kMs - 999, Pose3()},
-                          {kT0 + 12 * kMs, Pose3()}};
+  for (int i = 0; i < 10; ++i)
+    gt.push_back({kT0 + i * 5 * kMs, Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(i * i, 0, 0))});
+  const Trajectory est = {{kT0 + 5 * kMs + 500, Pose3()}, {kT0 + 10 * kMs - 999, Pose3()}, {kT0 + 12 * kMs, Pose3()}};
   const Association a = associate(est, gt);
   ASSERT_EQ(a.pairs.size(), 3u);
   EXPECT_EQ(a.pairs[0].ground_truth.t.x(), 1.0);
@@ -283,10 +280,9 @@ TEST(Eval, OrbSlam3OnRealMh01IsPlausible) {
   const Trajectory est = read_tum_trajectory(dir / "peer_trajectories" / "orbslam3_MH01_monoi_frames.txt.gz");
   const EvalResult se3 = eval(est, gt, AlignMode::kSe3);
   const EvalResult sim3 = eval(est, gt, AlignMode::kSim3);
-  std::cout << "ORB-SLAM3 MH_01 mono-inertial: matched " << se3.matched << "/" << se3.est_poses
-            << ", ATE RMSE se3 " << se3.ate.rmse << " m, sim3 " << sim3.ate.rmse << " m (scale "
-            << sim3.alignment.scale << "), RPE 1 s " << se3.rpe.trans_rmse_m << " m / " << se3.rpe.rot_rmse_deg
-            << " deg\n";
+  std::cout << "ORB-SLAM3 MH_01 mono-inertial: matched " << se3.matched << "/" << se3.est_poses << ", ATE RMSE se3 "
+            << se3.ate.rmse << " m, sim3 " << sim3.ate.rmse << " m (scale " << sim3.alignment.scale << "), RPE 1 s "
+            << se3.rpe.trans_rmse_m << " m / " << se3.rpe.rot_rmse_deg << " deg\n";
   EXPECT_GT(se3.matched, 3500u);
   for (const EvalResult* r : {&se3, &sim3}) {
     EXPECT_GT(r->ate.rmse, 0.01);
@@ -307,7 +303,7 @@ TEST(Eval, CoverageIsTheFractionOfTheSpanTracked) {
 
   Trajectory first_half(gt.begin(), gt.begin() + 201);  // 0 .. 10 s
   const EvalResult half = eval(first_half, gt, AlignMode::kSe3);
-  EXPECT_NEAR(half.ate.rmse, 0.0, 1e-9);  // clean where it tracked...
+  EXPECT_NEAR(half.ate.rmse, 0.0, 1e-9);           // clean where it tracked...
   EXPECT_NEAR(half.coverage.fraction, 0.5, 1e-9);  // ...but only half of the time
 
   Trajectory dropped;  // every third frame missing: still tracking
@@ -320,7 +316,8 @@ TEST(Eval, CoverageIsTheFractionOfTheSpanTracked) {
   EXPECT_NEAR(eval(gap, gt, AlignMode::kSe3).coverage.fraction, 0.75, 1e-9);
 
   // Two sessions' spans: 0..10 s fully, 15..20 s not at all.
-  const std::vector<std::pair<TimestampNs, TimestampNs>> spans = {{gt[0].t_ns, gt[200].t_ns}, {gt[300].t_ns, gt[400].t_ns}};
+  const std::vector<std::pair<TimestampNs, TimestampNs>> spans = {{gt[0].t_ns, gt[200].t_ns},
+                                                                  {gt[300].t_ns, gt[400].t_ns}};
   const Coverage two = trajectory_coverage(first_half, spans);
   EXPECT_NEAR(two.span_s, 15.0, 1e-9);
   EXPECT_NEAR(two.fraction, 10.0 / 15.0, 1e-9);

@@ -132,10 +132,11 @@ TEST(LocalBundleAdjustment, WindowReturnsToTheTruthAndBadObservationsGo) {
 
   const LocalBundleAdjustmentStats stats =
       local_bundle_adjustment(*w->map, w->keyframes.back(), *w->camera, w->bf, window_of_five());
-  std::printf("[lba] %zu window + %zu fixed keyframes, %zu points, %zu observations, %zu removed, %d iterations, "
-              "%.1f ms\n",
-              stats.window_keyframes, stats.fixed_keyframes, stats.points, stats.observations,
-              stats.observations_removed, stats.iterations, stats.time_ms);
+  std::printf(
+      "[lba] %zu window + %zu fixed keyframes, %zu points, %zu observations, %zu removed, %d iterations, "
+      "%.1f ms\n",
+      stats.window_keyframes, stats.fixed_keyframes, stats.points, stats.observations, stats.observations_removed,
+      stats.iterations, stats.time_ms);
   EXPECT_FALSE(stats.stopped);
   EXPECT_EQ(stats.window_keyframes, 5u);
   EXPECT_EQ(stats.fixed_keyframes, 3u);
@@ -188,8 +189,8 @@ TEST(LocalBundleAdjustment, WithoutBorderTheOldestKeyframeIsFixed) {
   EXPECT_EQ(w->keyframes[0]->T_w_b().t, first.t);
   for (std::size_t i = 1; i < w->keyframes.size(); ++i)
     EXPECT_LT(translation_distance(w->keyframes[i]->T_w_b(), w->true_T_w_b[i]), 1e-3) << "keyframe " << i;
-  std::printf("[lba] all 8 keyframes (1 fixed), %zu points, %zu observations: %d iterations, %.1f ms\n",
-              stats.points, stats.observations, stats.iterations, stats.time_ms);
+  std::printf("[lba] all 8 keyframes (1 fixed), %zu points, %zu observations: %d iterations, %.1f ms\n", stats.points,
+              stats.observations, stats.iterations, stats.time_ms);
 }
 
 TEST(LocalBundleAdjustment, StopFlagInterrupts) {
@@ -215,10 +216,11 @@ TEST(LocalBundleAdjustment, Timing) {
     LocalBundleAdjustmentOptions o;
     o.max_covisibles = window - 1;
     const LocalBundleAdjustmentStats s = local_bundle_adjustment(*w->map, w->keyframes.back(), *w->camera, w->bf, o);
-    std::printf("[lba timing] %zu window + %zu fixed keyframes, %zu points, %zu observations (%zu removed): "
-                "%d iterations, %.1f ms\n",
-                s.window_keyframes, s.fixed_keyframes, s.points, s.observations, s.observations_removed,
-                s.iterations, s.time_ms);
+    std::printf(
+        "[lba timing] %zu window + %zu fixed keyframes, %zu points, %zu observations (%zu removed): "
+        "%d iterations, %.1f ms\n",
+        s.window_keyframes, s.fixed_keyframes, s.points, s.observations, s.observations_removed, s.iterations,
+        s.time_ms);
     EXPECT_EQ(s.window_keyframes, window);
     EXPECT_GT(s.iterations, 0);
   }

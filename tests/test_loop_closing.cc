@@ -95,12 +95,13 @@ TEST(LoopClosing, InjectedDriftIsDetectedAndCorrectedOnRevisit) {
   ASSERT_TRUE(stats.loop_closing);
   ASSERT_GE(stats.loop.loops.size(), 1u) << "the revisit was not recognised";
   const ClosedLoop& loop = stats.loop.loops.front();
-  std::printf("loop: keyframe %llu (%.1f s) with %llu (%.1f s), %d matches, correction %.3f m / %.2f deg in %.1f ms "
-              "(essential graph %zu edges, %.1f ms); global BA runs %zu\n",
-              static_cast<unsigned long long>(loop.current), (loop.current_t_ns - t0) * 1e-9,
-              static_cast<unsigned long long>(loop.matched), (loop.matched_t_ns - t0) * 1e-9, loop.matches,
-              loop.correction.correction_m, loop.correction.correction_deg, loop.correction.total_ms,
-              loop.correction.graph_edges, loop.correction.graph_ms, stats.loop.global_adjustments.size());
+  std::printf(
+      "loop: keyframe %llu (%.1f s) with %llu (%.1f s), %d matches, correction %.3f m / %.2f deg in %.1f ms "
+      "(essential graph %zu edges, %.1f ms); global BA runs %zu\n",
+      static_cast<unsigned long long>(loop.current), (loop.current_t_ns - t0) * 1e-9,
+      static_cast<unsigned long long>(loop.matched), (loop.matched_t_ns - t0) * 1e-9, loop.matches,
+      loop.correction.correction_m, loop.correction.correction_deg, loop.correction.total_ms,
+      loop.correction.graph_edges, loop.correction.graph_ms, stats.loop.global_adjustments.size());
   // The loop ties the revisit to the start, and undoes about the injected drift.
   EXPECT_LT(loop.matched_t_ns, t0 + 3'000'000'000);
   EXPECT_GT(loop.correction.correction_m, 0.5 * drift_m);

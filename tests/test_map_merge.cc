@@ -28,7 +28,7 @@ namespace {
 struct Session {
   std::vector<FrameAnchor> anchors;
   Trajectory ground_truth;
-  MapId map = 0;                  // the map its last frame was tracked in
+  MapId map = 0;                     // the map its last frame was tracked in
   std::vector<TrackResult> results;  // per frame
   SlamStats stats;
 };
@@ -66,7 +66,8 @@ double joint_ate(const Atlas& atlas, const std::vector<const Session*>& sessions
     estimates.push_back(std::move(estimate));
     ground_truths.push_back(s->ground_truth);
   }
-  return evaluate_trajectory(join_trajectories(estimates, "estimates"), join_trajectories(ground_truths, "ground truth"))
+  return evaluate_trajectory(join_trajectories(estimates, "estimates"),
+                             join_trajectories(ground_truths, "ground truth"))
       .ate.rmse;
 }
 
@@ -125,11 +126,12 @@ TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {
   EXPECT_GE(match->verified_keyframes, 3);
 
   const MapMergeStats merged = merge_maps(atlas, *match, cam);
-  std::printf("merge after %zu keyframes searched: keyframe %llu ~ %llu, %d matches; %zu keyframes and %zu points "
-              "moved, %zu points fused, %zu new links, %.1f ms\n",
-              searched, static_cast<unsigned long long>(match->current->id()),
-              static_cast<unsigned long long>(match->matched->id()), match->matches, merged.keyframes_moved,
-              merged.points_moved, merged.points_merged, merged.new_links, merged.ms);
+  std::printf(
+      "merge after %zu keyframes searched: keyframe %llu ~ %llu, %d matches; %zu keyframes and %zu points "
+      "moved, %zu points fused, %zu new links, %.1f ms\n",
+      searched, static_cast<unsigned long long>(match->current->id()),
+      static_cast<unsigned long long>(match->matched->id()), match->matches, merged.keyframes_moved,
+      merged.points_moved, merged.points_merged, merged.new_links, merged.ms);
   ASSERT_EQ(atlas.maps().size(), 1u);
   EXPECT_EQ(atlas.maps().front()->id(), a.map);
   EXPECT_EQ(atlas.maps().front()->keyframe_count(), keyframes);
@@ -144,11 +146,12 @@ TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {
   const GlobalBundleAdjustmentResult ba = global_bundle_adjustment(map, *cam.camera, cam.bf);
   merge_global_adjustment(map, ba, cam.pyramid);
   const double ate_refined = joint_ate(atlas, {&a, &b});
-  std::printf("joint ATE of both sessions under one alignment: apart %.3f m, merged %.4f m, after global BA %.4f m "
-              "(%zu keyframes)\n",
-              ate_apart, ate_merged, ate_refined, ba.keyframes);
-  EXPECT_GT(ate_apart, 0.1);  // two maps, two frames: one alignment cannot fit both
-  EXPECT_LT(ate_merged, 0.009);  // measured 0.0046 m
+  std::printf(
+      "joint ATE of both sessions under one alignment: apart %.3f m, merged %.4f m, after global BA %.4f m "
+      "(%zu keyframes)\n",
+      ate_apart, ate_merged, ate_refined, ba.keyframes);
+  EXPECT_GT(ate_apart, 0.1);      // two maps, two frames: one alignment cannot fit both
+  EXPECT_LT(ate_merged, 0.009);   // measured 0.0046 m
   EXPECT_LT(ate_refined, 0.008);  // measured 0.0038 m
 }
 
@@ -191,13 +194,14 @@ TEST(MapMerge, ARunningSessionsMapIsMergedLiveAndTrackingFollows) {
   for (const auto& kf : atlas.maps().front()->keyframes()) roots += kf->parent() ? 0 : 1;
   EXPECT_EQ(roots, 1u);
   const double ate = joint_ate(atlas, {&a, &b});
-  std::printf("live merge at %.2f s of the second session (frame %zu of %zu): %d matches, %zu keyframes and %zu "
-              "points moved, %zu points fused, %.1f ms; joint ATE of both sessions under one alignment %.4f m\n",
-              static_cast<double>(merge.current_t_ns - b.results.front().t_ns) * 1e-9,
-              static_cast<std::size_t>(std::count_if(b.results.begin(), b.results.end(),
-                                                     [&](const TrackResult& r) { return r.t_ns <= merge.current_t_ns; })),
-              b.results.size(), merge.matches, merge.merge.keyframes_moved, merge.merge.points_moved,
-              merge.merge.points_merged, merge.merge.ms, ate);
+  std::printf(
+      "live merge at %.2f s of the second session (frame %zu of %zu): %d matches, %zu keyframes and %zu "
+      "points moved, %zu points fused, %.1f ms; joint ATE of both sessions under one alignment %.4f m\n",
+      static_cast<double>(merge.current_t_ns - b.results.front().t_ns) * 1e-9,
+      static_cast<std::size_t>(std::count_if(b.results.begin(), b.results.end(),
+                                             [&](const TrackResult& r) { return r.t_ns <= merge.current_t_ns; })),
+      b.results.size(), merge.matches, merge.merge.keyframes_moved, merge.merge.points_moved, merge.merge.points_merged,
+      merge.merge.ms, ate);
   EXPECT_LT(ate, 0.007);  // measured 0.0033 m
 }
 

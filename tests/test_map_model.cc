@@ -108,7 +108,8 @@ TEST(MapModel, CovisibilityKeepsStrongEdgesOrTheBestOne) {
   auto C = map->new_keyframe(keyframe_data(100));
   auto D = map->new_keyframe(keyframe_data(100));
   std::size_t slot_a = 0, slot_b = 0, slot_c = 0, slot_d = 0;
-  auto share = [&](int n, std::shared_ptr<KeyFrame>& x, std::size_t& sx, std::shared_ptr<KeyFrame>& y, std::size_t& sy) {
+  auto share = [&](int n, std::shared_ptr<KeyFrame>& x, std::size_t& sx, std::shared_ptr<KeyFrame>& y,
+                   std::size_t& sy) {
     for (int i = 0; i < n; ++i) {
       auto mp = map->new_map_point({});
       ASSERT_TRUE(x->add_observation(sx++, mp));
@@ -172,8 +173,10 @@ TEST(MapModel, CovisibilityWeightsEqualSharedPointsOnARandomMap) {
     for (int j = 0; j < n_kf; ++j) {
       if (i == j) continue;
       int shared = 0;
-      for (std::size_t p : seen[static_cast<std::size_t>(i)]) shared += static_cast<int>(seen[static_cast<std::size_t>(j)].count(p));
-      EXPECT_EQ(kfs[static_cast<std::size_t>(i)]->weight(kfs[static_cast<std::size_t>(j)]->id()), shared) << i << " " << j;
+      for (std::size_t p : seen[static_cast<std::size_t>(i)])
+        shared += static_cast<int>(seen[static_cast<std::size_t>(j)].count(p));
+      EXPECT_EQ(kfs[static_cast<std::size_t>(i)]->weight(kfs[static_cast<std::size_t>(j)]->id()), shared)
+          << i << " " << j;
     }
   }
 }

@@ -160,7 +160,8 @@ RandomMap build_random_map(Atlas& atlas, int n_kf, int n_mp, int slots, int obs_
     for (int p = 0; p < obs_per_kf && slot < slots; ++p) {
       const int idx = (p % 10 == 0) ? std::uniform_int_distribution<int>(0, n_mp - 1)(rng) : base + p;
       if (mps[static_cast<std::size_t>(idx)]->slot_in(kf->id())) continue;
-      ORBATLAS_CHECK(kf->add_observation(static_cast<std::size_t>(slot++), mps[static_cast<std::size_t>(idx)]), "add failed");
+      ORBATLAS_CHECK(kf->add_observation(static_cast<std::size_t>(slot++), mps[static_cast<std::size_t>(idx)]),
+                     "add failed");
     }
     kf->update_connections();
     if (!kfs.empty()) {

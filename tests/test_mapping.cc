@@ -93,7 +93,7 @@ Pose3 at(double x, double y, double z) { return Pose3(Eigen::Quaterniond::Identi
 
 TEST(Triangulation, DltRecoversAnExactPoint) {
   const Pose3 T_c1_w = at(0, 0, 0), T_c2_w = Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitY())),
-                                                    Eigen::Vector3d(-0.4, 0.05, 0.1));
+                                                   Eigen::Vector3d(-0.4, 0.05, 0.1));
   const Eigen::Vector3d p(0.7, -0.3, 4.2);
   const Eigen::Vector3d p1 = T_c1_w * p, p2 = T_c2_w * p;
   Eigen::Vector3d out;
@@ -116,7 +116,7 @@ TEST(Triangulation, NewPointsBetweenTwoKeyframesLandOnTheTruePoints) {
     ASSERT_EQ(mp->observation_count(), 2u);
     const std::size_t slot = *mp->slot_in(kf1->id());
     EXPECT_LT((mp->p_w() - s.points[idx1[slot]]).norm(), 2e-5);  // keypoints are float pixels (~1e-5 px)
-    EXPECT_EQ(idx2[*mp->slot_in(kf2->id())], idx1[slot]);  // the same scene point in both
+    EXPECT_EQ(idx2[*mp->slot_in(kf2->id())], idx1[slot]);        // the same scene point in both
     EXPECT_GT(mp->max_distance(), mp->min_distance());
   }
   // A second pass finds nothing new: every matched keypoint now has its point.
@@ -208,7 +208,8 @@ TEST(ProjectionSearch, ProjectedPointsFindTheirKeypoints) {
     kf->add_observation(slot, mp);
     update_map_point(*mp, ScalePyramid{});
   }
-  const Pose3 T_w_c = Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY())), Eigen::Vector3d(0.2, 0, 0.1));
+  const Pose3 T_w_c =
+      Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY())), Eigen::Vector3d(0.2, 0, 0.1));
   Frame frame;
   frame.features = observe(s, T_w_c, &idx_frame);
   frame.grid = FeatureGrid(frame.features);

@@ -129,7 +129,7 @@ TEST(RotationHistogram, KeepsTheThreeMostPopulatedBins) {
   // The second and third bins count only with at least 10% of the first.
   RotationHistogram g;
   for (std::size_t i = 0; i < 100; ++i) g.add(0.0f, i);
-  for (std::size_t i = 100; i < 110; ++i) g.add(60.0f, i);  // 10%: kept
+  for (std::size_t i = 100; i < 110; ++i) g.add(60.0f, i);   // 10%: kept
   for (std::size_t i = 110; i < 119; ++i) g.add(120.0f, i);  // 9%: dropped
   EXPECT_EQ(g.top_bins(), (std::array<int, 3>{0, 5, -1}));
   EXPECT_EQ(g.outliers().size(), 9u);
@@ -268,8 +268,8 @@ TEST_F(RotatedFrame, BruteForceMatchesLandOnTheRotatedPositions) {
 
   const std::vector<FeatureMatch> checked = match_brute_force(a_, b_);
   const double correct = fraction_correct(checked);
-  std::cout << checked.size() << " brute-force matches of " << a_.keypoints.size() << " keypoints, "
-            << 100.0 * correct << "% within 2 px of the rotated position\n";
+  std::cout << checked.size() << " brute-force matches of " << a_.keypoints.size() << " keypoints, " << 100.0 * correct
+            << "% within 2 px of the rotated position\n";
   EXPECT_GT(checked.size(), 300u);
   EXPECT_GT(correct, 0.8);
   EXPECT_GE(fraction_correct(checked), fraction_correct(raw));

@@ -188,7 +188,8 @@ TEST(OrbExtractor, ScalesSigmasAndShares) {
     EXPECT_NEAR(extractor.level_sigma2()[l], std::pow(1.44, static_cast<double>(l)), 1e-12);
     total += extractor.features_per_level()[l];
     if (l > 0 && l < 7) {  // geometric in the area (the last level takes the rounding remainder)
-      const double ratio = static_cast<double>(extractor.features_per_level()[l]) / extractor.features_per_level()[l - 1];
+      const double ratio =
+          static_cast<double>(extractor.features_per_level()[l]) / extractor.features_per_level()[l - 1];
       EXPECT_NEAR(ratio, 1.0 / 1.44, 0.02) << "level " << l;
     }
   }
@@ -271,7 +272,8 @@ TEST(OrbExtractor, OrientationIsTheIntensityCentroid) {
   for (const Keypoint& kp : f.keypoints) {
     const auto scale = static_cast<float>(extractor.scale_factors()[static_cast<std::size_t>(kp.level)]);
     const cv::Mat& level = extractor.pyramid()[static_cast<std::size_t>(kp.level)];
-    const int x = static_cast<int>(std::lround(kp.uv.x() / scale)), y = static_cast<int>(std::lround(kp.uv.y() / scale));
+    const int x = static_cast<int>(std::lround(kp.uv.x() / scale)),
+              y = static_cast<int>(std::lround(kp.uv.y() / scale));
     // The patch of ORB's umax table is exactly the disc u^2 + v^2 <= 234 (radius 15.3).
     double m10 = 0, m01 = 0;
     for (int v = -15; v <= 15; ++v)

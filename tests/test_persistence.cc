@@ -97,9 +97,10 @@ TEST(Persistence, VersionOneAtlasMigratesForward) {
   {
     // Back to what schema 1 held: its tables and rows, user_version 1.
     SqliteDb raw(db.path());
-    raw.exec("PRAGMA foreign_keys = OFF; BEGIN; DROP TABLE upload_jobs; DROP TRIGGER keyframes_not_culled; "
-             "DROP TABLE culled_keyframes; ALTER TABLE atlas DROP COLUMN "
-             "checkpoint_seq; DELETE FROM schema_migrations WHERE version >= 2; PRAGMA user_version = 1; COMMIT");
+    raw.exec(
+        "PRAGMA foreign_keys = OFF; BEGIN; DROP TABLE upload_jobs; DROP TRIGGER keyframes_not_culled; "
+        "DROP TABLE culled_keyframes; ALTER TABLE atlas DROP COLUMN "
+        "checkpoint_seq; DELETE FROM schema_migrations WHERE version >= 2; PRAGMA user_version = 1; COMMIT");
     ASSERT_EQ(raw.query_int64("SELECT count(*) FROM sqlite_schema WHERE name = 'keyframes_not_culled'"), 0);
   }
   AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
@@ -130,7 +131,8 @@ TEST(Persistence, AtlasRoundTripKeepsEveryField) {
   for (const auto& kf : original.maps()[0]->keyframes()) {
     redundant += kf->redundant_map_point_count();
     for (const CovisibilityEdge& edge : kf->connections())
-      if (const auto other = original.maps()[0]->keyframe(edge.keyframe); other && other->weight(kf->id()) != edge.weight)
+      if (const auto other = original.maps()[0]->keyframe(edge.keyframe);
+          other && other->weight(kf->id()) != edge.weight)
         ++asymmetric;
   }
   EXPECT_GT(asymmetric, 0);
@@ -162,7 +164,8 @@ TEST(Persistence, AtlasRoundTripKeepsEveryField) {
   std::mt19937_64 frame_rng(17);
   for (const auto& map : original.maps())
     for (const Map::CulledKeyframe& c : map->culled_keyframes())
-      anchors.push_back({static_cast<TimestampNs>(anchors.size()) * 50'000'000, map->id(), c.id, random_pose(frame_rng)});
+      anchors.push_back(
+          {static_cast<TimestampNs>(anchors.size()) * 50'000'000, map->id(), c.id, random_pose(frame_rng)});
   ASSERT_EQ(anchors.size(), 4u);
   store.save_trajectory(session.id, anchors);
   for (const FrameAnchor& a : store.load_trajectory(session.id)) {
@@ -245,7 +248,7 @@ TEST(Persistence, SavingAgainReplacesTheStoredMaps) {
   points[6]->set_p_w({9, 8, 7});
   points[6]->increase_found(3);
   store.save_atlas(atlas);  // no session options: the stored ones stay
-  int dead_links = 0;  // see expect_keyframe_eq
+  int dead_links = 0;       // see expect_keyframe_eq
   for (const auto& kf : map_a->keyframes())
     for (const CovisibilityEdge& edge : kf->connections()) dead_links += map_a->keyframe(edge.keyframe) ? 0 : 1;
   EXPECT_GT(dead_links, 0);
@@ -284,7 +287,8 @@ CameraCalibration camera(CameraModel model, std::vector<double> distortion, doub
   c.width = 752;
   c.height = 480;
   c.rate_hz = 20.0;
-  c.T_b_c = Pose3(Eigen::Quaterniond(0.7123, -0.0077, 0.0105, 0.7018), Eigen::Vector3d(-0.0216, -0.0647, 0.0098 + shift));
+  c.T_b_c =
+      Pose3(Eigen::Quaterniond(0.7123, -0.0077, 0.0105, 0.7018), Eigen::Vector3d(-0.0216, -0.0647, 0.0098 + shift));
   return c;
 }
 
@@ -560,15 +564,17 @@ TEST(Persistence, SchemaConstraintsHold) {
   raw.exec("INSERT INTO trajectory VALUES (1, 5, 0, 0, 1, 0, 0, 0, 0, 0, 0)");
   EXPECT_THROW(raw.exec("INSERT INTO sessions(id, name, sensor, created_ns) VALUES (2, 's', 'lidar', 0)"), Error);
   EXPECT_THROW(raw.exec("INSERT INTO trajectory VALUES (3, 5, 0, 0, 1, 0, 0, 0, 0, 0, 0)"), Error);  // no session 3
-  raw.exec("INSERT INTO keyframes(id, map_id, timestamp_ns, qw, qx, qy, qz, tx, ty, tz, "
-           "c_qw, c_qx, c_qy, c_qz, c_tx, c_ty, c_tz, slot_count, features) "
-           "VALUES (1, 1, 0, 1, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 4, X'')");
-  raw.exec("INSERT INTO map_points(id, map_id, x, y, z, nx, ny, nz, min_distance, max_distance, descriptor, visible, "
-           "found) VALUES (1, 1, 0, 0, 0, 0, 0, 1, 1, 2, zeroblob(32), 1, 1)");
+  raw.exec(
+      "INSERT INTO keyframes(id, map_id, timestamp_ns, qw, qx, qy, qz, tx, ty, tz, "
+      "c_qw, c_qx, c_qy, c_qz, c_tx, c_ty, c_tz, slot_count, features) "
+      "VALUES (1, 1, 0, 1, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 4, X'')");
+  raw.exec(
+      "INSERT INTO map_points(id, map_id, x, y, z, nx, ny, nz, min_distance, max_distance, descriptor, visible, "
+      "found) VALUES (1, 1, 0, 0, 0, 0, 0, 1, 1, 2, zeroblob(32), 1, 1)");
   EXPECT_THROW(raw.exec("INSERT INTO observations VALUES (1, 4, 1)"), Error);   // slot out of range
   EXPECT_THROW(raw.exec("INSERT INTO observations VALUES (1, -1, 1)"), Error);  // negative slot
   raw.exec("INSERT INTO observations VALUES (1, 3, 1)");
-  EXPECT_THROW(raw.exec("INSERT INTO observations VALUES (1, 2, 1)"), Error);  // point already in slot 3
+  EXPECT_THROW(raw.exec("INSERT INTO observations VALUES (1, 2, 1)"), Error);           // point already in slot 3
   EXPECT_THROW(raw.exec("UPDATE keyframes SET features = 'text, not a blob'"), Error);  // STRICT types
   EXPECT_THROW(raw.exec("UPDATE map_points SET descriptor = zeroblob(31)"), Error);
   // Culled keyframes: never alive at the same time, not their own parent, a unit quaternion.

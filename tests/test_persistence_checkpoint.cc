@@ -161,8 +161,9 @@ TEST(Checkpoint, FailedCheckpointKeepsTheLastGoodStateAndRetries) {
   // Another connection makes every keyframe update fail (as a full disk or an
   // I/O error would, in the middle of the transaction).
   SqliteDb raw(db.path());
-  raw.exec("CREATE TRIGGER injected_failure BEFORE UPDATE ON keyframes "
-           "BEGIN SELECT RAISE(ABORT, 'injected failure'); END");
+  raw.exec(
+      "CREATE TRIGGER injected_failure BEFORE UPDATE ON keyframes "
+      "BEGIN SELECT RAISE(ABORT, 'injected failure'); END");
   Atlas before;
   build_atlas(before, test_vocabulary(), 23);  // the same content, as committed
   const auto kfs = atlas.maps()[0]->keyframes();
@@ -208,8 +209,8 @@ TEST(Checkpoint, SessionTrajectoryAndKeyframeSessions) {
   const auto add_frames = [&](int n) {
     std::lock_guard lock(frames_mutex);
     for (int i = 0; i < n; ++i)
-      frames.push_back({static_cast<TimestampNs>(frames.size()) * 50'000'000, map->id(),
-                        map->keyframes().front()->id(), random_pose(rng)});
+      frames.push_back({static_cast<TimestampNs>(frames.size()) * 50'000'000, map->id(), map->keyframes().front()->id(),
+                        random_pose(rng)});
   };
   add_frames(20);
   ASSERT_TRUE(checkpointer.checkpoint_now());
@@ -248,7 +249,9 @@ TEST(Checkpoint, SessionTrajectoryAndKeyframeSessions) {
   Atlas empty;
   CheckpointSession twice;
   twice.info.id = 6;
-  twice.trajectory = [] { return std::vector<FrameAnchor>{FrameAnchor{7, 0, 0, Pose3()}, FrameAnchor{7, 0, 1, Pose3()}}; };
+  twice.trajectory = [] {
+    return std::vector<FrameAnchor>{FrameAnchor{7, 0, 0, Pose3()}, FrameAnchor{7, 0, 1, Pose3()}};
+  };
   AtlasCheckpointer failing(empty, db.path(), test_vocabulary().hash(), manual_only(), twice);
   EXPECT_FALSE(failing.checkpoint_now());
   EXPECT_NE(failing.stats().last_error.find("two frames at timestamp 7"), std::string::npos)

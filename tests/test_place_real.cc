@@ -31,8 +31,8 @@ std::optional<std::filesystem::path> loop_pairs_dir() {
   return dir;
 }
 
-#define ORBATLAS_REQUIRE_LOOP_PAIRS(var)                                                           \
-  const std::optional<std::filesystem::path> var = loop_pairs_dir();                               \
+#define ORBATLAS_REQUIRE_LOOP_PAIRS(var)                             \
+  const std::optional<std::filesystem::path> var = loop_pairs_dir(); \
   if (!var) GTEST_SKIP() << "real EuRoC images not found (../shared/data/euroc); skipping";
 
 cv::Mat gray(const std::filesystem::path& p) {
@@ -64,7 +64,8 @@ TEST(RealImages, LoopClosurePairsAreRecognisedAmongTheV101Frames) {
   for (const auto& [query, place] : {std::pair{1, 0u}, std::pair{3, 2u}}) {
     const auto results = database.query(bow_of(gray(*dir / ("left_img_" + std::to_string(query) + ".png"))), 3);
     ASSERT_FALSE(results.empty());
-    const bool hit = std::any_of(results.begin(), results.end(), [&](const DatabaseMatch& m) { return m.keyframe == place; });
+    const bool hit =
+        std::any_of(results.begin(), results.end(), [&](const DatabaseMatch& m) { return m.keyframe == place; });
     std::printf("real loop pair: image %d -> best %llu (score %.3f), place %u %s in the top 3 of %zu images\n", query,
                 static_cast<unsigned long long>(results.front().keyframe), results.front().score, place,
                 hit ? "found" : "NOT found", database.size());
@@ -107,7 +108,7 @@ TEST(RealImages, EachPairOfAPlaceRelocalisesAgainstTheOtherConsistently) {
                 ba.inliers, ab.T_w_b.t.norm(), loop.t.norm(), rotation_distance(loop, Pose3()) * 180.0 / M_PI);
     EXPECT_GE(ab.inliers, 50);
     EXPECT_GE(ba.inliers, 50);
-    EXPECT_LT(loop.t.norm(), 0.03);  // measured 0.0144 and 0.0036 m
+    EXPECT_LT(loop.t.norm(), 0.03);                                   // measured 0.0144 and 0.0036 m
     EXPECT_LT(rotation_distance(loop, Pose3()) * 180.0 / M_PI, 0.3);  // measured 0.147 and 0.049 deg
   }
 }

@@ -12,7 +12,8 @@ namespace {
 
 Pose3 random_pose(std::mt19937& rng) {
   std::normal_distribution<double> n(0.0, 1.0);
-  return Pose3(Eigen::Quaterniond(n(rng), n(rng), n(rng), n(rng)).normalized(), Eigen::Vector3d(n(rng), n(rng), n(rng)));
+  return Pose3(Eigen::Quaterniond(n(rng), n(rng), n(rng), n(rng)).normalized(),
+               Eigen::Vector3d(n(rng), n(rng), n(rng)));
 }
 
 TEST(So3, ExpLogRoundTripIncludingSmallAndLargeAngles) {
@@ -64,7 +65,9 @@ TEST(Trajectory, PoseAtUsesExactSamplesInterpolatesAndRespectsGaps) {
 
 }  // namespace
 TEST(Trajectory, JoinOrdersSessionsByTimeAndRefusesOverlap) {
-  const auto at = [](TimestampNs t, double x) { return StampedPose{t, Pose3(Eigen::Quaterniond::Identity(), {x, 0, 0})}; };
+  const auto at = [](TimestampNs t, double x) {
+    return StampedPose{t, Pose3(Eigen::Quaterniond::Identity(), {x, 0, 0})};
+  };
   const Trajectory later = {at(50, 5), at(60, 6)}, earlier = {at(10, 1), at(20, 2)};
   const Trajectory joined = join_trajectories({later, earlier}, "sessions");
   ASSERT_EQ(joined.size(), 4u);

@@ -104,8 +104,8 @@ TEST(PoseOptimizer, ConvergesExactlyFisheyeMono) { expect_exact(*make_camera(tes
 void expect_robust(const Camera& camera, bool stereo) {
   std::mt19937 rng(stereo ? 23 : 19);
   for (int trial = 0; trial < 5; ++trial) {
-    const Scene s = make_scene(
-        camera, {.stereo = stereo, .noise_px = 1.0, .outlier_fraction = 0.2, .max_level = 0}, rng);
+    const Scene s =
+        make_scene(camera, {.stereo = stereo, .noise_px = 1.0, .outlier_fraction = 0.2, .max_level = 0}, rng);
     const PoseOptimizerResult r = optimize_pose(camera, s.input);
     int outliers = 0, flagged = 0, inliers_kept = 0, inliers = 0;
     for (std::size_t i = 0; i < s.is_outlier.size(); ++i) {

@@ -9,10 +9,10 @@
 namespace orbatlas {
 namespace {
 
-#define ORBATLAS_REQUIRE_REAL_EUROC(var)                                                \
-  const std::optional<std::filesystem::path> var = shared_euroc_dir();                  \
-  if (!var || !std::filesystem::is_directory(*var / "V1_01_micro")) {                   \
-    GTEST_SKIP() << "real EuRoC data not found (../shared/data/euroc); skipping";       \
+#define ORBATLAS_REQUIRE_REAL_EUROC(var)                                          \
+  const std::optional<std::filesystem::path> var = shared_euroc_dir();            \
+  if (!var || !std::filesystem::is_directory(*var / "V1_01_micro")) {             \
+    GTEST_SKIP() << "real EuRoC data not found (../shared/data/euroc); skipping"; \
   }
 
 TEST(RealEuroc, ReadsV101Micro) {
@@ -47,8 +47,8 @@ TEST(RealEuroc, ReadsV101Micro) {
   // T_BS of cam0 (re-orthonormalised on reading: agrees to ~1e-9).
   Eigen::Matrix4d t_bs;
   t_bs << 0.0148655429818, -0.999880929698, 0.00414029679422, -0.0216401454975, 0.999557249008, 0.0149672133247,
-      0.025715529948, -0.064676986768, -0.0257744366974, 0.00375618835797, 0.999660727178, 0.00981073058949, 0.0,
-      0.0, 0.0, 1.0;
+      0.025715529948, -0.064676986768, -0.0257744366974, 0.00375618835797, 0.999660727178, 0.00981073058949, 0.0, 0.0,
+      0.0, 1.0;
   EXPECT_LT((c0.T_b_c.matrix() - t_bs).cwiseAbs().maxCoeff(), 1e-8);
   EXPECT_DOUBLE_EQ(d.cameras[1].calibration.fx, 457.587);
   EXPECT_DOUBLE_EQ(d.cameras[1].calibration.T_b_c.t.y(), 0.0453689425024);

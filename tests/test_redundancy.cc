@@ -64,10 +64,10 @@ TEST(Redundancy, HandBuiltCase) {
     EXPECT_EQ(c.redundant, expect_k.redundant);
     EXPECT_EQ(c.map_points, expect_k.map_points);
   }
-  EXPECT_FALSE(is_redundant(count_redundant_scan(*k)));                    // 2 > 0.9 * 4 fails
+  EXPECT_FALSE(is_redundant(count_redundant_scan(*k)));                         // 2 > 0.9 * 4 fails
   EXPECT_TRUE(is_redundant(count_redundant_scan(*k), RedundancyOptions{0.4}));  // 2 > 1.6
-  EXPECT_EQ(o1->redundant_map_point_count(), 2);  // p1, p2
-  EXPECT_EQ(o2->redundant_map_point_count(), 3);  // p0 (k 0, o1 0, o3 2 <= 2), p1, p2
+  EXPECT_EQ(o1->redundant_map_point_count(), 2);                                // p1, p2
+  EXPECT_EQ(o2->redundant_map_point_count(), 3);                                // p0 (k 0, o1 0, o3 2 <= 2), p1, p2
   EXPECT_EQ(o3->redundant_map_point_count(), 2);  // p0, p2; not p1 (seen at level 0, the others at >= 2)
   expect_counts_agree(*map);
 
@@ -175,7 +175,8 @@ TEST(Redundancy, IncrementalEqualsScanAfterConcurrentEdits) {
   workers.emplace_back([&r] {
     long sink = 0;
     for (int round = 0; round < 50; ++round)
-      for (const auto& kf : r.map->keyframes()) sink += count_redundant_scan(*kf).redundant + kf->redundant_map_point_count();
+      for (const auto& kf : r.map->keyframes())
+        sink += count_redundant_scan(*kf).redundant + kf->redundant_map_point_count();
     EXPECT_GE(sink, 0);
   });
   for (auto& w : workers) w.join();
@@ -194,7 +195,8 @@ TEST(Redundancy, BenchmarkCullingDecision) {
   for (int k = 0; k < n_kf; ++k) {
     auto kf = map->new_keyframe(random_keyframe_data(slots, rng));
     const int base = k * (n_mp - obs) / (n_kf - 1);  // a sliding window: ~10 observers per point
-    for (int p = 0; p < obs; ++p) edits += kf->add_observation(static_cast<std::size_t>(p), mps[static_cast<std::size_t>(base + p)]);
+    for (int p = 0; p < obs; ++p)
+      edits += kf->add_observation(static_cast<std::size_t>(p), mps[static_cast<std::size_t>(base + p)]);
   }
   const double build_ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t_build).count();
   const auto kfs = map->keyframes();

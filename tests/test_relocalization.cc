@@ -41,7 +41,8 @@ TEST(PnpRansac, RecoversTheExactPoseDespiteOutliers) {
   EXPECT_LT(rotation_distance(r.T_c_w, T_c_w), 1e-8);
   for (std::size_t i = 0; i < points.size(); ++i) EXPECT_EQ(r.inliers[i] == 1, !is_outlier[i]) << i;
   // Too few correspondences, or pure noise: no pose.
-  EXPECT_FALSE(solve_pnp_ransac({bearings.begin(), bearings.begin() + 3}, {points.begin(), points.begin() + 3}).success);
+  EXPECT_FALSE(
+      solve_pnp_ransac({bearings.begin(), bearings.begin() + 3}, {points.begin(), points.begin() + 3}).success);
   std::vector<Eigen::Vector3d> noise;
   for (std::size_t i = 0; i < points.size(); ++i) noise.push_back(Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized());
   EXPECT_FALSE(solve_pnp_ransac(noise, points).success);
@@ -68,13 +69,15 @@ Pose3 ground_truth_near(const EurocDataset& ds, TimestampNs t) {
 std::size_t map_clip(Atlas& atlas, const Vocabulary& vocabulary, const std::vector<StereoFrame>& frames) {
   StereoSlamOptions o;
   o.synchronous_mapping = true;
-  StereoSlam slam(atlas, read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo),
-                  vocabulary, o);
+  StereoSlam slam(atlas, read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo), vocabulary,
+                  o);
   std::size_t tracked = 0;
   for (const auto& f : frames)
     tracked += slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
                             cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE))
-                       .tracked ? 1 : 0;
+                       .tracked
+                   ? 1
+                   : 0;
   slam.finish();
   return tracked;
 }
@@ -159,8 +162,9 @@ TEST(Relocalization, AFrameSeenFromAnotherAngleIsPlacedThroughTheCandidatesWindo
     const cv::Mat left = cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE);
     const cv::Mat right = cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE);
     Frame single = frontend.make_frame(f.t_ns, left, right);
-    placed_alone += relocalize(single, vocabulary, atlas.keyframe_index(), cam, frontend.calibration().T_b_c, alone)
-                        .success ? 1 : 0;
+    placed_alone +=
+        relocalize(single, vocabulary, atlas.keyframe_index(), cam, frontend.calibration().T_b_c, alone).success ? 1
+                                                                                                                 : 0;
     Frame frame = frontend.make_frame(f.t_ns, left, right);
     const RelocalizationResult r =
         relocalize(frame, vocabulary, atlas.keyframe_index(), cam, frontend.calibration().T_b_c);
@@ -180,8 +184,10 @@ TEST(Relocalization, AFrameSeenFromAnotherAngleIsPlacedThroughTheCandidatesWindo
     EXPECT_LT(dt, 0.1) << "frame at " << f.t_ns;
     EXPECT_LT(dr, 1.0) << "frame at " << f.t_ns;
   }
-  std::printf("placed %d of %d frames (%d through a window; error up to %.3f m / %.2f deg); by single keyframes "
-              "alone %d\n", placed, (tried + 1) / 2, through_window, max_m, max_deg, placed_alone);
+  std::printf(
+      "placed %d of %d frames (%d through a window; error up to %.3f m / %.2f deg); by single keyframes "
+      "alone %d\n",
+      placed, (tried + 1) / 2, through_window, max_m, max_deg, placed_alone);
   EXPECT_GE(placed, (tried + 1) / 2 - 1);
   EXPECT_GT(through_window, 0);
   EXPECT_LT(placed_alone, placed);
@@ -229,8 +235,10 @@ TEST(MonoLocalizer, ASingleCameraIsTrackedInAStoredMapAndChangesNothing) {
     worst_m = std::max(worst_m, translation_distance(r.T_w_b, expected));
     worst_deg = std::max(worst_deg, rotation_distance(r.T_w_b, expected) * 180.0 / M_PI);
   }
-  std::printf("single camera: %zu of %zu frames tracked (first at %zu), worst %.4f m / %.3f deg from the ground truth "
-              "in the map's frame\n", tracked, visit.size(), first, worst_m, worst_deg);
+  std::printf(
+      "single camera: %zu of %zu frames tracked (first at %zu), worst %.4f m / %.3f deg from the ground truth "
+      "in the map's frame\n",
+      tracked, visit.size(), first, worst_m, worst_deg);
   EXPECT_LE(first, 2u);
   EXPECT_GE(tracked + 3, visit.size());
   EXPECT_LT(worst_m, 0.015);   // measured 0.0072 m
@@ -244,10 +252,10 @@ TEST(MonoLocalizer, ASingleCameraIsTrackedInAStoredMapAndChangesNothing) {
   // Frames it cannot take: DataError, and it goes on.
   const cv::Mat left = cv::imread(visit.back().left.string(), cv::IMREAD_GRAYSCALE);
   const TimestampNs next = visit.back().t_ns + kNsPerSecond / 20;
-  EXPECT_THROW(mono.process(next, left, left), DataError);                          // a pair
+  EXPECT_THROW(mono.process(next, left, left), DataError);                                     // a pair
   EXPECT_THROW(mono.process(next, cv::Mat(240, 376, CV_8UC1, cv::Scalar(3)), {}), DataError);  // wrong size
-  EXPECT_THROW(mono.process(visit.front().t_ns, left, {}), DataError);              // back in time
-  EXPECT_THROW(mono.process(next, cv::Mat(), {}), DataError);                       // empty
+  EXPECT_THROW(mono.process(visit.front().t_ns, left, {}), DataError);                         // back in time
+  EXPECT_THROW(mono.process(next, cv::Mat(), {}), DataError);                                  // empty
   EXPECT_TRUE(mono.process(next, left, {}).tracked);
   // A blank image is no place: not tracked, no error.
   EXPECT_FALSE(mono.process(next + kNsPerSecond, cv::Mat(left.rows, left.cols, CV_8UC1, cv::Scalar(128)), {}).tracked);

@@ -96,10 +96,11 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   }
   EXPECT_LT(worst, 0.015);  // measured 0.0010-0.0079 m over 11 runs (concurrent mapping: the worst frame varies)
   EXPECT_NEAR(*streamed.ate_rmse_m, *offline.ate_rmse_m, 0.01);
-  std::printf("offline ATE %.4f m, streamed ATE %.4f m, largest position difference %.4f m, %.1f frames/s, "
-              "tracking p50 %.1f ms, server p50 %.1f ms, round trip p50 %.1f ms\n",
-              *offline.ate_rmse_m, *streamed.ate_rmse_m, worst, streamed.fps(), percentiles(streamed.tracking_ms).p50,
-              percentiles(streamed.server_ms).p50, percentiles(streamed.round_trip_ms).p50);
+  std::printf(
+      "offline ATE %.4f m, streamed ATE %.4f m, largest position difference %.4f m, %.1f frames/s, "
+      "tracking p50 %.1f ms, server p50 %.1f ms, round trip p50 %.1f ms\n",
+      *offline.ate_rmse_m, *streamed.ate_rmse_m, worst, streamed.fps(), percentiles(streamed.tracking_ms).p50,
+      percentiles(streamed.server_ms).p50, percentiles(streamed.round_trip_ms).p50);
 
   // Restart on the same database: the map and the session are still there.
   test::TestServer server(test::server_options(db.path));
@@ -136,7 +137,7 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
                 pair ? "pair" : "single image", (T_w_b.t - expected->t).norm(),
                 rotation_distance(T_w_b, *expected) * 180.0 / M_PI);
     EXPECT_LT((T_w_b.t - expected->t).norm(), 0.01) << (pair ? "stereo pair" : "single image");  // measured 3-4 mm
-    EXPECT_LT(rotation_distance(T_w_b, *expected) * 180.0 / M_PI, 0.1);                            // measured 0.03 deg
+    EXPECT_LT(rotation_distance(T_w_b, *expected) * 180.0 / M_PI, 0.1);                          // measured 0.03 deg
     EXPECT_GE(reply["inliers"].get<int>(), 50);
   }
   // An image of nothing the atlas holds is "not recognised", not an error.
@@ -172,8 +173,8 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
     EXPECT_LT(*report.ate_rmse_m, 0.006);  // measured 0.0008-0.0031 m
     sessions.insert(report.session);
     maps.insert(report.trajectory_maps.begin(), report.trajectory_maps.end());
-    std::printf("session %llu: %zu frames, ATE %.4f m, %.1f frames/s\n", static_cast<unsigned long long>(report.session),
-                report.frames, *report.ate_rmse_m, report.fps());
+    std::printf("session %llu: %zu frames, ATE %.4f m, %.1f frames/s\n",
+                static_cast<unsigned long long>(report.session), report.frames, *report.ate_rmse_m, report.fps());
   }
   EXPECT_EQ(sessions.size(), 3u);
   EXPECT_EQ(maps.size(), 3u);  // each live session works in a map of its own
@@ -279,11 +280,12 @@ TEST(ServerUploads, RecordingBecomesAStoredSessionAndBadArchivesAreRefused) {
   test::TestServer server(test::server_options(db.path));
   ServerClient client(server.url());
   std::uint64_t last_progress = 0, total = 0;
-  const std::uint64_t job = client.upload(clip, "euroc/stereo", "recorded MH_01", [&](std::uint64_t done, std::uint64_t all) {
-    EXPECT_GE(done, last_progress);
-    last_progress = done;
-    total = all;
-  });
+  const std::uint64_t job =
+      client.upload(clip, "euroc/stereo", "recorded MH_01", [&](std::uint64_t done, std::uint64_t all) {
+        EXPECT_GE(done, last_progress);
+        last_progress = done;
+        total = all;
+      });
   EXPECT_EQ(last_progress, total);
   const auto status = wait_for_job(client, job);
   ASSERT_EQ(status["state"], "done") << status.dump();
@@ -303,7 +305,8 @@ TEST(ServerUploads, RecordingBecomesAStoredSessionAndBadArchivesAreRefused) {
 
   // Not a tar: refused while it arrives (it is extracted as it comes), with the
   // reason; no job, and the server and the stored map stay.
-  const auto not_tar = client.http().Post("/v1/uploads?config=euroc/stereo", std::string(3000, 'x'), "application/x-tar");
+  const auto not_tar =
+      client.http().Post("/v1/uploads?config=euroc/stereo", std::string(3000, 'x'), "application/x-tar");
   ASSERT_TRUE(not_tar);
   EXPECT_EQ(not_tar->status, 422) << not_tar->body;
   EXPECT_NE(not_tar->body.find("not a tar"), std::string::npos) << not_tar->body;
@@ -343,7 +346,8 @@ double joint_ate(ServerClient& client, const std::vector<std::uint64_t>& session
     maps->insert(in_maps.begin(), in_maps.end());
     ground_truths.push_back(from_ground_truth_states(test::stereo_dataset(clips[i]).ground_truth));
   }
-  return evaluate_trajectory(join_trajectories(estimates, "estimates"), join_trajectories(ground_truths, "ground truth"))
+  return evaluate_trajectory(join_trajectories(estimates, "estimates"),
+                             join_trajectories(ground_truths, "ground truth"))
       .ate.rmse;
 }
 
@@ -433,9 +437,10 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
     worst = std::max(worst, (before[j].pose.t - again.trajectory[i].pose.t).norm());
     ++compared;
   }
-  std::printf("the clip again, started in the stored map: %zu poses compared, largest difference %.4f m, %zu keyframes "
-              "made\n",
-              compared, worst, again.keyframes);
+  std::printf(
+      "the clip again, started in the stored map: %zu poses compared, largest difference %.4f m, %zu keyframes "
+      "made\n",
+      compared, worst, again.keyframes);
   EXPECT_GE(compared, again.trajectory.size() * 9 / 10);
   EXPECT_LT(worst, 0.026);  // measured 0.0131 m
   // The merging worker searched only the keyframes this session made.
@@ -506,7 +511,6 @@ TEST(ServerMerging, ASessionsMapIsMergedWhileItStreams) {
   std::printf("joint ATE of both sessions after the live merge: %.4f m (after restart %.4f m)\n", ate_live,
               ate_restarted);
 }
-
 
 // Local mapping adjusts every keyframe of the map it works in with its own
 // session's camera, so a stereo session only enters (relocalises into, starts

@@ -72,13 +72,15 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
   EXPECT_REPLY(http.Post("/v1/sessions/999/frames", frame_form(next_t, left, right)), 404, "not_found");
   EXPECT_REPLY(http.Post(sid + "/frames", "{}", "application/json"), 400, "bad_request");
   EXPECT_REPLY(http.Post(sid + "/frames", frame_form("soon", left, right)), 400, "bad_request");
-  EXPECT_REPLY(http.Post(sid + "/frames", httplib::MultipartFormDataItems{{"t_ns", next_t, "", ""}}), 400, "bad_request");
+  EXPECT_REPLY(http.Post(sid + "/frames", httplib::MultipartFormDataItems{{"t_ns", next_t, "", ""}}), 400,
+               "bad_request");
   // A stereo session given one image.
   EXPECT_REPLY(http.Post(sid + "/frames", httplib::MultipartFormDataItems{{"t_ns", next_t, "", ""},
                                                                           {"left", left, "l.png", "image/png"}}),
                422, "bad_input");
   EXPECT_REPLY(http.Post(sid + "/frames", frame_form(std::to_string(frames[2].t_ns), left, right)), 422, "bad_input");
-  EXPECT_REPLY(http.Post(sid + "/frames", frame_form(next_t, left.substr(0, left.size() / 2), right)), 422, "bad_input");
+  EXPECT_REPLY(http.Post(sid + "/frames", frame_form(next_t, left.substr(0, left.size() / 2), right)), 422,
+               "bad_input");
   EXPECT_REPLY(http.Post(sid + "/frames", frame_form(next_t, "hello", right)), 422, "bad_input");
   const std::string small = png_of(cv::Mat(240, 376, CV_8UC1, cv::Scalar(9)));
   EXPECT_REPLY(http.Post(sid + "/frames", frame_form(next_t, small, small)), 422, "bad_input");
@@ -93,11 +95,12 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
   EXPECT_REPLY(http.Post("/v1/sessions/999/imu", R"({"samples": []})", "application/json"), 404, "not_found");
   EXPECT_REPLY(http.Post(sid + "/imu", "{", "application/json"), 400, "bad_json");
   EXPECT_REPLY(http.Post(sid + "/imu", R"({"samples": [[1, 2, 3]]})", "application/json"), 400, "bad_request");
-  EXPECT_REPLY(http.Post(sid + "/imu", R"({"samples": [[10, 0,0,0, 0,0,9.8], [5, 0,0,0, 0,0,9.8]]})", "application/json"),
-               422, "bad_input");
-  EXPECT_REPLY(http.Post(sid + "/imu", R"({"samples": [[0, 0,0,0, 0,0,9.8], [900000000, 0,0,0, 0,0,9.8]]})",
-                         "application/json"),
-               422, "bad_input");
+  EXPECT_REPLY(
+      http.Post(sid + "/imu", R"({"samples": [[10, 0,0,0, 0,0,9.8], [5, 0,0,0, 0,0,9.8]]})", "application/json"), 422,
+      "bad_input");
+  EXPECT_REPLY(
+      http.Post(sid + "/imu", R"({"samples": [[0, 0,0,0, 0,0,9.8], [900000000, 0,0,0, 0,0,9.8]]})", "application/json"),
+      422, "bad_input");
   // GET /v1/sessions/{id}/trajectory, POST /v1/sessions/{id}/finish
   EXPECT_REPLY(http.Get("/v1/sessions/999/trajectory"), 404, "not_found");
   EXPECT_REPLY(http.Post("/v1/sessions/999/finish", "{}", "application/json"), 404, "not_found");
@@ -114,11 +117,11 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
   EXPECT_REPLY(http.Post("/v1/localize", httplib::MultipartFormDataItems{{"image", left, "l.png", "image/png"}}), 400,
                "bad_request");
   EXPECT_REPLY(http.Post("/v1/localize", httplib::MultipartFormDataItems{{"config", "euroc/stereo", "", ""},
-                                                                          {"image", "garbage", "l.png", "image/png"}}),
+                                                                         {"image", "garbage", "l.png", "image/png"}}),
                422, "bad_input");
   EXPECT_REPLY(http.Post("/v1/localize", httplib::MultipartFormDataItems{{"config", "euroc/stereo", "", ""},
-                                                                          {"map", "77", "", ""},
-                                                                          {"image", left, "l.png", "image/png"}}),
+                                                                         {"map", "77", "", ""},
+                                                                         {"image", left, "l.png", "image/png"}}),
                404, "not_found");
   // No such route; wrong method.
   EXPECT_REPLY(http.Get("/v2/everything"), 404, "not_found");

@@ -83,7 +83,8 @@ TEST(ServerHardening, AFrameNeverReferencesAKeyframeTheCheckpointDidNotStore) {
   SessionInfo info;
   info.id = 1;
   info.name = "dangling";
-  AtlasCheckpointWriter writer(atlas, AtlasStore::open(db.path, "test"), CheckpointSession{info, [&] { return frames; }});
+  AtlasCheckpointWriter writer(atlas, AtlasStore::open(db.path, "test"),
+                               CheckpointSession{info, [&] { return frames; }});
   writer.checkpoint();
   EXPECT_EQ(writer.deferred_frames(), 1u);
   AtlasStore store = AtlasStore::open(db.path, "test");
@@ -211,7 +212,7 @@ TEST(ServerHardening, RequestsAreRefusedBeforeTheWorkTheyWouldCause) {
   ASSERT_TRUE(reply);
   EXPECT_NE(reply->body.find("refused before decoding"), std::string::npos) << reply->body;
   EXPECT_REPLY(http.Post("/v1/localize", httplib::MultipartFormDataItems{{"config", "euroc/stereo", "", ""},
-                                                                          {"image", bomb, "i.png", "image/png"}}),
+                                                                         {"image", bomb, "i.png", "image/png"}}),
                422, "bad_input");
   EXPECT_EQ(encoded_image_size(bomb), cv::Size(16384, 16384));
 
@@ -372,14 +373,15 @@ TEST(ServerHardening, HttpDetails) {
   // An upload over the limit: 413 at once, from its Content-Length (before: 400
   // after a 5 s read timeout).
   const auto start = Clock::now();
-  const std::string big = raw_exchange(
-      port, "POST /v1/uploads?name=big HTTP/1.1\r\nHost: x\r\nContent-Length: 99999999999\r\n\r\n", std::chrono::seconds(10));
+  const std::string big =
+      raw_exchange(port, "POST /v1/uploads?name=big HTTP/1.1\r\nHost: x\r\nContent-Length: 99999999999\r\n\r\n",
+                   std::chrono::seconds(10));
   EXPECT_EQ(big.substr(0, 12), "HTTP/1.1 413") << big;
   EXPECT_LT(std::chrono::duration<double>(Clock::now() - start).count(), 2.0);
   // Two Content-Length headers (request smuggling): 400.
-  const std::string twice = raw_exchange(
-      port, "POST /v1/sessions HTTP/1.1\r\nHost: x\r\nContent-Length: 2\r\nContent-Length: 40\r\n\r\n{}",
-      std::chrono::seconds(5));
+  const std::string twice =
+      raw_exchange(port, "POST /v1/sessions HTTP/1.1\r\nHost: x\r\nContent-Length: 2\r\nContent-Length: 40\r\n\r\n{}",
+                   std::chrono::seconds(5));
   EXPECT_EQ(twice.substr(0, 12), "HTTP/1.1 400") << twice;
   EXPECT_NE(twice.find("more than one Content-Length"), std::string::npos) << twice;
   // A known route with another method: 405 with Allow; the undocumented
@@ -388,7 +390,8 @@ TEST(ServerHardening, HttpDetails) {
   const std::string garbage = raw_exchange(port, "NONSENSE\r\n\r\n", std::chrono::seconds(5));
   EXPECT_EQ(garbage.find("http_error"), std::string::npos) << garbage;
   // A form-urlencoded JSON body (curl -d) over httplib's 8 kB limit says what to do.
-  const auto form = client.http().Post("/v1/sessions/1/imu", std::string(9000, 'x'), "application/x-www-form-urlencoded");
+  const auto form =
+      client.http().Post("/v1/sessions/1/imu", std::string(9000, 'x'), "application/x-www-form-urlencoded");
   ASSERT_TRUE(form);
   EXPECT_EQ(form->status, 413);
   EXPECT_NE(form->body.find("application/json"), std::string::npos) << form->body;

@@ -45,9 +45,17 @@ class ServerProcess {
   ServerProcess(const std::filesystem::path& db, const std::filesystem::path& log) {
     port_file_ = db.string() + ".port";
     std::filesystem::remove(port_file_);
-    std::vector<std::string> args = {ORBATLAS_SERVER_BINARY, "--db", db.string(), "--listen", "127.0.0.1:0",
-                                     "--port-file", port_file_.string(), "--checkpoint-keyframes", "2",
-                                     "--checkpoint-seconds", "0.2"};
+    std::vector<std::string> args = {ORBATLAS_SERVER_BINARY,
+                                     "--db",
+                                     db.string(),
+                                     "--listen",
+                                     "127.0.0.1:0",
+                                     "--port-file",
+                                     port_file_.string(),
+                                     "--checkpoint-keyframes",
+                                     "2",
+                                     "--checkpoint-seconds",
+                                     "0.2"};
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
@@ -111,7 +119,8 @@ void check_file(const std::filesystem::path& db, int iteration) {
   EXPECT_EQ(check.text(0), "ok") << "after kill " << iteration;
   const std::int64_t dangling = raw.query_int64(
       "SELECT count(*) FROM trajectory t WHERE NOT EXISTS (SELECT 1 FROM keyframes k WHERE k.id = "
-      "t.reference_keyframe_id) AND NOT EXISTS (SELECT 1 FROM culled_keyframes c WHERE c.id = t.reference_keyframe_id)");
+      "t.reference_keyframe_id) AND NOT EXISTS (SELECT 1 FROM culled_keyframes c WHERE c.id = "
+      "t.reference_keyframe_id)");
   EXPECT_EQ(dangling, 0) << "trajectory rows referencing a keyframe the file does not hold, after kill " << iteration;
 }
 
@@ -121,7 +130,8 @@ TEST(ServerKill, RandomKillsDuringStreamsAndUploadsLeaveAConsistentAtlas) {
   const auto frames = test::stereo_frames(clip);
   std::vector<std::pair<cv::Mat, cv::Mat>> images;
   for (const auto& f : frames)
-    images.emplace_back(cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE), cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+    images.emplace_back(cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                        cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
   const std::string bad_tar = tar_without_mav0();
   test::TempDbPath db("kill");
   const std::filesystem::path log = db.path.string() + ".log";
@@ -164,8 +174,8 @@ TEST(ServerKill, RandomKillsDuringStreamsAndUploadsLeaveAConsistentAtlas) {
         if (kind == 0) {
           job = client.upload(clip, "euroc/stereo", "clip " + std::to_string(iteration));
         } else {
-          const auto r = client.http().Post("/v1/uploads?name=bad-" + std::to_string(iteration), bad_tar,
-                                            "application/x-tar");
+          const auto r =
+              client.http().Post("/v1/uploads?name=bad-" + std::to_string(iteration), bad_tar, "application/x-tar");
           if (!r || r->status != 202) return;
           job = json::parse(r->body)["job"].get<std::uint64_t>();
         }
@@ -201,8 +211,7 @@ TEST(ServerKill, RandomKillsDuringStreamsAndUploadsLeaveAConsistentAtlas) {
   std::set<std::uint64_t> listed;
   const json session_list = client.get_json("/v1/sessions");  // kept: a range over a temporary's member dangles
   for (const auto& s : session_list["sessions"]) listed.insert(s["id"].get<std::uint64_t>());
-  for (const std::uint64_t id : sessions)
-    EXPECT_TRUE(listed.count(id)) << "session " << id << " vanished";
+  for (const std::uint64_t id : sessions) EXPECT_TRUE(listed.count(id)) << "session " << id << " vanished";
   int interrupted = 0;
   const json job_list = client.get_json("/v1/jobs");
   for (const auto& j : job_list["jobs"]) {
@@ -216,11 +225,12 @@ TEST(ServerKill, RandomKillsDuringStreamsAndUploadsLeaveAConsistentAtlas) {
   }
   server.kill();
   check_file(db.path, kills);
-  std::printf("server kills: %d in %.0f s; %zu sessions and %zu upload jobs handed out (all distinct, every session "
-              "stored), %d frames streamed, %d jobs reported as interrupted; integrity ok and no dangling trajectory "
-              "reference after every kill\n",
-              kills, std::chrono::duration<double>(Clock::now() - t_start).count(), sessions.size(), jobs.size(),
-              stream_frames, interrupted);
+  std::printf(
+      "server kills: %d in %.0f s; %zu sessions and %zu upload jobs handed out (all distinct, every session "
+      "stored), %d frames streamed, %d jobs reported as interrupted; integrity ok and no dangling trajectory "
+      "reference after every kill\n",
+      kills, std::chrono::duration<double>(Clock::now() - t_start).count(), sessions.size(), jobs.size(), stream_frames,
+      interrupted);
   std::filesystem::remove(log);
 }
 

@@ -71,7 +71,9 @@ TEST(RequestImage, DecodesPngAndRawAndRefusesTheRest) {
   };
   EXPECT_NE(message([&] { decode_request_image(raw, std::nullopt, "left image"); }).find("'width' and 'height'"),
             std::string::npos);
-  EXPECT_NE(message([&] { decode_request_image(raw, RawImageSize{8, 7}, "left image"); }).find("48 bytes"),
+  EXPECT_NE(message([&] {
+              decode_request_image(raw, RawImageSize{8, 7}, "left image");
+            }).find("48 bytes"),
             std::string::npos);
   EXPECT_NE(message([&] { decode_request_image(png_bytes.substr(0, 30), std::nullopt, "left image"); }).find("corrupt"),
             std::string::npos);
@@ -79,8 +81,9 @@ TEST(RequestImage, DecodesPngAndRawAndRefusesTheRest) {
             std::string::npos);
   cv::Mat deep(4, 4, CV_16UC1, cv::Scalar(1000));
   ASSERT_TRUE(cv::imencode(".png", deep, png));
-  EXPECT_NE(message([&] { decode_request_image(std::string(png.begin(), png.end()), std::nullopt, "x"); }).find("8-bit"),
-            std::string::npos);
+  EXPECT_NE(
+      message([&] { decode_request_image(std::string(png.begin(), png.end()), std::nullopt, "x"); }).find("8-bit"),
+      std::string::npos);
 }
 
 TEST(MetricsRegistry, CumulativeBucketsCountersAndLabelsInTheTextFormat) {

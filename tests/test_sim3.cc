@@ -267,12 +267,13 @@ TEST(Sim3Solver, NoisyHalfOutliersAndTiming) {
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     ASSERT_TRUE(r.success);
     const auto [recall, kept] = classification(r.inliers, scene.is_outlier);
-    std::printf("[ timing ] Sim3 RANSAC (%s), 200 matches, 50%% outliers, 1 px + 1%% depth noise: %.2f ms, "
-                "%d iterations, %d inliers, outliers flagged %.1f%%, inliers kept %.1f%%, error %.3f deg %.1f mm "
-                "scale %.4f\n",
-                fix_scale ? "SE3" : "Sim3", ms, r.iterations, r.inlier_count, recall, kept,
-                sim3_rotation_distance(r.S_1_2, scene.S_1_2) / kDegree, 1e3 * (r.S_1_2.t - scene.S_1_2.t).norm(),
-                r.S_1_2.s / scene.S_1_2.s);
+    std::printf(
+        "[ timing ] Sim3 RANSAC (%s), 200 matches, 50%% outliers, 1 px + 1%% depth noise: %.2f ms, "
+        "%d iterations, %d inliers, outliers flagged %.1f%%, inliers kept %.1f%%, error %.3f deg %.1f mm "
+        "scale %.4f\n",
+        fix_scale ? "SE3" : "Sim3", ms, r.iterations, r.inlier_count, recall, kept,
+        sim3_rotation_distance(r.S_1_2, scene.S_1_2) / kDegree, 1e3 * (r.S_1_2.t - scene.S_1_2.t).norm(),
+        r.S_1_2.s / scene.S_1_2.s);
     // Over 40 seeds: recall 100%, kept >= 80%, worst 0.29 deg, 37 mm, 1.6% scale.
     EXPECT_GE(recall, 99.0);
     EXPECT_GE(kept, 70.0);
@@ -371,8 +372,8 @@ void expect_chained_matches_autodiff(const CameraT& camera) {
     const Eigen::Vector3d p_c(0.4, -0.3, 3.0);
     const Eigen::Vector3d p = inverse ? Eigen::Vector3d(S * p_c) : Eigen::Vector3d(S.inverse() * p_c);
     const Eigen::Vector2d uv(300.0, 200.0);
-    const auto chained = make_sim3_projection_cost(
-        camera, p, uv, 1.44, inverse ? Sim3Projection::kInverse : Sim3Projection::kForward);
+    const auto chained =
+        make_sim3_projection_cost(camera, p, uv, 1.44, inverse ? Sim3Projection::kInverse : Sim3Projection::kForward);
     ceres::AutoDiffCostFunction<AutodiffSim3Cost<CameraT>, 2, 4, 3, 1> autodiff(
         new AutodiffSim3Cost<CameraT>{&camera, p, uv, 1.0 / 1.2, inverse});
     double r1[2], r2[2], jq1[8], jq2[8], jt1[6], jt2[6], js1[2], js2[2];
@@ -448,13 +449,14 @@ TEST(Sim3Refinement, NoisyWithOutliersAndTiming) {
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   ASSERT_TRUE(r.success);
   const auto [recall, kept] = classification(r.inliers, scene.is_outlier);
-  std::printf("[ timing ] Sim3 refinement, 200 matches, 20%% outliers, 1 px + 1%% depth noise: %.2f ms, "
-              "%d iterations, outliers flagged %.1f%%, inliers kept %.1f%%, error %.3f deg %.1f mm scale %.4f "
-              "(start %.3f deg %.1f mm %.4f)\n",
-              ms, r.iterations, recall, kept, sim3_rotation_distance(r.S_1_2, scene.S_1_2) / kDegree,
-              1e3 * (r.S_1_2.t - scene.S_1_2.t).norm(), r.S_1_2.s / scene.S_1_2.s,
-              sim3_rotation_distance(start, scene.S_1_2) / kDegree, 1e3 * (start.t - scene.S_1_2.t).norm(),
-              start.s / scene.S_1_2.s);
+  std::printf(
+      "[ timing ] Sim3 refinement, 200 matches, 20%% outliers, 1 px + 1%% depth noise: %.2f ms, "
+      "%d iterations, outliers flagged %.1f%%, inliers kept %.1f%%, error %.3f deg %.1f mm scale %.4f "
+      "(start %.3f deg %.1f mm %.4f)\n",
+      ms, r.iterations, recall, kept, sim3_rotation_distance(r.S_1_2, scene.S_1_2) / kDegree,
+      1e3 * (r.S_1_2.t - scene.S_1_2.t).norm(), r.S_1_2.s / scene.S_1_2.s,
+      sim3_rotation_distance(start, scene.S_1_2) / kDegree, 1e3 * (start.t - scene.S_1_2.t).norm(),
+      start.s / scene.S_1_2.s);
   // Over 40 seeds: recall 100%, kept >= 96%, worst 0.07 deg, 6 mm, 1.6% scale. The
   // scale is the weak part: with a 0.4 m baseline a 1% scale change moves a point
   // at 5 m by ~0.4 px in the other image.
@@ -499,11 +501,11 @@ TEST(Sim3Pipeline, RansacThenRefinement) {
   ASSERT_TRUE(refined.success);
   const double rot_ransac = sim3_rotation_distance(ransac.S_1_2, scene.S_1_2);
   const double rot_refined = sim3_rotation_distance(refined.S_1_2, scene.S_1_2);
-  std::printf("[ info   ] RANSAC -> refinement: rotation error %.4f -> %.4f deg, translation %.1f -> %.1f mm, "
-              "scale %.4f -> %.4f\n",
-              rot_ransac / kDegree, rot_refined / kDegree, 1e3 * (ransac.S_1_2.t - scene.S_1_2.t).norm(),
-              1e3 * (refined.S_1_2.t - scene.S_1_2.t).norm(), ransac.S_1_2.s / scene.S_1_2.s,
-              refined.S_1_2.s / scene.S_1_2.s);
+  std::printf(
+      "[ info   ] RANSAC -> refinement: rotation error %.4f -> %.4f deg, translation %.1f -> %.1f mm, "
+      "scale %.4f -> %.4f\n",
+      rot_ransac / kDegree, rot_refined / kDegree, 1e3 * (ransac.S_1_2.t - scene.S_1_2.t).norm(),
+      1e3 * (refined.S_1_2.t - scene.S_1_2.t).norm(), ransac.S_1_2.s / scene.S_1_2.s, refined.S_1_2.s / scene.S_1_2.s);
   // Over 40 seeds: worst 0.12 deg, 9 mm, 4.7% scale (see NoisyWithOutliersAndTiming:
   // reprojection constrains the scale weakly at small baselines; the 3D fit of the
   // RANSAC is sometimes closer in scale).

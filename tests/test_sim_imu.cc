@@ -34,7 +34,8 @@ TEST(TrajectorySpline, FollowsTheRealGroundTruth) {
 TEST(TrajectorySpline, AnalyticDerivativesMatchFiniteDifferences) {
   const auto& spline = mh01_spline();
   const TimestampNs h = 100'000;  // 0.1 ms
-  for (TimestampNs t = spline.start_ns() + kNsPerSecond; t < spline.end_ns() - kNsPerSecond; t += 7 * kNsPerSecond + 12345) {
+  for (TimestampNs t = spline.start_ns() + kNsPerSecond; t < spline.end_ns() - kNsPerSecond;
+       t += 7 * kNsPerSecond + 12345) {
     const sim::SplineState s = spline.evaluate(t);
     const sim::SplineState a = spline.evaluate(t - h), b = spline.evaluate(t + h);
     const double dt = 2e-9 * static_cast<double>(h);

@@ -64,7 +64,7 @@ TEST(RealCamera, TheTwoCamerasDriftApartOverTime) {
     min_b = std::min(min_b, l);
     max_b = std::max(max_b, l);
   }
-  EXPECT_GT(max_b - min_b, 0.2);          // brightness changes over time...
+  EXPECT_GT(max_b - min_b, 0.2);  // brightness changes over time...
   EXPECT_LT(max_b, 1.0 + o.drift + o.stereo_mismatch);
   EXPECT_GT(max_ratio - min_ratio, 0.1);  // ...and differently in the two cameras
 }
@@ -109,7 +109,7 @@ TEST(RealCamera, MotionDecidesHowManyRendersAreAveraged) {
   sim::RealCameraOptions o;
   sim::RealCamera camera(o, 64, 48, 0, 1);
   EXPECT_EQ(camera.subframes(0.0, 0.01), 1);
-  EXPECT_EQ(camera.subframes(300.0, 0.01), 3);    // 3 px of motion during the exposure
+  EXPECT_EQ(camera.subframes(300.0, 0.01), 3);  // 3 px of motion during the exposure
   EXPECT_EQ(camera.subframes(1e5, 0.01), o.max_blur_subframes);
 }
 
@@ -129,7 +129,7 @@ TEST(SparseTexture, HasFarFewerCornersThanTheCleanOne) {
   const int sparse = fast_corners(sim::make_texture(req).levels[2]);
   RecordProperty("clean_corners", clean);
   RecordProperty("sparse_corners", sparse);
-  EXPECT_GT(sparse, 0);  // sparse details are there...
+  EXPECT_GT(sparse, 0);          // sparse details are there...
   EXPECT_LT(sparse * 3, clean);  // ...but far fewer corners
 }
 
@@ -154,7 +154,7 @@ TEST(SequenceSimulator, RealLookIsDarkerForMh04BlurredAndKeepsTheNominalCalibrat
   const auto [real_dir, real] = render("MH_04", sim::Look::kReal, 30.0, "real04");
   EXPECT_EQ(real.frames, clean.frames);
   EXPECT_NEAR(real.mean_exposure_ms, 10.0, 1e-6);  // the dark hall: exposure at its limit
-  EXPECT_GT(real.subframes_per_image, 2.0);  // MH_04 at 30 s moves several pixels in 10 ms (3.8 renders)
+  EXPECT_GT(real.subframes_per_image, 2.0);        // MH_04 at 30 s moves several pixels in 10 ms (3.8 renders)
   EXPECT_LT(mean_grey(real_dir), 0.8 * mean_grey(clean_dir));
   // sensor.yaml holds the nominal calibration, whatever the renders used.
   const EurocDataset ds = read_euroc_dataset(real_dir);

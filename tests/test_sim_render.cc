@@ -54,8 +54,10 @@ Quad facing_square(const Eigen::Vector3d& p_w, double size, const Pose3& T_w_c, 
 // Intensity-weighted centroid of pixels above the threshold in a window.
 Eigen::Vector2d bright_centroid(const cv::Mat& img, const Eigen::Vector2d& around, int radius, int threshold) {
   double sx = 0, sy = 0, sw = 0;
-  for (int v = std::max(0, static_cast<int>(around.y()) - radius); v <= std::min(img.rows - 1, static_cast<int>(around.y()) + radius); ++v)
-    for (int u = std::max(0, static_cast<int>(around.x()) - radius); u <= std::min(img.cols - 1, static_cast<int>(around.x()) + radius); ++u) {
+  for (int v = std::max(0, static_cast<int>(around.y()) - radius);
+       v <= std::min(img.rows - 1, static_cast<int>(around.y()) + radius); ++v)
+    for (int u = std::max(0, static_cast<int>(around.x()) - radius);
+         u <= std::min(img.cols - 1, static_cast<int>(around.x()) + radius); ++u) {
       const int w = img.at<std::uint8_t>(v, u) - threshold;
       if (w <= 0) continue;
       sx += w * u;
@@ -68,7 +70,8 @@ Eigen::Vector2d bright_centroid(const cv::Mat& img, const Eigen::Vector2d& aroun
 
 TEST(Renderer, MarkerAppearsWhereTheCameraProjectsIt) {
   const auto camera = make_camera(test::euroc_cam0());
-  const Pose3 T_w_c(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, 1, 0.1).normalized())), Eigen::Vector3d(1, 2, 3));
+  const Pose3 T_w_c(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, 1, 0.1).normalized())),
+                    Eigen::Vector3d(1, 2, 3));
   World world;
   const int dark = uniform_texture(world, 30), white = spot_texture(world, 0.064);
   // Backdrop far behind the markers.
@@ -94,8 +97,8 @@ TEST(Renderer, MarkerAppearsWhereTheCameraProjectsIt) {
     Eigen::Vector2d expected;
     ASSERT_TRUE(camera->project(T_w_c.inverse() * points_w[i], &expected));
     const Eigen::Vector2d found = bright_centroid(image, expected, 16, 36);
-    EXPECT_LT((found - expected).norm(), 0.25) << "marker " << i << " expected " << expected.transpose() << " found "
-                                               << found.transpose();
+    EXPECT_LT((found - expected).norm(), 0.25)
+        << "marker " << i << " expected " << expected.transpose() << " found " << found.transpose();
   }
 }
 
@@ -140,7 +143,8 @@ TEST(Renderer, StereoDisparityMatchesKnownDepth) {
   cv::Mat D0(c0.distortion), D1(c1.distortion);
   cv::Mat R, T, R0, R1, P0, P1, Q;
   const Eigen::Matrix3d r = T_c1_c0.rotation();
-  cv::Mat(3, 3, CV_64F, const_cast<double*>(Eigen::Matrix3d(r.transpose()).data())).copyTo(R);  // Eigen col-major -> row-major
+  cv::Mat(3, 3, CV_64F, const_cast<double*>(Eigen::Matrix3d(r.transpose()).data()))
+      .copyTo(R);  // Eigen col-major -> row-major
   T = (cv::Mat_<double>(3, 1) << T_c1_c0.t.x(), T_c1_c0.t.y(), T_c1_c0.t.z());
   cv::stereoRectify(K0, D0, K1, D1, cv::Size(752, 480), R, T, R0, R1, P0, P1, Q, cv::CALIB_ZERO_DISPARITY, 0);
   const double f = P0.at<double>(0, 0), baseline = -P1.at<double>(0, 3) / P1.at<double>(0, 0);
@@ -153,7 +157,8 @@ TEST(Renderer, StereoDisparityMatchesKnownDepth) {
   const int dark = uniform_texture(world, 30);
   world.add_quad(facing_square(T_w_c0 * Eigen::Vector3d(0, 0, 30), 300.0, T_w_c0, dark));
   std::vector<Eigen::Vector3d> markers_c0 = {{-0.6, -0.3, 2.0}, {0.3, 0.2, 3.0}, {0.0, -0.2, 5.0}, {0.8, 0.4, 4.0}};
-  for (const auto& p : markers_c0) world.add_quad(facing_square(T_w_c0 * p, 0.032 * p.z(), T_w_c0, spot_texture(world, 0.032 * p.z())));
+  for (const auto& p : markers_c0)
+    world.add_quad(facing_square(T_w_c0 * p, 0.032 * p.z(), T_w_c0, spot_texture(world, 0.032 * p.z())));
   sim::RenderOptions options;
   options.noise_sigma = 0.0;
   sim::Renderer r0(world, *cam0, options), r1(world, *cam1, options);

@@ -19,12 +19,14 @@ double distance_to_quad(const Eigen::Vector3d& p, const sim::Quad& q) {
 
 Trajectory line_trajectory(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
   Trajectory t;
-  for (int i = 0; i <= 400; ++i) t.push_back({i * 5'000'000LL, Pose3(Eigen::Quaterniond::Identity(), from + (to - from) * i / 400.0)});
+  for (int i = 0; i <= 400; ++i)
+    t.push_back({i * 5'000'000LL, Pose3(Eigen::Quaterniond::Identity(), from + (to - from) * i / 400.0)});
   return t;
 }
 
 TEST(MachineHall, KeepsTrajectoriesClearAndIsDeterministic) {
-  const std::vector<Trajectory> paths = {line_trajectory({0, 0, 0}, {8, 3, 1}), line_trajectory({2, 6, 0.5}, {6, -2, 0.5})};
+  const std::vector<Trajectory> paths = {line_trajectory({0, 0, 0}, {8, 3, 1}),
+                                         line_trajectory({2, 6, 0.5}, {6, -2, 0.5})};
   sim::MachineHallOptions options;
   options.seed = 5;
   options.machine_count = 30;

@@ -121,8 +121,8 @@ TEST(StereoSlam, BothCullingSchemesTakeTheSameDecisions) {
   EXPECT_EQ(runs[0].trajectory.back().pose.t, runs[1].trajectory.back().pose.t);
   std::printf("culling per keyframe: scan %.4f ms, incremental %.4f ms (%zu candidates, %zu culled)\n",
               percentiles(runs[0].stats.mapping.culling_scan_ms).mean,
-              percentiles(runs[1].stats.mapping.culling_incremental_ms).mean,
-              runs[0].stats.mapping.culling_candidates, runs[0].stats.mapping.culled_keyframes);
+              percentiles(runs[1].stats.mapping.culling_incremental_ms).mean, runs[0].stats.mapping.culling_candidates,
+              runs[0].stats.mapping.culled_keyframes);
 }
 
 TEST(StereoSlam, TwoAtlasesInOneProcessRunSideBySide) {
@@ -176,7 +176,7 @@ TEST(StereoSlam, BadFramesAreDataErrorsAndTheSessionGoesOn) {
     EXPECT_TRUE(slam.process(frames[i].t_ns, l, r).tracked);
   }
   load(3, l, r);
-  EXPECT_THROW(slam.process(frames[1].t_ns, l, r), DataError);  // timestamp going backwards
+  EXPECT_THROW(slam.process(frames[1].t_ns, l, r), DataError);          // timestamp going backwards
   EXPECT_THROW(slam.process(frames[3].t_ns, cv::Mat(), r), DataError);  // empty image
   cv::Mat small;
   cv::resize(l, small, cv::Size(l.cols / 2, l.rows / 2));

@@ -121,7 +121,8 @@ TEST(TriangulatedStereo, FisheyeDepthAtFiveMetres) {
     const double truth = wall_depth_along(T_w_c0, fl.keypoints[i].bearing, T_w_c0, depth);
     rel_errors.push_back(std::abs(st.depth[i] - truth) / truth);
   }
-  std::cout << "fisheye: " << rel_errors.size() << " triangulated, median relative depth error " << median(rel_errors) << "\n";
+  std::cout << "fisheye: " << rel_errors.size() << " triangulated, median relative depth error " << median(rel_errors)
+            << "\n";
   ASSERT_GT(rel_errors.size(), 200u);
   EXPECT_LT(median(rel_errors), 0.01);
 }
@@ -132,7 +133,8 @@ TEST(TriangulatedStereo, RaysMeetAtTheirCommonPoint) {
   ASSERT_TRUE(triangulate_rays(Eigen::Vector3d::Zero(), p.normalized(), o2, (p - o2).normalized(), &out));
   EXPECT_LT((out - p).norm(), 1e-9);
   EXPECT_FALSE(triangulate_rays(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), o2, Eigen::Vector3d::UnitZ(), &out));
-  EXPECT_FALSE(triangulate_rays(Eigen::Vector3d::Zero(), -p.normalized(), o2, -(p - o2).normalized(), &out)) << "behind";
+  EXPECT_FALSE(triangulate_rays(Eigen::Vector3d::Zero(), -p.normalized(), o2, -(p - o2).normalized(), &out))
+      << "behind";
 }
 
 }  // namespace

@@ -549,8 +549,7 @@ TEST(TarStream, ABadArchiveStopsTheSenderAndSaysWhy) {
   TarStreamExtractor extractor(dest, {}, "the upload", 2);
   const std::string evil = raw_entry("../evil", '0', "evil") + std::string(1 << 20, 'x');
   bool refused = false;
-  for (std::size_t at = 0; at < evil.size() && !refused; at += 4096)
-    refused = !extractor.write(evil.data() + at, 4096);
+  for (std::size_t at = 0; at < evil.size() && !refused; at += 4096) refused = !extractor.write(evil.data() + at, 4096);
   EXPECT_TRUE(refused) << "the sender was never told to stop";
   EXPECT_EQ(extractor.state(), TarStreamExtractor::State::kFailed);
   try {

@@ -35,9 +35,7 @@ TEST(TextFile, ReadsPlainAndGzipLinesWithNumbers) {
   std::filesystem::remove(gz);
 }
 
-TEST(TextFile, MissingFileIsADataError) {
-  EXPECT_THROW(read_text_file("/nonexistent/orbatlas/file.txt"), DataError);
-}
+TEST(TextFile, MissingFileIsADataError) { EXPECT_THROW(read_text_file("/nonexistent/orbatlas/file.txt"), DataError); }
 
 TEST(TextFile, SplitsAndParsesWithContext) {
   const auto f = split_fields(" 1.5,  2 ,,x", ",", false);

@@ -37,7 +37,7 @@ Descriptor flip_bits(Descriptor d, int n, std::mt19937_64& rng) {
 // bits flipped). Members are a centre with up to 3 bits flipped.
 struct ClusteredData {
   std::vector<Descriptor> centres;
-  std::vector<std::vector<Descriptor>> images;          // training descriptors per image
+  std::vector<std::vector<Descriptor>> images;           // training descriptors per image
   std::vector<std::vector<std::size_t>> image_clusters;  // cluster of each of them
   std::vector<std::vector<Descriptor>> members;          // per cluster, the training members
 };
@@ -100,7 +100,9 @@ class VocabularyTest : public ::testing::Test {
   static const Vocabulary& voc() { return *vocabulary_; }
   static const ClusteredData& data() { return *data_; }
 
-  static fs::path temp_dir() { return fs::path(::testing::TempDir()) / ("orbatlas_vocabulary_" + std::to_string(::getpid())); }
+  static fs::path temp_dir() {
+    return fs::path(::testing::TempDir()) / ("orbatlas_vocabulary_" + std::to_string(::getpid()));
+  }
   static fs::path temp_path(const std::string& name) {
     fs::create_directories(temp_dir());
     return temp_dir() / name;
@@ -209,7 +211,8 @@ TEST_F(VocabularyTest, IdfWeights) {
     std::size_t images = 0;
     for (const auto& labels : data().image_clusters)
       if (std::find(labels.begin(), labels.end(), c) != labels.end()) ++images;
-    EXPECT_NEAR(voc().word_weight(voc().word_of(data().centres[c])), std::log(50.0 / static_cast<double>(images)), 1e-12)
+    EXPECT_NEAR(voc().word_weight(voc().word_of(data().centres[c])), std::log(50.0 / static_cast<double>(images)),
+                1e-12)
         << "cluster " << c;
   }
 }

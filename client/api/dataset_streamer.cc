@@ -22,7 +22,6 @@ double ms_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
-
 }  // namespace
 
 StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) {
@@ -57,8 +56,8 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   const auto start = Clock::now();
   while (auto pair = loaded.next()) {
     if (options.rate > 0) {
-      const auto offset = std::chrono::nanoseconds(
-          static_cast<std::int64_t>(static_cast<double>(pair->t_ns - first_t) / options.rate));
+      const auto offset =
+          std::chrono::nanoseconds(static_cast<std::int64_t>(static_cast<double>(pair->t_ns - first_t) / options.rate));
       std::this_thread::sleep_until(start + offset);
     }
     progress.advance();
@@ -88,10 +87,13 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   report.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
   progress.finish();
   report.finish_status = client.finish_session(report.session);
-  report.trajectory = parse_tum_trajectory(client.trajectory_tum(report.session), "the server's trajectory of session " + std::to_string(report.session), &report.trajectory_maps);
+  report.trajectory = parse_tum_trajectory(client.trajectory_tum(report.session),
+                                           "the server's trajectory of session " + std::to_string(report.session),
+                                           &report.trajectory_maps);
   if (!dataset.ground_truth.empty() && report.trajectory.size() >= 3) {
     try {
-      report.ate_rmse_m = evaluate_trajectory(report.trajectory, from_ground_truth_states(dataset.ground_truth)).ate.rmse;
+      report.ate_rmse_m =
+          evaluate_trajectory(report.trajectory, from_ground_truth_states(dataset.ground_truth)).ate.rmse;
     } catch (const Error& e) {
       log_warn(std::string("no ATE: ") + e.what());
     }

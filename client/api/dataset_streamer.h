@@ -1,9 +1,9 @@
 #pragma once
 // Streams a recorded EuRoC ASL sequence to the map server as a live session
 // (what `orbatlas stream` does): images are read ahead by a loader thread, each
-// stereo pair (the left image alone for a single-camera session) is posted at the sensor rate times `rate` (0: as fast as the server
-// answers), the session is finished (stored), and its final trajectory fetched
-// and, with ground truth, evaluated.
+// stereo pair (the left image alone for a single-camera session) is posted at the sensor rate times `rate` (0: as fast
+// as the server answers), the session is finished (stored), and its final trajectory fetched and, with ground truth,
+// evaluated.
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -20,7 +20,7 @@ struct StreamOptions {
   // Empty: the config's Sensor.type. "mono" (or a mono config): only the left
   // images are sent, and the session localises in the stored maps.
   std::string sensor;
-  std::string name;  // default: the dataset folder's name
+  std::string name;   // default: the dataset folder's name
   double rate = 0.0;  // 1: real time; 2: twice as fast; 0: no pacing
   ImageEncoding encoding = ImageEncoding::kRaw;
   double start_s = 0.0;
@@ -38,7 +38,7 @@ struct StreamReport {
   Trajectory trajectory;  // the server's final trajectory (after the session finished)
   std::vector<std::uint64_t> trajectory_maps;
   std::vector<std::uint64_t> reply_maps;  // per tracked frame: the map its reply named then
-  std::optional<double> ate_rmse_m;  // when the dataset has ground truth (SE3 alignment)
+  std::optional<double> ate_rmse_m;       // when the dataset has ground truth (SE3 alignment)
   nlohmann::json finish_status;
   double fps() const { return wall_s > 0 ? static_cast<double>(frames) / wall_s : 0.0; }
 };

@@ -26,7 +26,8 @@ std::string image_bytes(const cv::Mat& image, ImageEncoding encoding) {
 }
 
 void add_image(httplib::MultipartFormDataItems& items, const char* name, const cv::Mat& image, ImageEncoding encoding) {
-  items.push_back({name, image_bytes(image, encoding), std::string(name) + (encoding == ImageEncoding::kPng ? ".png" : ".raw"),
+  items.push_back({name, image_bytes(image, encoding),
+                   std::string(name) + (encoding == ImageEncoding::kPng ? ".png" : ".raw"),
                    encoding == ImageEncoding::kPng ? "image/png" : "application/octet-stream"});
 }
 
@@ -81,14 +82,17 @@ httplib::Client& ServerClient::http() { return *client_; }
 namespace {
 
 const httplib::Response& checked(const httplib::Result& result, const std::string& url, const std::string& what) {
-  if (!result) throw Error("cannot reach the server at " + url + " (" + what + "): " + httplib::to_string(result.error()));
+  if (!result)
+    throw Error("cannot reach the server at " + url + " (" + what + "): " + httplib::to_string(result.error()));
   if (result->status >= 400) throw_server_error(result->status, result->body);
   return *result;
 }
 
 }  // namespace
 
-json ServerClient::get_json(const std::string& path) { return json::parse(checked(client_->Get(path), url_, path).body); }
+json ServerClient::get_json(const std::string& path) {
+  return json::parse(checked(client_->Get(path), url_, path).body);
+}
 
 std::string ServerClient::get_text(const std::string& path) { return checked(client_->Get(path), url_, path).body; }
 
@@ -101,7 +105,8 @@ SettingsChoice choose_settings(const std::string& config) {
   if (std::filesystem::is_regular_file(config, ec)) return {"", read_text_file(config)};
   const std::string ext = std::filesystem::path(config).extension().string();
   ORBATLAS_CHECK(ext != ".yaml" && ext != ".yml",
-                 "no settings file " << config << " (give an existing file, or a config name the server knows such as "
+                 "no settings file " << config
+                                     << " (give an existing file, or a config name the server knows such as "
                                         "euroc/stereo)");
   return {config, ""};
 }
@@ -136,7 +141,8 @@ std::string ServerClient::trajectory_tum(std::uint64_t session) {
 }
 
 json ServerClient::localize(const std::string& config, const cv::Mat& left, const cv::Mat& right,
-                            std::optional<std::uint64_t> map, ImageEncoding encoding, const std::string& settings_yaml) {
+                            std::optional<std::uint64_t> map, ImageEncoding encoding,
+                            const std::string& settings_yaml) {
   const SettingsChoice settings = settings_yaml.empty() ? choose_settings(config) : SettingsChoice{"", settings_yaml};
   httplib::MultipartFormDataItems items;
   if (!settings.config.empty()) items.push_back({"config", settings.config, "", ""});
@@ -149,8 +155,8 @@ json ServerClient::localize(const std::string& config, const cv::Mat& left, cons
 }
 
 std::uint64_t ServerClient::upload(const std::filesystem::path& dataset, const std::string& config,
-                                  const std::string& name,
-                                  const std::function<void(std::uint64_t, std::uint64_t)>& progress) {
+                                   const std::string& name,
+                                   const std::function<void(std::uint64_t, std::uint64_t)>& progress) {
   ORBATLAS_CHECK(std::filesystem::is_directory(dataset / "mav0"), dataset << " holds no mav0/ folder (EuRoC ASL)");
   ORBATLAS_CHECK(choose_settings(config).settings_yaml.empty(),
                  "an upload takes a config name the server knows (such as euroc/stereo), not the settings file "
@@ -164,9 +170,12 @@ std::uint64_t ServerClient::upload(const std::filesystem::path& dataset, const s
       [&](std::size_t offset, std::size_t, httplib::DataSink& sink) {
         if (offset != 0) return false;  // everything is written by the first call
         try {
-          write_directory_tar(dataset, [&](const char* data, std::size_t n) {
-            if (!sink.write(data, n)) throw Error("the connection closed while uploading");
-          }, progress);
+          write_directory_tar(
+              dataset,
+              [&](const char* data, std::size_t n) {
+                if (!sink.write(data, n)) throw Error("the connection closed while uploading");
+              },
+              progress);
         } catch (const std::exception& e) {
           failure = e.what();
           return false;

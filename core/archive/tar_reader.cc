@@ -31,8 +31,8 @@ struct SourceState {
   const TarSource* source = nullptr;
   std::vector<char> buffer = std::vector<char>(kChunk);
   std::uint64_t bytes = 0;
-  bool ended = false;                 // the source said there is no more
-  unsigned char first[2] = {0, 0};    // the first two bytes, for the gzip hint
+  bool ended = false;               // the source said there is no more
+  unsigned char first[2] = {0, 0};  // the first two bytes, for the gzip hint
   std::exception_ptr error;
 };
 
@@ -104,7 +104,8 @@ fs::path make_directories(const fs::path& destination, const std::vector<std::st
     p /= parts[i];
     std::error_code ec;
     const auto status = fs::symlink_status(p, ec);
-    if (fs::is_symlink(status)) throw DataError(where + ": refusing to write through the symlink " + joined(parts, i + 1));
+    if (fs::is_symlink(status))
+      throw DataError(where + ": refusing to write through the symlink " + joined(parts, i + 1));
     if (!fs::exists(status)) {
       fs::create_directory(p, ec);
       if (ec) throw Error("tar: cannot create the directory " + joined(parts, i + 1) + ": " + ec.message());

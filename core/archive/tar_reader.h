@@ -37,8 +37,8 @@ using TarSource = std::function<std::size_t(char* buffer, std::size_t size)>;
 // marker must be there), an exceeded limit, or data that is not a tar archive. On
 // error, files already extracted remain: the caller deletes the destination.
 // Messages name entries by their path in the archive, never by the destination's.
-TarExtractReport extract_tar(const TarSource& source, const std::filesystem::path& destination,
-                             const TarLimits& limits, const std::string& archive_name);
+TarExtractReport extract_tar(const TarSource& source, const std::filesystem::path& destination, const TarLimits& limits,
+                             const std::string& archive_name);
 
 // The same from a file; progress receives archive bytes read / archive size.
 TarExtractReport extract_tar(

@@ -55,8 +55,8 @@ std::size_t TarStreamExtractor::read(char* buffer, std::size_t size) {
 
 void TarStreamExtractor::run() {
   try {
-    report_ = extract_tar([this](char* buffer, std::size_t size) { return read(buffer, size); }, destination_,
-                          limits_, archive_name_);
+    report_ = extract_tar([this](char* buffer, std::size_t size) { return read(buffer, size); }, destination_, limits_,
+                          archive_name_);
     state_ = State::kSucceeded;
   } catch (...) {
     error_ = std::current_exception();

@@ -93,7 +93,8 @@ class TarArchiveWriter {
     if (!a) throw std::bad_alloc();
     // pax restricted: ustar headers, pax records only where ustar cannot hold a
     // value; no blocking (the output is exactly the entries and the end marker).
-    if (archive_write_set_format_pax_restricted(a) != ARCHIVE_OK || archive_write_set_bytes_per_block(a, 0) != ARCHIVE_OK ||
+    if (archive_write_set_format_pax_restricted(a) != ARCHIVE_OK ||
+        archive_write_set_bytes_per_block(a, 0) != ARCHIVE_OK ||
         archive_write_open(a, this, nullptr, &TarArchiveWriter::write_callback, nullptr) != ARCHIVE_OK) {
       const std::string why = archive_error_string(a) ? archive_error_string(a) : "unknown error";
       archive_write_free(a);

@@ -21,7 +21,8 @@ std::optional<std::filesystem::path> shared_euroc_dir() {
     return std::nullopt;
   }
   // The source tree sits in <work>/<checkout>; shared/ is its sibling.
-  const auto candidate = std::filesystem::path(ORBATLAS_DEFAULT_DATA_DIR).parent_path().parent_path() / "shared" / "data" / "euroc";
+  const auto candidate =
+      std::filesystem::path(ORBATLAS_DEFAULT_DATA_DIR).parent_path().parent_path() / "shared" / "data" / "euroc";
   if (std::filesystem::is_directory(candidate, ec)) return candidate;
   return std::nullopt;
 }

@@ -23,21 +23,21 @@ class DataError : public Error {
 }  // namespace orbatlas
 
 // ORBATLAS_CHECK(cond, "text" << value): throws orbatlas::Error when cond is false.
-#define ORBATLAS_CHECK(cond, msg)                      \
-  do {                                                 \
-    if (!(cond)) {                                     \
-      std::ostringstream orbatlas_check_stream_;       \
-      orbatlas_check_stream_ << msg;                   \
+#define ORBATLAS_CHECK(cond, msg)                            \
+  do {                                                       \
+    if (!(cond)) {                                           \
+      std::ostringstream orbatlas_check_stream_;             \
+      orbatlas_check_stream_ << msg;                         \
       ::orbatlas::throw_error(orbatlas_check_stream_.str()); \
-    }                                                  \
+    }                                                        \
   } while (false)
 
 // ORBATLAS_DATA_CHECK(cond, "text" << value): throws orbatlas::DataError (bad input data).
-#define ORBATLAS_DATA_CHECK(cond, msg)                 \
-  do {                                                 \
-    if (!(cond)) {                                     \
-      std::ostringstream orbatlas_check_stream_;       \
-      orbatlas_check_stream_ << msg;                   \
+#define ORBATLAS_DATA_CHECK(cond, msg)                           \
+  do {                                                           \
+    if (!(cond)) {                                               \
+      std::ostringstream orbatlas_check_stream_;                 \
+      orbatlas_check_stream_ << msg;                             \
       throw ::orbatlas::DataError(orbatlas_check_stream_.str()); \
-    }                                                  \
+    }                                                            \
   } while (false)

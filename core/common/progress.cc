@@ -43,10 +43,11 @@ void Progress::print(bool final_line) {
   const std::int64_t done = done_.load();
   const double el = elapsed_s();
   const double pct = total_ > 0 ? 100.0 * static_cast<double>(done) / static_cast<double>(total_) : 0.0;
-  const double eta = (done > 0 && total_ > done) ? el * static_cast<double>(total_ - done) / static_cast<double>(done) : 0.0;
+  const double eta =
+      (done > 0 && total_ > done) ? el * static_cast<double>(total_ - done) / static_cast<double>(done) : 0.0;
   char buf[256];
-  std::snprintf(buf, sizeof buf, "%s%s: %lld/%lld (%.0f%%) %.1fs elapsed%s", tty_ ? "\r" : "",
-                label_.c_str(), static_cast<long long>(done), static_cast<long long>(total_), pct, el,
+  std::snprintf(buf, sizeof buf, "%s%s: %lld/%lld (%.0f%%) %.1fs elapsed%s", tty_ ? "\r" : "", label_.c_str(),
+                static_cast<long long>(done), static_cast<long long>(total_), pct, el,
                 final_line ? "" : (", eta " + std::to_string(static_cast<int>(eta)) + "s").c_str());
   std::fputs(buf, stderr);
   if (!tty_ || final_line) std::fputc('\n', stderr);

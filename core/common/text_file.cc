@@ -47,7 +47,8 @@ std::vector<std::string_view> split_fields(std::string_view line, std::string_vi
   std::size_t start = 0;
   for (;;) {
     const std::size_t end = line.find_first_of(separators, start);
-    const std::string_view field = trim(line.substr(start, end == std::string_view::npos ? std::string_view::npos : end - start));
+    const std::string_view field =
+        trim(line.substr(start, end == std::string_view::npos ? std::string_view::npos : end - start));
     if (!(skip_empty && field.empty())) out.push_back(field);
     if (end == std::string_view::npos) break;
     start = end + 1;

@@ -32,8 +32,8 @@ bool WorkerErrors::record(std::string_view unit, std::exception_ptr error) {
     counts_.last = what;
     if (++in_a_row_ >= fatal_after_ && !fatal_) {
       counts_.fatal = true;
-      fatal_ = std::make_exception_ptr(WorkerFailed(worker_ + " failed " + std::to_string(in_a_row_) +
-                                             " times in a row; last: " + what));
+      fatal_ = std::make_exception_ptr(
+          WorkerFailed(worker_ + " failed " + std::to_string(in_a_row_) + " times in a row; last: " + what));
     }
     fatal = counts_.fatal;
   }

@@ -22,9 +22,9 @@ class WorkerFailed : public Error {
 };
 
 struct WorkerErrorCounts {
-  std::size_t errors = 0;       // units given up
-  std::string last;             // the last error's message ("" when none)
-  bool fatal = false;           // fatal_after failures in a row happened
+  std::size_t errors = 0;  // units given up
+  std::string last;        // the last error's message ("" when none)
+  bool fatal = false;      // fatal_after failures in a row happened
 };
 
 class WorkerErrors {

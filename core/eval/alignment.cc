@@ -28,8 +28,9 @@ const char* align_mode_name(AlignMode mode) {
 
 Similarity3 align_positions(const std::vector<Eigen::Vector3d>& estimate,
                             const std::vector<Eigen::Vector3d>& ground_truth, AlignMode mode) {
-  ORBATLAS_CHECK(estimate.size() == ground_truth.size(),
-                 "align_positions: " << estimate.size() << " estimated vs " << ground_truth.size() << " true positions");
+  ORBATLAS_CHECK(estimate.size() == ground_truth.size(), "align_positions: " << estimate.size() << " estimated vs "
+                                                                             << ground_truth.size()
+                                                                             << " true positions");
   ORBATLAS_CHECK(estimate.size() >= 3, "alignment needs at least 3 matched poses, got " << estimate.size());
   if (mode == AlignMode::kNone) return {};
 
@@ -49,7 +50,8 @@ Similarity3 align_positions(const std::vector<Eigen::Vector3d>& estimate,
   Similarity3 result;
   const Eigen::Matrix3d scaled_rotation = T.topLeftCorner<3, 3>();
   result.scale = with_scale ? scaled_rotation.col(0).norm() : 1.0;
-  ORBATLAS_CHECK(std::isfinite(result.scale) && result.scale > 0.0, "sim3 alignment: degenerate scale " << result.scale);
+  ORBATLAS_CHECK(std::isfinite(result.scale) && result.scale > 0.0,
+                 "sim3 alignment: degenerate scale " << result.scale);
   result.rotation = Eigen::Quaterniond(scaled_rotation / result.scale).normalized();
   result.translation = T.topRightCorner<3, 1>();
   return result;

@@ -50,8 +50,8 @@ EvalResult evaluate_trajectory(const Trajectory& estimate, const Trajectory& gro
     if (!estimate.empty() && !ground_truth.empty())
       msg << "; estimate spans " << format_seconds_exact(estimate.front().t_ns) << " .. "
           << format_seconds_exact(estimate.back().t_ns) << " s, ground truth "
-          << format_seconds_exact(ground_truth.front().t_ns) << " .. "
-          << format_seconds_exact(ground_truth.back().t_ns) << " s";
+          << format_seconds_exact(ground_truth.front().t_ns) << " .. " << format_seconds_exact(ground_truth.back().t_ns)
+          << " s";
     throw Error(msg.str());
   }
 
@@ -67,7 +67,7 @@ EvalResult evaluate_trajectory(const Trajectory& estimate, const Trajectory& gro
   result.rpe = relative_pose_error(association.pairs, result.alignment.scale, options.rpe_delta_ns);
   result.coverage = trajectory_coverage(
       estimate, options.spans.empty() ? std::vector<std::pair<TimestampNs, TimestampNs>>{{ground_truth.front().t_ns,
-                                                                                             ground_truth.back().t_ns}}
+                                                                                          ground_truth.back().t_ns}}
                                       : options.spans);
   return result;
 }

@@ -22,9 +22,9 @@ ErrorStats error_stats(std::vector<double> errors);
 std::vector<double> ate_errors(const std::vector<PosePair>& pairs, const Similarity3& alignment);
 
 struct RpeStats {
-  double trans_rmse_m = 0;    // translation part of the relative-motion error
-  double rot_rmse_deg = 0;    // rotation angle of the relative-motion error
-  std::size_t pairs = 0;      // number of (i, j) pose pairs used
+  double trans_rmse_m = 0;  // translation part of the relative-motion error
+  double rot_rmse_deg = 0;  // rotation angle of the relative-motion error
+  std::size_t pairs = 0;    // number of (i, j) pose pairs used
 };
 
 // Relative motions over delta: for each pair i, j is the first pair with

@@ -87,8 +87,8 @@ void draw_grid(cv::Mat& img, const View& v) {
     const std::string label = tick_label(x, step);
     int base = 0;
     const cv::Size size = cv::getTextSize(label, kFont, font_scale, 1, &base);
-    cv::putText(img, label, {px - size.width / 2, a.y + a.height + 10 + size.height}, kFont, font_scale, kTextColour,
-                1, cv::LINE_AA);
+    cv::putText(img, label, {px - size.width / 2, a.y + a.height + 10 + size.height}, kFont, font_scale, kTextColour, 1,
+                cv::LINE_AA);
   }
   for (double y = std::ceil(v.y_min() / step) * step; y <= v.y_max(); y += step) {
     const int py = static_cast<int>(std::lround(v.to_px(0, y).y));
@@ -127,7 +127,7 @@ void draw_legend(cv::Mat& img, const View& v, const TrajectoryPlot& plot) {
   cv::rectangle(img, box, cv::Scalar(255, 255, 255), cv::FILLED);
   cv::rectangle(img, box, cv::Scalar(160, 160, 160), 1);
   const std::pair<const std::string*, cv::Scalar> entries[] = {{&plot.ground_truth_label, kGroundTruthColour},
-                                                                {&plot.estimate_label, kEstimateColour}};
+                                                               {&plot.estimate_label, kEstimateColour}};
   int y = box.y + 18;
   for (const auto& [label, colour] : entries) {
     cv::line(img, {box.x + 8, y - 4}, {box.x + 38, y - 4}, colour, 2, cv::LINE_AA);

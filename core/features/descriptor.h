@@ -11,7 +11,8 @@ namespace orbatlas {
 using Descriptor = std::array<std::uint64_t, 4>;
 
 inline int hamming(const Descriptor& a, const Descriptor& b) {
-  return std::popcount(a[0] ^ b[0]) + std::popcount(a[1] ^ b[1]) + std::popcount(a[2] ^ b[2]) + std::popcount(a[3] ^ b[3]);
+  return std::popcount(a[0] ^ b[0]) + std::popcount(a[1] ^ b[1]) + std::popcount(a[2] ^ b[2]) +
+         std::popcount(a[3] ^ b[3]);
 }
 
 // Matching thresholds used across the system (ORB-SLAM's TH_LOW / TH_HIGH).

@@ -14,7 +14,7 @@ struct Keypoint {
   float angle_deg = 0.0f;                        // orientation (intensity centroid), degrees in [0, 360)
   float response = 0.0f;                         // FAST score
   // Filled from the camera model (features/keypoint_geometry.h):
-  Eigen::Vector3d bearing = Eigen::Vector3d::UnitZ();     // unit ray in the camera frame
+  Eigen::Vector3d bearing = Eigen::Vector3d::UnitZ();        // unit ray in the camera frame
   Eigen::Vector2f uv_undistorted = Eigen::Vector2f::Zero();  // pinhole pixel with the camera's fx, fy, cx, cy
 };
 

@@ -140,8 +140,9 @@ std::vector<FeatureMatch> match_brute_force(const ImageFeatures& a, const ImageF
 std::vector<FeatureMatch> match_guided(const ImageFeatures& a, const std::vector<Eigen::Vector2f>& predicted_uv_b,
                                        const ImageFeatures& b, const FeatureGrid& grid_b,
                                        const GuidedMatchOptions& options) {
-  ORBATLAS_CHECK(predicted_uv_b.size() == a.keypoints.size(),
-                 "match_guided: " << predicted_uv_b.size() << " predictions for " << a.keypoints.size() << " keypoints");
+  ORBATLAS_CHECK(predicted_uv_b.size() == a.keypoints.size(), "match_guided: " << predicted_uv_b.size()
+                                                                               << " predictions for "
+                                                                               << a.keypoints.size() << " keypoints");
   ORBATLAS_CHECK(a.descriptors.size() == a.keypoints.size() && b.descriptors.size() == b.keypoints.size(),
                  "match_guided: keypoints and descriptors differ in number");
   ORBATLAS_CHECK(grid_b.size() <= b.keypoints.size(), "match_guided: the grid was not built from b");

@@ -21,8 +21,8 @@ namespace orbatlas {
 namespace {
 
 constexpr int kBorder = OrbExtractor::kPyramidBorder;
-constexpr int kFastRadius = 3;         // FAST's circle; cv::FAST detects nothing closer to a window's edge
-constexpr int kHalfPatch = 15;         // orientation patch radius (patch of 31 px)
+constexpr int kFastRadius = 3;  // FAST's circle; cv::FAST detects nothing closer to a window's edge
+constexpr int kHalfPatch = 15;  // orientation patch radius (patch of 31 px)
 constexpr int kPatchSize = 2 * kHalfPatch + 1;
 
 // OpenCV's BORDER_REFLECT_101 for an index just outside [0, n).
@@ -125,8 +125,8 @@ inline __m128i fast_scores16(const std::uint8_t* p, const std::ptrdiff_t* offset
 
 // Scores of row[x_begin, x_end) into out[x_begin, x_end). Pixels that cannot be
 // corners at min_threshold may get 0 instead of their score.
-void fast_score_row(const std::uint8_t* row, const std::ptrdiff_t* offsets, int x_begin, int x_end,
-                    std::uint8_t* out, int min_threshold) {
+void fast_score_row(const std::uint8_t* row, const std::ptrdiff_t* offsets, int x_begin, int x_end, std::uint8_t* out,
+                    int min_threshold) {
   int x = x_begin;
 #if defined(__SSE2__)
   if (x_end - x_begin >= 16) {
@@ -173,7 +173,8 @@ void local_maxima_row(const std::uint8_t* row, std::size_t stride, int w, Found&
     m = _mm_max_epu8(m, _mm_max_epu8(load(up + i + 1), load(down + i - 1)));
     m = _mm_max_epu8(m, _mm_max_epu8(load(down + i), load(down + i + 1)));
     // c > m, unsigned: c - m does not saturate to zero. Lanes past w hold zeros.
-    unsigned mask = ~static_cast<unsigned>(_mm_movemask_epi8(_mm_cmpeq_epi8(_mm_subs_epu8(c, m), _mm_setzero_si128()))) & 0xffffu;
+    unsigned mask =
+        ~static_cast<unsigned>(_mm_movemask_epi8(_mm_cmpeq_epi8(_mm_subs_epu8(c, m), _mm_setzero_si128()))) & 0xffffu;
     while (mask != 0) {
       const int bit = std::countr_zero(mask);
       found(i + bit, row[i + bit]);
@@ -231,7 +232,8 @@ OrbExtractor::OrbExtractor(const OrbExtractorOptions& options) : options_(option
   const int vmax = static_cast<int>(std::floor(kHalfPatch * std::sqrt(2.0) / 2 + 1));
   const int vmin = static_cast<int>(std::ceil(kHalfPatch * std::sqrt(2.0) / 2));
   for (int v = 0; v <= vmax; ++v)
-    umax_[static_cast<std::size_t>(v)] = static_cast<int>(std::lround(std::sqrt(double(kHalfPatch * kHalfPatch - v * v))));
+    umax_[static_cast<std::size_t>(v)] =
+        static_cast<int>(std::lround(std::sqrt(double(kHalfPatch * kHalfPatch - v * v))));
   for (int v = kHalfPatch, v0 = 0; v >= vmin; --v) {
     while (umax_[static_cast<std::size_t>(v0)] == umax_[static_cast<std::size_t>(v0) + 1]) ++v0;
     umax_[static_cast<std::size_t>(v)] = v0;
@@ -252,7 +254,8 @@ void OrbExtractor::build_pyramid(const cv::Mat& image) {
       const float inv = static_cast<float>(1.0 / scale_factors_[l]);
       const cv::Size sz(cvRound(static_cast<float>(image.cols) * inv), cvRound(static_cast<float>(image.rows) * inv));
       ORBATLAS_CHECK(sz.width >= 1 && sz.height >= 1, "ORB: a " << image.cols << "x" << image.rows
-                                                                 << " image is too small for " << pyramid_.size() << " levels");
+                                                                << " image is too small for " << pyramid_.size()
+                                                                << " levels");
       bordered_[l].create(sz.height + 2 * kBorder, sz.width + 2 * kBorder, CV_8UC1);
       pyramid_[l] = bordered_[l](cv::Rect(kBorder, kBorder, sz.width, sz.height));
     }
@@ -315,7 +318,8 @@ bool OrbExtractor::cell_corners(const cv::Rect& area, std::size_t stride, int th
   tile_.assign((static_cast<std::size_t>(h) + 2) * tstride, 0);
   const std::size_t before = candidates_.size();
   for (int r = 0; r < h; ++r) {
-    const std::uint8_t* s = scores_.data() + static_cast<std::size_t>(area.y + r) * stride + static_cast<std::size_t>(area.x);
+    const std::uint8_t* s =
+        scores_.data() + static_cast<std::size_t>(area.y + r) * stride + static_cast<std::size_t>(area.x);
     std::uint8_t* t = tile_.data() + static_cast<std::size_t>(r + 1) * tstride + 1;
     threshold_row(s, t, w, threshold);
   }
@@ -349,11 +353,14 @@ void OrbExtractor::split(std::uint32_t node_index) {
   const int half_x = (parent.x1 - parent.x0 + 1) / 2, half_y = (parent.y1 - parent.y0 + 1) / 2;
   const int mid_x = parent.x0 + half_x, mid_y = parent.y0 + half_y;
   const auto begin = order_.begin() + parent.begin, end = order_.begin() + parent.end;
-  const auto top_end = std::partition(begin, end, [&](std::uint32_t c) { return candidates_[c].y < static_cast<float>(mid_y); });
+  const auto top_end =
+      std::partition(begin, end, [&](std::uint32_t c) { return candidates_[c].y < static_cast<float>(mid_y); });
   const auto is_left = [&](std::uint32_t c) { return candidates_[c].x < static_cast<float>(mid_x); };
   const auto top_mid = std::partition(begin, top_end, is_left);
   const auto bottom_mid = std::partition(top_end, end, is_left);
-  const auto offset = [&](std::vector<std::uint32_t>::iterator it) { return static_cast<std::uint32_t>(it - order_.begin()); };
+  const auto offset = [&](std::vector<std::uint32_t>::iterator it) {
+    return static_cast<std::uint32_t>(it - order_.begin());
+  };
   const QuadNode children[4] = {
       {parent.x0, parent.y0, mid_x, mid_y, parent.begin, offset(top_mid), true},
       {mid_x, parent.y0, parent.x1, mid_y, offset(top_mid), offset(top_end), true},
@@ -463,9 +470,9 @@ float OrbExtractor::orientation(const cv::Mat& level_image, int x, int y) const 
 }
 
 ImageFeatures OrbExtractor::extract(const cv::Mat& image) {
-  ORBATLAS_CHECK(!image.empty() && image.type() == CV_8UC1,
-                 "ORB: the image must be a non-empty CV_8UC1 image, got " << image.cols << "x" << image.rows << " of type "
-                                                                          << image.type());
+  ORBATLAS_CHECK(!image.empty() && image.type() == CV_8UC1, "ORB: the image must be a non-empty CV_8UC1 image, got "
+                                                                << image.cols << "x" << image.rows << " of type "
+                                                                << image.type());
   build_pyramid(image);
   ImageFeatures out;
   out.width = image.cols;
@@ -477,7 +484,8 @@ ImageFeatures OrbExtractor::extract(const cv::Mat& image) {
     const cv::Mat& img = pyramid_[level];
     detect_level(static_cast<int>(level));
     const int min_x = kBorder - kFastRadius, min_y = kBorder - kFastRadius;
-    distribute(img.cols - kBorder + kFastRadius - min_x, img.rows - kBorder + kFastRadius - min_y, features_per_level_[level]);
+    distribute(img.cols - kBorder + kFastRadius - min_x, img.rows - kBorder + kFastRadius - min_y,
+               features_per_level_[level]);
     if (selected_.empty()) continue;
 
     const auto scale = static_cast<float>(scale_factors_[level]);
@@ -500,8 +508,8 @@ ImageFeatures OrbExtractor::extract(const cv::Mat& image) {
     const std::size_t expected = level_keys_.size();
     orb_->compute(img, level_keys_, level_descriptors_);
     ORBATLAS_CHECK(level_keys_.size() == expected && level_descriptors_.rows == static_cast<int>(expected),
-                   "ORB: OpenCV dropped keypoints of level " << level << " (" << level_keys_.size() << " of " << expected
-                                                             << " kept)");
+                   "ORB: OpenCV dropped keypoints of level " << level << " (" << level_keys_.size() << " of "
+                                                             << expected << " kept)");
     for (int r = 0; r < level_descriptors_.rows; ++r) {
       Descriptor d;
       std::memcpy(d.data(), level_descriptors_.ptr(r), sizeof(Descriptor));

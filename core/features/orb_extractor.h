@@ -90,8 +90,8 @@ class OrbExtractor {
   // Scratch kept between calls so that extraction does not allocate.
   std::vector<cv::Mat> bordered_;  // level buffers; pyramid_[l] views their interior
   cv::Size pyramid_size_;
-  std::vector<int> umax_;  // half-width of each row of the circular orientation patch
-  cv::Ptr<cv::ORB> orb_;   // descriptor bits on a level image
+  std::vector<int> umax_;                    // half-width of each row of the circular orientation patch
+  cv::Ptr<cv::ORB> orb_;                     // descriptor bits on a level image
   std::vector<std::uint8_t> scores_, tile_;  // FAST scores of a level; one cell's thresholded scores
   std::vector<cv::KeyPoint> level_keys_;
   cv::Mat level_descriptors_;

@@ -40,10 +40,12 @@ StereoRectifier::StereoRectifier(const CameraCalibration& left, const CameraCali
   const cv::Size size(left.width, left.height);
   cv::Mat R1, R2, P1, P2, Q;
   const cv::Mat T = (cv::Mat_<double>(3, 1) << T_c1_c0.t.x(), T_c1_c0.t.y(), T_c1_c0.t.z());
-  cv::stereoRectify(intrinsics(left), cv::Mat(left.distortion), intrinsics(right), cv::Mat(right.distortion),
-                    size, to_cv(T_c1_c0.rotation()), T, R1, R2, P1, P2, Q, cv::CALIB_ZERO_DISPARITY, 0);
-  cv::initUndistortRectifyMap(intrinsics(left), cv::Mat(left.distortion), R1, P1, size, CV_32F, map_left_x_, map_left_y_);
-  cv::initUndistortRectifyMap(intrinsics(right), cv::Mat(right.distortion), R2, P2, size, CV_32F, map_right_x_, map_right_y_);
+  cv::stereoRectify(intrinsics(left), cv::Mat(left.distortion), intrinsics(right), cv::Mat(right.distortion), size,
+                    to_cv(T_c1_c0.rotation()), T, R1, R2, P1, P2, Q, cv::CALIB_ZERO_DISPARITY, 0);
+  cv::initUndistortRectifyMap(intrinsics(left), cv::Mat(left.distortion), R1, P1, size, CV_32F, map_left_x_,
+                              map_left_y_);
+  cv::initUndistortRectifyMap(intrinsics(right), cv::Mat(right.distortion), R2, P2, size, CV_32F, map_right_x_,
+                              map_right_y_);
   baseline_ = -P2.at<double>(0, 3) / P2.at<double>(0, 0);
   ORBATLAS_CHECK(baseline_ > 0.0, "stereo rectification: the right camera is not to the right of the left one");
 
@@ -63,23 +65,25 @@ StereoRectifier::StereoRectifier(const CameraCalibration& left, const CameraCali
   rect_right_ = rectified(right, R2);
 }
 
-void StereoRectifier::rectify(const cv::Mat& left, const cv::Mat& right, cv::Mat& left_rect, cv::Mat& right_rect) const {
+void StereoRectifier::rectify(const cv::Mat& left, const cv::Mat& right, cv::Mat& left_rect,
+                              cv::Mat& right_rect) const {
   ORBATLAS_CHECK(left.size() == map_left_x_.size() && right.size() == map_right_x_.size(),
                  "stereo images of " << left.cols << "x" << left.rows << " and " << right.cols << "x" << right.rows
-                                     << " do not match the calibration (" << map_left_x_.cols << "x" << map_left_x_.rows << ")");
+                                     << " do not match the calibration (" << map_left_x_.cols << "x" << map_left_x_.rows
+                                     << ")");
   cv::remap(left, left_rect, map_left_x_, map_left_y_, cv::INTER_LINEAR);
   cv::remap(right, right_rect, map_right_x_, map_right_y_, cv::INTER_LINEAR);
 }
 
 void StereoRectifier::rectify_left(const cv::Mat& left, cv::Mat& left_rect) const {
-  ORBATLAS_CHECK(left.size() == map_left_x_.size(), "left image of " << left.cols << "x" << left.rows
-                                                                     << " does not match the calibration");
+  ORBATLAS_CHECK(left.size() == map_left_x_.size(),
+                 "left image of " << left.cols << "x" << left.rows << " does not match the calibration");
   cv::remap(left, left_rect, map_left_x_, map_left_y_, cv::INTER_LINEAR);
 }
 
 void StereoRectifier::rectify_right(const cv::Mat& right, cv::Mat& right_rect) const {
-  ORBATLAS_CHECK(right.size() == map_right_x_.size(), "right image of " << right.cols << "x" << right.rows
-                                                                        << " does not match the calibration");
+  ORBATLAS_CHECK(right.size() == map_right_x_.size(),
+                 "right image of " << right.cols << "x" << right.rows << " does not match the calibration");
   cv::remap(right, right_rect, map_right_x_, map_right_y_, cv::INTER_LINEAR);
 }
 

@@ -26,7 +26,7 @@ class StereoRectifier {
 
   const CameraCalibration& rectified_left() const { return rect_left_; }
   const CameraCalibration& rectified_right() const { return rect_right_; }
-  double baseline() const { return baseline_; }      // metres
+  double baseline() const { return baseline_; }            // metres
   double bf() const { return baseline_ * rect_left_.fx; }  // baseline * focal (pixels * m)
 
  private:
@@ -37,9 +37,9 @@ class StereoRectifier {
 
 struct StereoMatchOptions {
   int max_hamming = (kHammingLow + kHammingHigh) / 2;
-  int sad_half_window = 5;   // 11x11 patches
-  int sad_search = 3;        // +- full-resolution pixels around the descriptor match (plus the level scale)
-  double min_depth_baselines = 1.0;  // nearest depth accepted, in baselines (max disparity = fx)
+  int sad_half_window = 5;            // 11x11 patches
+  int sad_search = 3;                 // +- full-resolution pixels around the descriptor match (plus the level scale)
+  double min_depth_baselines = 1.0;   // nearest depth accepted, in baselines (max disparity = fx)
   double outlier_factor = 1.5 * 1.4;  // SAD cost above factor * median is rejected
 };
 

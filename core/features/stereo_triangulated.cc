@@ -96,7 +96,9 @@ TriangulatedStereo match_stereo_triangulated(const Camera& left_camera, const Im
                              cv::OPTFLOW_USE_INITIAL_FLOW);
     for (std::size_t k = 0; k < candidates.size(); ++k) {
       // The refinement may only polish the match, not move it to another place.
-      const float limit = 1.0f + static_cast<float>(std::sqrt(level_sigma2[static_cast<std::size_t>(right.keypoints[candidates[k].right].level)]));
+      const float limit =
+          1.0f + static_cast<float>(
+                     std::sqrt(level_sigma2[static_cast<std::size_t>(right.keypoints[candidates[k].right].level)]));
       if (ok[k] && cv::norm(pts_r[k] - initial[k]) > limit) ok[k] = 0;
     }
   }

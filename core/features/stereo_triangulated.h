@@ -15,15 +15,15 @@ namespace orbatlas {
 
 struct TriangulatedStereoOptions {
   int max_hamming = kHammingHigh;
-  double ratio = 0.8;                    // best / second best descriptor distance
+  double ratio = 0.8;                      // best / second best descriptor distance
   double max_reprojection_sigma2 = 5.991;  // chi2(2 dof, 95%) in units of the level's sigma^2
   double min_parallax_deg = 0.05;
   int sad_half_window = 7;  // sub-pixel refinement window half size (15x15 Lucas-Kanade)
 };
 
 struct TriangulatedStereo {
-  std::vector<int> right_index;  // per left keypoint; -1 when unmatched
-  std::vector<float> depth;      // z in the left camera frame; -1 when unmatched
+  std::vector<int> right_index;              // per left keypoint; -1 when unmatched
+  std::vector<float> depth;                  // z in the left camera frame; -1 when unmatched
   std::vector<Eigen::Vector3d> points_left;  // triangulated point in the left camera frame
   std::size_t matched() const;
 };

@@ -7,8 +7,8 @@
 
 namespace orbatlas {
 
-std::optional<Sim3> horn_absolute_orientation(std::span<const Eigen::Vector3d> p1,
-                                              std::span<const Eigen::Vector3d> p2, bool estimate_scale) {
+std::optional<Sim3> horn_absolute_orientation(std::span<const Eigen::Vector3d> p1, std::span<const Eigen::Vector3d> p2,
+                                              bool estimate_scale) {
   ORBATLAS_CHECK(p1.size() == p2.size(),
                  "absolute orientation: " << p1.size() << " points for " << p2.size() << " points");
   ORBATLAS_CHECK(p1.size() >= 3, "absolute orientation needs at least 3 point pairs, got " << p1.size());

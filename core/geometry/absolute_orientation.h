@@ -21,7 +21,7 @@ namespace orbatlas {
 // mismatch). Returns nullopt for degenerate configurations: all points of a side
 // coincident, or all collinear (the rotation about that line is then undetermined,
 // seen as a repeated largest eigenvalue of N).
-std::optional<Sim3> horn_absolute_orientation(std::span<const Eigen::Vector3d> p1,
-                                              std::span<const Eigen::Vector3d> p2, bool estimate_scale);
+std::optional<Sim3> horn_absolute_orientation(std::span<const Eigen::Vector3d> p1, std::span<const Eigen::Vector3d> p2,
+                                              bool estimate_scale);
 
 }  // namespace orbatlas

@@ -33,9 +33,7 @@ Sim3 Sim3::inverse() const {
   return Sim3(qi, -(qi * t) / s, 1.0 / s);
 }
 
-Sim3 Sim3::operator*(const Sim3& other) const {
-  return Sim3(q * other.q, s * (q * other.t) + t, s * other.s);
-}
+Sim3 Sim3::operator*(const Sim3& other) const { return Sim3(q * other.q, s * (q * other.t) + t, s * other.s); }
 
 double sim3_rotation_distance(const Sim3& a, const Sim3& b) { return rotation_angle(a.q.conjugate() * b.q); }
 

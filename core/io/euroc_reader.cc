@@ -41,11 +41,12 @@ class TimestampOrder {
   explicit TimestampOrder(const fs::path& csv) : csv_(csv) {}
   void check(TimestampNs t, std::size_t line) {
     if (has_previous_ && t == previous_)
-      fail_at(csv_, line, "duplicate timestamp " + std::to_string(t) + " (also on line " +
-                              std::to_string(previous_line_) + ")");
+      fail_at(csv_, line,
+              "duplicate timestamp " + std::to_string(t) + " (also on line " + std::to_string(previous_line_) + ")");
     if (has_previous_ && t < previous_)
-      fail_at(csv_, line, "timestamp " + std::to_string(t) + " is before the previous row's " +
-                              std::to_string(previous_) + " (line " + std::to_string(previous_line_) + ")");
+      fail_at(csv_, line,
+              "timestamp " + std::to_string(t) + " is before the previous row's " + std::to_string(previous_) +
+                  " (line " + std::to_string(previous_line_) + ")");
     if (t < 0) fail_at(csv_, line, "negative timestamp " + std::to_string(t));
     has_previous_ = true;
     previous_ = t;
@@ -177,8 +178,7 @@ EurocDataset read_euroc_dataset(const fs::path& dir, const EurocReadOptions& opt
 }
 
 std::vector<StereoFrame> pair_stereo_frames(const EurocDataset& dataset, TimestampNs tolerance_ns) {
-  if (dataset.cameras.size() < 2)
-    throw DataError(dataset.root.string() + ": no cam1, cannot pair stereo frames");
+  if (dataset.cameras.size() < 2) throw DataError(dataset.root.string() + ": no cam1, cannot pair stereo frames");
   const auto& left = dataset.cameras[0].frames;
   const auto& right = dataset.cameras[1].frames;
   std::vector<StereoFrame> pairs;

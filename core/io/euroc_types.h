@@ -48,12 +48,12 @@ struct CameraStream {
 };
 
 struct EurocDataset {
-  std::filesystem::path root;           // the folder holding mav0/
-  std::vector<CameraStream> cameras;    // cam0 [, cam1]
+  std::filesystem::path root;         // the folder holding mav0/
+  std::vector<CameraStream> cameras;  // cam0 [, cam1]
   std::optional<ImuCalibration> imu_calibration;
-  std::vector<ImuSample> imu;           // empty when there is no imu0
+  std::vector<ImuSample> imu;                  // empty when there is no imu0
   std::vector<GroundTruthState> ground_truth;  // empty when absent
-  std::vector<std::string> warnings;    // every row skipped, and why
+  std::vector<std::string> warnings;           // every row skipped, and why
 };
 
 }  // namespace orbatlas

@@ -53,8 +53,7 @@ void check_stream(std::ofstream& out, const fs::path& path) {
 
 }  // namespace
 
-EurocWriter::EurocWriter(const fs::path& root, const std::vector<CameraCalibration>& cameras,
-                         const ImuCalibration& imu)
+EurocWriter::EurocWriter(const fs::path& root, const std::vector<CameraCalibration>& cameras, const ImuCalibration& imu)
     : mav0_(root / "mav0") {
   ORBATLAS_CHECK(!cameras.empty(), "EurocWriter: at least one camera (cam0) is needed");
   std::error_code ec;
@@ -102,19 +101,17 @@ EurocWriter::EurocWriter(const fs::path& root, const std::vector<CameraCalibrati
 }
 
 fs::path EurocWriter::image_path(int cam, TimestampNs t) const {
-  ORBATLAS_CHECK(cam >= 0 && static_cast<std::size_t>(cam) < camera_csv_.size(),
-                 "EurocWriter: no camera " << cam);
+  ORBATLAS_CHECK(cam >= 0 && static_cast<std::size_t>(cam) < camera_csv_.size(), "EurocWriter: no camera " << cam);
   return mav0_ / ("cam" + std::to_string(cam)) / "data" / (std::to_string(t) + ".png");
 }
 
 void EurocWriter::add_frame_row(int cam, TimestampNs t) {
-  ORBATLAS_CHECK(cam >= 0 && static_cast<std::size_t>(cam) < camera_csv_.size(),
-                 "EurocWriter: no camera " << cam);
+  ORBATLAS_CHECK(cam >= 0 && static_cast<std::size_t>(cam) < camera_csv_.size(), "EurocWriter: no camera " << cam);
   const auto c = static_cast<std::size_t>(cam);
   ORBATLAS_CHECK(camera_csv_[c].is_open(), "EurocWriter: add_frame_row after close()");
   ORBATLAS_CHECK(t > last_frame_t_[c], "EurocWriter: cam" << cam << " frame at " << t
-                                                           << " ns is not after the previous one ("
-                                                           << last_frame_t_[c] << " ns)");
+                                                          << " ns is not after the previous one (" << last_frame_t_[c]
+                                                          << " ns)");
   last_frame_t_[c] = t;
   camera_csv_[c] << t << ',' << t << ".png\n";
 }
@@ -124,9 +121,9 @@ void EurocWriter::write_imu(const std::vector<ImuSample>& samples) {
   std::string text;
   text.reserve(samples.size() * 128);
   for (const ImuSample& s : samples) {
-    ORBATLAS_CHECK(s.t_ns > last_imu_t_, "EurocWriter: IMU sample at " << s.t_ns
-                                                                       << " ns is not after the previous one ("
-                                                                       << last_imu_t_ << " ns)");
+    ORBATLAS_CHECK(s.t_ns > last_imu_t_, "EurocWriter: IMU sample at "
+                                             << s.t_ns << " ns is not after the previous one (" << last_imu_t_
+                                             << " ns)");
     last_imu_t_ = s.t_ns;
     text += std::to_string(s.t_ns);
     append_vec3(text, s.gyro);

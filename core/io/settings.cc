@@ -327,9 +327,9 @@ void SlamSettings::check() const {
   // not an allocation failure at the first frame.
   for (const CameraCalibration* c : {&camera0, camera1 ? &*camera1 : nullptr}) {
     if (c)
-      ORBATLAS_CHECK(c->width <= kMaxImageSide && c->height <= kMaxImageSide,
-                     "settings: images of at most " << kMaxImageSide << " pixels a side, got " << c->width << "x"
-                                                    << c->height);
+      ORBATLAS_CHECK(
+          c->width <= kMaxImageSide && c->height <= kMaxImageSide,
+          "settings: images of at most " << kMaxImageSide << " pixels a side, got " << c->width << "x" << c->height);
   }
   ORBATLAS_CHECK(fps <= 1000, "settings: fps must be at most 1000, got " << fps);
   ORBATLAS_CHECK(orb.n_features > 0 && orb.n_features <= kMaxOrbFeatures,

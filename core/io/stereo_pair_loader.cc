@@ -13,8 +13,10 @@ StereoPairLoader::StereoPairLoader(std::vector<StereoFrame> frames, std::size_t 
       pair.left = cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE);
       const bool single = f.right.empty();  // a single camera's frame
       if (!single) pair.right = cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE);
-      if (pair.left.empty()) pair.error = "cannot read image " + f.left.string();
-      else if (!single && pair.right.empty()) pair.error = "cannot read image " + f.right.string();
+      if (pair.left.empty())
+        pair.error = "cannot read image " + f.left.string();
+      else if (!single && pair.right.empty())
+        pair.error = "cannot read image " + f.right.string();
       if (!queue_.push(std::move(pair))) return;  // closed: the consumer stopped
     }
     queue_.close();

@@ -72,7 +72,6 @@ std::vector<std::string> first_csv_fields(const fs::path& path) {
   return {};
 }
 
-
 }  // namespace
 
 Trajectory from_ground_truth_states(const std::vector<GroundTruthState>& states) {
@@ -140,8 +139,8 @@ std::string format_tum_trajectory(const Trajectory& trajectory, const std::vecto
     if (!maps.empty() && (i == 0 || maps[i] != maps[i - 1])) out += "# map " + std::to_string(maps[i]) + "\n";
     const Eigen::Vector3d& p = s.pose.t;
     const Eigen::Quaterniond& q = s.pose.q;
-    std::snprintf(buf, sizeof buf, " %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", p.x(), p.y(), p.z(), q.x(), q.y(),
-                  q.z(), q.w());
+    std::snprintf(buf, sizeof buf, " %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", p.x(), p.y(), p.z(), q.x(), q.y(), q.z(),
+                  q.w());
     out += format_seconds_exact(s.t_ns);
     out += buf;
   }

@@ -55,9 +55,8 @@ void LoopCloser::insert(const std::shared_ptr<KeyFrame>& keyframe) {
     if (closed_) return;
     ++in_flight_;
   }
-  const bool queued = options_.shared_worker
-                          ? options_.shared_worker->try_post([this, keyframe] { run_one(keyframe); })
-                          : queue_.try_push(keyframe);
+  const bool queued = options_.shared_worker ? options_.shared_worker->try_post([this, keyframe] { run_one(keyframe); })
+                                             : queue_.try_push(keyframe);
   if (!queued) {
     std::lock_guard lock(state_mutex_);
     --in_flight_;
@@ -196,10 +195,10 @@ bool LoopCloser::merge_live(const PlaceMatch& match) {
     merged = merge_maps(atlas_, match, cam_, options_.merge);
   }
   log_info("live merge: map " + std::to_string(source) + " merged into map " + std::to_string(target) +
-           " at keyframe " + std::to_string(match.current->id()) + " ~ " + std::to_string(match.matched->id()) +
-           " (" + std::to_string(match.matches) + " matches, " + std::to_string(merged.keyframes_moved) +
-           " keyframes moved, " + std::to_string(merged.points_merged) + " points fused, " +
-           std::to_string(merged.ms) + " ms)");
+           " at keyframe " + std::to_string(match.current->id()) + " ~ " + std::to_string(match.matched->id()) + " (" +
+           std::to_string(match.matches) + " matches, " + std::to_string(merged.keyframes_moved) +
+           " keyframes moved, " + std::to_string(merged.points_merged) + " points fused, " + std::to_string(merged.ms) +
+           " ms)");
   LiveMerge record;
   record.current = match.current->id();
   record.matched = match.matched->id();

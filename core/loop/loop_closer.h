@@ -81,13 +81,13 @@ struct GlobalAdjustmentRun {
 };
 
 struct LoopClosingStats {
-  std::size_t keyframes = 0;          // run through place recognition
-  std::size_t keyframes_skipped = 0;  // the queue was full
-  std::size_t hypotheses = 0;         // geometric hypotheses that passed the guided search
+  std::size_t keyframes = 0;           // run through place recognition
+  std::size_t keyframes_skipped = 0;   // the queue was full
+  std::size_t hypotheses = 0;          // geometric hypotheses that passed the guided search
   SampleSummary place_recognition_ms;  // per keyframe (bounded)
   std::vector<ClosedLoop> loops;
-  std::vector<LiveMerge> merges;         // live merges of the active map into another
-  SampleSummary merge_search_ms;         // per keyframe, when live merging is on
+  std::vector<LiveMerge> merges;  // live merges of the active map into another
+  SampleSummary merge_search_ms;  // per keyframe, when live merging is on
   std::vector<GlobalAdjustmentRun> global_adjustments;
   WorkerErrorCounts errors;  // keyframes / adjustments given up after an error
 };

@@ -19,9 +19,9 @@
 namespace orbatlas {
 
 struct LoopCorrectionOptions {
-  float fusion_th = 4.0f;           // ORB-SLAM's SearchAndFuse radius (pixels x scale)
-  int strong_covisibility = 100;    // covisibility edges of the essential graph
-  EssentialGraphOptions graph;      // fix_scale is forced for stereo maps
+  float fusion_th = 4.0f;         // ORB-SLAM's SearchAndFuse radius (pixels x scale)
+  int strong_covisibility = 100;  // covisibility edges of the essential graph
+  EssentialGraphOptions graph;    // fix_scale is forced for stereo maps
 };
 
 struct LoopCorrectionStats {

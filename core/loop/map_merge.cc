@@ -37,8 +37,8 @@ MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamer
   const auto whole = atlas.lock_maps_exclusive();
   const auto source = atlas.map(current->map_id());
   const auto target = atlas.map(matched->map_id());
-  ORBATLAS_CHECK(source && target, "map merge: map " << current->map_id() << " or " << matched->map_id()
-                                                     << " is not in the atlas");
+  ORBATLAS_CHECK(source && target,
+                 "map merge: map " << current->map_id() << " or " << matched->map_id() << " is not in the atlas");
   MapMergeStats stats;
   stats.source = source->id();
   stats.target = target->id();

@@ -37,21 +37,21 @@ struct PlaceRecognitionOptions {
   // kOtherMaps: the maps candidates may come from (called under the index's
   // lock: it must not block); empty accepts every other map.
   std::function<bool(MapId)> may_use_map;
-  std::size_t candidates = 3;        // covisibility groups tried
-  std::size_t index_results = 20;    // BoW results the groups are formed from
+  std::size_t candidates = 3;          // covisibility groups tried
+  std::size_t index_results = 20;      // BoW results the groups are formed from
   std::size_t window_covisibles = 10;  // ORB-SLAM3's local window
-  float bow_ratio = 0.9f;            // SearchByBoW ratio for loops (ORB-SLAM3)
-  int min_bow_matches = 20;          // nBoWMatches
-  int min_ransac_inliers = 15;       // nBoWInliers
-  float first_search_th = 3.0f;      // guided search radius factor (x 2.5-4 px x scale)
-  int min_projection_matches = 50;   // nProjMatches
-  int min_refined_inliers = 20;      // nSim3Inliers
-  float second_search_th = 1.5f;     // the narrower second pass
-  int min_final_matches = 80;        // nProjOptMatches
-  int verify_matches = 30;           // a covisible / later keyframe confirms with this many
-  int verify_keyframes = 3;          // keyframes that must agree
-  int max_consecutive_failures = 2;  // later keyframes failing in a row drop the hypothesis
-  std::size_t verify_covisibles = 5; // covisibles of the detecting keyframe tried at once
+  float bow_ratio = 0.9f;              // SearchByBoW ratio for loops (ORB-SLAM3)
+  int min_bow_matches = 20;            // nBoWMatches
+  int min_ransac_inliers = 15;         // nBoWInliers
+  float first_search_th = 3.0f;        // guided search radius factor (x 2.5-4 px x scale)
+  int min_projection_matches = 50;     // nProjMatches
+  int min_refined_inliers = 20;        // nSim3Inliers
+  float second_search_th = 1.5f;       // the narrower second pass
+  int min_final_matches = 80;          // nProjOptMatches
+  int verify_matches = 30;             // a covisible / later keyframe confirms with this many
+  int verify_keyframes = 3;            // keyframes that must agree
+  int max_consecutive_failures = 2;    // later keyframes failing in a row drop the hypothesis
+  std::size_t verify_covisibles = 5;   // covisibles of the detecting keyframe tried at once
   std::uint64_t seed = 1;
 };
 

@@ -28,9 +28,9 @@ class Atlas {
   // above the id, so create_map never hands it out again. Throws when the atlas
   // already has a map with that id. Does not change the active map.
   std::shared_ptr<Map> add_map(MapId id);
-  void set_active(MapId id);  // throws if the atlas has no such map
-  std::shared_ptr<Map> active_map() const;  // null before the first create_map
-  std::shared_ptr<Map> map(MapId id) const;  // null if absent
+  void set_active(MapId id);                       // throws if the atlas has no such map
+  std::shared_ptr<Map> active_map() const;         // null before the first create_map
+  std::shared_ptr<Map> map(MapId id) const;        // null if absent
   std::vector<std::shared_ptr<Map>> maps() const;  // by id
   // Takes a map out of the atlas (after a merge emptied it); null if absent.
   // The active map becomes none when it was this one.

@@ -10,10 +10,12 @@ std::shared_ptr<KeyFrame> KeyFrame::create(KeyframeId id, MapId map, KeyFrameDat
   const std::size_t n = data.features.keypoints.size();
   ORBATLAS_CHECK(data.depth.empty() || data.depth.size() == n,
                  "keyframe " << id << ": " << data.depth.size() << " depths for " << n << " keypoints");
-  ORBATLAS_CHECK(data.u_right.size() == data.depth.size(),
-                 "keyframe " << id << ": " << data.u_right.size() << " right columns for " << data.depth.size() << " depths");
-  ORBATLAS_CHECK(data.features.descriptors.empty() || data.features.descriptors.size() == n,
-                 "keyframe " << id << ": " << data.features.descriptors.size() << " descriptors for " << n << " keypoints");
+  ORBATLAS_CHECK(data.u_right.size() == data.depth.size(), "keyframe " << id << ": " << data.u_right.size()
+                                                                       << " right columns for " << data.depth.size()
+                                                                       << " depths");
+  ORBATLAS_CHECK(
+      data.features.descriptors.empty() || data.features.descriptors.size() == n,
+      "keyframe " << id << ": " << data.features.descriptors.size() << " descriptors for " << n << " keypoints");
   ORBATLAS_CHECK(n <= UINT32_MAX, "keyframe " << id << ": too many keypoints");
   // Not make_shared: with a separate allocation the object's memory is freed when
   // the last strong reference drops, even while weak references remain.
@@ -39,7 +41,8 @@ KeyFrame::~KeyFrame() {
 }
 
 void KeyFrame::check_slot(std::size_t slot) const {
-  ORBATLAS_CHECK(slot < slot_count(), "keyframe " << id_ << ": slot " << slot << " out of range (" << slot_count() << ")");
+  ORBATLAS_CHECK(slot < slot_count(),
+                 "keyframe " << id_ << ": slot " << slot << " out of range (" << slot_count() << ")");
 }
 
 const Keypoint& KeyFrame::keypoint(std::size_t slot) const {
@@ -93,8 +96,7 @@ SlotEdit KeyFrame::try_add_observation(std::size_t slot, const std::shared_ptr<M
 
 bool KeyFrame::add_observation(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {
   const SlotEdit edit = try_add_observation(slot, map_point);
-  ORBATLAS_CHECK(edit != SlotEdit::kSlotTaken,
-                 "keyframe " << id_ << ": slot " << slot << " already holds a map point");
+  ORBATLAS_CHECK(edit != SlotEdit::kSlotTaken, "keyframe " << id_ << ": slot " << slot << " already holds a map point");
   ORBATLAS_CHECK(edit != SlotEdit::kAlreadyObserved,
                  "map point " << map_point->id() << " is already observed by keyframe " << id_);
   return edit == SlotEdit::kDone;

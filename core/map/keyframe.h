@@ -93,14 +93,14 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   void update_connections(int min_weight = kCovisibilityMinWeight);
   void add_connection(const std::shared_ptr<KeyFrame>& other, int weight);
   void erase_connection(KeyframeId other);
-  int weight(KeyframeId other) const;                 // 0 when not connected
-  std::vector<CovisibilityEdge> connections() const;  // weight descending, then id ascending
+  int weight(KeyframeId other) const;                                           // 0 when not connected
+  std::vector<CovisibilityEdge> connections() const;                            // weight descending, then id ascending
   std::vector<std::shared_ptr<KeyFrame>> best_covisibles(std::size_t n) const;  // live, not bad
 
   // --- spanning tree (weak links) ---
   void set_parent(const std::shared_ptr<KeyFrame>& parent);  // null makes it a root
   std::shared_ptr<KeyFrame> parent() const;
-  std::optional<KeyframeId> parent_id() const;  // kept after culling (the parent may be gone)
+  std::optional<KeyframeId> parent_id() const;              // kept after culling (the parent may be gone)
   std::vector<std::shared_ptr<KeyFrame>> children() const;  // by id
   std::vector<KeyframeId> child_ids() const;
 
@@ -137,7 +137,7 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   LifetimeToken token_;  // first member: destroyed last (see object_counters.h)
   const KeyframeId id_;
   std::atomic<MapId> map_id_;  // set by Map::absorb
-  const KeyFrameData data_;  // data_.T_w_b is only the initial pose; T_w_b_ is current
+  const KeyFrameData data_;    // data_.T_w_b is only the initial pose; T_w_b_ is current
   const std::shared_ptr<std::atomic<int>> redundant_;
   std::atomic<bool> bad_{false};
   std::atomic<int> map_point_count_{0};

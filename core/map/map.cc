@@ -26,8 +26,8 @@ std::shared_ptr<MapPoint> Map::new_map_point(MapPointData data) {
 
 void Map::add_keyframe(std::shared_ptr<KeyFrame> keyframe) {
   ORBATLAS_CHECK(keyframe != nullptr, "map " << id_ << ": null keyframe");
-  ORBATLAS_CHECK(keyframe->map_id() == id_, "keyframe " << keyframe->id() << " belongs to map " << keyframe->map_id()
-                                                        << ", not " << id_);
+  ORBATLAS_CHECK(keyframe->map_id() == id_,
+                 "keyframe " << keyframe->id() << " belongs to map " << keyframe->map_id() << ", not " << id_);
   ORBATLAS_CHECK(!keyframe->is_bad(), "map " << id_ << ": keyframe " << keyframe->id() << " is culled");
   const KeyframeId kf_id = keyframe->id();
   std::lock_guard lock(objects_mutex_);
@@ -37,8 +37,8 @@ void Map::add_keyframe(std::shared_ptr<KeyFrame> keyframe) {
 
 void Map::add_map_point(std::shared_ptr<MapPoint> map_point) {
   ORBATLAS_CHECK(map_point != nullptr, "map " << id_ << ": null map point");
-  ORBATLAS_CHECK(map_point->map_id() == id_, "map point " << map_point->id() << " belongs to map "
-                                                          << map_point->map_id() << ", not " << id_);
+  ORBATLAS_CHECK(map_point->map_id() == id_,
+                 "map point " << map_point->id() << " belongs to map " << map_point->map_id() << ", not " << id_);
   ORBATLAS_CHECK(!map_point->is_bad(), "map " << id_ << ": map point " << map_point->id() << " is culled");
   const MapPointId mp_id = map_point->id();
   std::lock_guard lock(objects_mutex_);
@@ -153,9 +153,11 @@ Map::AbsorbCounts Map::absorb(Map& source, const Pose3& T_this_source) {
   AbsorbCounts counts{keyframes.size(), points.size(), culled.size()};
   std::lock_guard lock(objects_mutex_);
   for (auto& [id, kf] : keyframes)
-    ORBATLAS_CHECK(keyframes_.try_emplace(id, std::move(kf)).second, "map " << id_ << ": keyframe id " << id << " already present");
+    ORBATLAS_CHECK(keyframes_.try_emplace(id, std::move(kf)).second,
+                   "map " << id_ << ": keyframe id " << id << " already present");
   for (auto& [id, mp] : points)
-    ORBATLAS_CHECK(map_points_.try_emplace(id, std::move(mp)).second, "map " << id_ << ": map point id " << id << " already present");
+    ORBATLAS_CHECK(map_points_.try_emplace(id, std::move(mp)).second,
+                   "map " << id_ << ": map point id " << id << " already present");
   for (auto& [id, anchor] : culled) culled_anchors_.insert_or_assign(id, anchor);
   return counts;
 }

@@ -59,8 +59,8 @@ float MapPoint::max_distance() const {
 }
 
 void MapPoint::set_distances(float min_distance, float max_distance) {
-  ORBATLAS_CHECK(min_distance <= max_distance, "map point " << id_ << ": min distance " << min_distance
-                                                             << " > max distance " << max_distance);
+  ORBATLAS_CHECK(min_distance <= max_distance,
+                 "map point " << id_ << ": min distance " << min_distance << " > max distance " << max_distance);
   std::lock_guard lock(mutex_);
   data_.min_distance = min_distance;
   data_.max_distance = max_distance;
@@ -118,11 +118,16 @@ int MapPoint::observers_up_to_level(int max_level, KeyframeId exclude, int enoug
 
 const char* to_string(SlotEdit edit) {
   switch (edit) {
-    case SlotEdit::kDone: return "done";
-    case SlotEdit::kBad: return "culled";
-    case SlotEdit::kSlotTaken: return "slot taken";
-    case SlotEdit::kSlotChanged: return "slot changed";
-    case SlotEdit::kAlreadyObserved: return "already observed";
+    case SlotEdit::kDone:
+      return "done";
+    case SlotEdit::kBad:
+      return "culled";
+    case SlotEdit::kSlotTaken:
+      return "slot taken";
+    case SlotEdit::kSlotChanged:
+      return "slot changed";
+    case SlotEdit::kAlreadyObserved:
+      return "already observed";
   }
   return "?";
 }

@@ -15,8 +15,8 @@ class KeyFrame;
 
 struct ObserverRecord {
   std::weak_ptr<KeyFrame> keyframe;
-  std::uint32_t slot = 0;   // keypoint index in the keyframe
-  int level = 0;            // pyramid level of that keypoint (immutable copy)
+  std::uint32_t slot = 0;  // keypoint index in the keyframe
+  int level = 0;           // pyramid level of that keypoint (immutable copy)
   // Incremental redundancy (redundancy_tracker.h): the number of OTHER observers
   // whose level <= this level + 1, and the observer's count of its redundant points.
   int finer_observers = 0;

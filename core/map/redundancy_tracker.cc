@@ -7,8 +7,8 @@ namespace orbatlas {
 void track_attach(ObserverRecords& records, KeyframeId id, ObserverRecord record) {
   int mine = 0;
   for (auto& [other_id, other] : records) {
-    if (other.level <= record.level + 1) ++mine;   // the other observer counts for the newcomer
-    if (record.level <= other.level + 1) {         // the newcomer counts for the other observer
+    if (other.level <= record.level + 1) ++mine;  // the other observer counts for the newcomer
+    if (record.level <= other.level + 1) {        // the newcomer counts for the other observer
       if (++other.finer_observers == kRedundancyMinObservers) other.redundant_counter->fetch_add(1);
     }
   }

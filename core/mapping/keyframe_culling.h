@@ -27,7 +27,7 @@ struct KeyframeCullingOptions {
 struct KeyframeCullingResult {
   std::vector<KeyframeId> culled;
   int candidates = 0;
-  int disagreements = 0;  // with compare_schemes: decisions where the schemes differ
+  int disagreements = 0;        // with compare_schemes: decisions where the schemes differ
   double scan_us = 0.0;         // time spent counting by scan (when run)
   double incremental_us = 0.0;  // time spent reading the incremental counts (when run)
 };

@@ -28,7 +28,11 @@ int weighted_observations(const MapPoint& point) {
 }  // namespace
 
 LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options, KeyframeIndex* index)
-    : atlas_(atlas), index_(index), cam_(std::move(cam)), options_(std::move(options)), queue_(options_.queue_capacity) {
+    : atlas_(atlas),
+      index_(index),
+      cam_(std::move(cam)),
+      options_(std::move(options)),
+      queue_(options_.queue_capacity) {
   ORBATLAS_CHECK(cam_.camera != nullptr, "local mapper needs a camera");
   thread_ = std::thread([this] { run(); });
 }

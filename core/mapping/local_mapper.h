@@ -43,7 +43,7 @@ struct LocalMapperOptions {
 struct LocalMapperStats {
   std::size_t keyframes = 0;  // processed
   // Bounded (a long-running server keeps the same memory per figure).
-  SampleSummary keyframe_ms;          // whole processing per keyframe
+  SampleSummary keyframe_ms;  // whole processing per keyframe
   SampleSummary bundle_adjustment_ms;
   SampleSummary culling_scan_ms;         // per keyframe (all candidates), when the scan ran
   SampleSummary culling_incremental_ms;  // per keyframe, when the incremental read ran
@@ -119,7 +119,7 @@ class LocalMapper final : public KeyframeSink {
   mutable std::condition_variable idle_cv_;
   std::size_t in_flight_ = 0;  // inserted and not yet processed
   std::atomic<bool> pause_requested_{false};
-  bool paused_ = false;  // guarded by state_mutex_; the mapper processes nothing while set
+  bool paused_ = false;       // guarded by state_mutex_; the mapper processes nothing while set
   std::exception_ptr error_;  // fatal only: errors_ said the map is unusable
   WorkerErrors errors_{"local mapping"};
   std::function<void(const std::shared_ptr<KeyFrame>&)> processed_listener_;

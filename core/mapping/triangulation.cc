@@ -63,8 +63,9 @@ bool triangulate_dlt(const Eigen::Vector2d& x1, const Eigen::Vector2d& x2, const
   return p_w->allFinite();
 }
 
-TriangulationStats triangulate_pair(Map& map, const std::shared_ptr<KeyFrame>& kf1, const std::shared_ptr<KeyFrame>& kf2,
-                                    const FrameCamera& cam, std::vector<std::shared_ptr<MapPoint>>* created) {
+TriangulationStats triangulate_pair(Map& map, const std::shared_ptr<KeyFrame>& kf1,
+                                    const std::shared_ptr<KeyFrame>& kf2, const FrameCamera& cam,
+                                    std::vector<std::shared_ptr<MapPoint>>* created) {
   TriangulationStats stats;
   const Pose3 T_w_c1 = kf1->T_w_c(), T_w_c2 = kf2->T_w_c();
   const Pose3 T_c1_w = T_w_c1.inverse(), T_c2_w = T_w_c2.inverse();

@@ -20,8 +20,9 @@ struct TriangulationStats {
 
 // Adds the new points to `map` with observations in both keyframes; appends them
 // to `created` (may be null).
-TriangulationStats triangulate_pair(Map& map, const std::shared_ptr<KeyFrame>& kf1, const std::shared_ptr<KeyFrame>& kf2,
-                                    const FrameCamera& cam, std::vector<std::shared_ptr<MapPoint>>* created);
+TriangulationStats triangulate_pair(Map& map, const std::shared_ptr<KeyFrame>& kf1,
+                                    const std::shared_ptr<KeyFrame>& kf2, const FrameCamera& cam,
+                                    std::vector<std::shared_ptr<MapPoint>>* created);
 
 // Linear triangulation (DLT) of normalised image coordinates x1, x2 (z = 1) seen
 // by cameras T_c1_w, T_c2_w. False when degenerate.

@@ -44,8 +44,8 @@ BundleProblem collect_bundle_problem(const std::vector<std::shared_ptr<KeyFrame>
       if (!kf || kf->is_bad()) continue;
       const Keypoint& kp = kf->keypoint(obs.slot);
       ORBATLAS_CHECK(kp.level >= 0 && static_cast<std::size_t>(kp.level) < options.level_sigma2.size(),
-                     "bundle adjustment: keyframe " << kf->id() << " slot " << obs.slot << " has level "
-                                                          << kp.level << " without a sigma2");
+                     "bundle adjustment: keyframe " << kf->id() << " slot " << obs.slot << " has level " << kp.level
+                                                    << " without a sigma2");
       PixelObservation px{kp.uv.cast<double>(), std::nullopt, options.level_sigma2[static_cast<std::size_t>(kp.level)]};
       if (use_stereo && kf->is_stereo() && kf->u_right(obs.slot) >= 0.0f) px.u_right = kf->u_right(obs.slot);
       add_keyframe(kf);
@@ -87,8 +87,8 @@ bool is_bundle_outlier(const BundleProblem& lp, const BundleEdge& e, const Bundl
 }
 
 // One stage: a problem over the active edges, solved for `iterations`.
-ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int iterations,
-                                          const BundleSettings& options, StopFlagCallback& callback) {
+ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int iterations, const BundleSettings& options,
+                                          StopFlagCallback& callback) {
   ceres::Problem::Options po;
   po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;

@@ -21,8 +21,8 @@ inline Eigen::Matrix<double, 3, 4> rotate_point_jacobian(const Eigen::Quaternion
   Eigen::Matrix3d p_hat;
   p_hat << 0.0, -p.z(), p.y(), p.z(), 0.0, -p.x(), -p.y(), p.x(), 0.0;
   Eigen::Matrix<double, 3, 4> J;
-  J.leftCols<3>() = -2.0 * w * p_hat +
-                    2.0 * (v.dot(p) * Eigen::Matrix3d::Identity() + v * p.transpose() - 2.0 * p * v.transpose());
+  J.leftCols<3>() =
+      -2.0 * w * p_hat + 2.0 * (v.dot(p) * Eigen::Matrix3d::Identity() + v * p.transpose() - 2.0 * p * v.transpose());
   J.col(3) = 2.0 * v.cross(p);
   return J;
 }

@@ -101,9 +101,8 @@ EssentialGraphResult optimize_essential_graph(const std::vector<PoseGraphNode>& 
   for (std::size_t k = 0; k < nodes.size(); ++k)
     if (used[k] && nodes[k].fixed) part_fixed[find_root(parent, k)] = 1;
   for (std::size_t k = 0; k < nodes.size(); ++k)
-    ORBATLAS_CHECK(!used[k] || part_fixed[find_root(parent, k)],
-                   "essential graph: the part of the graph holding node " << nodes[k].id
-                                                                        << " has no fixed node (gauge)");
+    ORBATLAS_CHECK(!used[k] || part_fixed[find_root(parent, k)], "essential graph: the part of the graph holding node "
+                                                                     << nodes[k].id << " has no fixed node (gauge)");
 
   EssentialGraphResult result;
   result.nodes = nodes;
@@ -126,8 +125,7 @@ EssentialGraphResult optimize_essential_graph(const std::vector<PoseGraphNode>& 
   costs.reserve(edges.size());
   for (const PoseGraphEdge& edge : edges) {
     const Sim3& S = edge.S_i_j;  // the cost owns its functor
-    costs.push_back(std::make_unique<EdgeCost>(
-        new EdgeResidual{S.q, S.t, S.s, std::log(S.s), std::sqrt(edge.weight)}));
+    costs.push_back(std::make_unique<EdgeCost>(new EdgeResidual{S.q, S.t, S.s, std::log(S.s), std::sqrt(edge.weight)}));
   }
 
   ceres::Problem::Options problem_options;

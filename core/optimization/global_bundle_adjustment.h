@@ -30,8 +30,8 @@ struct GlobalBundleAdjustmentOptions {
 };
 
 struct GlobalBundleAdjustmentResult {
-  std::unordered_map<KeyframeId, Pose3> T_w_b_before;  // body poses the solve started from
-  std::unordered_map<KeyframeId, Pose3> T_w_b;         // optimised body poses
+  std::unordered_map<KeyframeId, Pose3> T_w_b_before;   // body poses the solve started from
+  std::unordered_map<KeyframeId, Pose3> T_w_b;          // optimised body poses
   std::unordered_map<MapPointId, Eigen::Vector3d> p_w;  // optimised positions
   std::size_t keyframes = 0, points = 0, observations = 0;
   int iterations = 0;

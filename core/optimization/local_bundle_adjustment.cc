@@ -61,18 +61,23 @@ LocalBundleAdjustmentStats local_bundle_adjustment(Map& map, const std::shared_p
   for (auto& kf : current->best_covisibles(options.max_covisibles)) window.push_back(std::move(kf));
   BundleProblem lp = collect_bundle_problem(window, camera, bf, settings);
   fix_gauge(lp, options);
-  for (std::size_t k = 0; k < lp.keyframes.size(); ++k) (lp.fixed[k] ? stats.fixed_keyframes : stats.window_keyframes)++;
+  for (std::size_t k = 0; k < lp.keyframes.size(); ++k)
+    (lp.fixed[k] ? stats.fixed_keyframes : stats.window_keyframes)++;
   stats.points = lp.points.size();
   stats.observations = lp.edges.size();
 
   StopFlagCallback callback(stop);
-  stats.iterations += std::max(0, static_cast<int>(solve_bundle_stage(lp, true, options.first_iterations, settings, callback)
-                                                       .iterations.size()) - 1);
+  stats.iterations += std::max(
+      0,
+      static_cast<int>(solve_bundle_stage(lp, true, options.first_iterations, settings, callback).iterations.size()) -
+          1);
   stats.stopped = callback.stopped();
   if (!stats.stopped && options.second_iterations > 0) {
     for (BundleEdge& e : lp.edges) e.active = !is_bundle_outlier(lp, e, settings);
-    stats.iterations += std::max(0, static_cast<int>(solve_bundle_stage(lp, false, options.second_iterations, settings,
-                                                                 callback).iterations.size()) - 1);
+    stats.iterations += std::max(
+        0, static_cast<int>(
+               solve_bundle_stage(lp, false, options.second_iterations, settings, callback).iterations.size()) -
+               1);
     stats.stopped = callback.stopped();
   }
 

@@ -54,8 +54,8 @@ std::unique_ptr<ceres::CostFunction> make_pose_only_cost(const Camera& camera, c
   return dispatch(camera, obs, bf, false, [&](const auto& residual) { return pose_only(residual, p_w); });
 }
 
-std::unique_ptr<ceres::CostFunction> make_pose_point_cost(const Camera& camera, const PixelObservation& obs,
-                                                          double bf, bool pad_mono) {
+std::unique_ptr<ceres::CostFunction> make_pose_point_cost(const Camera& camera, const PixelObservation& obs, double bf,
+                                                          bool pad_mono) {
   return dispatch(camera, obs, bf, pad_mono, [](const auto& residual) { return pose_point(residual); });
 }
 
@@ -64,7 +64,8 @@ std::optional<double> residual_chi2(const ceres::CostFunction& cost, const doubl
   if (cost.num_residuals() > static_cast<int>(r.size())) return std::nullopt;
   if (!cost.Evaluate(parameters, r.data(), nullptr)) return std::nullopt;
   double chi2 = 0.0;
-  for (int i = 0; i < cost.num_residuals(); ++i) chi2 += r[static_cast<std::size_t>(i)] * r[static_cast<std::size_t>(i)];
+  for (int i = 0; i < cost.num_residuals(); ++i)
+    chi2 += r[static_cast<std::size_t>(i)] * r[static_cast<std::size_t>(i)];
   return chi2;
 }
 

@@ -110,8 +110,8 @@ struct PosePointCost {
 std::unique_ptr<ceres::CostFunction> make_pose_only_cost(const Camera& camera, const Eigen::Vector3d& p_w,
                                                          const PixelObservation& obs, double bf);
 // pad_mono: a monocular observation gets 3 rows (see MonoResidual).
-std::unique_ptr<ceres::CostFunction> make_pose_point_cost(const Camera& camera, const PixelObservation& obs,
-                                                          double bf, bool pad_mono = false);
+std::unique_ptr<ceres::CostFunction> make_pose_point_cost(const Camera& camera, const PixelObservation& obs, double bf,
+                                                          bool pad_mono = false);
 
 // Squared norm of the (weighted) residual at `parameters`; nullopt when the point
 // cannot be projected there (behind the camera, outside the model's domain).

@@ -11,8 +11,8 @@ namespace {
 template <class CameraT>
 std::unique_ptr<ceres::CostFunction> make_for(const CameraT& camera, const Eigen::Vector3d& p,
                                               const Eigen::Vector2d& uv, double inv_sigma, Sim3Projection direction) {
-  return std::make_unique<Sim3ProjectionCost<MonoResidual<CameraT>>>(MonoResidual<CameraT>{&camera, uv, inv_sigma},
-                                                                     p, direction);
+  return std::make_unique<Sim3ProjectionCost<MonoResidual<CameraT>>>(MonoResidual<CameraT>{&camera, uv, inv_sigma}, p,
+                                                                     direction);
 }
 
 }  // namespace

@@ -45,8 +45,8 @@ class Sim3ProjectionCost final : public ceres::SizedCostFunction<Residual::kResi
     Eigen::Matrix<double, 3, 4> dpc_dq;
     Eigen::Matrix3d dpc_dt;
     Eigen::Vector3d dpc_dls;
-    const bool want = jacobians != nullptr && (jacobians[0] != nullptr || jacobians[1] != nullptr ||
-                                               jacobians[2] != nullptr);
+    const bool want =
+        jacobians != nullptr && (jacobians[0] != nullptr || jacobians[1] != nullptr || jacobians[2] != nullptr);
     if (direction_ == Sim3Projection::kForward) {
       const Eigen::Vector3d Rp = q * p_;
       p_c = s * Rp + t;

@@ -97,8 +97,7 @@ Sim3RefinementResult refine_sim3(const Sim3& S_1_2_initial, const std::vector<Si
     for (std::size_t i = 0; i < n; ++i) {
       if (!use[i]) continue;
       for (std::size_t k = 2 * i; k < 2 * i + 2; ++k)
-        problem.AddResidualBlock(costs[k].get(), robust ? &huber : nullptr, S.q.data(), S.t.data(),
-                                 S.log_s.data());
+        problem.AddResidualBlock(costs[k].get(), robust ? &huber : nullptr, S.q.data(), S.t.data(), S.log_s.data());
     }
     ceres::Solver::Summary summary;
     ceres::Solve(solver_options(iterations), &problem, &summary);

@@ -23,13 +23,13 @@
 namespace orbatlas {
 
 struct Sim3RefinementOptions {
-  double chi2_threshold = 10.0;  // ORB-SLAM's th2 (LoopClosing::ComputeSim3)
-  bool fix_scale = false;        // stereo / RGB-D: S_1_2 stays rigid (its initial scale)
-  int first_iterations = 5;      // Levenberg-Marquardt, all matches
-  int second_iterations = 10;    // after outliers were dropped
+  double chi2_threshold = 10.0;     // ORB-SLAM's th2 (LoopClosing::ComputeSim3)
+  bool fix_scale = false;           // stereo / RGB-D: S_1_2 stays rigid (its initial scale)
+  int first_iterations = 5;         // Levenberg-Marquardt, all matches
+  int second_iterations = 10;       // after outliers were dropped
   int second_iterations_clean = 5;  // when no outlier was dropped
   bool robust_second_pass = true;   // ORB-SLAM keeps the Huber kernel in the second pass
-  int min_inliers = 10;  // fewer matches left after the first pass: failure (ORB-SLAM returns 0)
+  int min_inliers = 10;             // fewer matches left after the first pass: failure (ORB-SLAM returns 0)
 };
 
 struct Sim3RefinementResult {

@@ -58,8 +58,9 @@ std::vector<AtlasCheckpointWriter::TrajectoryRow> AtlasCheckpointWriter::current
   std::sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) { return a.anchor.t_ns < b.anchor.t_ns; });
   const auto same_time = [](const auto& a, const auto& b) { return a.anchor.t_ns == b.anchor.t_ns; };
   const auto repeated = std::adjacent_find(rows.begin(), rows.end(), same_time);
-  ORBATLAS_CHECK(repeated == rows.end(), store_.path().string() << ": session " << session.info.id
-                                                                << ": two frames at timestamp " << repeated->anchor.t_ns);
+  ORBATLAS_CHECK(repeated == rows.end(), store_.path().string()
+                                             << ": session " << session.info.id << ": two frames at timestamp "
+                                             << repeated->anchor.t_ns);
   return rows;
 }
 
@@ -151,8 +152,7 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
       }
       result.rows += write_trajectory(writer, s.session.info.id, rewrite ? no_frames : s.committed, trajectories[i]);
     }
-    if (full)
-      {
+    if (full) {
       // Maps merged into others since loading go; other stored maps stay.
       for (const MapId map : atlas_.removed_maps()) writer.delete_map(map);
       for (const MapId map : rows.maps) writer.delete_map_contents(map);

@@ -33,9 +33,9 @@ struct CheckpointSession {
 };
 
 struct CheckpointResult {
-  bool committed = false;  // false: nothing had changed and nothing was written
-  bool full = false;       // the first checkpoint: every map rewritten
-  RowCounts rows;          // atlas rows, trajectory rows, the session row, the atlas row
+  bool committed = false;     // false: nothing had changed and nothing was written
+  bool full = false;          // the first checkpoint: every map rewritten
+  RowCounts rows;             // atlas rows, trajectory rows, the session row, the atlas row
   std::int64_t sequence = 0;  // atlas.checkpoint_seq after the commit (0 when nothing was written)
 };
 
@@ -79,8 +79,8 @@ class AtlasCheckpointWriter {
 
   struct SessionState {
     CheckpointSession session;
-    bool written = false;  // its row is in the file
-    bool ending = false;   // forget it after the next successful checkpoint
+    bool written = false;                  // its row is in the file
+    bool ending = false;                   // forget it after the next successful checkpoint
     std::vector<TrajectoryRow> committed;  // its trajectory rows in the file
   };
 
@@ -99,7 +99,7 @@ class AtlasCheckpointWriter {
   std::optional<SessionId> claims_new_keyframes_;  // the constructor's session
   KeyframeId first_session_keyframe_ = 0;
   std::unordered_map<KeyframeId, SessionId> keyframe_sessions_;  // attribute_keyframe
-  std::unordered_map<KeyframeId, SessionId> stored_sessions_;  // read by the first checkpoint
+  std::unordered_map<KeyframeId, SessionId> stored_sessions_;    // read by the first checkpoint
 
   bool has_committed_ = false;
   AtlasRows committed_;  // what the file holds for the atlas (objects dropped)

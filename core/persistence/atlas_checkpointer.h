@@ -38,10 +38,10 @@ struct CheckpointStats {
   std::int64_t sequence = 0;  // atlas.checkpoint_seq of the last commit (0 before)
   RowCounts last_rows;        // of the last completed checkpoint
   RowCounts total_rows;
-  SampleSummary wall_ms;        // of the completed checkpoints
-  double last_ms = 0.0;         // of the last completed checkpoint
-  std::string last_error;       // of the last failure; empty when none
-  bool last_failed = false;     // the latest checkpoint failed (the final one, after stop())
+  SampleSummary wall_ms;     // of the completed checkpoints
+  double last_ms = 0.0;      // of the last completed checkpoint
+  std::string last_error;    // of the last failure; empty when none
+  bool last_failed = false;  // the latest checkpoint failed (the final one, after stop())
 };
 
 class AtlasCheckpointer {
@@ -92,7 +92,7 @@ class AtlasCheckpointer {
   std::condition_variable wake_;
   std::condition_variable done_;
   bool stopping_ = false;
-  bool finished_ = false;       // the worker has ended
+  bool finished_ = false;        // the worker has ended
   std::uint64_t requested_ = 0;  // checkpoint_now tickets handed out
   std::uint64_t served_ = 0;     // tickets whose checkpoint has finished
   std::uint64_t served_ok_ = 0;  // tickets whose checkpoint succeeded

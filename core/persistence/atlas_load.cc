@@ -27,10 +27,9 @@ class AtlasReader {
       : file_(db.path().string()),
         vocabulary_(vocabulary),
         report_(report),
-        keyframes_(db.prepare(
-            "SELECT id, session_id, timestamp_ns, qw, qx, qy, qz, tx, ty, tz, "
-            "c_qw, c_qx, c_qy, c_qz, c_tx, c_ty, c_tz, parent_id, slot_count, features "
-            "FROM keyframes WHERE map_id = ?1 ORDER BY id")),
+        keyframes_(db.prepare("SELECT id, session_id, timestamp_ns, qw, qx, qy, qz, tx, ty, tz, "
+                              "c_qw, c_qx, c_qy, c_qz, c_tx, c_ty, c_tz, parent_id, slot_count, features "
+                              "FROM keyframes WHERE map_id = ?1 ORDER BY id")),
         points_(db.prepare("SELECT id, x, y, z, nx, ny, nz, min_distance, max_distance, descriptor, "
                            "reference_keyframe_id, visible, found FROM map_points WHERE map_id = ?1 ORDER BY id")),
         observations_(db.prepare("SELECT o.keyframe_id, o.slot, o.map_point_id FROM observations o "
@@ -244,7 +243,8 @@ AtlasLoadReport AtlasStore::load_atlas(Atlas& atlas, const Vocabulary* vocabular
   SqliteStatement meta =
       db_.prepare("SELECT next_keyframe_id, next_map_point_id, next_map_id, active_map_id FROM atlas WHERE id = 1");
   ORBATLAS_DATA_CHECK(meta.step(), path().string() << ": the atlas row is missing");
-  const std::uint64_t next_keyframe = id_column(meta, 0), next_point = id_column(meta, 1), next_map = id_column(meta, 2);
+  const std::uint64_t next_keyframe = id_column(meta, 0), next_point = id_column(meta, 1),
+                      next_map = id_column(meta, 2);
   // A flag and a value rather than std::optional: GCC 12 warns (falsely) about the latter here.
   const bool has_active = !meta.is_null(3);
   const MapId active = has_active ? id_column(meta, 3) : 0;

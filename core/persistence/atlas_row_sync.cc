@@ -35,8 +35,8 @@ constexpr auto neighbour_id = [](const CovisibilityEdge& e) { return e.keyframe;
 constexpr auto edge_key = [](const LoopEdge& e) { return e; };
 
 std::size_t occupied_slots(const KeyframeRow& row) {
-  return static_cast<std::size_t>(std::count_if(row.slots.begin(), row.slots.end(),
-                                                [](MapPointId id) { return id != kNoMapPoint; }));
+  return static_cast<std::size_t>(
+      std::count_if(row.slots.begin(), row.slots.end(), [](MapPointId id) { return id != kNoMapPoint; }));
 }
 
 class RowSync {

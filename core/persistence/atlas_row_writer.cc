@@ -63,12 +63,12 @@ AtlasRowWriter::AtlasRowWriter(SqliteDb& db)
           "reference_keyframe_id = excluded.reference_keyframe_id, visible = excluded.visible, "
           "found = excluded.found")),
       delete_point_(db.prepare("DELETE FROM map_points WHERE id = ?1")),
-      upsert_culled_(db.prepare(
-          "INSERT INTO culled_keyframes(id, map_id, parent_id, qw, qx, qy, qz, tx, ty, tz) "
-          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10) "
-          "ON CONFLICT(id) DO UPDATE SET map_id = excluded.map_id, parent_id = excluded.parent_id, "
-          "qw = excluded.qw, qx = excluded.qx, qy = excluded.qy, qz = excluded.qz, "
-          "tx = excluded.tx, ty = excluded.ty, tz = excluded.tz")),
+      upsert_culled_(
+          db.prepare("INSERT INTO culled_keyframes(id, map_id, parent_id, qw, qx, qy, qz, tx, ty, tz) "
+                     "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10) "
+                     "ON CONFLICT(id) DO UPDATE SET map_id = excluded.map_id, parent_id = excluded.parent_id, "
+                     "qw = excluded.qw, qx = excluded.qx, qy = excluded.qy, qz = excluded.qz, "
+                     "tx = excluded.tx, ty = excluded.ty, tz = excluded.tz")),
       delete_culled_(db.prepare("DELETE FROM culled_keyframes WHERE id = ?1")),
       insert_observation_(db.prepare("INSERT INTO observations(keyframe_id, slot, map_point_id) VALUES (?1, ?2, ?3)")),
       delete_observation_(db.prepare("DELETE FROM observations WHERE keyframe_id = ?1 AND slot = ?2")),
@@ -85,10 +85,9 @@ AtlasRowWriter::AtlasRowWriter(SqliteDb& db)
           "qy = excluded.qy, qz = excluded.qz, tx = excluded.tx, ty = excluded.ty, tz = excluded.tz")),
       delete_trajectory_(db.prepare("DELETE FROM trajectory WHERE session_id = ?1 AND t_ns = ?2")),
       delete_session_trajectory_(db.prepare("DELETE FROM trajectory WHERE session_id = ?1")),
-      write_meta_(db.prepare(
-          "UPDATE atlas SET saved_ns = ?1, next_keyframe_id = max(next_keyframe_id, ?2), "
-          "next_map_point_id = max(next_map_point_id, ?3), next_map_id = max(next_map_id, ?4), "
-          "active_map_id = ?5, checkpoint_seq = checkpoint_seq + 1 WHERE id = 1")),
+      write_meta_(db.prepare("UPDATE atlas SET saved_ns = ?1, next_keyframe_id = max(next_keyframe_id, ?2), "
+                             "next_map_point_id = max(next_map_point_id, ?3), next_map_id = max(next_map_id, ?4), "
+                             "active_map_id = ?5, checkpoint_seq = checkpoint_seq + 1 WHERE id = 1")),
       read_sequence_(db.prepare("SELECT checkpoint_seq FROM atlas WHERE id = 1")) {}
 
 std::unordered_map<KeyframeId, SessionId> AtlasRowWriter::stored_keyframe_sessions() {

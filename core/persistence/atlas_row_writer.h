@@ -57,7 +57,8 @@ class AtlasRowWriter {
   SqliteStatement stored_sessions_, delete_culled_of_map_, delete_points_of_map_, delete_keyframes_of_map_, delete_map_,
       upsert_map_, insert_keyframe_, update_keyframe_, delete_keyframe_, upsert_point_, delete_point_, upsert_culled_,
       delete_culled_, insert_observation_, delete_observation_, upsert_covisibility_, delete_covisibility_,
-      insert_loop_edge_, delete_loop_edge_, upsert_trajectory_, delete_trajectory_, delete_session_trajectory_, write_meta_, read_sequence_;
+      insert_loop_edge_, delete_loop_edge_, upsert_trajectory_, delete_trajectory_, delete_session_trajectory_,
+      write_meta_, read_sequence_;
 };
 
 }  // namespace orbatlas

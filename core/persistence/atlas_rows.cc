@@ -89,7 +89,7 @@ class MapRowCollector {
 
   AtlasRows& rows_;
   const KeyframeSessionOf& session_of_;
-  std::vector<KeyframeId> kf_ids_;      // of the current map's snapshot, ascending
+  std::vector<KeyframeId> kf_ids_;  // of the current map's snapshot, ascending
   std::vector<MapPointId> point_ids_;
 };
 

@@ -43,8 +43,8 @@ AtlasStore AtlasStore::open(const std::filesystem::path& path, const std::string
     // WAL: readers do not block the writer and a crash mid-save leaves the last
     // committed atlas intact. Persistent: recorded in the file header.
     SqliteStatement mode = db.prepare("PRAGMA journal_mode = WAL");
-    ORBATLAS_CHECK(mode.step() && mode.text(0) == "wal",
-                   path.string() << ": cannot switch the database to WAL journal mode");
+    ORBATLAS_CHECK(mode.step() && mode.text(0) == "wal", path.string()
+                                                             << ": cannot switch the database to WAL journal mode");
   }
   const TimestampNs now = unix_time_ns();
   migrate_schema(db, now);

@@ -34,7 +34,8 @@ class BlobReader : public std::streambuf {
 
 class FeaturesDecoder {
  public:
-  FeaturesDecoder(std::string_view blob, const std::string& what) : reader_(blob), in_(&reader_), ar_(in_), what_(what) {}
+  FeaturesDecoder(std::string_view blob, const std::string& what)
+      : reader_(blob), in_(&reader_), ar_(in_), what_(what) {}
 
   template <class T>
   T scalar(const char* field) {
@@ -52,9 +53,7 @@ class FeaturesDecoder {
     ar_(cereal::binary_data(out.data(), out.size() * sizeof(T)));
   }
   std::size_t remaining() const { return reader_.remaining(); }
-  [[noreturn]] void fail(const std::string& message) const {
-    throw DataError(what_ + ": features blob: " + message);
-  }
+  [[noreturn]] void fail(const std::string& message) const { throw DataError(what_ + ": features blob: " + message); }
 
  private:
   void need(std::size_t bytes, const char* field) {

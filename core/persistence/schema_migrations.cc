@@ -17,10 +17,10 @@ int read_schema_version(SqliteDb& db) {
 
 void check_schema_version_supported(SqliteDb& db) {
   const int version = read_schema_version(db);
-  ORBATLAS_DATA_CHECK(version <= latest_schema_version(),
-                      db.path().string() << ": atlas schema version " << version
-                                         << " is newer than this build understands (up to " << latest_schema_version()
-                                         << "); use a newer orbatlas");
+  ORBATLAS_DATA_CHECK(version <= latest_schema_version(), db.path().string()
+                                                              << ": atlas schema version " << version
+                                                              << " is newer than this build understands (up to "
+                                                              << latest_schema_version() << "); use a newer orbatlas");
   if (version == 0) {
     const std::int64_t objects = db.query_int64("SELECT count(*) FROM sqlite_schema");
     ORBATLAS_DATA_CHECK(objects == 0, db.path().string() << ": an SQLite database that is not an orbatlas atlas ("
@@ -36,8 +36,8 @@ void migrate_schema(SqliteDb& db, TimestampNs now_ns) {
     if (read_schema_version(db) >= migration.version) continue;
     db.exec(migration.sql);
     const int reached = read_schema_version(db);
-    ORBATLAS_CHECK(reached == migration.version, db.path().string() << ": migration " << migration.name
-                                                                    << " left user_version at " << reached);
+    ORBATLAS_CHECK(reached == migration.version,
+                   db.path().string() << ": migration " << migration.name << " left user_version at " << reached);
     db.prepare("INSERT INTO schema_migrations(version, name, applied_ns) VALUES (?1, ?2, ?3)")
         .bind_int64(1, migration.version)
         .bind_text(2, migration.name)

@@ -11,9 +11,9 @@
 namespace orbatlas {
 
 struct SchemaMigration {
-  int version = 0;         // NNN of the file name; 1, 2, ... without gaps
-  std::string_view name;   // file name, e.g. "001_initial.sql"
-  std::string_view sql;    // the script; it ends with PRAGMA user_version = NNN
+  int version = 0;        // NNN of the file name; 1, 2, ... without gaps
+  std::string_view name;  // file name, e.g. "001_initial.sql"
+  std::string_view sql;   // the script; it ends with PRAGMA user_version = NNN
 };
 
 // The migrations of this build, by version.

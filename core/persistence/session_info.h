@@ -17,7 +17,7 @@ struct SessionInfo {
   SessionId id = 0;  // chosen by the caller; unique in the database
   std::string name;
   SensorType sensor = SensorType::kStereo;
-  TimestampNs created_ns = 0;  // Unix time
+  TimestampNs created_ns = 0;              // Unix time
   std::vector<CameraCalibration> cameras;  // the rig: index 0 left, 1 right
 };
 

@@ -39,7 +39,8 @@ void read_cameras(SqliteDb& db, std::map<SessionId, SessionInfo>& sessions) {
     row.bind_int64(1, sql_id(id));
     while (row.step()) {
       const std::int64_t index = row.int64(1);
-      const std::string who = db.path().string() + ": session " + std::to_string(id) + " camera " + std::to_string(index);
+      const std::string who =
+          db.path().string() + ": session " + std::to_string(id) + " camera " + std::to_string(index);
       ORBATLAS_DATA_CHECK(index == static_cast<std::int64_t>(session.cameras.size()),
                           who << ": camera indices are not 0, 1, ...");
       CameraCalibration c;
@@ -64,9 +65,10 @@ void read_cameras(SqliteDb& db, std::map<SessionId, SessionInfo>& sessions) {
 void write_session_rows(SqliteDb& db, const SessionInfo& session) {
   const std::int64_t id = sql_id(session.id);
   // An upsert, not INSERT OR REPLACE, which would cascade-delete the trajectory.
-  db.prepare("INSERT INTO sessions(id, name, sensor, created_ns) VALUES (?1, ?2, ?3, ?4) "
-              "ON CONFLICT(id) DO UPDATE SET name = excluded.name, sensor = excluded.sensor, "
-              "created_ns = excluded.created_ns")
+  db.prepare(
+        "INSERT INTO sessions(id, name, sensor, created_ns) VALUES (?1, ?2, ?3, ?4) "
+        "ON CONFLICT(id) DO UPDATE SET name = excluded.name, sensor = excluded.sensor, "
+        "created_ns = excluded.created_ns")
       .bind_int64(1, id)
       .bind_text(2, session.name)
       .bind_text(3, sensor_type_name(session.sensor))
@@ -75,7 +77,8 @@ void write_session_rows(SqliteDb& db, const SessionInfo& session) {
   db.prepare("DELETE FROM cameras WHERE session_id = ?1").bind_int64(1, id).run();
   SqliteStatement insert = db.prepare(
       "INSERT INTO cameras(session_id, camera_index, model, fx, fy, cx, cy, distortion, width, height, rate_hz, "
-      "qw, qx, qy, qz, tx, ty, tz) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)");
+      "qw, qx, qy, qz, tx, ty, tz) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, "
+      "?18)");
   for (std::size_t i = 0; i < session.cameras.size(); ++i) {
     const CameraCalibration& c = session.cameras[i];
     insert.bind_int64(1, id)

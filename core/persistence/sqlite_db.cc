@@ -34,8 +34,7 @@ std::string statement_file(sqlite3_stmt* stmt) {
 void SqliteStatement::Finalizer::operator()(sqlite3_stmt* stmt) const { sqlite3_finalize(stmt); }
 
 void SqliteStatement::fail(int rc, std::string_view context) const {
-  throw_sqlite(rc, statement_file(stmt_.get()),
-               std::string(context) + " in \"" + sqlite3_sql(stmt_.get()) + "\"",
+  throw_sqlite(rc, statement_file(stmt_.get()), std::string(context) + " in \"" + sqlite3_sql(stmt_.get()) + "\"",
                sqlite3_errmsg(sqlite3_db_handle(stmt_.get())));
 }
 

@@ -12,8 +12,8 @@ void AtlasStore::save_trajectory(SessionId session, const std::vector<FrameAncho
   {
     SqliteStatement exists = db_.prepare("SELECT 1 FROM sessions WHERE id = ?1");
     exists.bind_int64(1, id);
-    ORBATLAS_CHECK(exists.step(), path().string() << ": session " << session
-                                                  << " is not stored; save_session before its trajectory");
+    ORBATLAS_CHECK(exists.step(),
+                   path().string() << ": session " << session << " is not stored; save_session before its trajectory");
   }
   db_.prepare("DELETE FROM trajectory WHERE session_id = ?1").bind_int64(1, id).run();
   SqliteStatement insert = db_.prepare(

@@ -38,8 +38,8 @@ struct Sim3SolverOptions {
 };
 
 struct Sim3SolverResult {
-  bool success = false;  // inlier_count >= min_inliers
-  Sim3 S_1_2;            // p_c1 = S_1_2 * p_c2; identity when no hypothesis was found
+  bool success = false;               // inlier_count >= min_inliers
+  Sim3 S_1_2;                         // p_c1 = S_1_2 * p_c2; identity when no hypothesis was found
   std::vector<std::uint8_t> inliers;  // per match: 1 inlier, 0 outlier
   int inlier_count = 0;
   int iterations = 0;  // RANSAC iterations run

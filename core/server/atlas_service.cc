@@ -54,7 +54,8 @@ bool is_printable_utf8(const std::string& text) {
       code = (code << 6) | (next & 0x3f);
     }
     const std::uint32_t smallest[] = {0, 0x80, 0x800, 0x10000};
-    if (code < smallest[extra] || code > 0x10ffff || (code >= 0xd800 && code <= 0xdfff) || (code >= 0x80 && code < 0xa0))
+    if (code < smallest[extra] || code > 0x10ffff || (code >= 0xd800 && code <= 0xdfff) ||
+        (code >= 0x80 && code < 0xa0))
       return false;
     i += 1 + extra;
   }
@@ -77,7 +78,8 @@ namespace {
 SensorType session_sensor(const SessionRequest& request, const SlamSettings& settings) {
   if (request.sensor.empty()) return settings.sensor;
   const auto sensor = parse_sensor_type(request.sensor);
-  if (!sensor) throw_bad_request("unknown sensor '" + request.sensor + "' (stereo, stereo_inertial, mono, mono_inertial)");
+  if (!sensor)
+    throw_bad_request("unknown sensor '" + request.sensor + "' (stereo, stereo_inertial, mono, mono_inertial)");
   return *sensor;
 }
 
@@ -247,13 +249,15 @@ void AtlasService::check_upload(const SessionRequest& request) const {
   const SensorType sensor = session_sensor(request, loaded.settings);
   if (is_single_camera(sensor))
     throw ServiceError(ServiceErrorKind::kUnprocessable, "unsupported_sensor",
-                   "uploads are mapped as stereo sequences; a single camera only localises in stored maps (stream it as a session)");
+                       "uploads are mapped as stereo sequences; a single camera only localises in stored maps (stream "
+                       "it as a session)");
   if (!loaded.settings.is_stereo())
-    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
+    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
+                       "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
 }
 
 std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const SessionInfo& info,
-                                                          const SlamSettings& settings) {
+                                                            const SlamSettings& settings) {
   StereoSlamOptions slam_options = options_.slam;
   // Stored maps of its own rig only: local mapping would adjust another rig's
   // keyframes with this session's camera.
@@ -279,7 +283,8 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
   try {
     return std::make_unique<StereoSlam>(atlas_, settings, vocabulary_, slam_options);
   } catch (const std::exception& e) {
-    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", std::string("cannot start a stereo session with these settings: ") + e.what());
+    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
+                       std::string("cannot start a stereo session with these settings: ") + e.what());
   }
 }
 
@@ -293,7 +298,8 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   // first camera of a stereo config.
   const bool single_camera = is_single_camera(sensor);
   if (!single_camera && !loaded.settings.is_stereo())
-    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
+    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
+                       "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
 
   SessionId id = 0;
   {
@@ -302,8 +308,9 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
     std::size_t live = 0;
     for (const auto& [_, s] : sessions_) live += s->state() == SessionState::kActive ? 1 : 0;
     if (live >= options_.max_live_sessions)
-      throw ServiceError(ServiceErrorKind::kUnavailable, "too_many_sessions", std::to_string(live) + " sessions are live; the limit is " +
-                                                   std::to_string(options_.max_live_sessions) + " (finish one first)");
+      throw ServiceError(ServiceErrorKind::kUnavailable, "too_many_sessions",
+                         std::to_string(live) + " sessions are live; the limit is " +
+                             std::to_string(options_.max_live_sessions) + " (finish one first)");
     id = next_session_++;
   }
   SessionInfo info;
@@ -322,7 +329,8 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
     try {
       slam = std::make_unique<MonoLocalizer>(atlas_, loaded.settings, vocabulary_, mono);
     } catch (const std::exception& e) {
-      throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", std::string("cannot start a single-camera session with these settings: ") + e.what());
+      throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
+                         std::string("cannot start a single-camera session with these settings: ") + e.what());
     }
   } else {
     slam = make_stereo_slam(id, info, loaded.settings);
@@ -333,7 +341,8 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
     std::lock_guard lock(store_mutex_);
     store_->save_session(info);
   } catch (const std::exception& e) {
-    throw ServiceError(ServiceErrorKind::kUnavailable, "storage_failed", std::string("cannot store the new session: ") + e.what());
+    throw ServiceError(ServiceErrorKind::kUnavailable, "storage_failed",
+                       std::string("cannot store the new session: ") + e.what());
   }
   auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam));
   {
@@ -444,8 +453,8 @@ void AtlasService::merged(const MergeRecord& record) {
     map_rigs_.erase(record.merge.source);
   }
   if (!checkpointer_->checkpoint_now())
-    log_warn("the merge of map " + std::to_string(record.merge.source) + " is not stored yet: " +
-             checkpointer_->stats().last_error + " (retried at the next checkpoint)");
+    log_warn("the merge of map " + std::to_string(record.merge.source) +
+             " is not stored yet: " + checkpointer_->stats().last_error + " (retried at the next checkpoint)");
 }
 
 nlohmann::json AtlasService::merges_json() const {
@@ -476,22 +485,21 @@ nlohmann::json AtlasService::merges_json() const {
     out["refinements"].push_back(
         {{"map", r.map}, {"keyframes", r.keyframes}, {"seconds", r.seconds}, {"interrupted", r.interrupted}});
   for (const MergeRecord& r : stats.merges)
-    out["merges"].push_back({{"source_map", r.merge.source},
-                             {"target_map", r.merge.target},
-                             {"keyframe", r.current},
-                             {"matched_keyframe", r.matched},
-                             {"matches", r.matches},
-                             {"verified_keyframes", r.verified_keyframes},
-                             {"keyframes_searched", r.keyframes_searched},
-                             {"search_ms", r.search_ms},
-                             {"keyframes_moved", r.merge.keyframes_moved},
-                             {"map_points_moved", r.merge.points_moved},
-                             {"points_fused", r.merge.points_merged},
-                             {"observations_added", r.merge.observations_fused},
-                             {"merge_ms", r.merge.ms},
-                             {"global_ba", {{"keyframes", r.ba_keyframes},
-                                            {"seconds", r.ba_seconds},
-                                            {"interrupted", r.ba_interrupted}}}});
+    out["merges"].push_back(
+        {{"source_map", r.merge.source},
+         {"target_map", r.merge.target},
+         {"keyframe", r.current},
+         {"matched_keyframe", r.matched},
+         {"matches", r.matches},
+         {"verified_keyframes", r.verified_keyframes},
+         {"keyframes_searched", r.keyframes_searched},
+         {"search_ms", r.search_ms},
+         {"keyframes_moved", r.merge.keyframes_moved},
+         {"map_points_moved", r.merge.points_moved},
+         {"points_fused", r.merge.points_merged},
+         {"observations_added", r.merge.observations_fused},
+         {"merge_ms", r.merge.ms},
+         {"global_ba", {{"keyframes", r.ba_keyframes}, {"seconds", r.ba_seconds}, {"interrupted", r.ba_interrupted}}}});
   return out;
 }
 
@@ -537,8 +545,8 @@ nlohmann::json AtlasService::finish_session(SessionId id, const std::string& end
     // The session's last frames and keyframes are on disk before the reply.
     if (!checkpointer_->checkpoint_now())
       throw ServiceError(ServiceErrorKind::kFailed, "storage_failed",
-                     "session " + std::to_string(id) + " ended but could not be stored yet: " +
-                         checkpointer_->stats().last_error + " (the server keeps retrying)");
+                         "session " + std::to_string(id) + " ended but could not be stored yet: " +
+                             checkpointer_->stats().last_error + " (the server keeps retrying)");
     live->release_anchors();  // stored: the database answers for its trajectory from now on
     // A single camera only read the maps it held: nothing new to merge (and
     // its camera is not the rig the maps were made with).
@@ -703,9 +711,9 @@ std::string AtlasService::metrics_text() const {
   set("orbatlas_sessions_live", "Sessions taking frames.", static_cast<double>(live));
   set("orbatlas_sessions_ended", "Sessions finished, failed or stored by earlier runs.", static_cast<double>(stored));
   total("orbatlas_worker_errors_total",
-      "Errors contained inside tracking, local mapping, loop closing and map merging (the unit of work was given up, "
-      "the session and the server went on), over the sessions this server holds.",
-      static_cast<double>(worker_errors));
+        "Errors contained inside tracking, local mapping, loop closing and map merging (the unit of work was given up, "
+        "the session and the server went on), over the sessions this server holds.",
+        static_cast<double>(worker_errors));
   set("orbatlas_maps", "Maps in the atlas.", static_cast<double>(maps.size()));
   set("orbatlas_keyframes", "Keyframes in the atlas.", static_cast<double>(keyframes));
   set("orbatlas_map_points", "Map points in the atlas.", static_cast<double>(points));
@@ -715,7 +723,8 @@ std::string AtlasService::metrics_text() const {
   set("orbatlas_database_bytes", "Size of the atlas database with its write-ahead log.",
       static_cast<double>(file_size_or_zero(options_.db) + file_size_or_zero(options_.db.string() + "-wal")));
   total("orbatlas_checkpoints_total", "Checkpoints completed.", static_cast<double>(checkpoints.checkpoints));
-  total("orbatlas_checkpoint_failures_total", "Checkpoints that failed (retried).", static_cast<double>(checkpoints.failures));
+  total("orbatlas_checkpoint_failures_total", "Checkpoints that failed (retried).",
+        static_cast<double>(checkpoints.failures));
   if (merger_) {
     const MapMergeWorkerStats merging = merger_->stats();
     std::size_t live_merged = 0;
@@ -723,9 +732,11 @@ std::string AtlasService::metrics_text() const {
       std::lock_guard lock(mutex_);
       live_merged = live_merges_total_;
     }
-    total("orbatlas_map_merges_total", "Maps merged into another map since the server started (live and at a session's end).",
-        static_cast<double>(merging.merges_total + live_merged));
-    set("orbatlas_map_merge_pending", "Maps waiting for (or in) the merging worker.", static_cast<double>(merging.pending));
+    total("orbatlas_map_merges_total",
+          "Maps merged into another map since the server started (live and at a session's end).",
+          static_cast<double>(merging.merges_total + live_merged));
+    set("orbatlas_map_merge_pending", "Maps waiting for (or in) the merging worker.",
+        static_cast<double>(merging.pending));
   }
   return metrics_.text();
 }
@@ -755,10 +766,11 @@ void AtlasService::shutdown() {
     }
     end_session_storage(s->id());
   }
-  loop_worker_->stop();    // every session's loop closing has finished above
+  loop_worker_->stop();   // every session's loop closing has finished above
   checkpointer_->stop();  // the final, durable checkpoint
   const CheckpointStats stats = checkpointer_->stats();
-  if (stats.failures > 0) log_warn("atlas checkpoints failed " + std::to_string(stats.failures) + " times; last: " + stats.last_error);
+  if (stats.failures > 0)
+    log_warn("atlas checkpoints failed " + std::to_string(stats.failures) + " times; last: " + stats.last_error);
   {
     std::lock_guard lock(store_mutex_);
     store_.reset();

@@ -120,7 +120,7 @@ class AtlasService {
   // Uploads run stereo sessions: ServiceError 400/404 for settings that cannot be
   // used, 422 for a single camera (it only localises; stream it instead).
   void check_upload(const SessionRequest& request) const;
-  std::shared_ptr<LiveSession> session(SessionId id) const;  // ServiceError 404
+  std::shared_ptr<LiveSession> session(SessionId id) const;    // ServiceError 404
   std::vector<std::shared_ptr<LiveSession>> sessions() const;  // by id
   // GET /v1/sessions/{id}: LiveSession::status with "map" the map the session's
   // last frame is in now (a merge may have moved it). ServiceError 404.
@@ -225,7 +225,7 @@ class AtlasService {
   std::map<MapId, std::vector<CameraCalibration>> map_rigs_;  // the camera rig each map was made with
 
   std::unique_ptr<MapMergeWorker> merger_;  // null when merging is off
-  std::thread idle_thread_;  // started last in the constructor, joined by shutdown()
+  std::thread idle_thread_;                 // started last in the constructor, joined by shutdown()
 
   // GET /metrics: counters counted as things happen, the gauges set when asked.
   mutable MetricsRegistry metrics_;
@@ -235,10 +235,12 @@ class AtlasService {
   prometheus::Counter& sessions_timed_out_ = metrics_.counter(
       "orbatlas_sessions_timed_out_total", "Live sessions the server finished after their idle timeout.");
   prometheus::Counter& frames_ = metrics_.counter("orbatlas_frames_total", "Frames processed.");
-  prometheus::Counter& frames_rejected_ = metrics_.counter("orbatlas_frames_rejected_total", "Frames refused as bad input.");
+  prometheus::Counter& frames_rejected_ =
+      metrics_.counter("orbatlas_frames_rejected_total", "Frames refused as bad input.");
   prometheus::Histogram& tracking_latency_ = metrics_.histogram(
       "orbatlas_tracking_latency_seconds", "Time to track one frame (features included).", latency_buckets_seconds());
-  prometheus::Counter& localize_requests_ = metrics_.counter("orbatlas_localize_requests_total", "Localisation requests.");
+  prometheus::Counter& localize_requests_ =
+      metrics_.counter("orbatlas_localize_requests_total", "Localisation requests.");
   prometheus::Counter& localize_recognised_ =
       metrics_.counter("orbatlas_localize_recognised_total", "Localisation requests that recognised the place.");
   prometheus::Histogram& localize_latency_ = metrics_.histogram(

@@ -11,14 +11,17 @@ namespace orbatlas {
 
 const char* session_state_name(SessionState state) {
   switch (state) {
-    case SessionState::kActive: return "active";
-    case SessionState::kFinished: return "finished";
-    case SessionState::kFailed: return "failed";
-    case SessionState::kStored: return "stored";
+    case SessionState::kActive:
+      return "active";
+    case SessionState::kFinished:
+      return "finished";
+    case SessionState::kFailed:
+      return "failed";
+    case SessionState::kStored:
+      return "stored";
   }
   return "?";
 }
-
 
 LiveSession::LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam)
     : info_(std::move(info)), config_(std::move(config)), slam_(std::move(slam)), state_(SessionState::kActive) {}
@@ -76,7 +79,8 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
     throw;
   } catch (const std::exception& e) {
     fail(e.what());
-    throw ServiceError(ServiceErrorKind::kFailed, "session_failed", "session " + std::to_string(info_.id) + " failed: " + e.what());
+    throw ServiceError(ServiceErrorKind::kFailed, "session_failed",
+                       "session " + std::to_string(info_.id) + " failed: " + e.what());
   }
   out.tracking_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   worker_errors_.store(slam_->worker_errors());
@@ -130,7 +134,8 @@ bool LiveSession::finish(const std::string& ended_by) {
     state_ = SessionState::kFinished;
   } catch (const std::exception& e) {
     fail(e.what());
-    throw ServiceError(ServiceErrorKind::kFailed, "session_failed", "session " + std::to_string(info_.id) + " failed while finishing: " + e.what());
+    throw ServiceError(ServiceErrorKind::kFailed, "session_failed",
+                       "session " + std::to_string(info_.id) + " failed while finishing: " + e.what());
   }
   return true;
 }
@@ -182,7 +187,8 @@ nlohmann::json LiveSession::status() const {
   }
   if (!tracking_ms_.empty()) j["tracking_ms"] = to_json_summary(tracking_ms_);
   if (!final_stats_.is_null()) {
-    j["slam"] = {{"relocalizations", final_stats_.value("relocalizations", 0)}, {"loops", final_stats_.value("loops", 0)}};
+    j["slam"] = {{"relocalizations", final_stats_.value("relocalizations", 0)},
+                 {"loops", final_stats_.value("loops", 0)}};
   }
   return j;
 }

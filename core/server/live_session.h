@@ -43,10 +43,10 @@ class LiveSession {
   const SessionInfo& info() const { return info_; }
   SessionState state() const;
 
-  // One stereo pair, or one image (`right` empty) for a single-camera session. ServiceError 409 when the session is not active; DataError for
-  // a bad frame (timestamp not after the previous one, wrong size...): the
-  // session goes on. Any other failure of tracking or mapping fails the session
-  // (state "failed", ServiceError 500 naming the cause); the server goes on.
+  // One stereo pair, or one image (`right` empty) for a single-camera session. ServiceError 409 when the session is not
+  // active; DataError for a bad frame (timestamp not after the previous one, wrong size...): the session goes on. Any
+  // other failure of tracking or mapping fails the session (state "failed", ServiceError 500 naming the cause); the
+  // server goes on.
   FrameOutcome process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
   // A batch of IMU samples, checked (finite, strictly increasing across
   // batches, no gap over `max_gap_s`) and counted; DataError otherwise, and then
@@ -73,7 +73,7 @@ class LiveSession {
   void release_anchors();
   // Errors the session's workers contained (as of its last frame; any thread).
   std::size_t worker_errors() const { return worker_errors_.load(); }
-  nlohmann::json status() const;             // GET /v1/sessions/{id}
+  nlohmann::json status() const;  // GET /v1/sessions/{id}
 
  private:
   void fail(const std::string& why);  // under mutex_
@@ -93,7 +93,8 @@ class LiveSession {
   SampleSummary tracking_ms_;
   nlohmann::json final_stats_;  // SLAM statistics captured by finish()
   std::atomic<std::size_t> worker_errors_{0};
-  std::atomic<std::chrono::steady_clock::rep> last_activity_{std::chrono::steady_clock::now().time_since_epoch().count()};
+  std::atomic<std::chrono::steady_clock::rep> last_activity_{
+      std::chrono::steady_clock::now().time_since_epoch().count()};
   std::string ended_by_;  // under mutex_; empty: the client finished it
 };
 

@@ -76,13 +76,14 @@ inline constexpr std::size_t kMergeHistory = 100;
 // Appends `item`, dropping the oldest beyond kMergeHistory.
 template <typename T>
 void push_recent(std::vector<T>& list, T item) {
-  if (list.size() >= kMergeHistory) list.erase(list.begin(), list.begin() + static_cast<std::ptrdiff_t>(list.size() - kMergeHistory + 1));
+  if (list.size() >= kMergeHistory)
+    list.erase(list.begin(), list.begin() + static_cast<std::ptrdiff_t>(list.size() - kMergeHistory + 1));
   list.push_back(std::move(item));
 }
 
 struct MapMergeWorkerStats {
-  std::size_t requests = 0, skipped = 0;      // handed in / dropped (queue full, stopped)
-  std::vector<MapRefinement> refinements;     // global BAs of maps not merged (the last kMergeHistory)
+  std::size_t requests = 0, skipped = 0;   // handed in / dropped (queue full, stopped)
+  std::vector<MapRefinement> refinements;  // global BAs of maps not merged (the last kMergeHistory)
   std::size_t refinements_total = 0;
   std::size_t maps_searched = 0, keyframes_searched = 0;
   std::vector<MergeRecord> merges;  // the last kMergeHistory
@@ -132,7 +133,7 @@ class MapMergeWorker {
   BoundedQueue<MergeRequest> queue_;
   std::atomic<bool> stopping_{false};
   WorkerErrors errors_{"map merging", std::numeric_limits<std::size_t>::max()};  // never fatal: the server goes on
-  mutable std::mutex mutex_;  // guards stats_
+  mutable std::mutex mutex_;                                                     // guards stats_
   std::condition_variable idle_;
   MapMergeWorkerStats stats_;
 

@@ -54,10 +54,11 @@ UploadJobs::UploadJobs(AtlasService& service, UploadJobOptions options)
   store_.emplace(AtlasStore::open(service_.db_path(), service_.vocabulary().hash()));
   for (StoredJob& row : store_->load_jobs()) {
     if (row.state == "queued" || row.state == "extracting" || row.state == "running") {
-      row.error = "interrupted: the server stopped without finishing this job (it was killed or crashed) while it was " +
-                  row.state + (row.session ? "; the frames processed before are stored in session " +
-                                                 std::to_string(*row.session)
-                                           : std::string());
+      row.error =
+          "interrupted: the server stopped without finishing this job (it was killed or crashed) while it was " +
+          row.state +
+          (row.session ? "; the frames processed before are stored in session " + std::to_string(*row.session)
+                       : std::string());
       row.state = "failed";
       store_->save_job(row);
     }
@@ -67,7 +68,8 @@ UploadJobs::UploadJobs(AtlasService& service, UploadJobOptions options)
     job.row = std::move(row);
     jobs_[job.row.id] = std::move(job);
   }
-  for (std::size_t i = 0; i < std::max<std::size_t>(1, options_.workers); ++i) workers_.emplace_back([this] { work(); });
+  for (std::size_t i = 0; i < std::max<std::size_t>(1, options_.workers); ++i)
+    workers_.emplace_back([this] { work(); });
 }
 
 UploadJobs::~UploadJobs() { stop(); }
@@ -119,9 +121,8 @@ JobId UploadJobs::submit(const fs::path& folder, SessionRequest request, std::ui
   job.folder = folder;
   job.row.name = job.request.name;
   job.row.state = "queued";
-  job.row.created_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                           std::chrono::system_clock::now().time_since_epoch())
-                           .count();
+  job.row.created_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   job.row.archive_bytes = archive_bytes;
   {
     std::lock_guard lock(mutex_);
@@ -134,7 +135,8 @@ JobId UploadJobs::submit(const fs::path& folder, SessionRequest request, std::ui
     jobs_.erase(id);
     std::error_code ec;
     fs::remove_all(folder, ec);
-    throw ServiceError(ServiceErrorKind::kUnavailable, "busy", "the upload queue is full (" + std::to_string(options_.max_queued) + " jobs); retry later");
+    throw ServiceError(ServiceErrorKind::kUnavailable, "busy",
+                       "the upload queue is full (" + std::to_string(options_.max_queued) + " jobs); retry later");
   }
   store_row(job.row);  // the id is taken for good (the worker's first update comes after)
   return id;
@@ -223,7 +225,8 @@ void UploadJobs::run(JobId id) {
   if (!dataset.ground_truth.empty()) {
     const Trajectory trajectory = service_.trajectory(session).poses;
     try {
-      if (trajectory.size() >= 3) ate = evaluate_trajectory(trajectory, from_ground_truth_states(dataset.ground_truth)).ate.rmse;
+      if (trajectory.size() >= 3)
+        ate = evaluate_trajectory(trajectory, from_ground_truth_states(dataset.ground_truth)).ate.rmse;
     } catch (const Error& e) {
       log_warn("upload job " + std::to_string(id) + ": no ATE: " + e.what());
     }

@@ -27,7 +27,8 @@ constexpr Entry kSequences[] = {
 std::string normalise(const std::string& name) {
   std::string out;
   for (const char c : name)
-    if (std::isalnum(static_cast<unsigned char>(c)) != 0) out.push_back(static_cast<char>(std::toupper(static_cast<unsigned char>(c))));
+    if (std::isalnum(static_cast<unsigned char>(c)) != 0)
+      out.push_back(static_cast<char>(std::toupper(static_cast<unsigned char>(c))));
   return out.substr(0, 4);  // "MH01", "V101"
 }
 

@@ -11,8 +11,8 @@
 namespace orbatlas::sim {
 
 struct SequenceInfo {
-  std::string name;                       // "MH_01"
-  std::filesystem::path ground_truth;     // TUM, 200 Hz
+  std::string name;                         // "MH_01"
+  std::filesystem::path ground_truth;       // TUM, 200 Hz
   std::filesystem::path camera_timestamps;  // ns per line
   bool machine_hall = false;
 };

@@ -36,7 +36,9 @@ SyntheticImu synthesize_imu(const TrajectorySpline& trajectory, TimestampNs firs
   const double dt = ns_to_s(period);
   std::mt19937_64 rng(options.seed);
   std::normal_distribution<double> normal(0.0, 1.0);
-  auto gauss3 = [&](double sigma) { return Eigen::Vector3d(sigma * normal(rng), sigma * normal(rng), sigma * normal(rng)); };
+  auto gauss3 = [&](double sigma) {
+    return Eigen::Vector3d(sigma * normal(rng), sigma * normal(rng), sigma * normal(rng));
+  };
 
   Eigen::Vector3d bg = Eigen::Vector3d::Zero(), ba = Eigen::Vector3d::Zero();
   if (options.add_noise) {
@@ -58,9 +60,7 @@ SyntheticImu synthesize_imu(const TrajectorySpline& trajectory, TimestampNs firs
     // Its own generator: the noise sequence is the same with or without vibration.
     std::mt19937_64 vib_rng(options.seed ^ 0x5EED0F0D1BULL);
     std::uniform_real_distribution<double> uni(0.0, 1.0);
-    const auto axis = [&] {
-      return Eigen::Vector3d(normal(vib_rng), normal(vib_rng), normal(vib_rng)).normalized();
-    };
+    const auto axis = [&] { return Eigen::Vector3d(normal(vib_rng), normal(vib_rng), normal(vib_rng)).normalized(); };
     for (const double hz : {47.3, 83.1, 131.7}) {
       accel_vibration.push_back({hz, 2.0 * M_PI * uni(vib_rng), axis()});
       gyro_vibration.push_back({hz * 1.01, 2.0 * M_PI * uni(vib_rng), axis()});
@@ -68,12 +68,14 @@ SyntheticImu synthesize_imu(const TrajectorySpline& trajectory, TimestampNs firs
   }
   const auto vibration = [](const std::vector<Vibration>& v, double amplitude, double ts) {
     Eigen::Vector3d out = Eigen::Vector3d::Zero();
-    for (const Vibration& s : v) out += amplitude / std::sqrt(3.0) * std::sin(2.0 * M_PI * s.hz * ts + s.phase) * s.axis;
+    for (const Vibration& s : v)
+      out += amplitude / std::sqrt(3.0) * std::sin(2.0 * M_PI * s.hz * ts + s.phase) * s.axis;
     return out;
   };
 
   SyntheticImu out;
-  for (TimestampNs t = std::max(first_ns, trajectory.start_ns()); t <= std::min(last_ns, trajectory.end_ns()); t += period) {
+  for (TimestampNs t = std::max(first_ns, trajectory.start_ns()); t <= std::min(last_ns, trajectory.end_ns());
+       t += period) {
     const SplineState s = trajectory.evaluate(t);
     ImuSample m = ideal_imu_from_state(s, t, cal.T_b_i);
     GroundTruthState gt;

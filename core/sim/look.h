@@ -23,7 +23,7 @@ struct RealCameraOptions {
   // compensates with exposure time first (more motion blur), then gain (more
   // noise); what it cannot compensate leaves the image darker.
   double illumination = 1.0;
-  double base_exposure_ms = 3.0;    // exposure at illumination 1
+  double base_exposure_ms = 3.0;  // exposure at illumination 1
   double max_exposure_ms = 10.0;
   double max_gain = 1.6;
   // Auto exposure lags and hunts: the brightness it delivers drifts around the
@@ -32,24 +32,24 @@ struct RealCameraOptions {
   double drift = 0.22;
   double drift_period_s = 6.0;
   double stereo_mismatch = 0.12;
-  double vignetting = 0.4;        // brightness lost at the image corners (cos^4-like falloff)
-  double optics_blur_px = 0.55;   // Gaussian sigma of the lens' softness
-  double read_noise = 1.4;        // grey levels at gain 1
-  double shot_noise = 0.06;       // variance per grey level of signal at gain 1
-  int max_blur_subframes = 8;     // renders averaged over the exposure time
+  double vignetting = 0.4;       // brightness lost at the image corners (cos^4-like falloff)
+  double optics_blur_px = 0.55;  // Gaussian sigma of the lens' softness
+  double read_noise = 1.4;       // grey levels at gain 1
+  double shot_noise = 0.06;      // variance per grey level of signal at gain 1
+  int max_blur_subframes = 8;    // renders averaged over the exposure time
   double blur_px_per_subframe = 1.0;
 };
 
 // The `real` look as a whole; defaults per sequence from real_look_for().
 struct RealLookOptions {
   RealCameraOptions camera;
-  bool sparse_textures = true;     // weakly textured surfaces with sparse details (texture.h)
+  bool sparse_textures = true;  // weakly textured surfaces with sparse details (texture.h)
   // Scale of the render-vs-sensor.yaml calibration error (0: none, the default:
   // an error of the rig is not the tracker's to fix, and a disparity bias of a
   // few tenths of a pixel alone triples the ATE of a dark MH_04; --calib-error 1
   // adds it, see sequence_simulator.cc).
   double calibration_error = 0.0;
-  double imu_vibration = 1.0;      // scale of the IMU vibration (0: none)
+  double imu_vibration = 1.0;  // scale of the IMU vibration (0: none)
 };
 
 // MH_04 and MH_05 are the dark sequences of the real Machine Hall.

@@ -22,7 +22,8 @@ class FreeSpace {
       for (std::size_t i = 0; i < tr.size(); i += 10) points_.push_back(tr[i].pose.t);  // 20 Hz is dense enough
   }
   bool allows(const Box& b) const {
-    return std::none_of(points_.begin(), points_.end(), [&](const Eigen::Vector3d& p) { return distance_to_box(p, b) < clearance_; });
+    return std::none_of(points_.begin(), points_.end(),
+                        [&](const Eigen::Vector3d& p) { return distance_to_box(p, b) < clearance_; });
   }
 
  private:
@@ -51,7 +52,8 @@ void add_surface(World& world, const Eigen::Vector3d& origin, const Eigen::Vecto
 
 }  // namespace
 
-World build_machine_hall(const std::vector<Trajectory>& trajectories, const MachineHallOptions& options, HallBounds* bounds_out) {
+World build_machine_hall(const std::vector<Trajectory>& trajectories, const MachineHallOptions& options,
+                         HallBounds* bounds_out) {
   ORBATLAS_CHECK(!trajectories.empty(), "machine hall: no trajectories given");
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e18), hi = Eigen::Vector3d::Constant(-1e18);
   for (const auto& tr : trajectories)
@@ -69,12 +71,13 @@ World build_machine_hall(const std::vector<Trajectory>& trajectories, const Mach
   const Eigen::Vector3d& o = hall.min;
   std::uint64_t seed = options.seed * 1000003ULL;
   // Floor, ceiling and four walls, normals pointing into the hall.
-  add_surface(world, o, ex, ey, ++seed, options.texel_size_m, 0.85f, options.sparse_textures);                // floor (+z)
-  add_surface(world, o + ez, ey, ex, ++seed, options.texel_size_m, 0.7f, options.sparse_textures);            // ceiling (-z)
-  add_surface(world, o, ez, ex, ++seed, options.texel_size_m, 1.0f, options.sparse_textures);                 // y = min wall (+y)
-  add_surface(world, o + ey, ex, ez, ++seed, options.texel_size_m, 0.95f, options.sparse_textures);           // y = max wall (-y)
-  add_surface(world, o, ey, ez, ++seed, options.texel_size_m, 0.9f, options.sparse_textures);                 // x = min wall (+x)
-  add_surface(world, o + ex, ez, ey, ++seed, options.texel_size_m, 0.8f, options.sparse_textures);            // x = max wall (-x)
+  add_surface(world, o, ex, ey, ++seed, options.texel_size_m, 0.85f, options.sparse_textures);      // floor (+z)
+  add_surface(world, o + ez, ey, ex, ++seed, options.texel_size_m, 0.7f, options.sparse_textures);  // ceiling (-z)
+  add_surface(world, o, ez, ex, ++seed, options.texel_size_m, 1.0f, options.sparse_textures);       // y = min wall (+y)
+  add_surface(world, o + ey, ex, ez, ++seed, options.texel_size_m, 0.95f,
+              options.sparse_textures);                                                             // y = max wall (-y)
+  add_surface(world, o, ey, ez, ++seed, options.texel_size_m, 0.9f, options.sparse_textures);       // x = min wall (+x)
+  add_surface(world, o + ex, ez, ey, ++seed, options.texel_size_m, 0.8f, options.sparse_textures);  // x = max wall (-x)
 
   const FreeSpace free(trajectories, options.clearance_m);
   std::mt19937_64 rng(options.seed * 7919ULL + 17ULL);
@@ -95,7 +98,8 @@ World build_machine_hall(const std::vector<Trajectory>& trajectories, const Mach
       const double x = near_min ? hall.min.x() + 0.5 : hall.max.x() - 0.5 - s;
       b = {Eigen::Vector3d(x, a, floor_z), Eigen::Vector3d(x + s, a + s, hall.max.z())};
     }
-    if (free.allows(b)) world.add_box(b, TextureStyle::kMachine, ++seed, options.texel_size_m, false, options.sparse_textures);
+    if (free.allows(b))
+      world.add_box(b, TextureStyle::kMachine, ++seed, options.texel_size_m, false, options.sparse_textures);
   }
 
   // Machines and crates on the floor, some with a smaller box on top.
@@ -107,13 +111,15 @@ World build_machine_hall(const std::vector<Trajectory>& trajectories, const Mach
     const Box b{Eigen::Vector3d(x, y, floor_z), Eigen::Vector3d(x + w, y + d, floor_z + h)};
     if (!free.allows(b)) continue;
     const bool crate = uni(0, 1) < 0.4;
-    world.add_box(b, crate ? TextureStyle::kClutter : TextureStyle::kMachine, ++seed, options.texel_size_m, false, options.sparse_textures);
+    world.add_box(b, crate ? TextureStyle::kClutter : TextureStyle::kMachine, ++seed, options.texel_size_m, false,
+                  options.sparse_textures);
     ++placed;
     if (uni(0, 1) < 0.35) {
       const double tw = w * uni(0.3, 0.7), td = d * uni(0.3, 0.7), th = uni(0.3, 1.2);
       const double tx = x + uni(0, w - tw), ty = y + uni(0, d - td);
       const Box top{Eigen::Vector3d(tx, ty, b.max.z()), Eigen::Vector3d(tx + tw, ty + td, b.max.z() + th)};
-      if (free.allows(top)) world.add_box(top, TextureStyle::kMachine, ++seed, options.texel_size_m, false, options.sparse_textures);
+      if (free.allows(top))
+        world.add_box(top, TextureStyle::kMachine, ++seed, options.texel_size_m, false, options.sparse_textures);
     }
   }
   return world;

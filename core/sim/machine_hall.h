@@ -13,10 +13,10 @@ namespace orbatlas::sim {
 
 struct MachineHallOptions {
   std::uint64_t seed = 1;
-  double clearance_m = 0.9;     // no object closer than this to any trajectory
-  double margin_m = 4.0;        // walls this far beyond the trajectories
-  int machine_count = 70;       // target number of machines/crates
-  double texel_size_m = 0.005;  // finest texture detail
+  double clearance_m = 0.9;      // no object closer than this to any trajectory
+  double margin_m = 4.0;         // walls this far beyond the trajectories
+  int machine_count = 70;        // target number of machines/crates
+  double texel_size_m = 0.005;   // finest texture detail
   bool sparse_textures = false;  // the real look's textures (TextureRequest::sparse)
 };
 

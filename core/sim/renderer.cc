@@ -31,8 +31,8 @@ constexpr int kMaxLevels = 16;
 struct LevelView {
   const std::uint8_t* data;
   std::size_t step;
-  int w1, h1;        // last column and row
-  float scale256;    // 256 / 2^level
+  int w1, h1;      // last column and row
+  float scale256;  // 256 / 2^level
 };
 
 struct Vertex {
@@ -44,7 +44,8 @@ struct Vertex {
 Renderer::Renderer(const World& world, const Camera& camera, const RenderOptions& options)
     : world_(world), options_(options), width_(camera.width()), height_(camera.height()) {
   const CameraCalibration cal = camera.calibration();
-  ORBATLAS_CHECK(options_.canvas_focal_scale > 0.1 && options_.canvas_focal_scale <= 4.0, "renderer: canvas_focal_scale out of range");
+  ORBATLAS_CHECK(options_.canvas_focal_scale > 0.1 && options_.canvas_focal_scale <= 4.0,
+                 "renderer: canvas_focal_scale out of range");
   fx_ = cal.fx * options_.canvas_focal_scale;
   fy_ = cal.fy * options_.canvas_focal_scale;
   // Normalised canvas coordinates of every image pixel.
@@ -93,7 +94,8 @@ Renderer::Renderer(const World& world, const Camera& camera, const RenderOptions
       map_y.at<float>(v, u) = static_cast<float>(py);
       const int x0 = static_cast<int>(std::floor(px)), y0 = static_cast<int>(std::floor(py));
       for (int y = std::max(0, y0 - 1); y <= std::min(ch - 1, y0 + 2); ++y) {
-        row_begin_[static_cast<std::size_t>(y)] = std::max(0, std::min(row_begin_[static_cast<std::size_t>(y)], x0 - 1));
+        row_begin_[static_cast<std::size_t>(y)] =
+            std::max(0, std::min(row_begin_[static_cast<std::size_t>(y)], x0 - 1));
         row_end_[static_cast<std::size_t>(y)] = std::min(cw, std::max(row_end_[static_cast<std::size_t>(y)], x0 + 3));
       }
     }
@@ -236,7 +238,9 @@ void Renderer::rasterize_quad(const Quad& quad, const Eigen::Matrix3d& R_c_w, co
     if (x_first > x_last) continue;
     // Along the row every quantity is affine in x: value = a * x + b.
     const double ry = (y - cy_) / fy_;
-    const auto affine_b = [&](const Eigen::Vector3d& g) { return static_cast<float>(g.y() * ry + g.z() - g.x() * cx_ / fx_); };
+    const auto affine_b = [&](const Eigen::Vector3d& g) {
+      return static_cast<float>(g.y() * ry + g.z() - g.x() * cx_ / fx_);
+    };
     const float na = static_cast<float>(normal.x()) * inv_fx, nb = affine_b(normal);
     const float ua = static_cast<float>(g_u.x()) * inv_fx, ub = affine_b(g_u);
     const float va = static_cast<float>(g_v.x()) * inv_fx, vb = affine_b(g_v);

@@ -58,8 +58,8 @@ class Renderer {
   // Canvas: pinhole with the camera's focal lengths and a principal point that
   // makes it cover every pixel of the distorted image.
   double fx_, fy_, cx_, cy_;
-  cv::Mat canvas_;   // CV_8UC1
-  cv::Mat zbuffer_;  // CV_32FC1
+  cv::Mat canvas_;                        // CV_8UC1
+  cv::Mat zbuffer_;                       // CV_32FC1
   std::vector<int> row_begin_, row_end_;  // per canvas row, columns the remap reads [begin, end)
   cv::Mat map1_, map2_;                   // fixed-point remap tables image -> canvas
   std::vector<std::int16_t> noise_table_;

@@ -40,8 +40,10 @@ std::vector<ImuSample> load_real_mh05_imu(TimestampNs first, TimestampNs last) {
     ImuSample s;
     s.t_ns = parse_int64(f[0], path, line.number);
     if (s.t_ns < first || s.t_ns > last) return;
-    s.gyro = {parse_double(f[1], path, line.number), parse_double(f[2], path, line.number), parse_double(f[3], path, line.number)};
-    s.accel = {parse_double(f[4], path, line.number), parse_double(f[5], path, line.number), parse_double(f[6], path, line.number)};
+    s.gyro = {parse_double(f[1], path, line.number), parse_double(f[2], path, line.number),
+              parse_double(f[3], path, line.number)};
+    s.accel = {parse_double(f[4], path, line.number), parse_double(f[5], path, line.number),
+               parse_double(f[6], path, line.number)};
     out.push_back(s);
   });
   return out;
@@ -62,7 +64,8 @@ CameraCalibration perturbed(const CameraCalibration& written, double scale, std:
   c.cy += scale * 0.1 * u(rng);
   const Eigen::Vector3d axis = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
   const double angle = scale * 0.005 * M_PI / 180.0 * u(rng);
-  const Pose3 error(Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis)), scale * 0.0001 * Eigen::Vector3d(u(rng), u(rng), u(rng)));
+  const Pose3 error(Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis)),
+                    scale * 0.0001 * Eigen::Vector3d(u(rng), u(rng), u(rng)));
   c.T_b_c = c.T_b_c * error;
   return c;
 }
@@ -79,11 +82,13 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   SimulationReport report;
   ORBATLAS_CHECK(!options.out_dir.empty(), "sim: no output folder given");
   ORBATLAS_CHECK(options.start_s >= 0.0, "sim: --start must be >= 0");
-  ORBATLAS_CHECK(options.noise_sigma >= 0.0 && options.noise_sigma <= 50.0, "sim: --noise must be in [0, 50] grey levels");
+  ORBATLAS_CHECK(options.noise_sigma >= 0.0 && options.noise_sigma <= 50.0,
+                 "sim: --noise must be in [0, 50] grey levels");
   const SequenceInfo sequence = find_sequence(options.sequence);
   ORBATLAS_CHECK(options.imu == ImuSource::kSynthetic || sequence.name == "MH_05",
                  "sim: --imu real is only available for MH_05 (the only real IMU shipped); use --imu synthetic");
-  const auto settings_path = options.settings.empty() ? shipped_config_dir() / "euroc" / "stereo_inertial.yaml" : options.settings;
+  const auto settings_path =
+      options.settings.empty() ? shipped_config_dir() / "euroc" / "stereo_inertial.yaml" : options.settings;
   const SlamSettings settings = read_settings(settings_path, SensorType::kStereoInertial);
   ORBATLAS_CHECK(settings.camera1.has_value(), "sim: " << settings_path.string() << " describes no second camera");
   const ImuCalibration imu_cal = settings.imu.value_or(ImuCalibration{});
@@ -111,7 +116,8 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
     stamps.push_back(t);
   }
   if (report.frames_outside_gt > 0)
-    log_info("sim: skipped " + std::to_string(report.frames_outside_gt) + " camera timestamps outside the ground truth of " + sequence.name);
+    log_info("sim: skipped " + std::to_string(report.frames_outside_gt) +
+             " camera timestamps outside the ground truth of " + sequence.name);
   ORBATLAS_CHECK(!stamps.empty(), "sim: no camera frame of " << sequence.name << " in the requested time range");
 
   // Created before the slow work so that an occupied output folder fails at once.
@@ -127,7 +133,8 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
 
   // The world: the same hall for every Machine Hall sequence.
   const auto world_start = Clock::now();
-  std::vector<Trajectory> keep_free = sequence.machine_hall ? load_machine_hall_trajectories() : std::vector<Trajectory>{gt};
+  std::vector<Trajectory> keep_free =
+      sequence.machine_hall ? load_machine_hall_trajectories() : std::vector<Trajectory>{gt};
   MachineHallOptions hall_options;
   hall_options.seed = options.scene_seed;
   hall_options.sparse_textures = real && look.sparse_textures;
@@ -135,7 +142,6 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   report.world_build_s = std::chrono::duration<double>(Clock::now() - world_start).count();
   log_info("sim: world with " + std::to_string(world.quads().size()) + " surfaces built in " +
            std::to_string(report.world_build_s).substr(0, 4) + " s");
-
 
   // IMU and ground truth: from 1 s before the first frame to just after the last.
   const TimestampNs imu_first = std::max(spline.start_ns(), stamps.front() - kNsPerSecond);
@@ -169,7 +175,8 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   report.imu_samples = imu.samples.size();
 
   // Images: workers take frames from a shared counter; each owns its renderers.
-  const int threads = options.threads > 0 ? options.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int threads =
+      options.threads > 0 ? options.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   std::vector<std::unique_ptr<Camera>> cameras;
   for (const auto& c : render_cams) cameras.push_back(make_camera(c));
   Progress progress("sim " + sequence.name, static_cast<std::int64_t>(stamps.size()), options.show_progress);
@@ -187,7 +194,9 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
       ro.noise_sigma = real ? 0.0 : options.noise_sigma;  // the real camera adds its own
       for (std::size_t c = 0; c < cameras.size(); ++c) {
         renderers.push_back(std::make_unique<Renderer>(world, *cameras[c], ro));
-        if (real) real_cameras.emplace_back(look.camera, cameras[c]->width(), cameras[c]->height(), static_cast<int>(c), sensor_seed);
+        if (real)
+          real_cameras.emplace_back(look.camera, cameras[c]->width(), cameras[c]->height(), static_cast<int>(c),
+                                    sensor_seed);
       }
       cv::Mat image, radiance, sum;
       const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
@@ -209,7 +218,8 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
             const int n = real_cameras[c].subframes(motion_px_per_s, exposure.exposure_s);
             const TimestampNs exposure_ns = s_to_ns(exposure.exposure_s);
             for (int k = 0; k < n; ++k) {
-              TimestampNs tk = t - exposure_ns / 2 + static_cast<TimestampNs>((k + 0.5) / n * static_cast<double>(exposure_ns));
+              TimestampNs tk =
+                  t - exposure_ns / 2 + static_cast<TimestampNs>((k + 0.5) / n * static_cast<double>(exposure_ns));
               tk = std::clamp(tk, spline.start_ns(), spline.end_ns());
               renderers[c]->render(spline.pose(tk) * render_cams[c].T_b_c, image, noise_seed);
               image.convertTo(radiance, CV_32FC1);
@@ -252,7 +262,8 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   report.render_ms_per_image = static_cast<double>(render_ns.load()) * 1e-6 / static_cast<double>(2 * stamps.size());
   if (real) {
     report.subframes_per_image = static_cast<double>(subframes_total.load()) / static_cast<double>(2 * stamps.size());
-    report.mean_exposure_ms = static_cast<double>(exposure_us_total.load()) * 1e-3 / static_cast<double>(2 * stamps.size());
+    report.mean_exposure_ms =
+        static_cast<double>(exposure_us_total.load()) * 1e-3 / static_cast<double>(2 * stamps.size());
   }
   return report;
 }

@@ -37,8 +37,8 @@ struct SimulationReport {
   std::size_t frames_outside_gt = 0;  // camera timestamps the ground truth does not cover (skipped)
   std::size_t imu_samples = 0;
   double world_build_s = 0.0;
-  double render_s = 0.0;              // wall time of rendering and writing the images
-  double render_ms_per_image = 0.0;   // CPU time per image (rendering only), averaged
+  double render_s = 0.0;             // wall time of rendering and writing the images
+  double render_ms_per_image = 0.0;  // CPU time per image (rendering only), averaged
   // Real look: renders averaged per image (motion blur), and the mean exposure.
   double subframes_per_image = 1.0;
   double mean_exposure_ms = 0.0;

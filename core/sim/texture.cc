@@ -22,7 +22,8 @@ void add_value_noise(cv::Mat& img, Rng& rng, double cell_texels, double amplitud
   for (int y = 0; y < gh; ++y)
     for (int x = 0; x < gw; ++x) grid.at<float>(y, x) = static_cast<float>(uniform(rng, -amplitude, amplitude));
   cv::Mat up;
-  cv::resize(grid, up, cv::Size(static_cast<int>(gw * cell_texels), static_cast<int>(gh * cell_texels)), 0, 0, cv::INTER_CUBIC);
+  cv::resize(grid, up, cv::Size(static_cast<int>(gw * cell_texels), static_cast<int>(gh * cell_texels)), 0, 0,
+             cv::INTER_CUBIC);
   cv::Mat roi = up(cv::Rect(0, 0, img.cols, img.rows));
   cv::Mat img_f;
   img.convertTo(img_f, CV_32F);
@@ -44,7 +45,8 @@ void add_shapes(cv::Mat& img, Rng& rng, int count, double min_size, double max_s
       case 0:
       case 1:
       case 2: {  // axis-aligned rectangle
-        const cv::Point2f h(static_cast<float>(s * uniform(rng, 0.3, 1.0)), static_cast<float>(s * uniform(rng, 0.3, 1.0)));
+        const cv::Point2f h(static_cast<float>(s * uniform(rng, 0.3, 1.0)),
+                            static_cast<float>(s * uniform(rng, 0.3, 1.0)));
         cv::rectangle(img, c - h, c + h, grey(rng), thickness, cv::LINE_8);
         break;
       }
@@ -68,7 +70,8 @@ void add_shapes(cv::Mat& img, Rng& rng, int count, double min_size, double max_s
       case 7: {  // triangle
         std::vector<cv::Point> tri;
         for (int k = 0; k < 3; ++k)
-          tri.emplace_back(static_cast<int>(c.x + s * uniform(rng, -0.7, 0.7)), static_cast<int>(c.y + s * uniform(rng, -0.7, 0.7)));
+          tri.emplace_back(static_cast<int>(c.x + s * uniform(rng, -0.7, 0.7)),
+                           static_cast<int>(c.y + s * uniform(rng, -0.7, 0.7)));
         cv::fillConvexPoly(img, tri, grey(rng), cv::LINE_AA);
         break;
       }
@@ -95,7 +98,8 @@ void add_machine_panels(cv::Mat& img, Rng& rng, double texel_m) {
         cv::circle(img, p, bolt, grey(rng, 200, 250), cv::FILLED, cv::LINE_AA);
       if (uniform(rng, 0, 1) < 0.5) {
         const cv::Point tl(x0 + uniform_int(rng, step / 8, step / 2), y0 + uniform_int(rng, step / 8, step / 2));
-        cv::rectangle(img, tl, tl + cv::Point(uniform_int(rng, step / 8, step / 3), uniform_int(rng, step / 16, step / 6)),
+        cv::rectangle(img, tl,
+                      tl + cv::Point(uniform_int(rng, step / 8, step / 3), uniform_int(rng, step / 16, step / 6)),
                       grey(rng), cv::FILLED);
       }
     }
@@ -107,7 +111,8 @@ void add_faint_shapes(cv::Mat& img, Rng& rng, int count, double min_size, double
   for (int n = 0; n < count; ++n) {
     const cv::Point2f c(static_cast<float>(uniform(rng, 0, img.cols)), static_cast<float>(uniform(rng, 0, img.rows)));
     const double s = std::exp(uniform(rng, std::log(min_size), std::log(max_size)));
-    const int g = std::clamp(base + (uniform_int(rng, 0, 1) ? 1 : -1) * uniform_int(rng, contrast / 3, contrast), 0, 255);
+    const int g =
+        std::clamp(base + (uniform_int(rng, 0, 1) ? 1 : -1) * uniform_int(rng, contrast / 3, contrast), 0, 255);
     if (uniform_int(rng, 0, 2) == 0) {
       cv::circle(img, c, std::max(1, static_cast<int>(s * 0.5)), cv::Scalar(g), cv::FILLED, cv::LINE_AA);
     } else {
@@ -171,8 +176,9 @@ void add_details(cv::Mat& img, Rng& rng, int count, double min_size, double max_
         const cv::Scalar ink(g[0] > 128 ? 30 : 220);
         for (int k = 0; k < 3; ++k) {
           const float y = c.y - h.y * 0.6f + static_cast<float>(k) * h.y * 0.6f;
-          cv::line(img, cv::Point2f(c.x - h.x * 0.8f, y), cv::Point2f(c.x + h.x * static_cast<float>(uniform(rng, -0.2, 0.8)), y),
-                   ink, std::max(1, static_cast<int>(s * 0.06)), cv::LINE_AA);
+          cv::line(img, cv::Point2f(c.x - h.x * 0.8f, y),
+                   cv::Point2f(c.x + h.x * static_cast<float>(uniform(rng, -0.2, 0.8)), y), ink,
+                   std::max(1, static_cast<int>(s * 0.06)), cv::LINE_AA);
         }
         break;
       }
@@ -210,11 +216,13 @@ void add_sparse_panels(cv::Mat& img, Rng& rng, double texel_m, int base) {
       cv::rectangle(img, r, cv::Scalar(std::clamp(base - uniform_int(rng, 10, 30), 0, 255)), std::max(1, step / 60));
       const int bolt = std::max(1, step / 40);
       if (uniform(rng, 0, 1) < 0.6)
-        for (const cv::Point p : {r.tl() + cv::Point(3 * bolt, 3 * bolt), cv::Point(r.br().x - 3 * bolt, r.y + 3 * bolt)})
+        for (const cv::Point p :
+             {r.tl() + cv::Point(3 * bolt, 3 * bolt), cv::Point(r.br().x - 3 * bolt, r.y + 3 * bolt)})
           cv::circle(img, p, bolt, cv::Scalar(uniform_int(rng, 200, 250)), cv::FILLED, cv::LINE_AA);
       if (uniform(rng, 0, 1) < 0.2) {
         const cv::Point tl(x0 + uniform_int(rng, step / 8, step / 2), y0 + uniform_int(rng, step / 8, step / 2));
-        cv::rectangle(img, tl, tl + cv::Point(uniform_int(rng, step / 8, step / 3), uniform_int(rng, step / 16, step / 6)),
+        cv::rectangle(img, tl,
+                      tl + cv::Point(uniform_int(rng, step / 8, step / 3), uniform_int(rng, step / 16, step / 6)),
                       extreme_grey(rng, base), cv::FILLED);
       }
     }
@@ -225,7 +233,7 @@ cv::Mat make_sparse_image(const TextureRequest& req, int w, int h, double texel,
   const int base = uniform_int(rng, 45, 205);
   cv::Mat img(h, w, CV_8UC1, cv::Scalar(base));
   const double area_m2 = req.width_m * req.height_m;
-  const double m = 1.0 / texel;  // texels per metre
+  const double m = 1.0 / texel;              // texels per metre
   add_value_noise(img, rng, 1.5 * m, 24.0);  // broad shading
   add_faint_shapes(img, rng, static_cast<int>(std::ceil(area_m2 * 0.6)), 0.3 * m, 1.5 * m, base, 35);
   add_faint_shapes(img, rng, static_cast<int>(std::ceil(area_m2 * 4.0)), 0.05 * m, 0.3 * m, base, 18);

@@ -34,8 +34,10 @@ CumulativeBasis cumulative_basis(double u) {
 // Gaussian-smoothed pose of the samples at time t (positions averaged; rotations
 // averaged in the tangent space of the nearest sample).
 Pose3 smoothed_sample(const Trajectory& s, TimestampNs t, double sigma_s) {
-  const auto it = std::lower_bound(s.begin(), s.end(), t, [](const StampedPose& a, TimestampNs v) { return a.t_ns < v; });
-  std::size_t centre = static_cast<std::size_t>(std::min<std::ptrdiff_t>(it - s.begin(), static_cast<std::ptrdiff_t>(s.size()) - 1));
+  const auto it =
+      std::lower_bound(s.begin(), s.end(), t, [](const StampedPose& a, TimestampNs v) { return a.t_ns < v; });
+  std::size_t centre =
+      static_cast<std::size_t>(std::min<std::ptrdiff_t>(it - s.begin(), static_cast<std::ptrdiff_t>(s.size()) - 1));
   if (centre > 0 && std::llabs(s[centre - 1].t_ns - t) < std::llabs(s[centre].t_ns - t)) --centre;
   const auto exact = pose_at(s, t, kNsPerSecond / 5);
   const Pose3 ref = exact ? *exact : s[centre].pose;
@@ -95,7 +97,8 @@ SplineState TrajectorySpline::evaluate(TimestampNs t) const {
   const TimestampNs rel = t - first_knot_ns_;
   auto i = static_cast<std::size_t>(rel / spacing_ns_);
   if (i + 3 >= positions_.size()) i = positions_.size() - 4;  // t == end
-  const double u = static_cast<double>(rel - static_cast<TimestampNs>(i) * spacing_ns_) / static_cast<double>(spacing_ns_);
+  const double u =
+      static_cast<double>(rel - static_cast<TimestampNs>(i) * spacing_ns_) / static_cast<double>(spacing_ns_);
   const double inv_dt = 1e9 / static_cast<double>(spacing_ns_);
   const CumulativeBasis c = cumulative_basis(u);
 

@@ -6,10 +6,14 @@ namespace orbatlas::sim {
 
 Eigen::Vector3d Quad::corner(int i) const {
   switch (i & 3) {
-    case 0: return origin;
-    case 1: return origin + edge_u;
-    case 2: return origin + edge_u + edge_v;
-    default: return origin + edge_v;
+    case 0:
+      return origin;
+    case 1:
+      return origin + edge_u;
+    case 2:
+      return origin + edge_u + edge_v;
+    default:
+      return origin + edge_v;
   }
 }
 
@@ -43,12 +47,12 @@ void World::add_box(const Box& box, TextureStyle style, std::uint64_t seed, doub
     Eigen::Vector3d origin, u, v;
   };
   std::vector<Face> faces = {
-      {lo, ey, ex},                    // bottom (-z)
-      {lo + ez, ex, ey},               // top (+z)
-      {lo, ex, ez},                    // -y
-      {lo + ey + ex, -ex, ez},         // +y
-      {lo + ey, -ey, ez},              // -x
-      {lo + ex, ey, ez},               // +x
+      {lo, ey, ex},             // bottom (-z)
+      {lo + ez, ex, ey},        // top (+z)
+      {lo, ex, ez},             // -y
+      {lo + ey + ex, -ex, ez},  // +y
+      {lo + ey, -ey, ez},       // -x
+      {lo + ex, ey, ez},        // +x
   };
   for (std::size_t f = with_bottom ? 0 : 1; f < faces.size(); ++f) {
     TextureRequest req;

@@ -15,8 +15,8 @@ struct Quad {
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();
   Eigen::Vector3d edge_u = Eigen::Vector3d::UnitX();
   Eigen::Vector3d edge_v = Eigen::Vector3d::UnitY();  // orthogonal to edge_u
-  int texture = 0;     // index into World::textures
-  float shade = 1.0f;  // brightness factor (fixed lighting per face)
+  int texture = 0;                                    // index into World::textures
+  float shade = 1.0f;                                 // brightness factor (fixed lighting per face)
 
   Eigen::Vector3d normal() const { return edge_u.cross(edge_v).normalized(); }
   Eigen::Vector3d corner(int i) const;  // 0: origin, 1: +u, 2: +u+v, 3: +v

@@ -70,14 +70,16 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   if (!options.atlas.empty()) {
     if (!options.localize_only) db_lock = std::make_unique<DatabaseLock>(options.atlas);
     const auto load_start = Clock::now();
-    if (options.localize_only) ORBATLAS_CHECK(std::filesystem::exists(options.atlas), options.atlas << " does not exist");
+    if (options.localize_only)
+      ORBATLAS_CHECK(std::filesystem::exists(options.atlas), options.atlas << " does not exist");
     AtlasStore store = AtlasStore::open(options.atlas, vocabulary.hash());
     const AtlasLoadReport loaded = store.load_atlas(atlas, &vocabulary);
     atlas.index_all_keyframes();
     if (db_lock && db_lock->previous_holder_crashed()) {
       skip_ids_after_crash(atlas);
-      log_warn(options.atlas.string() + ": its previous writer stopped without a final checkpoint; new ids continue "
-                                        "past any it may have handed out");
+      log_warn(options.atlas.string() +
+               ": its previous writer stopped without a final checkpoint; new ids continue "
+               "past any it may have handed out");
     }
     report.loaded_maps = loaded.maps;
     report.loaded_keyframes = loaded.keyframes;
@@ -128,9 +130,8 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   StereoSlam slam(atlas, settings, vocabulary, slam_options);
   std::unique_ptr<AtlasCheckpointer> checkpointer;
   if (session) {
-    checkpointer = std::make_unique<AtlasCheckpointer>(
-        atlas, options.atlas, vocabulary.hash(), options.checkpoints,
-        CheckpointSession{*session, [&slam] { return slam.anchors(); }});
+    checkpointer = std::make_unique<AtlasCheckpointer>(atlas, options.atlas, vocabulary.hash(), options.checkpoints,
+                                                       CheckpointSession{*session, [&slam] { return slam.anchors(); }});
   }
 
   StereoPairLoader loaded(frames);  // decodes images ahead of tracking

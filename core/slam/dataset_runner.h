@@ -16,13 +16,13 @@
 namespace orbatlas {
 
 struct DatasetRunOptions {
-  std::filesystem::path settings;  // ORB-SLAM3-style YAML (stereo)
-  std::filesystem::path dataset;   // folder holding mav0/
+  std::filesystem::path settings;    // ORB-SLAM3-style YAML (stereo)
+  std::filesystem::path dataset;     // folder holding mav0/
   std::filesystem::path vocabulary;  // empty: the shipped one
   StereoSlamOptions slam;
-  double start_s = 0.0;                    // skip this much of the sequence
-  std::optional<double> duration_s;        // and stop after this much
-  bool realtime = false;  // feed frames at their timestamps; count the late ones
+  double start_s = 0.0;              // skip this much of the sequence
+  std::optional<double> duration_s;  // and stop after this much
+  bool realtime = false;             // feed frames at their timestamps; count the late ones
   // Persistent atlas (docs/schema.md): the stored maps are loaded first (and
   // indexed for relocalisation); a SLAM run is stored as a new session with its
   // maps, by incremental checkpoints off the tracking thread and a final one.
@@ -35,7 +35,7 @@ struct DatasetRunOptions {
 };
 
 struct DatasetRunReport {
-  Trajectory trajectory;     // every tracked frame, body frame
+  Trajectory trajectory;               // every tracked frame, body frame
   std::vector<MapId> trajectory_maps;  // map of each trajectory pose
   SlamStats stats;
   std::size_t skipped_frames = 0;  // unreadable images, reported and skipped
@@ -52,7 +52,7 @@ struct DatasetRunReport {
   // on the map, WorkerFailed): the frames tracked until then are still reported,
   // stored and written.
   std::string failed;
-  nlohmann::json to_json() const;    // SlamStats' keys + late_frames, peak_rss_mb, failed, ...
+  nlohmann::json to_json() const;  // SlamStats' keys + late_frames, peak_rss_mb, failed, ...
 };
 
 // Throws Error for unusable settings, a missing dataset or a non-stereo dataset;

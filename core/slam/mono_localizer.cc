@@ -13,9 +13,7 @@ class MonoLocalizer::NoKeyframes final : public KeyframeSink {
   bool idle() const override { return true; }
   std::size_t queued() const override { return 0; }
   bool accepting() const override { return false; }
-  void insert(std::shared_ptr<KeyFrame>) override {
-    throw Error("a localisation session made a keyframe");
-  }
+  void insert(std::shared_ptr<KeyFrame>) override { throw Error("a localisation session made a keyframe"); }
   void interrupt_optimization() override {}
 };
 

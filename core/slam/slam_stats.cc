@@ -73,10 +73,9 @@ nlohmann::json to_json(const SlamStats& s) {
   j["culling_scheme"] = culling_scheme_name(s.culling_scheme);
   const double scan = mean(s.mapping.culling_scan_ms), incremental = mean(s.mapping.culling_incremental_ms);
   j["culling_ms_per_kf"] = s.culling_scheme == CullingScheme::kScan ? scan : incremental;
-  j["culling_ms_per_kf_by_scheme"] = {{"scan", s.mapping.culling_scan_ms.empty() ? nlohmann::json() : nlohmann::json(scan)},
-                                      {"incremental", s.mapping.culling_incremental_ms.empty()
-                                                          ? nlohmann::json()
-                                                          : nlohmann::json(incremental)}};
+  j["culling_ms_per_kf_by_scheme"] = {
+      {"scan", s.mapping.culling_scan_ms.empty() ? nlohmann::json() : nlohmann::json(scan)},
+      {"incremental", s.mapping.culling_incremental_ms.empty() ? nlohmann::json() : nlohmann::json(incremental)}};
   j["culling_candidates"] = s.mapping.culling_candidates;
   j["culling_disagreements"] = s.mapping.culling_disagreements;
   j["culled_keyframes"] = s.mapping.culled_keyframes;
@@ -118,8 +117,8 @@ nlohmann::json to_json(const SlamStats& s) {
     lc["loops"] = loops;
     nlohmann::json gba = nlohmann::json::array();
     for (const auto& g : s.loop.global_adjustments)
-      gba.push_back({{"keyframes", g.keyframes}, {"points", g.points}, {"seconds", g.seconds},
-                     {"interrupted", g.interrupted}});
+      gba.push_back(
+          {{"keyframes", g.keyframes}, {"points", g.points}, {"seconds", g.seconds}, {"interrupted", g.interrupted}});
     lc["global_ba"] = gba;
     nlohmann::json merges = nlohmann::json::array();
     for (const auto& m : s.loop.merges) merges.push_back(to_json(m));

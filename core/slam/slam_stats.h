@@ -18,12 +18,12 @@ nlohmann::json to_json_summary(const std::vector<double>& values);
 nlohmann::json to_json_summary(const SampleSummary& summary);
 
 struct SlamStats {
-  std::size_t frames = 0, tracked = 0, lost = 0;  // lost: frames without a pose
+  std::size_t frames = 0, tracked = 0, lost = 0;       // lost: frames without a pose
   std::size_t maps = 0, keyframes = 0, mappoints = 0;  // in the atlas at the end
   std::size_t keyframes_made = 0;
   std::size_t relocalizations = 0;
   std::size_t maps_started = 0;  // by tracking (the first one included)
-  SampleSummary tracking_ms;  // per frame: front end + tracking
+  SampleSummary tracking_ms;     // per frame: front end + tracking
   LocalMapperStats mapping;
   bool loop_closing = false;  // the loop closer ran
   LoopClosingStats loop;

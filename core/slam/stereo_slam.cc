@@ -17,8 +17,8 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
   options_.tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));
   const Pose3 T_b_c = frontend_.calibration().T_b_c;
   if (options_.relocalization)
-    relocalizer_ = std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c,
-                                                      options_.may_enter_map);
+    relocalizer_ =
+        std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c, options_.may_enter_map);
   mapper_ = std::make_unique<LocalMapper>(atlas_, cam_, options_.mapper, &atlas_.keyframe_index());
   if (options_.loop_closing && !options_.tracker.localization_only) {
     LoopCloserOptions loop = options_.loop;
@@ -31,8 +31,7 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
     }
     loop_closer_ = std::make_unique<LoopCloser>(atlas_, cam_, *mapper_, loop);
   }
-  tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *mapper_, cam_, T_b_c, options_.tracker,
-                                       relocalizer_.get());
+  tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *mapper_, cam_, T_b_c, options_.tracker, relocalizer_.get());
 }
 
 StereoSlam::~StereoSlam() {

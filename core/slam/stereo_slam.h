@@ -22,7 +22,7 @@
 namespace orbatlas {
 
 struct StereoSlamOptions {
-  TrackerOptions tracker;  // th_depth_m and the keyframe interval are derived from the settings
+  TrackerOptions tracker;      // th_depth_m and the keyframe interval are derived from the settings
   bool relocalization = true;  // when recently lost, relocalise against every map of the atlas
   // When set, relocalisation only enters maps it accepts (the server's map leases).
   std::function<bool(MapId)> may_enter_map;

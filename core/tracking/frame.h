@@ -21,7 +21,7 @@ struct Frame {
   std::vector<float> depth;    // metres per keypoint, -1 without a stereo match
   std::vector<float> u_right;  // right column per keypoint, -1 without a stereo match
   FeatureGrid grid;
-  BowVector bow;               // filled on demand (relocalization, keyframes)
+  BowVector bow;  // filled on demand (relocalization, keyframes)
   FeatureVector feature_vector;
 
   // Tracking state.

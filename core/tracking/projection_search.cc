@@ -44,8 +44,8 @@ bool project_into_frame(const MapPoint& point, const Pose3& T_c_w, const FrameCa
   return true;
 }
 
-int search_projected_points(Frame& frame, const std::vector<ProjectedPoint>& points, const FrameCamera& cam,
-                            float th, float ratio) {
+int search_projected_points(Frame& frame, const std::vector<ProjectedPoint>& points, const FrameCamera& cam, float th,
+                            float ratio) {
   int matches = 0;
   std::vector<std::size_t> candidates;
   for (const auto& pp : points) {
@@ -126,22 +126,23 @@ int search_by_bow(const KeyFrame& keyframe, Frame& frame, float ratio) {
   std::vector<FeatureMatch> matches;
   std::vector<int> taken_distance(frame.size(), 257);
   std::vector<std::size_t> taken_by(frame.size(), BestTwo::kNone);
-  for_each_common_node(keyframe.feature_vector(), frame.feature_vector, [&](const auto& kf_slots, const auto& frame_kps) {
-    for (const std::uint32_t k : kf_slots) {
-      const auto& mp = slots[k];
-      if (!mp || mp->is_bad()) continue;
-      const Descriptor& d = kf_features.descriptors[k];
-      BestTwo best;
-      for (const std::uint32_t i : frame_kps) {
-        if (frame.map_points[i]) continue;
-        best.add(i, hamming(d, frame.features.descriptors[i]));
-      }
-      if (!best.accept(kHammingLow, ratio)) continue;
-      if (best.best >= taken_distance[best.index]) continue;
-      taken_distance[best.index] = best.best;
-      taken_by[best.index] = k;
-    }
-  });
+  for_each_common_node(keyframe.feature_vector(), frame.feature_vector,
+                       [&](const auto& kf_slots, const auto& frame_kps) {
+                         for (const std::uint32_t k : kf_slots) {
+                           const auto& mp = slots[k];
+                           if (!mp || mp->is_bad()) continue;
+                           const Descriptor& d = kf_features.descriptors[k];
+                           BestTwo best;
+                           for (const std::uint32_t i : frame_kps) {
+                             if (frame.map_points[i]) continue;
+                             best.add(i, hamming(d, frame.features.descriptors[i]));
+                           }
+                           if (!best.accept(kHammingLow, ratio)) continue;
+                           if (best.best >= taken_distance[best.index]) continue;
+                           taken_distance[best.index] = best.best;
+                           taken_by[best.index] = k;
+                         }
+                       });
   for (std::size_t i = 0; i < frame.size(); ++i)
     if (taken_by[i] != BestTwo::kNone) matches.push_back({taken_by[i], i, taken_distance[i]});
   for (const auto& m : matches) {

@@ -16,7 +16,6 @@
 
 namespace orbatlas {
 
-
 // A map point predicted in the frame (ORB-SLAM's isInFrustum result).
 struct ProjectedPoint {
   std::shared_ptr<MapPoint> point;
@@ -34,8 +33,8 @@ bool project_into_frame(const MapPoint& point, const Pose3& T_c_w, const FrameCa
 // Local-map search: each predicted point against the keypoints around its
 // prediction (radius th * (2.5 if seen head-on else 4) * scale^level, levels
 // level-1..level). Returns the number of new associations.
-int search_projected_points(Frame& frame, const std::vector<ProjectedPoint>& points, const FrameCamera& cam,
-                            float th, float ratio = 0.8f);
+int search_projected_points(Frame& frame, const std::vector<ProjectedPoint>& points, const FrameCamera& cam, float th,
+                            float ratio = 0.8f);
 
 // Motion-model search: the last frame's associated points (outliers excluded)
 // projected with the predicted pose T_c_w, radius th * scale^level around the

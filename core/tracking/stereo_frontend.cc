@@ -70,8 +70,9 @@ Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv
     throw;
   }
   right_features = right_job.valid() ? right_job.get() : right_side();
-  StereoDepths depths = match_stereo_rectified(f.features, left_extractor_.pyramid(), right_features,
-                                               right_extractor_.pyramid(), left_extractor_.scale_factors(), bf(), baseline());
+  StereoDepths depths =
+      match_stereo_rectified(f.features, left_extractor_.pyramid(), right_features, right_extractor_.pyramid(),
+                             left_extractor_.scale_factors(), bf(), baseline());
   f.depth = std::move(depths.depth);
   f.u_right = std::move(depths.u_right);
   finish_frame(*camera_, f);
@@ -81,9 +82,9 @@ Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv
 Frame StereoFrontend::make_left_frame(TimestampNs t_ns, const cv::Mat& left) {
   const cv::Mat& l = as_gray(left, left_gray_, "left");
   const CameraCalibration& c0 = rectifier_.rectified_left();
-  ORBATLAS_DATA_CHECK(l.cols == c0.width && l.rows == c0.height,
-                      "image of " << l.cols << "x" << l.rows << " pixels; the calibration says " << c0.width << "x"
-                                  << c0.height);
+  ORBATLAS_DATA_CHECK(l.cols == c0.width && l.rows == c0.height, "image of " << l.cols << "x" << l.rows
+                                                                             << " pixels; the calibration says "
+                                                                             << c0.width << "x" << c0.height);
   Frame f;
   f.t_ns = t_ns;
   rectifier_.rectify_left(l, left_rect_);

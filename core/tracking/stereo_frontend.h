@@ -43,7 +43,6 @@ class StereoFrontend {
   FrameCamera frame_camera() const;
 
  private:
-
   StereoRectifier rectifier_;
   std::unique_ptr<Camera> camera_;
   OrbExtractor left_extractor_, right_extractor_;

@@ -30,17 +30,27 @@ int count_inliers(const Frame& frame) {
 
 const char* tracking_state_name(TrackingState state) {
   switch (state) {
-    case TrackingState::kNotInitialized: return "NOT_INITIALIZED";
-    case TrackingState::kOk: return "OK";
-    case TrackingState::kRecentlyLost: return "RECENTLY_LOST";
-    case TrackingState::kLost: return "LOST";
+    case TrackingState::kNotInitialized:
+      return "NOT_INITIALIZED";
+    case TrackingState::kOk:
+      return "OK";
+    case TrackingState::kRecentlyLost:
+      return "RECENTLY_LOST";
+    case TrackingState::kLost:
+      return "LOST";
   }
   return "?";
 }
 
 Tracker::Tracker(Atlas& atlas, const Vocabulary& vocabulary, KeyframeSink& sink, FrameCamera cam, Pose3 T_b_c,
                  TrackerOptions options, FrameRelocalizer* relocalizer)
-    : atlas_(atlas), vocabulary_(vocabulary), sink_(sink), relocalizer_(relocalizer), cam_(std::move(cam)), T_b_c_(T_b_c), options_(options) {
+    : atlas_(atlas),
+      vocabulary_(vocabulary),
+      sink_(sink),
+      relocalizer_(relocalizer),
+      cam_(std::move(cam)),
+      T_b_c_(T_b_c),
+      options_(options) {
   ORBATLAS_CHECK(cam_.camera != nullptr, "tracker needs a camera");
   ORBATLAS_CHECK(cam_.bf > 0.0 || options_.localization_only,
                  "the tracker needs a stereo rig (bf > 0) unless it only localises");
@@ -50,7 +60,7 @@ Tracker::Tracker(Atlas& atlas, const Vocabulary& vocabulary, KeyframeSink& sink,
 
 TrackResult Tracker::track(Frame frame) {
   ORBATLAS_DATA_CHECK(!has_last_t_ || frame.t_ns > last_t_ns_,
-                 "frame timestamps must increase: " << frame.t_ns << " ns after " << last_t_ns_ << " ns");
+                      "frame timestamps must increase: " << frame.t_ns << " ns after " << last_t_ns_ << " ns");
   ORBATLAS_CHECK(frame.map_points.size() == frame.size() && frame.outlier.size() == frame.size() &&
                      frame.depth.size() == frame.size() && frame.u_right.size() == frame.size(),
                  "frame at " << frame.t_ns << " ns has inconsistent per-keypoint arrays");

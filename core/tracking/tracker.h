@@ -23,8 +23,8 @@ enum class TrackingState { kNotInitialized, kOk, kRecentlyLost, kLost };
 const char* tracking_state_name(TrackingState state);
 
 struct TrackerOptions {
-  int min_init_stereo_points = 500;  // stereo matches needed to start a map
-  double th_depth_m = 3.5;           // close / far stereo points (ORB-SLAM's ThDepth * baseline)
+  int min_init_stereo_points = 500;       // stereo matches needed to start a map
+  double th_depth_m = 3.5;                // close / far stereo points (ORB-SLAM's ThDepth * baseline)
   int max_frames_between_keyframes = 20;  // a keyframe at least this often (the frame rate)
   int min_inliers = 30;                   // after the local-map search
   int min_inliers_after_recovery = 50;    // during the first second after recovering
@@ -54,7 +54,7 @@ struct TrackResult {
   bool tracked = false;  // has a pose
   Pose3 T_w_b;           // valid when tracked, in map `map`
   MapId map = 0;
-  bool keyframe = false;  // a keyframe was made from this frame
+  bool keyframe = false;       // a keyframe was made from this frame
   KeyframeId keyframe_id = 0;  // its id, when `keyframe`
   int inliers = 0;
 };

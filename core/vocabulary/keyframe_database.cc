@@ -18,7 +18,8 @@ void KeyframeDatabase::erase(KeyframeId id) {
     const auto list = inverted_.find(entry.first);
     if (list == inverted_.end()) continue;
     auto& postings = list->second;
-    const auto pos = std::find_if(postings.begin(), postings.end(), [id](const Posting& p) { return p.keyframe == id; });
+    const auto pos =
+        std::find_if(postings.begin(), postings.end(), [id](const Posting& p) { return p.keyframe == id; });
     if (pos != postings.end()) {
       *pos = postings.back();  // order within a list does not matter
       postings.pop_back();

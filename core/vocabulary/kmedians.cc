@@ -18,8 +18,8 @@ constexpr std::uint16_t kUnassigned = 0xFFFF;
 constexpr std::size_t kParallelMembers = 32768;
 
 ORBATLAS_POPCNT_CLONES
-void lower_min_distances(const Descriptor* members, std::size_t begin, std::size_t end,
-                         const Descriptor& centre, std::uint16_t* min_distance) {
+void lower_min_distances(const Descriptor* members, std::size_t begin, std::size_t end, const Descriptor& centre,
+                         std::uint16_t* min_distance) {
   for (std::size_t i = begin; i < end; ++i) {
     const auto d = static_cast<std::uint16_t>(hamming(members[i], centre));
     if (d < min_distance[i]) min_distance[i] = d;
@@ -34,7 +34,8 @@ void candidate_potentials(const Descriptor* members, std::size_t begin, std::siz
   for (std::size_t i = begin; i < end; ++i) {
     const Descriptor& x = members[i];
     for (std::size_t c = 0; c < n_candidates; ++c) {
-      const std::uint64_t d = std::min<std::uint64_t>(min_distance[i], static_cast<std::uint64_t>(hamming(x, candidates[c])));
+      const std::uint64_t d =
+          std::min<std::uint64_t>(min_distance[i], static_cast<std::uint64_t>(hamming(x, candidates[c])));
       sums[c] += d * d;
     }
   }
@@ -43,8 +44,8 @@ void candidate_potentials(const Descriptor* members, std::size_t begin, std::siz
 // Nearest centre of each member (first on ties) and the per-cluster bit counts;
 // returns how many labels changed.
 ORBATLAS_POPCNT_CLONES
-std::size_t assign_members(const Descriptor* members, std::size_t begin, std::size_t end,
-                           const Descriptor* centres, std::size_t k, std::uint16_t* labels, BitMajority* counts) {
+std::size_t assign_members(const Descriptor* members, std::size_t begin, std::size_t end, const Descriptor* centres,
+                           std::size_t k, std::uint16_t* labels, BitMajority* counts) {
   std::size_t changed = 0;
   for (std::size_t i = begin; i < end; ++i) {
     const Descriptor& x = members[i];
@@ -73,8 +74,8 @@ struct Pass {
 
 // Greedy k-means++: centres drawn with probability proportional to D^2, each the
 // best (lowest resulting potential) of `trials` candidates.
-std::vector<Descriptor> seed_centres(std::span<const Descriptor> members,
-                                     const KmediansOptions& options, const Pass& pass, std::mt19937_64& rng) {
+std::vector<Descriptor> seed_centres(std::span<const Descriptor> members, const KmediansOptions& options,
+                                     const Pass& pass, std::mt19937_64& rng) {
   const std::size_t n = members.size();
   const std::size_t trials = 2 + static_cast<std::size_t>(std::log(static_cast<double>(options.k)));
   std::vector<Descriptor> centres;
@@ -124,8 +125,8 @@ std::vector<Descriptor> seed_centres(std::span<const Descriptor> members,
 
 }  // namespace
 
-KmediansSplit kmedians_split(std::span<Descriptor> members,
-                             const KmediansOptions& options, const std::function<void(std::size_t)>& on_work) {
+KmediansSplit kmedians_split(std::span<Descriptor> members, const KmediansOptions& options,
+                             const std::function<void(std::size_t)>& on_work) {
   const std::size_t n = members.size();
   ORBATLAS_CHECK(n > 0, "k-medians needs at least one descriptor");
   ORBATLAS_CHECK(options.k >= 2 && options.k < kUnassigned, "k-medians: invalid k = " << options.k);

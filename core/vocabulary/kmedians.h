@@ -32,7 +32,7 @@ struct KmediansSplit {
 // they are all equal). on_work(units) is called with a total of members.size()
 // units as the iterations go (may be empty). Deterministic for a given seed,
 // whatever the number of threads.
-KmediansSplit kmedians_split(std::span<Descriptor> members,
-                             const KmediansOptions& options, const std::function<void(std::size_t)>& on_work = {});
+KmediansSplit kmedians_split(std::span<Descriptor> members, const KmediansOptions& options,
+                             const std::function<void(std::size_t)>& on_work = {});
 
 }  // namespace orbatlas::vocabulary_detail

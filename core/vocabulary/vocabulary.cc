@@ -75,7 +75,8 @@ WordId Vocabulary::word_of(const Descriptor& d) const {
 }
 
 double Vocabulary::word_weight(WordId w) const {
-  ORBATLAS_CHECK(w < impl_->tree.word_weights.size(), "word " << w << " out of range (" << impl_->tree.word_weights.size() << " words)");
+  ORBATLAS_CHECK(w < impl_->tree.word_weights.size(),
+                 "word " << w << " out of range (" << impl_->tree.word_weights.size() << " words)");
   return impl_->tree.word_weights[w];
 }
 
@@ -99,22 +100,26 @@ double Vocabulary::score(const BowVector& a, const BowVector& b) {
 }
 
 const Descriptor& Vocabulary::node_descriptor(NodeId node) const {
-  ORBATLAS_CHECK(node < impl_->tree.node_count(), "node " << node << " out of range (" << impl_->tree.node_count() << " nodes)");
+  ORBATLAS_CHECK(node < impl_->tree.node_count(),
+                 "node " << node << " out of range (" << impl_->tree.node_count() << " nodes)");
   return impl_->tree.descriptors[node];
 }
 
 NodeId Vocabulary::node_parent(NodeId node) const {
-  ORBATLAS_CHECK(node < impl_->tree.node_count(), "node " << node << " out of range (" << impl_->tree.node_count() << " nodes)");
+  ORBATLAS_CHECK(node < impl_->tree.node_count(),
+                 "node " << node << " out of range (" << impl_->tree.node_count() << " nodes)");
   return impl_->tree.parents[node];
 }
 
 std::pair<NodeId, std::uint32_t> Vocabulary::node_children(NodeId node) const {
-  ORBATLAS_CHECK(node < impl_->tree.node_count(), "node " << node << " out of range (" << impl_->tree.node_count() << " nodes)");
+  ORBATLAS_CHECK(node < impl_->tree.node_count(),
+                 "node " << node << " out of range (" << impl_->tree.node_count() << " nodes)");
   return {impl_->tree.first_child[node], impl_->tree.child_count[node]};
 }
 
 NodeId Vocabulary::word_node(WordId word) const {
-  ORBATLAS_CHECK(word < impl_->tree.word_nodes.size(), "word " << word << " out of range (" << impl_->tree.word_nodes.size() << " words)");
+  ORBATLAS_CHECK(word < impl_->tree.word_nodes.size(),
+                 "word " << word << " out of range (" << impl_->tree.word_nodes.size() << " words)");
   return impl_->tree.word_nodes[word];
 }
 

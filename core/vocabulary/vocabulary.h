@@ -62,8 +62,8 @@ class Vocabulary {
   // Read-only view of the tree, for tools and tests: node 0 is the root, the
   // children of a node are the ids [first, first + count), the leaves are the words
   // (numbered in node order). Throw Error on an out-of-range id.
-  const Descriptor& node_descriptor(NodeId node) const;            // cluster centre (zero for the root)
-  NodeId node_parent(NodeId node) const;                           // the root's is the root
+  const Descriptor& node_descriptor(NodeId node) const;               // cluster centre (zero for the root)
+  NodeId node_parent(NodeId node) const;                              // the root's is the root
   std::pair<NodeId, std::uint32_t> node_children(NodeId node) const;  // (first, count); count 0 for a leaf
   NodeId word_node(WordId word) const;
 

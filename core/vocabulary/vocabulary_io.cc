@@ -54,7 +54,8 @@ class BodyDecoder {
   std::string read_string(const char* what) {
     std::uint64_t length = 0;
     ar_(length);
-    if (length > kMaxStringLength) fail(std::string("corrupt ") + what + " field (length " + std::to_string(length) + ")");
+    if (length > kMaxStringLength)
+      fail(std::string("corrupt ") + what + " field (length " + std::to_string(length) + ")");
     std::string s(length, '\0');
     ar_(cereal::binary_data(s.data(), s.size()));
     return s;
@@ -62,8 +63,8 @@ class BodyDecoder {
   template <class T>
   void read_array(std::vector<T>& v, std::uint64_t count, const char* what) {
     if (count > reader_.remaining() / sizeof(T))
-      fail(std::string("truncated or corrupt: the header announces ") + std::to_string(count) + " " + what + " but only " +
-           std::to_string(reader_.remaining()) + " bytes remain");
+      fail(std::string("truncated or corrupt: the header announces ") + std::to_string(count) + " " + what +
+           " but only " + std::to_string(reader_.remaining()) + " bytes remain");
     v.resize(count);
     ar_(cereal::binary_data(v.data(), v.size() * sizeof(T)));
   }
@@ -208,14 +209,17 @@ Vocabulary Vocabulary::load(const std::filesystem::path& path) {
     decoder.fail("truncated vocabulary file (unexpected end after " + std::to_string(reader.position()) + " of " +
                  std::to_string(bytes.size()) + " bytes)");
   }
-  if (reader.remaining() != 0) decoder.fail(std::to_string(reader.remaining()) + " unexpected bytes after the vocabulary");
+  if (reader.remaining() != 0)
+    decoder.fail(std::to_string(reader.remaining()) + " unexpected bytes after the vocabulary");
 
   const std::string computed = vocabulary_detail::content_hash(std::string_view(bytes).substr(kBodyOffset));
   if (computed != stored_hash)
     decoder.fail("content hash mismatch (stored " + stored_hash + ", computed " + computed + "): the file is corrupt");
-  if (info.weighting != "tf-idf") decoder.fail("unsupported weighting \"" + info.weighting + "\" (this build has tf-idf)");
+  if (info.weighting != "tf-idf")
+    decoder.fail("unsupported weighting \"" + info.weighting + "\" (this build has tf-idf)");
   if (info.scoring != "l1") decoder.fail("unsupported scoring \"" + info.scoring + "\" (this build has l1)");
-  if (info.descriptor != "orb-256") decoder.fail("unsupported descriptor \"" + info.descriptor + "\" (this build has orb-256)");
+  if (info.descriptor != "orb-256")
+    decoder.fail("unsupported descriptor \"" + info.descriptor + "\" (this build has orb-256)");
   try {
     tree.derive_and_check();
   } catch (const Error& e) {

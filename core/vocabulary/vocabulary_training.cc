@@ -53,9 +53,8 @@ struct PendingNode {
 };
 
 // Splits every pending node of one level; returns the splits in the same order.
-std::vector<KmediansSplit> split_level(std::vector<Descriptor>& working,
-                                       const std::vector<PendingNode>& pending, const VocabularyTrainingOptions& o,
-                                       int threads, ProgressReporter& progress) {
+std::vector<KmediansSplit> split_level(std::vector<Descriptor>& working, const std::vector<PendingNode>& pending,
+                                       const VocabularyTrainingOptions& o, int threads, ProgressReporter& progress) {
   std::vector<KmediansSplit> splits(pending.size());
   const auto split = [&](std::size_t i, int inner_threads) {
     const PendingNode& p = pending[i];
@@ -85,7 +84,8 @@ std::vector<std::uint32_t> images_per_word(const VocabularyTree& tree,
                                            const std::vector<std::vector<Descriptor>>& per_image, int threads,
                                            ProgressReporter& progress) {
   const std::size_t n_words = tree.word_nodes.size(), n_images = per_image.size();
-  const std::size_t chunks = std::min<std::size_t>(static_cast<std::size_t>(threads), std::max<std::size_t>(n_images, 1));
+  const std::size_t chunks =
+      std::min<std::size_t>(static_cast<std::size_t>(threads), std::max<std::size_t>(n_images, 1));
   std::vector<std::vector<std::uint32_t>> partial(chunks);
   vocabulary_detail::run_chunks(n_images, chunks, threads, [&](std::size_t c, std::size_t b, std::size_t e) {
     std::vector<std::uint32_t> counts(n_words, 0);
@@ -115,7 +115,8 @@ std::vector<std::uint32_t> images_per_word(const VocabularyTree& tree,
 void VocabularyTrainingOptions::check() const {
   ORBATLAS_CHECK(k >= 2 && k <= 1000, "vocabulary training: k must be in [2, 1000], got " << k);
   ORBATLAS_CHECK(levels >= 1 && levels <= 16, "vocabulary training: levels must be in [1, 16], got " << levels);
-  ORBATLAS_CHECK(kmedians_iterations >= 1, "vocabulary training: kmedians_iterations must be >= 1, got " << kmedians_iterations);
+  ORBATLAS_CHECK(kmedians_iterations >= 1,
+                 "vocabulary training: kmedians_iterations must be >= 1, got " << kmedians_iterations);
   ORBATLAS_CHECK(threads >= 0, "vocabulary training: threads must be >= 0, got " << threads);
 }
 
@@ -127,8 +128,10 @@ Vocabulary Vocabulary::train(const std::vector<std::vector<Descriptor>>& descrip
   for (const auto& image : descriptors_per_image) working.insert(working.end(), image.begin(), image.end());
   const std::size_t n = working.size();
   ORBATLAS_CHECK(n > 0, "vocabulary training: no descriptors in " << descriptors_per_image.size() << " images");
-  ORBATLAS_CHECK(n < std::numeric_limits<std::uint32_t>::max(), "vocabulary training: too many descriptors (" << n << ")");
-  const int threads = options.threads > 0 ? options.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  ORBATLAS_CHECK(n < std::numeric_limits<std::uint32_t>::max(),
+                 "vocabulary training: too many descriptors (" << n << ")");
+  const int threads =
+      options.threads > 0 ? options.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const auto levels = static_cast<std::size_t>(options.levels);
   ProgressReporter progress(n * levels + n, options.progress);
 

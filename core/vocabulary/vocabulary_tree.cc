@@ -11,8 +11,9 @@ namespace orbatlas::vocabulary_detail {
 void VocabularyTree::derive_and_check() {
   const std::size_t n = descriptors.size();
   ORBATLAS_CHECK(k >= 2 && levels >= 1 && levels <= 255, "invalid tree shape k = " << k << ", levels = " << levels);
-  ORBATLAS_CHECK(n >= 1 && first_child.size() == n && child_count.size() == n,
-                 "node arrays have inconsistent sizes (" << n << ", " << first_child.size() << ", " << child_count.size() << ")");
+  ORBATLAS_CHECK(
+      n >= 1 && first_child.size() == n && child_count.size() == n,
+      "node arrays have inconsistent sizes (" << n << ", " << first_child.size() << ", " << child_count.size() << ")");
   ORBATLAS_CHECK(word_weights.size() == word_nodes.size(), "word arrays have inconsistent sizes");
   ORBATLAS_CHECK(n < std::numeric_limits<NodeId>::max(), "too many nodes (" << n << ")");
   parents.assign(n, 0);
@@ -44,7 +45,8 @@ void VocabularyTree::derive_and_check() {
                    "leaf " << i << " is not word " << next_word << " (words must be the leaves in node order)");
     node_words[i] = static_cast<WordId>(next_word++);
   }
-  ORBATLAS_CHECK(next_word == word_nodes.size(), "there are " << word_nodes.size() << " words but " << next_word << " leaves");
+  ORBATLAS_CHECK(next_word == word_nodes.size(),
+                 "there are " << word_nodes.size() << " words but " << next_word << " leaves");
   for (std::size_t w = 0; w < word_weights.size(); ++w)
     ORBATLAS_CHECK(std::isfinite(word_weights[w]) && word_weights[w] >= 0.0,
                    "word " << w << " has an invalid weight " << word_weights[w]);
@@ -68,7 +70,8 @@ void descend_all(const VocabularyTree& tree, const Descriptor* descriptors, std:
       for (std::size_t i = 0; i < m; ++i) {
         const std::uint32_t count = child_count[node[i]];
         const char* block = reinterpret_cast<const char*>(centres + first_child[node[i]]);
-        for (std::size_t offset = 0; offset < count * sizeof(Descriptor); offset += 64) __builtin_prefetch(block + offset);
+        for (std::size_t offset = 0; offset < count * sizeof(Descriptor); offset += 64)
+          __builtin_prefetch(block + offset);
       }
       bool moved = false;
       for (std::size_t i = 0; i < m; ++i) {

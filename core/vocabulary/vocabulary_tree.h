@@ -27,15 +27,15 @@ constexpr WordId kNoWord = std::numeric_limits<WordId>::max();
 struct VocabularyTree {
   int k = 0, levels = 0;
   // Per node (stored in the file).
-  std::vector<Descriptor> descriptors;  // cluster centre; zero for the root
+  std::vector<Descriptor> descriptors;                  // cluster centre; zero for the root
   std::vector<std::uint32_t> first_child, child_count;  // 0, 0 for a leaf
   // Per word (stored in the file).
-  std::vector<NodeId> word_nodes;   // the leaf of each word, in increasing node order
-  std::vector<double> word_weights; // IDF
+  std::vector<NodeId> word_nodes;    // the leaf of each word, in increasing node order
+  std::vector<double> word_weights;  // IDF
   // Derived by derive_and_check() (not stored).
-  std::vector<WordId> node_words;   // word of a leaf, kNoWord for an inner node
-  std::vector<NodeId> parents;      // root: 0
-  std::vector<std::uint8_t> depths; // root: 0
+  std::vector<WordId> node_words;    // word of a leaf, kNoWord for an inner node
+  std::vector<NodeId> parents;       // root: 0
+  std::vector<std::uint8_t> depths;  // root: 0
 
   std::size_t node_count() const { return descriptors.size(); }
   // Checks the structure (sizes, child ranges, one parent per node, depth <= levels,

@@ -81,8 +81,7 @@ void reply_error(Response& res, int status, const std::string& code, const std::
 
 // Every handler runs inside this: service errors become JSON replies, with no
 // server path in their messages.
-void run_guarded(const ErrorContext& context, const Request& req, Response& res,
-                 const std::function<void()>& handler) {
+void run_guarded(const ErrorContext& context, const Request& req, Response& res, const std::function<void()>& handler) {
   const auto error = [&](int status, const std::string& code, const std::string& message) {
     reply_error(res, status, code, redacted(message, context.redactions));
   };
@@ -220,124 +219,126 @@ bool authorised(const Request& req, const std::string& token) {
 
 void install_session_routes(Router& router, AtlasService& service) {
   router.post("/v1/sessions", ([&service](const Request& req, Response& res) {
-    const json body = parse_json_body(req);
-    SessionRequest request;
-    request.name = optional_string(body, "name");
-    if (body.contains("sensor")) request.sensor = optional_string(body, "sensor");
-    request.settings.config = optional_string(body, "config");
-    request.settings.settings_yaml = optional_string(body, "settings_yaml");
-    const SessionId id = service.create_session(request);
-    reply_json(res, {{"id", id}, {"session", service.session_status(id)}}, 201);
-  }));
+                const json body = parse_json_body(req);
+                SessionRequest request;
+                request.name = optional_string(body, "name");
+                if (body.contains("sensor")) request.sensor = optional_string(body, "sensor");
+                request.settings.config = optional_string(body, "config");
+                request.settings.settings_yaml = optional_string(body, "settings_yaml");
+                const SessionId id = service.create_session(request);
+                reply_json(res, {{"id", id}, {"session", service.session_status(id)}}, 201);
+              }));
   router.get("/v1/sessions", ([&service](const Request&, Response& res) { reply_json(res, session_list(service)); }));
   router.get(R"(/v1/sessions/(\d+))", ([&service](const Request& req, Response& res) {
-    reply_json(res, service.session_status(id_from(req, 1, "session")));
-  }));
-  router.post(R"(/v1/sessions/(\d+)/frames)", ([&service](const Request& req, Response& res) {
-    const auto start = std::chrono::steady_clock::now();
-    const SessionId id = id_from(req, 1, "session");
-    const auto session = service.session(id);  // 404 before looking at the body
-    const CameraCalibration& camera = session->info().cameras.at(0);
-    const cv::Size expected(camera.width, camera.height);
-    require_multipart(req, "'t_ns', 'left', 'right' (and 'width', 'height' for raw pixels)");
-    const TimestampNs t_ns = form_integer(req, "t_ns", true);
-    if (!req.has_file("left"))
-      throw_bad_request("a frame needs the image 'left' (and 'right' for a stereo session)");
-    const auto raw = raw_size(req);
-    const cv::Mat left = decode_request_image(req.get_file_value("left").content, raw, "left image", expected);
-    // A single-camera session takes 'left' alone; the session says which it needs.
-    const cv::Mat right = req.has_file("right")
-                              ? decode_request_image(req.get_file_value("right").content, raw, "right image", expected)
-                              : cv::Mat();
-    const FrameReply r = service.process_frame(id, t_ns, left, right);
-    json body = {{"t_ns", r.result.t_ns},
-                 {"state", tracking_state_name(r.result.state)},
-                 {"tracked", r.result.tracked},
-                 {"keyframe", r.result.keyframe},
-                 {"inliers", r.result.inliers},
-                 {"tracking_ms", r.tracking_ms}};
-    if (r.result.tracked) {
-      body["map"] = r.result.map;
-      body["T_w_b"] = pose_to_json(r.result.T_w_b);
-    }
-    body["server_ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    reply_json(res, body);
-  }));
-  router.post(R"(/v1/sessions/(\d+)/imu)", ([&service](const Request& req, Response& res) {
-    const SessionId id = id_from(req, 1, "session");
-    service.session(id);
-    const json body = parse_json_body(req);
-    if (!body.contains("samples") || !body["samples"].is_array())
-      throw_bad_request("'samples' must be an array of [t_ns, gx, gy, gz, ax, ay, az]");
-    std::vector<ImuSample> samples;
-    for (const json& row : body["samples"]) {
-      if (!row.is_array() || row.size() != 7 || !row[0].is_number_integer())
-        throw_bad_request("each IMU sample is [t_ns (integer), gx, gy, gz (rad/s), ax, ay, az (m/s^2)]");
-      // An integer above INT64_MAX would wrap around into a negative time.
-      if (row[0].is_number_unsigned() && row[0].get<std::uint64_t>() > static_cast<std::uint64_t>(kMaxTimestampNs))
-        throw DataError("IMU sample t_ns " + row[0].dump() + " is outside 0.." + std::to_string(kMaxTimestampNs));
-      ImuSample s;
-      s.t_ns = row[0].get<TimestampNs>();
-      for (int k = 0; k < 3; ++k) {
-        s.gyro[k] = row[1 + k].get<double>();
-        s.accel[k] = row[4 + k].get<double>();
-      }
-      samples.push_back(s);
-    }
-    reply_json(res, {{"accepted", service.add_imu(id, samples)}});
-  }));
+               reply_json(res, service.session_status(id_from(req, 1, "session")));
+             }));
+  router.post(
+      R"(/v1/sessions/(\d+)/frames)", ([&service](const Request& req, Response& res) {
+        const auto start = std::chrono::steady_clock::now();
+        const SessionId id = id_from(req, 1, "session");
+        const auto session = service.session(id);  // 404 before looking at the body
+        const CameraCalibration& camera = session->info().cameras.at(0);
+        const cv::Size expected(camera.width, camera.height);
+        require_multipart(req, "'t_ns', 'left', 'right' (and 'width', 'height' for raw pixels)");
+        const TimestampNs t_ns = form_integer(req, "t_ns", true);
+        if (!req.has_file("left"))
+          throw_bad_request("a frame needs the image 'left' (and 'right' for a stereo session)");
+        const auto raw = raw_size(req);
+        const cv::Mat left = decode_request_image(req.get_file_value("left").content, raw, "left image", expected);
+        // A single-camera session takes 'left' alone; the session says which it needs.
+        const cv::Mat right = req.has_file("right") ? decode_request_image(req.get_file_value("right").content, raw,
+                                                                           "right image", expected)
+                                                    : cv::Mat();
+        const FrameReply r = service.process_frame(id, t_ns, left, right);
+        json body = {{"t_ns", r.result.t_ns},       {"state", tracking_state_name(r.result.state)},
+                     {"tracked", r.result.tracked}, {"keyframe", r.result.keyframe},
+                     {"inliers", r.result.inliers}, {"tracking_ms", r.tracking_ms}};
+        if (r.result.tracked) {
+          body["map"] = r.result.map;
+          body["T_w_b"] = pose_to_json(r.result.T_w_b);
+        }
+        body["server_ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+        reply_json(res, body);
+      }));
+  router.post(
+      R"(/v1/sessions/(\d+)/imu)", ([&service](const Request& req, Response& res) {
+        const SessionId id = id_from(req, 1, "session");
+        service.session(id);
+        const json body = parse_json_body(req);
+        if (!body.contains("samples") || !body["samples"].is_array())
+          throw_bad_request("'samples' must be an array of [t_ns, gx, gy, gz, ax, ay, az]");
+        std::vector<ImuSample> samples;
+        for (const json& row : body["samples"]) {
+          if (!row.is_array() || row.size() != 7 || !row[0].is_number_integer())
+            throw_bad_request("each IMU sample is [t_ns (integer), gx, gy, gz (rad/s), ax, ay, az (m/s^2)]");
+          // An integer above INT64_MAX would wrap around into a negative time.
+          if (row[0].is_number_unsigned() && row[0].get<std::uint64_t>() > static_cast<std::uint64_t>(kMaxTimestampNs))
+            throw DataError("IMU sample t_ns " + row[0].dump() + " is outside 0.." + std::to_string(kMaxTimestampNs));
+          ImuSample s;
+          s.t_ns = row[0].get<TimestampNs>();
+          for (int k = 0; k < 3; ++k) {
+            s.gyro[k] = row[1 + k].get<double>();
+            s.accel[k] = row[4 + k].get<double>();
+          }
+          samples.push_back(s);
+        }
+        reply_json(res, {{"accepted", service.add_imu(id, samples)}});
+      }));
   router.post(R"(/v1/sessions/(\d+)/finish)", ([&service](const Request& req, Response& res) {
-    reply_json(res, service.finish_session(id_from(req, 1, "session")));
-  }));
+                reply_json(res, service.finish_session(id_from(req, 1, "session")));
+              }));
   router.get(R"(/v1/sessions/(\d+)/trajectory)", ([&service](const Request& req, Response& res) {
-    const SessionTrajectory t = service.trajectory(id_from(req, 1, "session"));
-    // Frames that no longer resolve are said, never silently dropped.
-    res.set_header("X-Orbatlas-Frames", std::to_string(t.frames));
-    res.set_header("X-Orbatlas-Unresolved-Frames", std::to_string(t.unresolved));
-    std::string text = "# " + std::to_string(t.frames) + " frames tracked, " + std::to_string(t.poses.size()) +
-                       " below" + (t.unresolved ? ", " + std::to_string(t.unresolved) +
-                                                      " not resolvable (their keyframe is in no map)"
-                                                : std::string()) + "\n";
-    res.set_content(text + format_tum_trajectory(t.poses, t.maps), "text/plain");
-  }));
+               const SessionTrajectory t = service.trajectory(id_from(req, 1, "session"));
+               // Frames that no longer resolve are said, never silently dropped.
+               res.set_header("X-Orbatlas-Frames", std::to_string(t.frames));
+               res.set_header("X-Orbatlas-Unresolved-Frames", std::to_string(t.unresolved));
+               std::string text =
+                   "# " + std::to_string(t.frames) + " frames tracked, " + std::to_string(t.poses.size()) + " below" +
+                   (t.unresolved ? ", " + std::to_string(t.unresolved) + " not resolvable (their keyframe is in no map)"
+                                 : std::string()) +
+                   "\n";
+               res.set_content(text + format_tum_trajectory(t.poses, t.maps), "text/plain");
+             }));
 }
 
 void install_map_routes(Router& router, AtlasService& service) {
   router.get("/v1/maps", ([&service](const Request&, Response& res) {
-    reply_json(res, {{"maps", service.maps_json()}});
-  }));
+               reply_json(res, {{"maps", service.maps_json()}});
+             }));
   router.get(R"(/v1/maps/(\d+))", ([&service](const Request& req, Response& res) {
-    reply_json(res, service.map_json(id_from(req, 1, "map")));
-  }));
+               reply_json(res, service.map_json(id_from(req, 1, "map")));
+             }));
   router.get("/v1/merges", ([&service](const Request&, Response& res) { reply_json(res, service.merges_json()); }));
   router.get(R"(/v1/maps/(\d+)/points\.ply)", ([&service](const Request& req, Response& res) {
-    res.set_content(service.map_points_ply(id_from(req, 1, "map")), "application/ply");
-  }));
+               res.set_content(service.map_points_ply(id_from(req, 1, "map")), "application/ply");
+             }));
   router.post("/v1/localize", ([&service](const Request& req, Response& res) {
-    require_multipart(req, "'image' (or 'left' and 'right'), 'config' or 'settings_yaml', optional 'map'");
-    LocalizeRequest request;
-    request.settings.config = form_text(req, "config");
-    request.settings.settings_yaml = form_text(req, "settings_yaml");
-    if (req.has_file("map")) request.map = static_cast<MapId>(form_integer(req, "map", true));
-    const auto raw = raw_size(req);
-    const char* left_key = req.has_file("image") ? "image" : "left";
-    if (!req.has_file(left_key)) throw_bad_request("localisation needs an 'image' (or a 'left' and 'right' pair)");
-    const cv::Size expected = service.localize_image_size(request.settings);
-    request.left = decode_request_image(req.get_file_value(left_key).content, raw, "image", expected);
-    if (req.has_file("right"))
-      request.right = decode_request_image(req.get_file_value("right").content, raw, "right image", expected);
-    const LocalizeReply r = service.localize(request);
-    json body = {{"recognised", r.recognised}, {"candidates", r.candidates}, {"ms", r.ms}};
-    if (r.recognised) {
-      body["map"] = r.map;
-      body["T_w_b"] = pose_to_json(r.T_w_b);
-      body["inliers"] = r.inliers;
-    } else {
-      body["reason"] = r.candidates == 0 ? "no keyframe of the atlas looks like this image"
-                                         : "no candidate place gave a consistent pose";
-    }
-    reply_json(res, body);
-  }));
+                require_multipart(req, "'image' (or 'left' and 'right'), 'config' or 'settings_yaml', optional 'map'");
+                LocalizeRequest request;
+                request.settings.config = form_text(req, "config");
+                request.settings.settings_yaml = form_text(req, "settings_yaml");
+                if (req.has_file("map")) request.map = static_cast<MapId>(form_integer(req, "map", true));
+                const auto raw = raw_size(req);
+                const char* left_key = req.has_file("image") ? "image" : "left";
+                if (!req.has_file(left_key))
+                  throw_bad_request("localisation needs an 'image' (or a 'left' and 'right' pair)");
+                const cv::Size expected = service.localize_image_size(request.settings);
+                request.left = decode_request_image(req.get_file_value(left_key).content, raw, "image", expected);
+                if (req.has_file("right"))
+                  request.right =
+                      decode_request_image(req.get_file_value("right").content, raw, "right image", expected);
+                const LocalizeReply r = service.localize(request);
+                json body = {{"recognised", r.recognised}, {"candidates", r.candidates}, {"ms", r.ms}};
+                if (r.recognised) {
+                  body["map"] = r.map;
+                  body["T_w_b"] = pose_to_json(r.T_w_b);
+                  body["inliers"] = r.inliers;
+                } else {
+                  body["reason"] = r.candidates == 0 ? "no keyframe of the atlas looks like this image"
+                                                     : "no candidate place gave a consistent pose";
+                }
+                reply_json(res, body);
+              }));
 }
 
 void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jobs, std::uint64_t max_bytes) {
@@ -379,7 +380,8 @@ void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jo
       });
       if (too_large) {
         extractor.cancel();
-        throw ServiceError(ServiceErrorKind::kTooLarge, "too_large", "uploads are limited to " + std::to_string(max_bytes) + " bytes");
+        throw ServiceError(ServiceErrorKind::kTooLarge, "too_large",
+                           "uploads are limited to " + std::to_string(max_bytes) + " bytes");
       }
       if (bytes == 0) {
         extractor.cancel();
@@ -396,13 +398,13 @@ void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jo
     });
   });
   router.get("/v1/jobs", ([jobs](const Request&, Response& res) {
-    reply_json(res, {{"jobs", jobs ? jobs->jobs_json() : json::array()}});
-  }));
+               reply_json(res, {{"jobs", jobs ? jobs->jobs_json() : json::array()}});
+             }));
   router.get(R"(/v1/jobs/(\d+))", ([jobs](const Request& req, Response& res) {
-    const JobId id = id_from(req, 1, "job");
-    if (!jobs) throw_not_found("no job " + std::to_string(id));
-    reply_json(res, jobs->job_json(id));
-  }));
+               const JobId id = id_from(req, 1, "job");
+               if (!jobs) throw_not_found("no job " + std::to_string(id));
+               reply_json(res, jobs->job_json(id));
+             }));
 }
 
 }  // namespace
@@ -429,25 +431,33 @@ HandlerResponse refuse(Response& res, int status, const std::string& code, const
 // The codes of the errors httplib answers itself (before any route runs).
 std::pair<std::string, std::string> status_code_and_message(int status, const Request& req) {
   switch (status) {
-    case 400: return {"bad_request", "malformed HTTP request"};
-    case 404: return {"not_found", "no route " + req.method + " " + req.path};
-    case 408: return {"timeout", "the request did not arrive in time"};
-    case 413: return {"too_large", req.get_header_value("Content-Type").find("x-www-form-urlencoded") != std::string::npos
-                                       ? "form-urlencoded bodies are limited to 8 kB: send JSON with "
-                                         "'Content-Type: application/json'"
-                                       : "the request is too large"};
-    case 414: return {"too_large", "the request line is too long"};
-    case 415: return {"unsupported_media_type", "unsupported Content-Type or Content-Encoding"};
-    case 416: return {"bad_request", "bad Range header"};
-    case 503: return {"unavailable", "the server cannot take this request now"};
-    default: return {status >= 500 ? "internal" : "bad_request", "HTTP status " + std::to_string(status)};
+    case 400:
+      return {"bad_request", "malformed HTTP request"};
+    case 404:
+      return {"not_found", "no route " + req.method + " " + req.path};
+    case 408:
+      return {"timeout", "the request did not arrive in time"};
+    case 413:
+      return {"too_large", req.get_header_value("Content-Type").find("x-www-form-urlencoded") != std::string::npos
+                               ? "form-urlencoded bodies are limited to 8 kB: send JSON with "
+                                 "'Content-Type: application/json'"
+                               : "the request is too large"};
+    case 414:
+      return {"too_large", "the request line is too long"};
+    case 415:
+      return {"unsupported_media_type", "unsupported Content-Type or Content-Encoding"};
+    case 416:
+      return {"bad_request", "bad Range header"};
+    case 503:
+      return {"unavailable", "the server cannot take this request now"};
+    default:
+      return {status >= 500 ? "internal" : "bad_request", "HTTP status " + std::to_string(status)};
   }
 }
 
 }  // namespace
 
-void install_http_api(httplib::Server& server, AtlasService& service, const HttpApiOptions& options,
-                      UploadJobs* jobs) {
+void install_http_api(httplib::Server& server, AtlasService& service, const HttpApiOptions& options, UploadJobs* jobs) {
   const HttpApiOptions opts = options;
   auto context = std::make_shared<ErrorContext>();
   context->redactions = options.redactions;
@@ -464,8 +474,9 @@ void install_http_api(httplib::Server& server, AtlasService& service, const Http
     if (opts.on_request_start) opts.on_request_start(req.path);
     if (!opts.token.empty() && req.path != "/healthz" && !authorised(req, opts.token)) {
       res.set_header("WWW-Authenticate", "Bearer");
-      return refuse(res, 401, "unauthorized",
-                    req.has_header("Authorization") ? "wrong token" : "this server needs 'Authorization: Bearer <token>'");
+      return refuse(
+          res, 401, "unauthorized",
+          req.has_header("Authorization") ? "wrong token" : "this server needs 'Authorization: Bearer <token>'");
     }
     // One length, said once: two Content-Length headers (or one next to a
     // chunked encoding) are how requests are smuggled past proxies.
@@ -484,13 +495,17 @@ void install_http_api(httplib::Server& server, AtlasService& service, const Http
     const bool upload = req.path == "/v1/uploads";
     if (upload) {
       if (bytes > opts.max_upload_bytes)
-        return refuse(res, 413, "too_large",
-                      "the upload has " + length + " bytes; uploads are limited to " + std::to_string(opts.max_upload_bytes));
+        return refuse(
+            res, 413, "too_large",
+            "the upload has " + length + " bytes; uploads are limited to " + std::to_string(opts.max_upload_bytes));
     } else {
-      if (chunked) return refuse(res, 411, "length_required", "send this request with a Content-Length (chunked bodies are for uploads)");
+      if (chunked)
+        return refuse(res, 411, "length_required",
+                      "send this request with a Content-Length (chunked bodies are for uploads)");
       if (bytes > opts.max_body_bytes)
-        return refuse(res, 413, "too_large",
-                      "the body has " + length + " bytes; this route takes at most " + std::to_string(opts.max_body_bytes));
+        return refuse(
+            res, 413, "too_large",
+            "the body has " + length + " bytes; this route takes at most " + std::to_string(opts.max_body_bytes));
     }
     return HandlerResponse::Unhandled;
   });
@@ -518,11 +533,11 @@ void install_http_api(httplib::Server& server, AtlasService& service, const Http
   });
   router.get("/healthz", ([&service](const Request&, Response& res) { reply_json(res, service.health()); }));
   router.get("/metrics", ([&service, jobs, opts](const Request&, Response& res) {
-    std::string text = service.metrics_text();
-    if (opts.extra_metrics) text += opts.extra_metrics();
-    if (jobs) text += jobs->metrics_text();
-    res.set_content(text, "text/plain; version=0.0.4");
-  }));
+               std::string text = service.metrics_text();
+               if (opts.extra_metrics) text += opts.extra_metrics();
+               if (jobs) text += jobs->metrics_text();
+               res.set_content(text, "text/plain; version=0.0.4");
+             }));
   install_session_routes(router, service);
   install_map_routes(router, service);
   install_upload_routes(router, service, jobs, options.max_upload_bytes);

@@ -19,10 +19,10 @@ class AtlasService;
 class UploadJobs;
 
 struct HttpApiOptions {
-  std::string token;  // non-empty: every route but /healthz needs "Authorization: Bearer <token>"
+  std::string token;                       // non-empty: every route but /healthz needs "Authorization: Bearer <token>"
   std::size_t max_body_bytes = 64u << 20;  // frames, localisation, JSON
   std::uint64_t max_upload_bytes = 32ull << 30;  // POST /v1/uploads (the server's payload limit must allow it)
-  bool log_requests = false;               // one line per request on stderr
+  bool log_requests = false;                     // one line per request on stderr
   // Text replaced in every error message a client sees (server file paths:
   // the database, its work folder, the config folder).
   std::vector<std::pair<std::string, std::string>> redactions;

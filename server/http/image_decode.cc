@@ -133,18 +133,18 @@ cv::Mat decode_request_image(std::string_view bytes, const std::optional<RawImag
     ORBATLAS_DATA_CHECK(!image.empty(), what << " is a corrupt or truncated image file (" << bytes.size() << " bytes)");
     ORBATLAS_DATA_CHECK(image.size() == *declared, what << " decodes to " << size_text(image.size())
                                                         << " but its header says " << size_text(*declared));
-    ORBATLAS_DATA_CHECK(image.depth() == CV_8U, what << " must have 8-bit pixels (it has " << (image.elemSize1() * 8)
-                                                     << "-bit ones)");
+    ORBATLAS_DATA_CHECK(image.depth() == CV_8U,
+                        what << " must have 8-bit pixels (it has " << (image.elemSize1() * 8) << "-bit ones)");
     return image;
   }
   ORBATLAS_DATA_CHECK(raw.has_value(), what << " is not a PNG/JPEG/PGM/BMP file; raw 8-bit pixels need the fields "
                                                "'width' and 'height'");
-  ORBATLAS_DATA_CHECK(raw->width > 0 && raw->height > 0 && raw->width <= kMaxImageSide && raw->height <= kMaxImageSide,
-                      what << ": width and height must be 1.." << kMaxImageSide << ", got " << raw->width << "x"
-                           << raw->height);
+  ORBATLAS_DATA_CHECK(
+      raw->width > 0 && raw->height > 0 && raw->width <= kMaxImageSide && raw->height <= kMaxImageSide,
+      what << ": width and height must be 1.." << kMaxImageSide << ", got " << raw->width << "x" << raw->height);
   const auto expected_bytes = static_cast<std::size_t>(raw->width) * static_cast<std::size_t>(raw->height);
-  ORBATLAS_DATA_CHECK(bytes.size() == expected_bytes, what << " has " << bytes.size() << " bytes; " << raw->width
-                                                           << "x" << raw->height << " raw 8-bit pixels are "
+  ORBATLAS_DATA_CHECK(bytes.size() == expected_bytes, what << " has " << bytes.size() << " bytes; " << raw->width << "x"
+                                                           << raw->height << " raw 8-bit pixels are "
                                                            << expected_bytes);
   cv::Mat image(raw->height, raw->width, CV_8UC1);
   std::memcpy(image.data, bytes.data(), expected_bytes);
