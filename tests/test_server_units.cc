@@ -2,11 +2,15 @@
 // the latency histogram, pose JSON.
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <future>
+
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/common/error.h"
 #include "server/http/image_decode.h"
 #include "core/server/metrics_registry.h"
+#include "core/server/live_session.h"
 #include "core/server/map_leases.h"
 #include "wire/pose_json.h"
 
@@ -107,6 +111,48 @@ TEST(MetricsRegistry, CumulativeBucketsCountersAndLabelsInTheTextFormat) {
   EXPECT_NE(text.find("y_total{reason=\"slow\"} 2\n"), std::string::npos) << text;
   EXPECT_NE(text.find("y_total{reason=\"room\"} 0\n"), std::string::npos) << text;
   EXPECT_NE(text.find("# TYPE z_bytes gauge\nz_bytes 151234567\n"), std::string::npos) << text;
+}
+
+// A session whose finish waits on something (the shared loop-closing thread, in
+// the server) until the test lets it go.
+class BlockingSlam final : public SessionSlam {
+ public:
+  explicit BlockingSlam(std::shared_future<void> release) : release_(std::move(release)) {}
+  TrackResult process(TimestampNs, const cv::Mat&, const cv::Mat&) override { return {}; }
+  void finish() override {
+    finishing.set_value();
+    release_.wait();
+  }
+  std::vector<FrameAnchor> anchors() const override { return {}; }
+  SlamStats stats() const override { return {}; }
+  std::size_t worker_errors() const override { return 0; }
+  std::promise<void> finishing;
+
+ private:
+  std::shared_future<void> release_;
+};
+
+// Asking a session for its state never waits for its finish. It did (the session
+// mutex): with the service's mutex held by a health check waiting on a finishing
+// session, and that finish waiting for the loop-closing thread, which recorded a
+// live merge under the service's mutex, the server hung (found by reading the
+// lock order; docs/architecture.md "Locks").
+TEST(LiveSession, StateIsReadWithoutWaitingForAFinish) {
+  std::promise<void> release;
+  auto slam = std::make_unique<BlockingSlam>(release.get_future().share());
+  std::future<void> finishing = slam->finishing.get_future();
+  SessionInfo info;
+  info.id = 7;
+  LiveSession session(info, "test", std::move(slam));
+  std::thread finisher([&] { session.finish(); });
+  finishing.wait();  // finish() holds the session's mutex now
+  auto state = std::async(std::launch::async, [&] { return session.state(); });
+  const bool answered = state.wait_for(std::chrono::seconds(2)) == std::future_status::ready;
+  release.set_value();
+  finisher.join();
+  ASSERT_TRUE(answered) << "state() waited for the finish";
+  EXPECT_EQ(state.get(), SessionState::kActive);  // finishing, not finished yet
+  EXPECT_EQ(session.state(), SessionState::kFinished);
 }
 
 TEST(PoseJson, RoundTrip) {

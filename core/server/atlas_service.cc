@@ -438,7 +438,10 @@ void AtlasService::merged_live(SessionId session, const LiveMerge& merge) {
     map_rigs_.erase(merge.merge.source);
   }
   {
-    std::lock_guard lock(mutex_);
+    // Its own leaf lock, not mutex_: this runs on the loop-closing thread, which a
+    // session's finish waits for while holding that session's mutex, and mutex_ is
+    // held while sessions are asked for their state (a cycle if taken here).
+    std::lock_guard lock(live_merges_mutex_);
     push_recent(live_merges_, LiveMergeRecord{session, merge});
     ++live_merges_total_;
   }
@@ -462,7 +465,7 @@ nlohmann::json AtlasService::merges_json() const {
   if (!merger_) return out;
   out["live_merges"] = nlohmann::json::array();
   {
-    std::lock_guard lock(mutex_);
+    std::lock_guard lock(live_merges_mutex_);
     for (const LiveMergeRecord& r : live_merges_) {
       nlohmann::json j = to_json(r.merge);
       j["session"] = r.session;
@@ -729,7 +732,7 @@ std::string AtlasService::metrics_text() const {
     const MapMergeWorkerStats merging = merger_->stats();
     std::size_t live_merged = 0;
     {
-      std::lock_guard lock(mutex_);
+      std::lock_guard lock(live_merges_mutex_);
       live_merged = live_merges_total_;
     }
     total("orbatlas_map_merges_total",

@@ -209,8 +209,9 @@ class AtlasService {
     SessionId session = 0;
     LiveMerge merge;
   };
-  std::vector<LiveMergeRecord> live_merges_;  // the last kMergeHistory; guarded by mutex_
-  std::size_t live_merges_total_ = 0;         // guarded by mutex_
+  mutable std::mutex live_merges_mutex_;      // a leaf lock (taken on the loop-closing thread)
+  std::vector<LiveMergeRecord> live_merges_;  // the last kMergeHistory; guarded by live_merges_mutex_
+  std::size_t live_merges_total_ = 0;         // guarded by live_merges_mutex_
   SessionId next_session_ = 1;
   bool shut_down_ = false;
   std::condition_variable idle_wake_;  // with mutex_: a session was created, or shutdown

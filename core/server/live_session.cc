@@ -39,11 +39,6 @@ LiveSession::~LiveSession() {
   }
 }
 
-SessionState LiveSession::state() const {
-  std::lock_guard lock(mutex_);
-  return state_;
-}
-
 void LiveSession::fail(const std::string& why) {
   state_ = SessionState::kFailed;
   error_ = why;

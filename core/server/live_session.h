@@ -41,7 +41,7 @@ class LiveSession {
 
   SessionId id() const { return info_.id; }
   const SessionInfo& info() const { return info_; }
-  SessionState state() const;
+  SessionState state() const { return state_.load(); }  // never waits for a frame or a finish
 
   // One stereo pair, or one image (`right` empty) for a single-camera session. ServiceError 409 when the session is not
   // active; DataError for a bad frame (timestamp not after the previous one, wrong size...): the session goes on. Any
@@ -82,7 +82,9 @@ class LiveSession {
   const std::string config_;
   mutable std::mutex mutex_;  // serialises frames, IMU and finish
   std::unique_ptr<SessionSlam> slam_;
-  SessionState state_;
+  // Written under mutex_; read without it (state()), so asking a session for its
+  // state never waits for its frame or its finish (docs/architecture.md, locks).
+  std::atomic<SessionState> state_;
   std::string error_;
   std::vector<FrameAnchor> final_anchors_;  // once the SLAM objects are gone, until released
   bool anchors_released_ = false;
