@@ -4,7 +4,7 @@
 // Written by tracking, stored by the persistent atlas.
 #include "core/common/timestamp.h"
 #include "core/geometry/pose.h"
-#include "core/map/ids.h"
+#include "core/common/ids.h"
 
 namespace orbatlas {
 

@@ -5,7 +5,7 @@
 #include <atomic>
 #include <cstdint>
 
-#include "core/map/ids.h"
+#include "core/common/ids.h"
 
 namespace orbatlas {
 

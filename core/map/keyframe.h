@@ -12,7 +12,7 @@
 #include <optional>
 #include <vector>
 
-#include "core/map/ids.h"
+#include "core/common/ids.h"
 #include "core/map/keyframe_data.h"
 #include "core/map/map_point.h"
 #include "core/map/object_counters.h"

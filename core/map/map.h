@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "core/map/id_allocator.h"
-#include "core/map/ids.h"
+#include "core/common/ids.h"
 #include "core/map/keyframe.h"
 #include "core/map/map_point.h"
 #include "core/map/object_counters.h"

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "core/features/descriptor.h"
-#include "core/map/ids.h"
+#include "core/common/ids.h"
 #include "core/map/object_counters.h"
 #include "core/map/observer_record.h"
 

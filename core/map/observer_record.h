@@ -7,7 +7,7 @@
 #include <map>
 #include <memory>
 
-#include "core/map/ids.h"
+#include "core/common/ids.h"
 
 namespace orbatlas {
 

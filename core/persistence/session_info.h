@@ -6,12 +6,11 @@
 #include <vector>
 
 #include "core/camera/camera_calibration.h"
+#include "core/common/ids.h"
 #include "core/common/timestamp.h"
 #include "core/io/settings.h"
 
 namespace orbatlas {
-
-using SessionId = std::uint64_t;
 
 struct SessionInfo {
   SessionId id = 0;  // chosen by the caller; unique in the database

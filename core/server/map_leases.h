@@ -14,7 +14,7 @@
 #include <set>
 #include <vector>
 
-#include "core/map/ids.h"
+#include "core/common/ids.h"
 #include "core/persistence/session_info.h"
 
 namespace orbatlas {

@@ -29,7 +29,7 @@
 namespace orbatlas {
 
 // The lease holder name of the worker (never a session id handed out).
-inline constexpr SessionId kMergeWorkerLease = std::numeric_limits<SessionId>::max();
+inline constexpr SessionId kMergeWorkerLease = kInvalidSessionId - 1;  // no session gets this id
 
 struct MapMergeWorkerOptions {
   std::size_t queue_capacity = 16;

@@ -22,13 +22,12 @@
 #include <vector>
 
 #include "core/common/bounded_queue.h"
+#include "core/common/ids.h"
 #include "core/persistence/atlas_store.h"
 #include "core/server/atlas_service.h"
 #include "core/server/metrics_registry.h"
 
 namespace orbatlas {
-
-using JobId = std::uint64_t;
 
 struct UploadJobOptions {
   std::filesystem::path work_dir;  // uploads and their extracted folders (cleaned up per job)

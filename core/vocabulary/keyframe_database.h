@@ -6,11 +6,10 @@
 #include <unordered_set>
 #include <vector>
 
+#include "core/common/ids.h"
 #include "core/vocabulary/bow_vector.h"
 
 namespace orbatlas {
-
-using KeyframeId = std::uint64_t;
 
 struct DatabaseMatch {
   KeyframeId keyframe = 0;
