@@ -223,6 +223,10 @@ void Tracker::ensure_bow(Frame& frame) const {
 
 bool Tracker::initialize(Frame& frame) {
   if (static_cast<int>(frame.stereo_count()) < options_.min_init_stereo_points) return false;
+  // A new map waits (a frame or two) while local mapping cannot take its first
+  // keyframe: the insert below blocks on a full queue, under the tracking lock a
+  // paused mapper's loop correction is waiting for (docs/architecture.md, Locks).
+  if (!options_.localization_only && (!sink_.accepting() || sink_.queued() >= 3)) return false;
   frame.T_w_b = Pose3();
   frame.has_pose = true;
   std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
