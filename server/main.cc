@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 #include <fstream>
 #include <iostream>
+#include <sstream>
 #include <thread>
 
 #include "core/common/error.h"
@@ -39,6 +40,20 @@ Listen parse_listen(const std::string& text) {
   }
   ORBATLAS_CHECK(l.port >= 0 && l.port <= 65535, "--listen: port " << l.port << " is out of range");
   return l;
+}
+
+// The options in effect (from the command line, the --config file and the
+// defaults), in the config file's format, the token's value hidden.
+std::string effective_options(const CLI::App& app) {
+  std::istringstream all(app.config_to_str(true, false));
+  std::string out;
+  for (std::string line; std::getline(all, line);) {
+    if (line.rfind("token=", 0) == 0 || line.rfind("token =", 0) == 0)
+      line = line.find('"') == std::string::npos || line.find("\"\"") != std::string::npos ? "token=\"\""
+                                                                                           : "token=\"<set>\"";
+    out += "  " + line + "\n";
+  }
+  return out;
 }
 
 }  // namespace
@@ -90,6 +105,9 @@ int main(int argc, char** argv) {
   bool no_merging = false, no_live_merging = false;
   app.add_flag("--no-merging", no_merging, "Never merge maps (not live, not when a session finishes)");
   app.add_flag("--no-live-merging", no_live_merging, "Merge a session's maps only when it finishes, not while it runs");
+  app.set_config("--config", "",
+                 "Read options from this file (TOML: one 'name = value' per option, as the flags are named, e.g. "
+                 "max-sessions = 4); flags given on the command line override it");
   CLI11_PARSE(app, argc, argv);
   service_options.merge_maps = !no_merging;
   service_options.live_merging = !no_live_merging;
@@ -109,6 +127,7 @@ int main(int argc, char** argv) {
       throw orbatlas::Error("--listen " + listen_text +
                             " reaches other machines: give --token (every route but /healthz then needs it), or "
                             "--insecure to serve without one");
+    orbatlas::log_info("options in effect:\n" + effective_options(app));
     orbatlas::AtlasService service(service_options);
     job_options.work_dir = service_options.db.string() + ".work";
     orbatlas::UploadJobs jobs(service, job_options);

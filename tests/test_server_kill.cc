@@ -16,6 +16,7 @@
 #include <chrono>
 #include <fstream>
 #include <random>
+#include <regex>
 #include <set>
 #include <thread>
 
@@ -42,7 +43,8 @@ int iterations() {
 // orbatlas-server as a child process, its log appended to a file.
 class ServerProcess {
  public:
-  ServerProcess(const std::filesystem::path& db, const std::filesystem::path& log) {
+  ServerProcess(const std::filesystem::path& db, const std::filesystem::path& log,
+                const std::vector<std::string>& extra_args = {}) {
     port_file_ = db.string() + ".port";
     std::filesystem::remove(port_file_);
     std::vector<std::string> args = {ORBATLAS_SERVER_BINARY,
@@ -56,6 +58,7 @@ class ServerProcess {
                                      "2",
                                      "--checkpoint-seconds",
                                      "0.2"};
+    args.insert(args.end(), extra_args.begin(), extra_args.end());
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
@@ -231,6 +234,40 @@ TEST(ServerKill, RandomKillsDuringStreamsAndUploadsLeaveAConsistentAtlas) {
       "reference after every kill\n",
       kills, std::chrono::duration<double>(Clock::now() - t_start).count(), sessions.size(), jobs.size(), stream_frames,
       interrupted);
+  std::filesystem::remove(log);
+}
+
+// orbatlas-server --config FILE: options from a file, flags on the command line
+// win, and the options in effect are logged at start (the token's value hidden).
+TEST(ServerProcess, ConfigFileIsReadFlagsOverrideItAndTheEffectiveOptionsAreLogged) {
+  test::TempDbPath db("server_config");
+  const std::filesystem::path config = db.path.string() + ".toml", log = db.path.string() + ".log";
+  std::filesystem::remove(log);
+  {
+    std::ofstream out(config);
+    out << "# orbatlas-server options\nmax-sessions = 1\nidle-timeout = 123\ntoken = \"s3cret-token\"\n";
+  }
+  ServerProcess server(db.path, log, {"--config", config.string(), "--idle-timeout", "77"});
+  const std::string url = server.wait_until_listening();
+  ASSERT_FALSE(url.empty()) << "the server did not start; its log: " << log;
+  ServerClient client(url, "s3cret-token");  // the file's token is required
+  const std::uint64_t first = client.create_session("euroc/stereo", "one");
+  try {
+    client.create_session("euroc/stereo", "two");
+    ADD_FAILURE() << "max-sessions = 1 from the file was not applied";
+  } catch (const ServerError& e) {
+    EXPECT_EQ(e.status(), 503);
+  }
+  client.finish_session(first);
+  ServerClient no_token(url);
+  EXPECT_THROW(no_token.get_json("/v1/sessions"), ServerError);
+  server.kill();
+  std::ifstream in(log);
+  const std::string text((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_TRUE(std::regex_search(text, std::regex("max-sessions\\s*=\\s*1\\b"))) << text;
+  EXPECT_TRUE(std::regex_search(text, std::regex("idle-timeout\\s*=\\s*77\\b"))) << "the flag did not win: " << text;
+  EXPECT_EQ(text.find("s3cret-token"), std::string::npos) << "the token was logged";
+  std::filesystem::remove(config);
   std::filesystem::remove(log);
 }
 
