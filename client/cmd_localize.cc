@@ -128,11 +128,12 @@ void register_localize_command(CLI::App& app) {
   cmd->add_flag("!--no-progress", args->run.show_progress, "Do not print progress");
   cmd->add_option("--every", args->every, "With --server and --dataset: localise every N-th frame")
       ->capture_default_str();
-  cmd->callback([args]() {
+  cmd->callback([args, cmd]() {
     if (!args->server.empty() && !args->dataset.empty()) return localize_dataset_on_server(*args);
     if (!args->server.empty()) return localize_on_server(*args);
     ORBATLAS_CHECK(!args->atlas.empty() && !args->dataset.empty() && !args->out_trajectory.empty(),
                    "localize needs --atlas, --dataset and --out-trajectory (or --server and --image)");
+    log_effective_options(*cmd);
     DatasetRunOptions options = args->run;
     options.settings = args->config;
     options.dataset = args->dataset;

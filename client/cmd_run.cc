@@ -5,10 +5,12 @@
 #include <iostream>
 #include <memory>
 #include <set>
+#include <sstream>
 #include <string>
 
 #include "client/commands.h"
 #include "core/common/error.h"
+#include "core/common/log.h"
 #include "core/io/tum_trajectory.h"
 #include "core/slam/dataset_runner.h"
 
@@ -29,6 +31,14 @@ void write_stats_file(const std::string& path, const nlohmann::json& stats) {
   ORBATLAS_CHECK(out, "cannot write " << path);
   out << stats.dump(2) << "\n";
   ORBATLAS_CHECK(out.good(), "error writing " << path);
+}
+
+void log_effective_options(const CLI::App& command) {
+  std::istringstream all(command.config_to_str(true, false));
+  std::string text;
+  for (std::string line; std::getline(all, line);)
+    if (!line.empty() && line.front() != '[') text += "\n  " + line;
+  log_info("orbatlas " + command.get_name() + ": options in effect:" + text);
 }
 
 void print_run_summary(const DatasetRunReport& r) {
@@ -114,7 +124,8 @@ void register_run_command(CLI::App& app) {
   cmd->add_flag("!--no-progress", args->run.show_progress, "Do not print progress");
   cmd->add_flag("--final-ba", args->run.slam.final_global_ba,
                 "After the last frame, one global bundle adjustment over the session's maps (offline refinement)");
-  cmd->callback([args]() {
+  cmd->callback([args, cmd]() {
+    log_effective_options(*cmd);
     DatasetRunOptions options = args->run;
     options.settings = args->config;
     options.dataset = args->dataset;

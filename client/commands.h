@@ -18,6 +18,9 @@ void register_remote_commands(CLI::App& app);
 
 // The figures of `orbatlas run` / `orbatlas localize` (cmd_run.cc).
 void print_run_summary(const DatasetRunReport& report);
+// Logs the options a command runs with (given, or their defaults), one
+// `name=value` per line, as `orbatlas-server` does at start.
+void log_effective_options(const CLI::App& command);
 // Writes the figures as indented JSON (throws Error when the file cannot be written).
 void write_stats_file(const std::string& path, const nlohmann::json& stats);
 
