@@ -124,7 +124,7 @@ class BlockingSlam final : public SessionSlam {
     release_.wait();
   }
   std::vector<FrameAnchor> anchors() const override { return {}; }
-  SlamStats stats() const override { return {}; }
+  SlamStats stats() const override { return SlamStats(); }
   std::size_t worker_errors() const override { return 0; }
   std::promise<void> finishing;
 

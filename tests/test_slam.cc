@@ -11,6 +11,7 @@
 #include "core/common/error.h"
 #include "core/io/euroc_reader.h"
 #include "core/slam/dataset_runner.h"
+#include "core/slam/slam_tuning.h"
 #include "core/vocabulary/default_vocabulary.h"
 #include "tests/slam_test_clip.h"
 
@@ -191,6 +192,61 @@ TEST(StereoSlam, BadFramesAreDataErrorsAndTheSessionGoesOn) {
   slam.finish();
   EXPECT_THROW(slam.process(frames.back().t_ns + 1, l, r), Error);  // finished
   EXPECT_EQ(slam.trajectory().size(), frames.size());
+}
+
+// The Orbatlas.* keys of a settings file tune the engine: each known key sets its
+// option (over what StereoSlam derives from the camera), anything else is a
+// DataError naming the key, and a bad value changes nothing.
+TEST(SlamTuning, SettingsKeysSetTheOptionsAndBadOnesAreRefused) {
+  std::ifstream in(stereo_settings());
+  std::string text((std::istreambuf_iterator<char>(in)), {});
+  text +=
+      "\nOrbatlas.Tracker.MinInliers: 42\nOrbatlas.LocalMapping.FusionRadius: 2.5\n"
+      "Orbatlas.LoopClosing.Enabled: 0\nOrbatlas.Tracker.MaxFramesBetweenKeyframes: 7\n";
+  const SlamSettings settings = read_settings_text(text, "tuned.yaml", SensorType::kStereo);
+  ASSERT_EQ(settings.orbatlas.size(), 4u);
+  EXPECT_EQ(settings.orbatlas.at("Tracker.MinInliers"), 42.0);
+
+  StereoSlamOptions options;
+  apply_slam_tuning(settings.orbatlas, options);
+  EXPECT_EQ(options.tracker.min_inliers, 42);
+  EXPECT_FLOAT_EQ(options.mapper.fusion_radius, 2.5f);
+  EXPECT_FALSE(options.loop_closing);
+  EXPECT_EQ(slam_tuning_values(options).at("Tracker.MaxFramesBetweenKeyframes"), 7.0);
+
+  const auto refused = [](const std::map<std::string, double>& tuning) {
+    StereoSlamOptions o;
+    try {
+      apply_slam_tuning(tuning, o);
+    } catch (const DataError& e) {
+      EXPECT_EQ(o.tracker.min_inliers, StereoSlamOptions{}.tracker.min_inliers) << "changed before refusing";
+      return std::string(e.what());
+    }
+    return std::string("<accepted>");
+  };
+  EXPECT_NE(refused({{"Tracker.MinInliers", 50}, {"Tracker.NoSuchKey", 1}}).find("Orbatlas.Tracker.NoSuchKey"),
+            std::string::npos);
+  EXPECT_NE(refused({{"Tracker.MinInliers", 1e9}}).find("must be in"), std::string::npos);
+  EXPECT_NE(refused({{"Tracker.MinInliers", 30.5}}).find("whole number"), std::string::npos);
+  EXPECT_NE(refused({{"LoopClosing.Enabled", 2}}).find("must be in"), std::string::npos);
+  EXPECT_THROW(read_settings_text(text + "Orbatlas.Tracker.MinInliers2: many\n", "bad.yaml", SensorType::kStereo),
+               DataError);  // not a number
+
+  // docs/settings.md lists every key.
+  std::ifstream doc(shipped_config_dir().parent_path() / "docs" / "settings.md");
+  const std::string docs((std::istreambuf_iterator<char>(doc)), {});
+  for (const SlamTuningKey& k : slam_tuning_keys())
+    EXPECT_NE(docs.find("`Orbatlas." + k.key + "`"), std::string::npos) << "docs/settings.md lacks Orbatlas." << k.key;
+
+  // A session built from these settings runs with them; an unknown key stops it
+  // before its first frame.
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  Atlas atlas;
+  const StereoSlam tuned(atlas, settings, vocabulary);
+  SlamSettings wrong = settings;
+  wrong.orbatlas["Tracker.Typo"] = 1;
+  Atlas other;
+  EXPECT_THROW(StereoSlam(other, wrong, vocabulary), DataError);
 }
 
 TEST(DatasetRunner, UnreadableImageIsSkippedAndReported) {

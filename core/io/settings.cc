@@ -68,6 +68,13 @@ class SettingsFile {
 
   bool has(const std::string& key) const { return std::find(keys_.begin(), keys_.end(), key) != keys_.end(); }
 
+  std::vector<std::string> keys_with_prefix(const std::string& prefix) const {
+    std::vector<std::string> out;
+    for (const std::string& k : keys_)
+      if (k.rfind(prefix, 0) == 0) out.push_back(k);
+    return out;
+  }
+
   bool has_prefix(const std::string& prefix) const {
     return std::any_of(keys_.begin(), keys_.end(), [&](const std::string& k) { return k.rfind(prefix, 0) == 0; });
   }
@@ -294,6 +301,7 @@ SlamSettings read(const SettingsFile& file, std::optional<SensorType> hint) {
   s.orb.min_th_fast = in.positive_integer_or("ORBextractor.minThFAST", s.orb.min_th_fast);
   if (!(s.orb.scale_factor > 1.0)) file.fail("ORBextractor.scaleFactor", "must be greater than 1");
   if (s.orb.min_th_fast > s.orb.ini_th_fast) file.fail("ORBextractor.minThFAST", "must not exceed iniThFAST");
+  for (const std::string& key : file.keys_with_prefix("Orbatlas.")) s.orbatlas[key.substr(9)] = file.real(key);
   return s;
 }
 

@@ -2,6 +2,7 @@
 // SLAM settings from an ORB-SLAM3 v1.0-style YAML file (cv::FileStorage), so that
 // users can bring their existing calibration. See docs/settings.md for every key.
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 
@@ -35,6 +36,10 @@ struct SlamSettings {
   double stereo_th_depth = 60.0;  // close/far threshold in baselines
   std::optional<ImuCalibration> imu;
   OrbSettings orb;
+  // The optional `Orbatlas.*` keys (the engine's own tuning, docs/settings.md),
+  // without the prefix: "Tracker.MinInliers" -> 40. Numbers only; which keys exist
+  // and their ranges are checked where they apply (core/slam/slam_tuning.h).
+  std::map<std::string, double> orbatlas;
 
   bool is_stereo() const { return sensor == SensorType::kStereo || sensor == SensorType::kStereoInertial; }
   bool is_inertial() const { return sensor == SensorType::kMonocularInertial || sensor == SensorType::kStereoInertial; }

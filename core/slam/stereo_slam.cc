@@ -2,11 +2,13 @@
 
 #include <chrono>
 #include <set>
+#include <sstream>
 
 #include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/loop/global_adjustment_merge.h"
 #include "core/slam/index_relocalizer.h"
+#include "core/slam/slam_tuning.h"
 
 namespace orbatlas {
 StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
@@ -15,6 +17,17 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
   cam_ = frontend_.frame_camera();
   options_.tracker.th_depth_m = settings.stereo_th_depth * frontend_.baseline();
   options_.tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));
+  if (!settings.orbatlas.empty()) {  // the settings' Orbatlas.* keys win over what is derived above
+    apply_slam_tuning(settings.orbatlas, options_);
+    const auto values = slam_tuning_values(options_);
+    std::string set;
+    for (const auto& [key, _] : settings.orbatlas) {
+      std::ostringstream value;
+      value << values.at(key);
+      set += " Orbatlas." + key + "=" + value.str();
+    }
+    log_info("settings:" + set);
+  }
   const Pose3 T_b_c = frontend_.calibration().T_b_c;
   if (options_.relocalization)
     relocalizer_ =

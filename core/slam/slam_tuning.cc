@@ -1,0 +1,118 @@
+#include "core/slam/slam_tuning.h"
+
+#include <cmath>
+#include <functional>
+#include <sstream>
+
+#include "core/common/error.h"
+
+namespace orbatlas {
+namespace {
+
+struct Binding {
+  SlamTuningKey key;
+  std::function<double(const StereoSlamOptions&)> get;
+  std::function<void(StereoSlamOptions&, double)> set;
+};
+
+#define ORBATLAS_TUNING(KEY, MIN, MAX, INTEGER, MEANING, FIELD)                                           \
+  Binding {                                                                                               \
+    SlamTuningKey{KEY, MIN, MAX, INTEGER, MEANING},                                                       \
+        [](const StereoSlamOptions& o) { return static_cast<double>(o.FIELD); },                          \
+        [](StereoSlamOptions& o, double v) { o.FIELD = static_cast<std::decay_t<decltype(o.FIELD)>>(v); } \
+  }
+
+const std::vector<Binding>& bindings() {
+  static const std::vector<Binding> all = {
+      ORBATLAS_TUNING("Tracker.MinInitStereoPoints", 10, 100000, true, "stereo matches needed to start a map",
+                      tracker.min_init_stereo_points),
+      ORBATLAS_TUNING("Tracker.MinInliers", 5, 10000, true,
+                      "map points a tracked frame needs after the local-map search", tracker.min_inliers),
+      ORBATLAS_TUNING("Tracker.MinInliersAfterRecovery", 5, 10000, true,
+                      "the same during the first second after a relocalisation", tracker.min_inliers_after_recovery),
+      ORBATLAS_TUNING("Tracker.MaxFramesBetweenKeyframes", 1, 10000, true,
+                      "a keyframe at least this often (default: the frame rate)", tracker.max_frames_between_keyframes),
+      ORBATLAS_TUNING("Tracker.RecentlyLostSeconds", 0, 3600, false,
+                      "relocalisation is tried this long before a lost map is given up", tracker.recently_lost_s),
+      ORBATLAS_TUNING("Tracker.MaxLocalKeyframes", 5, 1000, true, "keyframes of the local map a frame is tracked in",
+                      tracker.max_local_keyframes),
+      ORBATLAS_TUNING("Tracker.MinKeyframesToKeepMap", 0, 1000, true,
+                      "a map lost with fewer keyframes is given up at once", tracker.min_keyframes_to_keep_map),
+      ORBATLAS_TUNING("Tracker.Relocalization", 0, 1, true, "1: a lost session relocalises in every map of the atlas",
+                      relocalization),
+      ORBATLAS_TUNING("Tracker.NewMapAfterFailedRelocalizations", 0, 10000, true,
+                      "with live merging: frames of failed relocalisation before a new map starts",
+                      new_map_after_failed_relocalizations),
+      ORBATLAS_TUNING("LocalMapping.QueueCapacity", 1, 1000, true, "keyframes waiting for local mapping",
+                      mapper.queue_capacity),
+      ORBATLAS_TUNING("LocalMapping.TriangulationNeighbours", 1, 100, true,
+                      "best covisible keyframes new points are triangulated with", mapper.triangulation_neighbours),
+      ORBATLAS_TUNING("LocalMapping.FusionNeighbours", 1, 100, true, "keyframes a new keyframe's points are fused with",
+                      mapper.fusion_neighbours),
+      ORBATLAS_TUNING("LocalMapping.FusionRadius", 0.5, 20, false, "search radius of point fusion [pixels at level 0]",
+                      mapper.fusion_radius),
+      ORBATLAS_TUNING("LocalMapping.BundleAdjustment", 0, 1, true, "1: local bundle adjustment after each keyframe",
+                      mapper.run_bundle_adjustment),
+      ORBATLAS_TUNING("LocalMapping.Culling", 0, 1, true, "1: redundant keyframes are culled", mapper.run_culling),
+      ORBATLAS_TUNING("LoopClosing.Enabled", 0, 1, true, "1: place recognition, loop correction, global BA",
+                      loop_closing),
+      ORBATLAS_TUNING("LoopClosing.QueueCapacity", 1, 10000, true,
+                      "keyframes waiting for place recognition (more are skipped)", loop.queue_capacity),
+      ORBATLAS_TUNING("LoopClosing.GlobalBundleAdjustment", 0, 1, true, "1: a global BA after each loop correction",
+                      loop.global_bundle_adjustment),
+      ORBATLAS_TUNING("LoopClosing.LiveMerging", 0, 1, true,
+                      "1: a session's map is merged into another map of the atlas while it runs", live_merging),
+  };
+  return all;
+}
+
+#undef ORBATLAS_TUNING
+
+std::string text(double v) {
+  std::ostringstream out;
+  out << v;
+  return out.str();
+}
+
+std::string known_keys() {
+  std::string out;
+  for (const Binding& b : bindings()) out += (out.empty() ? "" : ", ") + b.key.key;
+  return out;
+}
+
+}  // namespace
+
+const std::vector<SlamTuningKey>& slam_tuning_keys() {
+  static const std::vector<SlamTuningKey> keys = [] {
+    std::vector<SlamTuningKey> out;
+    for (const Binding& b : bindings()) out.push_back(b.key);
+    return out;
+  }();
+  return keys;
+}
+
+void apply_slam_tuning(const std::map<std::string, double>& tuning, StereoSlamOptions& options) {
+  StereoSlamOptions changed = options;
+  for (const auto& [key, value] : tuning) {
+    const Binding* found = nullptr;
+    for (const Binding& b : bindings())
+      if (b.key.key == key) found = &b;
+    if (!found) throw DataError("settings: unknown key 'Orbatlas." + key + "' (known: " + known_keys() + ")");
+    const SlamTuningKey& k = found->key;
+    if (!(value >= k.min && value <= k.max))
+      throw DataError("settings: 'Orbatlas." + key + "' must be in " + text(k.min) + " .. " + text(k.max) + ", got " +
+                      text(value));
+    if (k.integer && value != std::floor(value))
+      throw DataError("settings: 'Orbatlas." + key + "' must be a whole number, got " + text(value));
+    found->set(changed, value);
+  }
+  options = std::move(changed);
+}
+
+std::map<std::string, double> slam_tuning_values(const StereoSlamOptions& options) {
+  std::map<std::string, double> out;
+  for (const Binding& b : bindings()) out[b.key.key] = b.get(options);
+  return out;
+}
+
+}  // namespace orbatlas

@@ -1,0 +1,32 @@
+#pragma once
+// The engine's tuning a user can set in a settings file: optional keys
+// `Orbatlas.<Part>.<Name>` beside ORB-SLAM3's (docs/settings.md lists them with
+// their defaults and ranges). Applied by StereoSlam to its options, after what it
+// derives from the camera (so a key wins over a derived value).
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/slam/stereo_slam.h"
+
+namespace orbatlas {
+
+struct SlamTuningKey {
+  std::string key;          // without "Orbatlas.", e.g. "Tracker.MinInliers"
+  double min = 0, max = 0;  // the accepted range (inclusive)
+  bool integer = false;     // whole numbers only (0 / 1 for switches)
+  std::string meaning;
+};
+
+// Every key, in the order docs/settings.md lists them.
+const std::vector<SlamTuningKey>& slam_tuning_keys();
+
+// Sets `options` from `tuning` (SlamSettings::orbatlas). Throws DataError naming
+// the key for an unknown key (with the known ones), a value out of range, or a
+// fraction where a whole number is needed; `options` is unchanged then.
+void apply_slam_tuning(const std::map<std::string, double>& tuning, StereoSlamOptions& options);
+
+// The value of every key in `options` (for logs: what is in effect).
+std::map<std::string, double> slam_tuning_values(const StereoSlamOptions& options);
+
+}  // namespace orbatlas
