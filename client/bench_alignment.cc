@@ -1,4 +1,4 @@
-// orbatlas bench alignment: Horn's closed form (core/geometry/absolute_orientation,
+// orbatlas bench alignment: Horn's closed form (core/estimators/absolute_orientation,
 // used by the Sim(3) RANSAC of place recognition) against Eigen::umeyama (used by
 // orbatlas eval) on the inputs the RANSAC gives them: minimal 3-point sets and
 // refits on all inliers. Prints microseconds per call, the error on noise-free data
@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "client/benchmarks.h"
-#include "core/geometry/absolute_orientation.h"
+#include "core/estimators/absolute_orientation.h"
 
 namespace orbatlas::cli {
 namespace {

@@ -10,7 +10,7 @@
 
 #include "core/common/data_paths.h"
 #include "core/io/euroc_reader.h"
-#include "core/place/pnp_ransac.h"
+#include "core/estimators/pnp_ransac.h"
 #include "core/place/relocalizer.h"
 #include "core/slam/mono_localizer.h"
 #include "core/slam/stereo_slam.h"

@@ -13,14 +13,14 @@
 #include "core/camera/kannala_brandt.h"
 #include "core/camera/pinhole_radtan.h"
 #include "core/common/error.h"
-#include "core/geometry/absolute_orientation.h"
+#include "core/estimators/absolute_orientation.h"
 #include "core/geometry/sim3.h"
 #include "core/geometry/sim3_correction.h"
 #include "core/geometry/so3.h"
 #include "core/optimization/level_sigma.h"
 #include "core/optimization/sim3_costs.h"
 #include "core/optimization/sim3_refinement.h"
-#include "core/place/sim3_solver.h"
+#include "core/estimators/sim3_solver.h"
 #include "tests/sim_test_helpers.h"
 
 namespace orbatlas {

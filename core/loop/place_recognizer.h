@@ -22,7 +22,7 @@
 #include "core/loop/place_match.h"
 #include "core/map/keyframe_index.h"
 #include "core/optimization/sim3_refinement.h"
-#include "core/place/sim3_solver.h"
+#include "core/estimators/sim3_solver.h"
 #include "core/tracking/frame.h"
 #include "core/tracking/frame_camera.h"
 

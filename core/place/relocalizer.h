@@ -11,7 +11,7 @@
 #include <optional>
 
 #include "core/map/keyframe_index.h"
-#include "core/place/pnp_ransac.h"
+#include "core/estimators/pnp_ransac.h"
 #include "core/tracking/frame.h"
 #include "core/tracking/frame_camera.h"
 #include "core/vocabulary/vocabulary.h"

@@ -1,4 +1,4 @@
-#include "core/place/sim3_solver.h"
+#include "core/estimators/sim3_solver.h"
 
 #include <algorithm>
 #include <array>
@@ -6,7 +6,7 @@
 #include <limits>
 
 #include "core/common/error.h"
-#include "core/geometry/absolute_orientation.h"
+#include "core/estimators/absolute_orientation.h"
 
 namespace orbatlas {
 

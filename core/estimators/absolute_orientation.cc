@@ -1,4 +1,4 @@
-#include "core/geometry/absolute_orientation.h"
+#include "core/estimators/absolute_orientation.h"
 
 #include <Eigen/Eigenvalues>
 #include <cmath>

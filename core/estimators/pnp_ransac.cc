@@ -1,4 +1,4 @@
-#include "core/place/pnp_ransac.h"
+#include "core/estimators/pnp_ransac.h"
 
 #include <algorithm>
 #include <cmath>
