@@ -49,69 +49,94 @@ nlohmann::json DatasetRunReport::to_json() const {
   return j;
 }
 
-DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
-  const SlamSettings settings = read_settings(options.settings, SensorType::kStereo);
-  ORBATLAS_CHECK(settings.is_stereo(), options.settings << " is not a stereo configuration");
+namespace {
+
+// What the run reads before anything starts: the settings, the recording and the
+// frames of its time window.
+struct RunInputs {
+  SlamSettings settings;
+  EurocDataset dataset;
+  std::vector<StereoFrame> frames;
+};
+
+RunInputs read_inputs(const DatasetRunOptions& options) {
+  RunInputs in;
+  in.settings = read_settings(options.settings, SensorType::kStereo);
+  ORBATLAS_CHECK(in.settings.is_stereo(), options.settings << " is not a stereo configuration");
   EurocReadOptions read_options;
   read_options.require_cam1 = true;
-  const EurocDataset dataset = read_euroc_dataset(options.dataset, read_options);
-  for (const auto& w : dataset.warnings) log_warn(w);
-  std::vector<StereoFrame> frames = pair_stereo_frames(dataset);
-  keep_time_window(frames, options.start_s, options.duration_s, options.dataset);
+  in.dataset = read_euroc_dataset(options.dataset, read_options);
+  for (const auto& w : in.dataset.warnings) log_warn(w);
+  in.frames = pair_stereo_frames(in.dataset);
+  keep_time_window(in.frames, options.start_s, options.duration_s, options.dataset);
+  return in;
+}
 
-  const Vocabulary vocabulary =
-      Vocabulary::load(options.vocabulary.empty() ? default_vocabulary_path() : options.vocabulary);
-  ORBATLAS_CHECK(!options.localize_only || !options.atlas.empty(), "localisation needs a stored atlas (--atlas)");
-  Atlas atlas;
-  DatasetRunReport report;
-  std::optional<SessionInfo> session;
-  std::map<MapId, CameraRig> stored_rigs;  // of the stored maps, by their sessions
-  std::unique_ptr<DatabaseLock> db_lock;   // while this run may write the atlas
-  if (!options.atlas.empty()) {
-    if (!options.localize_only) db_lock = std::make_unique<DatabaseLock>(options.atlas);
-    const auto load_start = Clock::now();
-    if (options.localize_only)
-      ORBATLAS_CHECK(std::filesystem::exists(options.atlas), options.atlas << " does not exist");
-    AtlasStore store = AtlasStore::open(options.atlas, vocabulary.hash());
-    const AtlasLoadReport loaded = store.load_atlas(atlas, &vocabulary);
-    atlas.index_all_keyframes();
-    if (db_lock && db_lock->previous_holder_crashed()) {
-      skip_ids_after_crash(atlas);
-      log_warn(options.atlas.string() +
-               ": its previous writer stopped without a final checkpoint; new ids continue "
-               "past any it may have handed out");
-    }
-    report.loaded_maps = loaded.maps;
-    report.loaded_keyframes = loaded.keyframes;
-    report.atlas_load_s = std::chrono::duration<double>(Clock::now() - load_start).count();
-    log_info("atlas " + options.atlas.string() + ": " + std::to_string(loaded.maps) + " maps, " +
-             std::to_string(loaded.keyframes) + " keyframes, " + std::to_string(loaded.map_points) +
-             " map points loaded in " + std::to_string(report.atlas_load_s) + " s");
-    if (options.localize_only) {
-      ORBATLAS_DATA_CHECK(loaded.keyframes > 0, options.atlas << " holds no keyframe to localise against");
-    } else {
-      SessionInfo info;
-      for (const auto& stored : store.load_sessions()) {
-        info.id = std::max(info.id, stored.id);
-        record_map_rigs(atlas, stored, store.load_trajectory(stored.id), stored_rigs);
-      }
-      ++info.id;
-      info.name = std::filesystem::absolute(options.dataset).lexically_normal().filename().string();
-      if (info.name.empty()) info.name = options.dataset.string();
-      info.sensor = settings.sensor;
-      info.created_ns = static_cast<TimestampNs>(
-          std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
-              .count());
-      info.cameras.push_back(settings.camera0);
-      if (settings.camera1) info.cameras.push_back(*settings.camera1);
-      session = info;
-      report.session = info.id;
-    }
+// The stored atlas a run works with (--atlas): its maps loaded into `atlas`, and,
+// for a run that maps, the database lock, the new session and the camera rigs of
+// the stored maps.
+struct StoredAtlas {
+  std::optional<SessionInfo> session;  // this run's, when it maps into the atlas
+  std::map<MapId, CameraRig> rigs;     // of the stored maps, by their sessions
+  std::unique_ptr<DatabaseLock> lock;  // while this run may write the atlas
+};
+
+SessionInfo new_session(const DatasetRunOptions& options, const SlamSettings& settings, AtlasStore& store,
+                        const Atlas& atlas, std::map<MapId, CameraRig>& rigs) {
+  SessionInfo info;
+  for (const auto& stored : store.load_sessions()) {
+    info.id = std::max(info.id, stored.id);
+    record_map_rigs(atlas, stored, store.load_trajectory(stored.id), rigs);
   }
+  ++info.id;
+  info.name = std::filesystem::absolute(options.dataset).lexically_normal().filename().string();
+  if (info.name.empty()) info.name = options.dataset.string();
+  info.sensor = settings.sensor;
+  info.created_ns = static_cast<TimestampNs>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+          .count());
+  info.cameras.push_back(settings.camera0);
+  if (settings.camera1) info.cameras.push_back(*settings.camera1);
+  return info;
+}
+
+StoredAtlas open_atlas(const DatasetRunOptions& options, const SlamSettings& settings, const Vocabulary& vocabulary,
+                       Atlas& atlas, DatasetRunReport& report) {
+  StoredAtlas stored;
+  if (options.atlas.empty()) return stored;
+  if (!options.localize_only) stored.lock = std::make_unique<DatabaseLock>(options.atlas);
+  const auto load_start = Clock::now();
+  if (options.localize_only) ORBATLAS_CHECK(std::filesystem::exists(options.atlas), options.atlas << " does not exist");
+  AtlasStore store = AtlasStore::open(options.atlas, vocabulary.hash());
+  const AtlasLoadReport loaded = store.load_atlas(atlas, &vocabulary);
+  atlas.index_all_keyframes();
+  if (stored.lock && stored.lock->previous_holder_crashed()) {
+    skip_ids_after_crash(atlas);
+    log_warn(options.atlas.string() +
+             ": its previous writer stopped without a final checkpoint; new ids continue "
+             "past any it may have handed out");
+  }
+  report.loaded_maps = loaded.maps;
+  report.loaded_keyframes = loaded.keyframes;
+  report.atlas_load_s = std::chrono::duration<double>(Clock::now() - load_start).count();
+  log_info("atlas " + options.atlas.string() + ": " + std::to_string(loaded.maps) + " maps, " +
+           std::to_string(loaded.keyframes) + " keyframes, " + std::to_string(loaded.map_points) +
+           " map points loaded in " + std::to_string(report.atlas_load_s) + " s");
+  if (options.localize_only) {
+    ORBATLAS_DATA_CHECK(loaded.keyframes > 0, options.atlas << " holds no keyframe to localise against");
+  } else {
+    stored.session = new_session(options, settings, store, atlas, stored.rigs);
+    report.session = stored.session->id;
+  }
+  return stored;
+}
+
+// The SLAM options of this run: a run that maps into an atlas enters and merges
+// into stored maps of its own camera rig only; a localisation changes nothing.
+StereoSlamOptions run_slam_options(const DatasetRunOptions& options, const StoredAtlas& stored) {
   StereoSlamOptions slam_options = options.slam;
-  if (session) {
-    // This run maps: it enters and merges into stored maps of its own rig only.
-    const auto own_rig = [rigs = stored_rigs, rig = session->cameras](MapId map) {
+  if (stored.session) {
+    const auto own_rig = [rigs = stored.rigs, rig = stored.session->cameras](MapId map) {
       const auto it = rigs.find(map);
       return it == rigs.end() || same_rig(it->second, rig);
     };
@@ -127,17 +152,16 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
     slam_options.relocalization = true;
     slam_options.loop_closing = false;
   }
-  StereoSlam slam(atlas, settings, vocabulary, slam_options);
-  std::unique_ptr<AtlasCheckpointer> checkpointer;
-  if (session) {
-    checkpointer = std::make_unique<AtlasCheckpointer>(atlas, options.atlas, vocabulary.hash(), options.checkpoints,
-                                                       CheckpointSession{*session, [&slam] { return slam.anchors(); }});
-  }
+  return slam_options;
+}
 
+// Every frame through SLAM (decoded ahead on a loader thread), paced at the sensor
+// rate with --realtime; bad frames are skipped and counted; a failure that leaves
+// the map unusable stops the run with what was tracked.
+void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame>& frames, StereoSlam& slam,
+                 AtlasCheckpointer* checkpointer, Clock::time_point wall_start, DatasetRunReport& report) {
   StereoPairLoader loaded(frames);  // decodes images ahead of tracking
-
   Progress progress("run", static_cast<std::int64_t>(frames.size()), options.show_progress);
-  const auto wall_start = Clock::now();
   std::size_t index = 0;
   while (auto pair = loaded.next()) {
     const TimestampNs next_t = index + 1 < frames.size() ? frames[index + 1].t_ns : pair->t_ns;
@@ -168,45 +192,74 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
     progress.advance();
   }
   progress.finish();
+}
+
+// Lets mapping and loop closing finish, then writes the final durable checkpoint
+// (every keyframe and the whole trajectory) and records a clean stop.
+void finish_run(StereoSlam& slam, AtlasCheckpointer* checkpointer, DatabaseLock* lock, DatasetRunReport& report) {
   try {
     slam.finish();
   } catch (const WorkerFailed& e) {
     if (report.failed.empty()) report.failed = e.what();
   }
-  if (checkpointer) {
-    checkpointer->stop();  // the final, durable checkpoint: every keyframe and the whole trajectory
-    report.checkpoints = checkpointer->stats();
-    if (!report.checkpoints->last_failed) db_lock->mark_stopped();
-    if (report.checkpoints->failures > 0)
-      log_warn("atlas checkpoints failed " + std::to_string(report.checkpoints->failures) +
-               " times; last error: " + report.checkpoints->last_error);
-  }
-  report.wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  if (!checkpointer) return;
+  checkpointer->stop();
+  report.checkpoints = checkpointer->stats();
+  if (!report.checkpoints->last_failed && lock) lock->mark_stopped();
+  if (report.checkpoints->failures > 0)
+    log_warn("atlas checkpoints failed " + std::to_string(report.checkpoints->failures) +
+             " times; last error: " + report.checkpoints->last_error);
+}
 
+// The trajectory and figures of the run, and with ground truth its ATE and each
+// closed loop's relative pose error (false loops).
+void collect_results(const StereoSlam& slam, const EurocDataset& dataset, DatasetRunReport& report) {
   for (const TimedPose& p : slam.trajectory()) {
     report.trajectory.push_back({p.t_ns, p.T_w_b});
     report.trajectory_maps.push_back(p.map);
   }
   report.stats = slam.stats();
   report.peak_rss_mb = peak_rss_mb();
-  if (!dataset.ground_truth.empty() && report.trajectory.size() >= 3) {
-    const Trajectory gt = from_ground_truth_states(dataset.ground_truth);
-    try {
-      report.ate_rmse_m = evaluate_trajectory(report.trajectory, gt).ate.rmse;
-    } catch (const Error& e) {
-      log_warn(std::string("no ATE: ") + e.what());
-    }
-    // Each closed loop's relative pose against the ground truth (false loops).
-    const Pose3 T_b_c = slam.frontend().calibration().T_b_c;
-    for (const ClosedLoop& loop : report.stats.loop.loops) {
-      const auto a = pose_at(gt, loop.current_t_ns, 50'000'000);
-      const auto m = pose_at(gt, loop.matched_t_ns, 50'000'000);
-      if (!a || !m) break;  // errors stay index-aligned with the loops
-      const Pose3 T_cur_m_gt = (*a * T_b_c).inverse() * (*m * T_b_c);
-      report.stats.loop_error_m.push_back(translation_distance(T_cur_m_gt, loop.T_cur_m));
-      report.stats.loop_error_deg.push_back(rotation_distance(T_cur_m_gt, loop.T_cur_m) * 180.0 / M_PI);
-    }
+  if (dataset.ground_truth.empty() || report.trajectory.size() < 3) return;
+  const Trajectory gt = from_ground_truth_states(dataset.ground_truth);
+  try {
+    report.ate_rmse_m = evaluate_trajectory(report.trajectory, gt).ate.rmse;
+  } catch (const Error& e) {
+    log_warn(std::string("no ATE: ") + e.what());
   }
+  const Pose3 T_b_c = slam.frontend().calibration().T_b_c;
+  for (const ClosedLoop& loop : report.stats.loop.loops) {
+    const auto a = pose_at(gt, loop.current_t_ns, 50'000'000);
+    const auto m = pose_at(gt, loop.matched_t_ns, 50'000'000);
+    if (!a || !m) break;  // errors stay index-aligned with the loops
+    const Pose3 T_cur_m_gt = (*a * T_b_c).inverse() * (*m * T_b_c);
+    report.stats.loop_error_m.push_back(translation_distance(T_cur_m_gt, loop.T_cur_m));
+    report.stats.loop_error_deg.push_back(rotation_distance(T_cur_m_gt, loop.T_cur_m) * 180.0 / M_PI);
+  }
+}
+
+}  // namespace
+
+DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
+  const RunInputs in = read_inputs(options);
+  const Vocabulary vocabulary =
+      Vocabulary::load(options.vocabulary.empty() ? default_vocabulary_path() : options.vocabulary);
+  ORBATLAS_CHECK(!options.localize_only || !options.atlas.empty(), "localisation needs a stored atlas (--atlas)");
+  Atlas atlas;
+  DatasetRunReport report;
+  const StoredAtlas stored = open_atlas(options, in.settings, vocabulary, atlas, report);
+  StereoSlam slam(atlas, in.settings, vocabulary, run_slam_options(options, stored));
+  std::unique_ptr<AtlasCheckpointer> checkpointer;
+  if (stored.session) {
+    checkpointer =
+        std::make_unique<AtlasCheckpointer>(atlas, options.atlas, vocabulary.hash(), options.checkpoints,
+                                            CheckpointSession{*stored.session, [&slam] { return slam.anchors(); }});
+  }
+  const auto wall_start = Clock::now();
+  feed_frames(options, in.frames, slam, checkpointer.get(), wall_start, report);
+  finish_run(slam, checkpointer.get(), stored.lock.get(), report);
+  report.wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  collect_results(slam, in.dataset, report);
   return report;
 }
 
