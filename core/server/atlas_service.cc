@@ -708,8 +708,7 @@ std::string AtlasService::metrics_text() const {
   std::lock_guard scrape(scrape_mutex_);
   const auto set = [&](const char* name, const char* help, double value) { metrics_.gauge(name, help).Set(value); };
   const auto total = [&](const char* name, const char* help, double value) {
-    prometheus::Counter& counter = metrics_.counter(name, help);
-    if (value > counter.Value()) counter.Increment(value - counter.Value());
+    advance_counter_to(metrics_.counter(name, help), value);
   };
   set("orbatlas_sessions_live", "Sessions taking frames.", static_cast<double>(live));
   set("orbatlas_sessions_ended", "Sessions finished, failed or stored by earlier runs.", static_cast<double>(stored));

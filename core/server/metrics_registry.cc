@@ -23,6 +23,10 @@ prometheus::Histogram& MetricsRegistry::histogram(const std::string& name, const
 
 std::string MetricsRegistry::text() const { return prometheus::TextSerializer().Serialize(registry_->Collect()); }
 
+void advance_counter_to(prometheus::Counter& counter, double total) {
+  if (total > counter.Value()) counter.Increment(total - counter.Value());
+}
+
 std::vector<double> latency_buckets_seconds() {
   return {0.001, 0.002, 0.005, 0.010, 0.020, 0.030, 0.050, 0.075, 0.100, 0.250, 1.0};
 }

@@ -35,6 +35,11 @@ class MetricsRegistry {
   std::shared_ptr<prometheus::Registry> registry_;
 };
 
+// Advances `counter` to `total`, a running total another part of the server keeps
+// (checkpoints, merges, connections): counters only go up, so a smaller total
+// changes nothing. Callers serialise their scrapes (two at once could both add).
+void advance_counter_to(prometheus::Counter& counter, double total);
+
 // Latency buckets of the server's request histograms, in seconds (1 ms .. 1 s).
 std::vector<double> latency_buckets_seconds();
 

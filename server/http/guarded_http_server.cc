@@ -136,12 +136,9 @@ ConnectionStats GuardedHttpServer::connection_stats() const {
 std::string GuardedHttpServer::metrics_text() const {
   {
     std::lock_guard lock(mutex_);
-    const auto sync = [](prometheus::Counter& counter, std::uint64_t total) {
-      if (static_cast<double>(total) > counter.Value()) counter.Increment(static_cast<double>(total) - counter.Value());
-    };
-    sync(connections_total_, stats_.connections);
-    sync(closed_slow_, stats_.closed_slow);
-    sync(closed_for_room_, stats_.closed_for_room);
+    advance_counter_to(connections_total_, static_cast<double>(stats_.connections));
+    advance_counter_to(closed_slow_, static_cast<double>(stats_.closed_slow));
+    advance_counter_to(closed_for_room_, static_cast<double>(stats_.closed_for_room));
   }
   return metrics_.text();
 }
