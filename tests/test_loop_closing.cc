@@ -70,8 +70,9 @@ TEST(LoopClosing, InjectedDriftIsDetectedAndCorrectedOnRevisit) {
   StereoSlamOptions o;
   o.synchronous_mapping = true;  // deterministic, and the map is quiet between frames
   // Loop closing on a thread shared with other sessions, as in the server.
-  o.loop.shared_worker = std::make_shared<SerialWorker>(8);
-  StereoSlam slam(atlas, settings, vocabulary, o);
+  SessionWiring wiring;
+  wiring.loop_worker = std::make_shared<SerialWorker>(8);
+  StereoSlam slam(atlas, settings, vocabulary, o, wiring);
 
   const TimestampNs t0 = frames.front().t_ns;
   const std::size_t inject_at = 200;  // 10 s in: several metres away from the start

@@ -42,9 +42,10 @@ Session run_session(Atlas& atlas, const std::filesystem::path& clip, const SlamS
   s.ground_truth = from_ground_truth_states(dataset.ground_truth);
   StereoSlamOptions o;
   o.synchronous_mapping = true;  // deterministic
-  o.may_enter_map = [](MapId) { return false; };
   o.live_merging = live_merging;
-  StereoSlam slam(atlas, settings, vocabulary, o);
+  SessionWiring wiring;
+  wiring.may_enter_map = [](MapId) { return false; };
+  StereoSlam slam(atlas, settings, vocabulary, o, wiring);
   for (const auto& f : pair_stereo_frames(dataset))
     s.results.push_back(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
                                      cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE)));

@@ -421,8 +421,11 @@ TEST(LocalMapping, AnErrorInOneKeyframeIsCountedAndMappingGoesOn) {
   EXPECT_NE(stats.errors.last.find("injected failure in keyframe 5"), std::string::npos) << stats.errors.last;
   // The map is intact: every keyframe still in it, each one's parent older.
   EXPECT_EQ(map->keyframe_count(), kfs.size());
-  for (std::size_t k = 1; k < kfs.size(); ++k)
-    if (kfs[k]->parent()) EXPECT_LT(kfs[k]->parent()->id(), kfs[k]->id());
+  for (std::size_t k = 1; k < kfs.size(); ++k) {
+    if (kfs[k]->parent()) {
+      EXPECT_LT(kfs[k]->parent()->id(), kfs[k]->id());
+    }
+  }
 }
 
 TEST(LocalMapping, FailingOnEveryKeyframeFailsTheSessionAtLast) {

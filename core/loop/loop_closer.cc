@@ -24,21 +24,30 @@ class MappingPause {
 
 }  // namespace
 
-LoopCloser::LoopCloser(Atlas& atlas, FrameCamera cam, LocalMapper& mapper, LoopCloserOptions options)
+void LoopCloserOptions::check() const {
+  ORBATLAS_CHECK(queue_capacity > 0, "loop closing: queue_capacity must be > 0");
+}
+
+LoopCloser::LoopCloser(Atlas& atlas, FrameCamera cam, LocalMapper& mapper, LoopCloserOptions options,
+                       LoopCloserWiring wiring)
     : atlas_(atlas),
       cam_(std::move(cam)),
       mapper_(mapper),
-      options_(std::move(options)),
+      options_((options.check(), std::move(options))),
+      wiring_(std::move(wiring)),
       recognizer_(atlas.keyframe_index(), cam_, options_.recognition),
-      queue_(options_.queue_capacity) {
+      worker_(
+          QueueWorkerOptions{
+              .name = "loop closing", .capacity = options_.queue_capacity, .shared = wiring_.shared_worker},
+          [this](std::shared_ptr<KeyFrame>& keyframe) { process(keyframe); },
+          [](const std::shared_ptr<KeyFrame>& keyframe) { return "keyframe " + std::to_string(keyframe->id()); }) {
   if (options_.live_merging) {
     PlaceRecognitionOptions merging = options_.merge_recognition;
     merging.scope = PlaceScope::kOtherMaps;
-    merging.may_use_map = options_.may_merge_into;
+    merging.may_use_map = wiring_.may_merge_into;
     merge_recognizer_ = std::make_unique<PlaceRecognizer>(atlas.keyframe_index(), cam_, merging);
   }
   mapper_.set_processed_listener([this](const std::shared_ptr<KeyFrame>& kf) { insert(kf); });
-  if (!options_.shared_worker) thread_ = std::thread([this] { run(); });
 }
 
 LoopCloser::~LoopCloser() {
@@ -50,41 +59,27 @@ LoopCloser::~LoopCloser() {
 }
 
 void LoopCloser::insert(const std::shared_ptr<KeyFrame>& keyframe) {
-  {
-    std::lock_guard lock(state_mutex_);
-    if (closed_) return;
-    ++in_flight_;
-  }
-  const bool queued = options_.shared_worker ? options_.shared_worker->try_post([this, keyframe] { run_one(keyframe); })
-                                             : queue_.try_push(keyframe);
-  if (!queued) {
-    std::lock_guard lock(state_mutex_);
-    --in_flight_;
-    idle_cv_.notify_all();
-    std::lock_guard stats_lock(stats_mutex_);
-    ++stats_.keyframes_skipped;
-  }
+  if (worker_.try_push(keyframe)) return;
+  std::lock_guard stats_lock(stats_mutex_);
+  ++stats_.keyframes_skipped;
 }
 
 void LoopCloser::wait_until_idle() {
-  std::unique_lock lock(state_mutex_);
-  idle_cv_.wait(lock, [&] { return in_flight_ == 0 && !global_running_; });
-  if (error_) std::rethrow_exception(error_);
+  worker_.wait_until_idle();
+  // A global adjustment is only started by the worker, which is idle now.
+  std::unique_lock lock(global_mutex_);
+  global_cv_.wait(lock, [&] { return !global_running_; });
 }
 
 void LoopCloser::finish() {
-  queue_.close();
-  if (thread_.joinable()) thread_.join();
-  {
-    // On a shared worker: wait for this closer's keyframes still queued there
-    // (the worker drains its queue even when stopping).
-    std::unique_lock lock(state_mutex_);
-    closed_ = true;
-    idle_cv_.wait(lock, [&] { return in_flight_ == 0; });
+  std::exception_ptr fatal;
+  try {
+    worker_.finish();
+  } catch (...) {
+    fatal = std::current_exception();
   }
   if (global_thread_.joinable()) global_thread_.join();  // let it finish and merge
-  std::lock_guard lock(state_mutex_);
-  if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+  if (fatal) std::rethrow_exception(fatal);
 }
 
 LoopClosingStats LoopCloser::stats() const {
@@ -93,37 +88,13 @@ LoopClosingStats LoopCloser::stats() const {
     std::lock_guard lock(stats_mutex_);
     out = stats_;
   }
-  out.errors = errors_.counts();
+  out.errors = worker_.errors();
   return out;
 }
 
-void LoopCloser::record_error(const std::string& unit) {
-  if (!errors_.record(unit, std::current_exception())) return;
-  std::lock_guard lock(state_mutex_);
-  if (!error_) error_ = errors_.fatal_error();
-}
-
-void LoopCloser::run() {
-  while (auto keyframe = queue_.pop()) run_one(*keyframe);
-}
-
-void LoopCloser::run_one(const std::shared_ptr<KeyFrame>& keyframe) {
-  try {
-    process(keyframe);
-    errors_.succeeded();
-  } catch (...) {
-    // Given up for this keyframe: a correction or merge that failed half-way
-    // leaves each keyframe and point as its last complete edit left it.
-    record_error("keyframe " + std::to_string(keyframe->id()));
-  }
-  std::lock_guard lock(state_mutex_);
-  --in_flight_;
-  idle_cv_.notify_all();
-}
-
 std::unique_lock<std::mutex> LoopCloser::pause_tracking() {
-  if (!options_.tracking_mutex) return {};
-  return std::unique_lock(*options_.tracking_mutex);
+  if (!wiring_.tracking_mutex) return {};
+  return std::unique_lock(*wiring_.tracking_mutex);
 }
 
 void LoopCloser::process(const std::shared_ptr<KeyFrame>& keyframe) {
@@ -182,7 +153,7 @@ bool LoopCloser::merge_live(const PlaceMatch& match) {
   const MapId source = match.current->map_id();
   const MapId target = match.matched->map_id();
   if (source == target || !atlas_.map(source) || !atlas_.map(target)) return false;
-  if (options_.hold_map && !options_.hold_map(target)) {
+  if (wiring_.hold_map && !wiring_.hold_map(target)) {
     log_info("live merge: map " + std::to_string(target) + " was taken by another session meanwhile; not merged");
     return false;
   }
@@ -210,7 +181,7 @@ bool LoopCloser::merge_live(const PlaceMatch& match) {
     std::lock_guard lock(stats_mutex_);
     stats_.merges.push_back(record);
   }
-  if (options_.on_merged) options_.on_merged(record);
+  if (wiring_.on_merged) wiring_.on_merged(record);
   if (options_.global_bundle_adjustment) start_global_adjustment(target);
   return true;
 }
@@ -224,7 +195,7 @@ void LoopCloser::stop_global_adjustment() {
 
 void LoopCloser::start_global_adjustment(MapId map_id) {
   {
-    std::lock_guard lock(state_mutex_);
+    std::lock_guard lock(global_mutex_);
     global_running_ = true;
   }
   global_thread_ = std::thread([this, map_id] {
@@ -247,11 +218,11 @@ void LoopCloser::start_global_adjustment(MapId map_id) {
         stats_.global_adjustments.push_back(run);
       }
     } catch (...) {
-      record_error("global bundle adjustment of map " + std::to_string(map_id));
+      worker_.record_failure("global bundle adjustment of map " + std::to_string(map_id));
     }
-    std::lock_guard lock(state_mutex_);
+    std::lock_guard lock(global_mutex_);
     global_running_ = false;
-    idle_cv_.notify_all();
+    global_cv_.notify_all();
   });
 }
 

@@ -18,7 +18,7 @@
 #include <thread>
 #include <vector>
 
-#include "core/common/bounded_queue.h"
+#include "core/common/queue_worker.h"
 #include "core/common/sample_summary.h"
 #include "core/common/serial_worker.h"
 #include "core/common/worker_errors.h"
@@ -41,25 +41,33 @@ struct LiveMerge {
 
 struct LoopCloserOptions {
   std::size_t queue_capacity = 32;  // keyframes waiting for place recognition (more are skipped)
-  // When set, place recognition and loop correction run on this thread shared
-  // with other sessions (the server: one for all), not on a thread of the
-  // closer's own; its bounded queue then decides what is skipped.
-  std::shared_ptr<SerialWorker> shared_worker;
   PlaceRecognitionOptions recognition;
   LoopCorrectionOptions correction;
   bool global_bundle_adjustment = true;
   GlobalBundleAdjustmentOptions global;
 
   // Live map merging: each keyframe is also searched for in the other maps of
-  // the atlas (the maps `may_merge_into` accepts; empty accepts all). Before a
-  // merge `hold_map` must agree (the server takes the map's lease; empty: yes);
-  // `on_merged` is told afterwards (on the worker thread).
+  // the atlas (those LoopCloserWiring::may_merge_into accepts).
   bool live_merging = false;
   PlaceRecognitionOptions merge_recognition;  // scope and may_use_map are set by the closer
+  MapMergeOptions merge;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
+};
+
+// How a loop closer is connected to what runs around it (data stays in the options).
+struct LoopCloserWiring {
+  // When set, place recognition and loop correction run on this thread shared
+  // with other sessions (the server: one for all), not on a thread of the
+  // closer's own; its bounded queue then decides what is skipped.
+  std::shared_ptr<SerialWorker> shared_worker;
+  // Live merging: only into maps this accepts (empty: all). Before a merge
+  // `hold_map` must agree (the server takes the map's lease; empty: yes);
+  // `on_merged` is told afterwards (on the worker thread).
   std::function<bool(MapId)> may_merge_into;
   std::function<bool(MapId)> hold_map;
   std::function<void(const LiveMerge&)> on_merged;
-  MapMergeOptions merge;
   // Held by tracking for each frame (StereoSlam); the closer holds it while it
   // edits the map (loop correction, merge, merging a global adjustment), so a
   // frame never sees a half-moved map. May be null (then not taken).
@@ -96,7 +104,8 @@ class LoopCloser {
  public:
   // `atlas`, the camera and `mapper` must outlive the loop closer. Registers
   // itself as the mapper's processed-keyframe listener. The thread starts at once.
-  LoopCloser(Atlas& atlas, FrameCamera cam, LocalMapper& mapper, LoopCloserOptions options = {});
+  LoopCloser(Atlas& atlas, FrameCamera cam, LocalMapper& mapper, LoopCloserOptions options = {},
+             LoopCloserWiring wiring = {});
   ~LoopCloser();  // finish()
   LoopCloser(const LoopCloser&) = delete;
   LoopCloser& operator=(const LoopCloser&) = delete;
@@ -111,18 +120,14 @@ class LoopCloser {
   void finish();
 
   LoopClosingStats stats() const;
-  WorkerErrorCounts errors() const { return errors_.counts(); }  // cheap
+  WorkerErrorCounts errors() const { return worker_.errors(); }  // cheap
 
  private:
-  void run();
-  void run_one(const std::shared_ptr<KeyFrame>& keyframe);  // one keyframe, errors kept; in_flight_ - 1
   void process(const std::shared_ptr<KeyFrame>& keyframe);
   void close_loop(const PlaceMatch& loop);
   // True when the active map was merged into the match's map.
   bool merge_live(const PlaceMatch& match);
   std::unique_lock<std::mutex> pause_tracking();
-  // From a catch block: count and log; a fatal run of errors stops the closer.
-  void record_error(const std::string& unit);
   void stop_global_adjustment();
   void start_global_adjustment(MapId map);
 
@@ -130,17 +135,13 @@ class LoopCloser {
   const FrameCamera cam_;
   LocalMapper& mapper_;
   const LoopCloserOptions options_;
+  const LoopCloserWiring wiring_;
   PlaceRecognizer recognizer_;
   std::unique_ptr<PlaceRecognizer> merge_recognizer_;  // live merging only
 
-  BoundedQueue<std::shared_ptr<KeyFrame>> queue_;
-  std::mutex state_mutex_;
-  std::condition_variable idle_cv_;
-  std::size_t in_flight_ = 0;
-  bool closed_ = false;  // finish() began: no more keyframes (shared worker)
+  std::mutex global_mutex_;  // leaf: guards global_running_
+  std::condition_variable global_cv_;
   bool global_running_ = false;
-  std::exception_ptr error_;  // fatal only (errors_: too many failures in a row)
-  WorkerErrors errors_{"loop closing"};
 
   // One correction at a time touches the map with local mapping paused.
   std::mutex correction_mutex_;
@@ -150,7 +151,9 @@ class LoopCloser {
   mutable std::mutex stats_mutex_;
   LoopClosingStats stats_;
 
-  std::thread thread_;  // last
+  // Queue (or the shared thread), idle wait and errors (fatal after 20
+  // failures in a row). Last: its thread starts after everything above exists.
+  QueueWorker<std::shared_ptr<KeyFrame>> worker_;
 };
 
 }  // namespace orbatlas

@@ -32,9 +32,11 @@ LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions optio
       index_(index),
       cam_(std::move(cam)),
       options_(std::move(options)),
-      queue_(options_.queue_capacity) {
+      worker_(
+          QueueWorkerOptions::own_thread("local mapping", options_.queue_capacity),
+          [this](std::shared_ptr<KeyFrame>& keyframe) { run_one(keyframe); },
+          [](const std::shared_ptr<KeyFrame>& keyframe) { return "keyframe " + std::to_string(keyframe->id()); }) {
   ORBATLAS_CHECK(cam_.camera != nullptr, "local mapper needs a camera");
-  thread_ = std::thread([this] { run(); });
 }
 
 LocalMapper::~LocalMapper() {
@@ -45,36 +47,8 @@ LocalMapper::~LocalMapper() {
   }
 }
 
-bool LocalMapper::idle() const {
-  std::lock_guard lock(state_mutex_);
-  return in_flight_ == 0;
-}
-
 void LocalMapper::insert(std::shared_ptr<KeyFrame> keyframe) {
-  {
-    std::lock_guard lock(state_mutex_);
-    if (error_) std::rethrow_exception(error_);
-    ++in_flight_;
-  }
-  if (!queue_.push(std::move(keyframe))) {
-    std::lock_guard lock(state_mutex_);
-    --in_flight_;
-    idle_cv_.notify_all();
-    throw Error("local mapping has stopped; no keyframe can be inserted");
-  }
-}
-
-void LocalMapper::wait_until_idle() const {
-  std::unique_lock lock(state_mutex_);
-  idle_cv_.wait(lock, [&] { return in_flight_ == 0; });
-  if (error_) std::rethrow_exception(error_);
-}
-
-void LocalMapper::finish() {
-  queue_.close();
-  if (thread_.joinable()) thread_.join();
-  std::lock_guard lock(state_mutex_);
-  if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+  if (!worker_.push(std::move(keyframe))) throw Error("local mapping has stopped; no keyframe can be inserted");
 }
 
 LocalMapperStats LocalMapper::stats() const {
@@ -83,7 +57,7 @@ LocalMapperStats LocalMapper::stats() const {
     std::lock_guard lock(stats_mutex_);
     out = stats_;
   }
-  out.errors = errors_.counts();
+  out.errors = worker_.errors();
   return out;
 }
 
@@ -91,47 +65,12 @@ void LocalMapper::set_processed_listener(std::function<void(const std::shared_pt
   processed_listener_ = std::move(listener);
 }
 
-void LocalMapper::pause() {
-  std::unique_lock lock(state_mutex_);
-  pause_requested_.store(true);
-  // Tracking stops inserting; what was queued is processed first, so that no
-  // keyframe made before the correction is processed after it.
-  idle_cv_.wait(lock, [&] { return in_flight_ == 0; });
-  paused_ = true;
-}
-
-void LocalMapper::resume() {
-  std::lock_guard lock(state_mutex_);
-  paused_ = false;
-  pause_requested_.store(false);
-  idle_cv_.notify_all();
-}
-
-void LocalMapper::run() {
-  while (auto keyframe = queue_.pop()) {
-    {
-      // A keyframe inserted just as a pause began waits for the resume.
-      std::unique_lock lock(state_mutex_);
-      idle_cv_.wait(lock, [&] { return !paused_; });
-    }
-    abort_ba_.store(false);
-    try {
-      process(*keyframe);
-      if (processed_listener_ && !(*keyframe)->is_bad()) processed_listener_(*keyframe);
-      errors_.succeeded();
-    } catch (...) {
-      // The keyframe stays as far as it was processed (every edit is a whole
-      // step of the map model); the next one is processed as usual.
-      if (errors_.record("keyframe " + std::to_string((*keyframe)->id()), std::current_exception())) {
-        std::lock_guard lock(state_mutex_);
-        if (!error_) error_ = errors_.fatal_error();
-      }
-    }
-    keyframe->reset();  // drop our reference before reporting idle
-    std::lock_guard lock(state_mutex_);
-    --in_flight_;
-    idle_cv_.notify_all();
-  }
+void LocalMapper::run_one(std::shared_ptr<KeyFrame>& keyframe) {
+  // A failure leaves the keyframe as far as it was processed (every edit is a
+  // whole step of the map model); the worker counts it and goes on.
+  abort_ba_.store(false);
+  process(keyframe);
+  if (processed_listener_ && !keyframe->is_bad()) processed_listener_(keyframe);
 }
 
 void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
@@ -144,13 +83,13 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   if (index_) index_->add(keyframe);
   cull_recent_points(*map);
   triangulate(*map, keyframe);
-  if (queue_.size() == 0) fuse_with_neighbours(*map, keyframe);
+  if (worker_.queued() == 0) fuse_with_neighbours(*map, keyframe);
 
   double ba_ms = -1.0;
   KeyframeCullingResult culling;
   bool culling_ran = false;
   bool interrupted = false;
-  if (queue_.size() == 0 && !abort_ba_.load()) {
+  if (worker_.queued() == 0 && !abort_ba_.load()) {
     if (options_.run_bundle_adjustment && map->keyframe_count() > 2) {
       LocalBundleAdjustmentOptions ba = options_.bundle_adjustment;
       ba.origin = origins_.at(map->id());
@@ -246,7 +185,7 @@ void LocalMapper::triangulate(Map& map, const std::shared_ptr<KeyFrame>& keyfram
   std::vector<std::shared_ptr<MapPoint>> created;
   std::size_t n = 0;
   for (const auto& neighbour : keyframe->best_covisibles(options_.triangulation_neighbours)) {
-    if (n++ > 0 && queue_.size() > 0) break;  // a keyframe is waiting: tracking needs us
+    if (n++ > 0 && worker_.queued() > 0) break;  // a keyframe is waiting: tracking needs us
     triangulate_pair(map, keyframe, neighbour, cam_, &created);
   }
   for (auto& mp : created) recent_.push_back({mp, sequence_});

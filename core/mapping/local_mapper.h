@@ -7,15 +7,13 @@
 // adjustment, and cull redundant keyframes. See docs/mapping.md.
 #include <atomic>
 #include <cstdint>
-#include <condition_variable>
 #include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
-#include <thread>
 #include <vector>
 
-#include "core/common/bounded_queue.h"
+#include "core/common/queue_worker.h"
 #include "core/common/sample_summary.h"
 #include "core/common/worker_errors.h"
 #include "core/map/atlas.h"
@@ -69,11 +67,11 @@ class LocalMapper final : public KeyframeSink {
   LocalMapper& operator=(const LocalMapper&) = delete;
 
   // KeyframeSink
-  bool idle() const override;
-  std::size_t queued() const override { return queue_.size(); }
+  bool idle() const override { return worker_.idle(); }
+  std::size_t queued() const override { return worker_.queued(); }
   void insert(std::shared_ptr<KeyFrame> keyframe) override;
   void interrupt_optimization() override { abort_ba_.store(true); }
-  bool accepting() const override { return !pause_requested_.load(); }
+  bool accepting() const override { return !worker_.pause_requested(); }
 
   // Called on the mapper thread with every keyframe it has processed (loop
   // detection). Must not block: hand the keyframe to a queue with try_push.
@@ -83,17 +81,17 @@ class LocalMapper final : public KeyframeSink {
   // For a loop correction: tracking stops making keyframes, what is queued is
   // processed, and the mapper then waits between keyframes until resume(). While
   // paused nothing in the atlas is edited by this mapper. Returns once paused.
-  void pause();
-  void resume();
+  void pause() { worker_.pause(); }
+  void resume() { worker_.resume(); }
 
-  void wait_until_idle() const;
+  void wait_until_idle() const { worker_.wait_until_idle(); }
   // Processes what is queued, then stops the thread (idempotent). Rethrows a
   // fatal error (WorkerErrors: too many keyframes failed in a row); a keyframe
   // that failed alone is counted in stats().errors and logged.
-  void finish();
+  void finish() { worker_.finish(); }
 
   LocalMapperStats stats() const;
-  WorkerErrorCounts errors() const { return errors_.counts(); }  // cheap
+  WorkerErrorCounts errors() const { return worker_.errors(); }  // cheap
 
  private:
   struct RecentPoint {
@@ -101,7 +99,7 @@ class LocalMapper final : public KeyframeSink {
     std::size_t created_at = 0;  // keyframe sequence number
   };
 
-  void run();
+  void run_one(std::shared_ptr<KeyFrame>& keyframe);  // on the worker thread
   void process(const std::shared_ptr<KeyFrame>& keyframe);
   void complete_keyframe(const std::shared_ptr<KeyFrame>& keyframe);
   void cull_recent_points(Map& map);
@@ -113,15 +111,7 @@ class LocalMapper final : public KeyframeSink {
   const FrameCamera cam_;
   const LocalMapperOptions options_;
 
-  BoundedQueue<std::shared_ptr<KeyFrame>> queue_;
   std::atomic<bool> abort_ba_{false};
-  mutable std::mutex state_mutex_;
-  mutable std::condition_variable idle_cv_;
-  std::size_t in_flight_ = 0;  // inserted and not yet processed
-  std::atomic<bool> pause_requested_{false};
-  bool paused_ = false;       // guarded by state_mutex_; the mapper processes nothing while set
-  std::exception_ptr error_;  // fatal only: errors_ said the map is unusable
-  WorkerErrors errors_{"local mapping"};
   std::function<void(const std::shared_ptr<KeyFrame>&)> processed_listener_;
 
   // Mapper-thread state.
@@ -134,7 +124,9 @@ class LocalMapper final : public KeyframeSink {
   mutable std::mutex stats_mutex_;
   LocalMapperStats stats_;
 
-  std::thread thread_;  // last: started after everything above exists
+  // Queue, thread, idle wait, pause and errors (fatal after 20 failed keyframes
+  // in a row). Last: its thread starts after everything above exists.
+  QueueWorker<std::shared_ptr<KeyFrame>> worker_;
 };
 
 }  // namespace orbatlas

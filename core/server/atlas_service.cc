@@ -259,29 +259,30 @@ void AtlasService::check_upload(const SessionRequest& request) const {
 std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const SessionInfo& info,
                                                             const SlamSettings& settings) {
   StereoSlamOptions slam_options = options_.slam;
+  SessionWiring wiring;
   // Stored maps of its own rig only: local mapping would adjust another rig's
   // keyframes with this session's camera.
-  slam_options.may_enter_map = [this, id, rig = info.cameras](MapId map) {
+  wiring.may_enter_map = [this, id, rig = info.cameras](MapId map) {
     const auto holder = leases_.holder(map);
     if (holder) return *holder == id;
     return rig_matches(rig, map) && leases_.claim(id, map);
   };
   slam_options.tracker.start_in_stored_map = options_.start_in_stored_maps;
-  slam_options.loop.shared_worker = loop_worker_;
+  wiring.loop_worker = loop_worker_;
   slam_options.live_merging = options_.merge_maps && options_.live_merging;
   if (slam_options.live_merging) {
     // Into maps this session holds (its own earlier ones) or free maps made
     // with the same rig; the lease is taken for good just before the merge.
-    slam_options.may_merge_into = [this, id, rig = info.cameras](MapId map) {
+    wiring.may_merge_into = [this, id, rig = info.cameras](MapId map) {
       const auto holder = leases_.holder(map);
       if (holder) return *holder == id;
       return leases_.is_free(map) && rig_matches(rig, map);
     };
-    slam_options.loop.hold_map = [this, id](MapId map) { return leases_.hold(id, map); };
-    slam_options.loop.on_merged = [this, id](const LiveMerge& merge) { merged_live(id, merge); };
+    wiring.hold_map = [this, id](MapId map) { return leases_.hold(id, map); };
+    wiring.on_merged = [this, id](const LiveMerge& merge) { merged_live(id, merge); };
   }
   try {
-    return std::make_unique<StereoSlam>(atlas_, settings, vocabulary_, slam_options);
+    return std::make_unique<StereoSlam>(atlas_, settings, vocabulary_, slam_options, std::move(wiring));
   } catch (const std::exception& e) {
     throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
                        std::string("cannot start a stereo session with these settings: ") + e.what());
@@ -325,9 +326,10 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   if (single_camera) {
     MonoLocalizerOptions mono;
     mono.tracker = options_.slam.tracker;
-    mono.may_enter_map = [this, id](MapId map) { return leases_.claim(id, map); };
+    SessionWiring wiring;
+    wiring.may_enter_map = [this, id](MapId map) { return leases_.claim(id, map); };
     try {
-      slam = std::make_unique<MonoLocalizer>(atlas_, loaded.settings, vocabulary_, mono);
+      slam = std::make_unique<MonoLocalizer>(atlas_, loaded.settings, vocabulary_, mono, std::move(wiring));
     } catch (const std::exception& e) {
       throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
                          std::string("cannot start a single-camera session with these settings: ") + e.what());

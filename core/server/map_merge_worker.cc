@@ -8,70 +8,65 @@
 
 namespace orbatlas {
 
+void MapMergeWorkerOptions::check() const {
+  ORBATLAS_CHECK(queue_capacity > 0, "map merging: queue_capacity must be > 0");
+}
+
 MapMergeWorker::MapMergeWorker(Atlas& atlas, MapLeases& leases, MayMerge may_merge, OnMerged on_merged,
                                MapMergeWorkerOptions options)
     : atlas_(atlas),
       leases_(leases),
       may_merge_(std::move(may_merge)),
       on_merged_(std::move(on_merged)),
-      options_(std::move(options)),
-      queue_(options_.queue_capacity) {
-  thread_ = std::thread([this] { run(); });
-}
+      options_((options.check(), std::move(options))),
+      worker_(
+          QueueWorkerOptions::own_thread("map merging", options_.queue_capacity, QueueWorkerOptions::kNeverFatal),
+          [this](MergeRequest& request) { run_one(request); },
+          [](const MergeRequest& request) { return "the merge request for map " + std::to_string(request.map); }) {}
 
 MapMergeWorker::~MapMergeWorker() { stop(); }
 
 bool MapMergeWorker::submit(MergeRequest request) {
-  std::unique_lock lock(mutex_);
-  ++stats_.requests;
-  ++stats_.pending;
-  lock.unlock();
-  if (!stopping_.load() && queue_.try_push(std::move(request))) return true;
-  lock.lock();
-  --stats_.pending;
+  {
+    std::lock_guard lock(mutex_);
+    ++stats_.requests;
+  }
+  if (!stopping_.load() && worker_.try_push(std::move(request))) return true;
+  std::lock_guard lock(mutex_);
   ++stats_.skipped;
-  idle_.notify_all();
   log_warn("map merging: a request was dropped (queue full or stopping)");
   return false;
 }
 
-void MapMergeWorker::wait_until_idle() {
-  std::unique_lock lock(mutex_);
-  idle_.wait(lock, [&] { return stats_.pending == 0; });
-}
+void MapMergeWorker::wait_until_idle() { worker_.wait_until_idle(); }
 
 void MapMergeWorker::stop() {
   stopping_.store(true);
-  queue_.close();
-  if (thread_.joinable()) thread_.join();
+  worker_.stop();
 }
 
 MapMergeWorkerStats MapMergeWorker::stats() const {
-  std::lock_guard lock(mutex_);
-  return stats_;
+  MapMergeWorkerStats out;
+  {
+    std::lock_guard lock(mutex_);
+    out = stats_;
+  }
+  out.pending = worker_.in_flight();
+  out.skipped += worker_.discarded();
+  const WorkerErrorCounts errors = worker_.errors();
+  out.errors = errors.errors;
+  out.last_error = errors.last;
+  return out;
 }
 
-void MapMergeWorker::run() {
-  while (auto request = queue_.pop()) {
-    if (!stopping_.load()) {
-      try {
-        process(*request);
-        errors_.succeeded();
-      } catch (...) {
-        // The request is given up (its maps stay as the last complete edit
-        // left them); the next one is taken as usual.
-        errors_.record("the merge request for map " + std::to_string(request->map), std::current_exception());
-        const WorkerErrorCounts counts = errors_.counts();
-        std::lock_guard lock(mutex_);
-        stats_.last_error = counts.last;
-        stats_.errors = counts.errors;
-      }
-    }
-    leases_.release_all(kMergeWorkerLease);
-    std::lock_guard lock(mutex_);
-    --stats_.pending;
-    idle_.notify_all();
-  }
+void MapMergeWorker::run_one(const MergeRequest& request) {
+  // The leases the request took go back whether it merged, found nothing or
+  // failed half-way (its maps stay as the last complete edit left them).
+  struct ReleaseLeases {
+    MapLeases& leases;
+    ~ReleaseLeases() { leases.release_all(kMergeWorkerLease); }
+  } release{leases_};
+  if (!stopping_.load()) process(request);
 }
 
 void MapMergeWorker::process(const MergeRequest& request) {

@@ -18,8 +18,7 @@
 #include <thread>
 #include <vector>
 
-#include "core/common/bounded_queue.h"
-#include "core/common/worker_errors.h"
+#include "core/common/queue_worker.h"
 #include "core/loop/map_merge.h"
 #include "core/loop/place_recognizer.h"
 #include "core/map/atlas.h"
@@ -40,6 +39,9 @@ struct MapMergeWorkerOptions {
   // by one global BA (every constraint the session found, jointly).
   bool refine_unmerged = true;
   GlobalBundleAdjustmentOptions global;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct MergeRequest {
@@ -119,7 +121,7 @@ class MapMergeWorker {
   MapMergeWorkerStats stats() const;
 
  private:
-  void run();
+  void run_one(const MergeRequest& request);  // on the worker thread; leases released after
   void process(const MergeRequest& request);
   // One global BA of `map` with the request's camera (stop() interrupts it).
   GlobalBundleAdjustmentResult refine(Map& map, const FrameCamera& cam, double* seconds);
@@ -130,14 +132,13 @@ class MapMergeWorker {
   const OnMerged on_merged_;
   const MapMergeWorkerOptions options_;
 
-  BoundedQueue<MergeRequest> queue_;
-  std::atomic<bool> stopping_{false};
-  WorkerErrors errors_{"map merging", std::numeric_limits<std::size_t>::max()};  // never fatal: the server goes on
-  mutable std::mutex mutex_;                                                     // guards stats_
-  std::condition_variable idle_;
-  MapMergeWorkerStats stats_;
+  std::atomic<bool> stopping_{false};  // interrupts a search or global adjustment
+  mutable std::mutex mutex_;           // leaf: guards stats_
+  MapMergeWorkerStats stats_;          // pending, skipped and errors are filled in by stats()
 
-  std::thread thread_;  // last
+  // Queue, thread, idle wait and errors (never fatal: a failed request is
+  // given up, the server goes on). Last: its thread starts after the above.
+  QueueWorker<MergeRequest> worker_;
 };
 
 }  // namespace orbatlas

@@ -131,22 +131,24 @@ StoredAtlas open_atlas(const DatasetRunOptions& options, const SlamSettings& set
   return stored;
 }
 
-// The SLAM options of this run: a run that maps into an atlas enters and merges
-// into stored maps of its own camera rig only; a localisation changes nothing.
-StereoSlamOptions run_slam_options(const DatasetRunOptions& options, const StoredAtlas& stored) {
-  StereoSlamOptions slam_options = options.slam;
+// A run that maps into an atlas enters and merges into stored maps of its own
+// camera rig only.
+SessionWiring run_wiring(const StoredAtlas& stored) {
+  SessionWiring wiring;
   if (stored.session) {
     const auto own_rig = [rigs = stored.rigs, rig = stored.session->cameras](MapId map) {
       const auto it = rigs.find(map);
       return it == rigs.end() || same_rig(it->second, rig);
     };
-    const auto both = [](std::function<bool(MapId)> a, std::function<bool(MapId)> b) -> std::function<bool(MapId)> {
-      if (!a) return b;
-      return [a, b](MapId map) { return b(map) && a(map); };
-    };
-    slam_options.may_enter_map = both(slam_options.may_enter_map, own_rig);
-    slam_options.may_merge_into = both(slam_options.may_merge_into, own_rig);
+    wiring.may_enter_map = own_rig;
+    wiring.may_merge_into = own_rig;
   }
+  return wiring;
+}
+
+// The SLAM options of this run: a localisation changes nothing.
+StereoSlamOptions run_slam_options(const DatasetRunOptions& options) {
+  StereoSlamOptions slam_options = options.slam;
   if (options.localize_only) {
     slam_options.tracker.localization_only = true;
     slam_options.relocalization = true;
@@ -248,7 +250,7 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   Atlas atlas;
   DatasetRunReport report;
   const StoredAtlas stored = open_atlas(options, in.settings, vocabulary, atlas, report);
-  StereoSlam slam(atlas, in.settings, vocabulary, run_slam_options(options, stored));
+  StereoSlam slam(atlas, in.settings, vocabulary, run_slam_options(options), run_wiring(stored));
   std::unique_ptr<AtlasCheckpointer> checkpointer;
   if (stored.session) {
     checkpointer =

@@ -18,12 +18,12 @@ class MonoLocalizer::NoKeyframes final : public KeyframeSink {
 };
 
 MonoLocalizer::MonoLocalizer(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
-                             MonoLocalizerOptions options)
+                             MonoLocalizerOptions options, SessionWiring wiring)
     : atlas_(atlas), frontend_(settings), sink_(std::make_unique<NoKeyframes>()) {
   cam_ = frontend_.frame_camera();  // no stereo: bf 0
   const Pose3 T_b_c = frontend_.calibration().T_b_c;
   relocalizer_ = std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c,
-                                                    std::move(options.may_enter_map));
+                                                    std::move(wiring.may_enter_map));
   TrackerOptions tracker = options.tracker;
   tracker.localization_only = true;
   tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));

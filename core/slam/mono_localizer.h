@@ -15,6 +15,7 @@
 #include "core/io/settings.h"
 #include "core/map/atlas.h"
 #include "core/slam/session_slam.h"
+#include "core/slam/session_wiring.h"
 #include "core/slam/tracked_frames.h"
 #include "core/tracking/frame_relocalizer.h"
 #include "core/tracking/mono_frontend.h"
@@ -25,15 +26,14 @@ namespace orbatlas {
 
 struct MonoLocalizerOptions {
   TrackerOptions tracker;  // localization_only is forced on
-  // When set, relocalisation only enters maps it accepts (the server's map leases).
-  std::function<bool(MapId)> may_enter_map;
 };
 
 class MonoLocalizer final : public SessionSlam {
  public:
   // `atlas` and `vocabulary` must outlive it. Uses the settings' first camera.
+  // Of the wiring only may_enter_map applies (nothing is mapped or merged).
   MonoLocalizer(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
-                MonoLocalizerOptions options = {});
+                MonoLocalizerOptions options = {}, SessionWiring wiring = {});
   ~MonoLocalizer() override;
   MonoLocalizer(const MonoLocalizer&) = delete;
   MonoLocalizer& operator=(const MonoLocalizer&) = delete;

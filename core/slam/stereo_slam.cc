@@ -11,8 +11,15 @@
 #include "core/slam/slam_tuning.h"
 
 namespace orbatlas {
+
+void StereoSlamOptions::check() const {
+  ORBATLAS_CHECK(new_map_after_failed_relocalizations >= 0,
+                 "new_map_after_failed_relocalizations must be >= 0, not " << new_map_after_failed_relocalizations);
+  loop.check();
+}
+
 StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
-                       StereoSlamOptions options)
+                       StereoSlamOptions options, SessionWiring wiring)
     : atlas_(atlas), options_(std::move(options)), frontend_(settings) {
   cam_ = frontend_.frame_camera();
   options_.tracker.th_depth_m = settings.stereo_th_depth * frontend_.baseline();
@@ -28,21 +35,25 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
     }
     log_info("settings:" + set);
   }
+  options_.check();
   const Pose3 T_b_c = frontend_.calibration().T_b_c;
   if (options_.relocalization)
     relocalizer_ =
-        std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c, options_.may_enter_map);
+        std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c, wiring.may_enter_map);
   mapper_ = std::make_unique<LocalMapper>(atlas_, cam_, options_.mapper, &atlas_.keyframe_index());
   if (options_.loop_closing && !options_.tracker.localization_only) {
     LoopCloserOptions loop = options_.loop;
-    loop.tracking_mutex = tracking_mutex_;
+    LoopCloserWiring loop_wiring{.shared_worker = wiring.loop_worker,
+                                 .may_merge_into = wiring.may_merge_into,
+                                 .hold_map = wiring.hold_map,
+                                 .on_merged = wiring.on_merged,
+                                 .tracking_mutex = tracking_mutex_};
     if (options_.live_merging) {
       loop.live_merging = true;
-      if (!loop.may_merge_into) loop.may_merge_into = options_.may_merge_into;
       if (options_.relocalization && options_.tracker.new_map_after_failed_relocalizations == 0)
         options_.tracker.new_map_after_failed_relocalizations = options_.new_map_after_failed_relocalizations;
     }
-    loop_closer_ = std::make_unique<LoopCloser>(atlas_, cam_, *mapper_, loop);
+    loop_closer_ = std::make_unique<LoopCloser>(atlas_, cam_, *mapper_, loop, std::move(loop_wiring));
   }
   tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *mapper_, cam_, T_b_c, options_.tracker, relocalizer_.get());
 }

@@ -13,6 +13,7 @@
 #include "core/loop/loop_closer.h"
 #include "core/mapping/local_mapper.h"
 #include "core/slam/session_slam.h"
+#include "core/slam/session_wiring.h"
 #include "core/slam/slam_stats.h"
 #include "core/slam/tracked_frames.h"
 #include "core/tracking/stereo_frontend.h"
@@ -22,22 +23,20 @@
 namespace orbatlas {
 
 struct StereoSlamOptions {
-  TrackerOptions tracker;      // th_depth_m and the keyframe interval are derived from the settings
-  bool relocalization = true;  // when recently lost, relocalise against every map of the atlas
-  // When set, relocalisation only enters maps it accepts (the server's map leases).
-  std::function<bool(MapId)> may_enter_map;
+  TrackerOptions tracker;  // th_depth_m and the keyframe interval are derived from the settings
+  bool relocalization =
+      true;  // when recently lost, relocalise against every map of the atlas (SessionWiring::may_enter_map)
   LocalMapperOptions mapper;
   bool loop_closing = true;  // place recognition, loop correction, global BA (not when localising)
   LoopCloserOptions loop;
   // Live map merging (with loop closing): each keyframe is also looked for in
-  // the atlas's other maps (those `may_merge_into` accepts, empty: all); a
+  // the atlas's other maps (those SessionWiring::may_merge_into accepts); a
   // verified place merges the session's active map into that map while the
   // session goes on. With it, a session that stays lost for
   // `new_map_after_failed_relocalizations` frames starts a new map at once
   // (tracking resumes; the new map joins the old one when a place is
   // recognised) instead of waiting tracker.recently_lost_s.
   bool live_merging = true;
-  std::function<bool(MapId)> may_merge_into;
   int new_map_after_failed_relocalizations = 5;
   // Wait for local mapping to finish each keyframe before the next frame: slower,
   // but the run is deterministic (tests, comparing culling schemes).
@@ -47,6 +46,9 @@ struct StereoSlamOptions {
   // found, refined jointly; frames follow through their keyframes).
   bool final_global_ba = false;
   GlobalBundleAdjustmentOptions final_ba;
+
+  // Throws Error naming the first value out of range (also of the parts).
+  void check() const;
 };
 
 struct TimedPose {
@@ -59,7 +61,8 @@ class StereoSlam final : public SessionSlam {
  public:
   // `atlas` and `vocabulary` must outlive the session. Throws Error for settings
   // that are not a stereo rig.
-  StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary, StereoSlamOptions options = {});
+  StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary, StereoSlamOptions options = {},
+             SessionWiring wiring = {});
   ~StereoSlam() override;
   StereoSlam(const StereoSlam&) = delete;
   StereoSlam& operator=(const StereoSlam&) = delete;
