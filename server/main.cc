@@ -144,7 +144,7 @@ int main(int argc, char** argv) {
     api_options.max_upload_bytes = max_upload_gb << 30;
     api_options.log_requests = log_requests;
     api_options.redactions = orbatlas::server_path_redactions(service);
-    api_options.extra_metrics = [&server] { return server.metrics_text(); };
+    api_options.extra_metrics = [&server] { return server.metrics(); };
     orbatlas::install_http_api(server, service, api_options, &jobs);
 
     const int port = listen.port == 0 ? server.bind_to_any_port(listen.host)

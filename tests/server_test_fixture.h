@@ -35,7 +35,7 @@ class TestServer {
     http_.set_payload_max_length(api.max_body_bytes * 4);
     http_.set_tcp_nodelay(true);
     if (api.redactions.empty()) api.redactions = server_path_redactions(*service_);
-    api.extra_metrics = [this] { return http_.metrics_text(); };
+    api.extra_metrics = [this] { return http_.metrics(); };
     http_.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<std::size_t>(threads)); };
     install_http_api(http_, *service_, api, jobs_.get());
     port_ = http_.bind_to_any_port("127.0.0.1");

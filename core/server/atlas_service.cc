@@ -374,14 +374,14 @@ std::vector<std::shared_ptr<LiveSession>> AtlasService::sessions() const {
   return out;
 }
 
-nlohmann::json AtlasService::session_status(SessionId id) const {
+SessionStatus AtlasService::session_status(SessionId id) const {
   const auto live = session(id);
-  nlohmann::json j = live->status();
-  if (j.contains("map") && !atlas_.map(j["map"].get<MapId>())) {
+  SessionStatus status = live->status();
+  if (status.map && !atlas_.map(*status.map)) {
     if (const auto last = live->last_anchor())
-      if (const auto located = atlas_.locate_frame(*last)) j["map"] = located->first;
+      if (const auto located = atlas_.locate_frame(*last)) status.map = located->first;
   }
-  return j;
+  return status;
 }
 
 std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
@@ -462,49 +462,16 @@ void AtlasService::merged(const MergeRecord& record) {
              " is not stored yet: " + checkpointer_->stats().last_error + " (retried at the next checkpoint)");
 }
 
-nlohmann::json AtlasService::merges_json() const {
-  nlohmann::json out = {{"enabled", merger_ != nullptr}, {"pending", 0}, {"merges", nlohmann::json::array()}};
+MergesReport AtlasService::merges() const {
+  MergesReport out;
   if (!merger_) return out;
-  out["live_merges"] = nlohmann::json::array();
+  out.enabled = true;
   {
     std::lock_guard lock(live_merges_mutex_);
-    for (const LiveMergeRecord& r : live_merges_) {
-      nlohmann::json j = to_json(r.merge);
-      j["session"] = r.session;
-      out["live_merges"].push_back(std::move(j));
-    }
-    out["live_merges_total"] = live_merges_total_;
+    out.live_merges = live_merges_;
+    out.live_merges_total = live_merges_total_;
   }
-  const MapMergeWorkerStats stats = merger_->stats();
-  out["pending"] = stats.pending;
-  out["requests"] = stats.requests;
-  out["skipped"] = stats.skipped;
-  out["maps_searched"] = stats.maps_searched;
-  out["keyframes_searched"] = stats.keyframes_searched;
-  out["worker_errors"] = stats.errors;
-  out["merges_total"] = stats.merges_total;
-  out["refinements_total"] = stats.refinements_total;
-  if (!stats.last_error.empty()) out["last_error"] = stats.last_error;
-  out["refinements"] = nlohmann::json::array();
-  for (const MapRefinement& r : stats.refinements)
-    out["refinements"].push_back(
-        {{"map", r.map}, {"keyframes", r.keyframes}, {"seconds", r.seconds}, {"interrupted", r.interrupted}});
-  for (const MergeRecord& r : stats.merges)
-    out["merges"].push_back(
-        {{"source_map", r.merge.source},
-         {"target_map", r.merge.target},
-         {"keyframe", r.current},
-         {"matched_keyframe", r.matched},
-         {"matches", r.matches},
-         {"verified_keyframes", r.verified_keyframes},
-         {"keyframes_searched", r.keyframes_searched},
-         {"search_ms", r.search_ms},
-         {"keyframes_moved", r.merge.keyframes_moved},
-         {"map_points_moved", r.merge.points_moved},
-         {"points_fused", r.merge.points_merged},
-         {"observations_added", r.merge.observations_fused},
-         {"merge_ms", r.merge.ms},
-         {"global_ba", {{"keyframes", r.ba_keyframes}, {"seconds", r.ba_seconds}, {"interrupted", r.ba_interrupted}}}});
+  out.worker = merger_->stats();
   return out;
 }
 
@@ -538,9 +505,9 @@ std::size_t AtlasService::add_imu(SessionId id, const std::vector<ImuSample>& sa
   return session(id)->add_imu(samples, options_.max_imu_gap_s);
 }
 
-nlohmann::json AtlasService::finish_session(SessionId id) { return finish_session(id, std::string()); }
+SessionStatus AtlasService::finish_session(SessionId id) { return finish_session(id, std::string()); }
 
-nlohmann::json AtlasService::finish_session(SessionId id, const std::string& ended_by) {
+SessionStatus AtlasService::finish_session(SessionId id, const std::string& ended_by) {
   const auto live = session(id);
   if (live->state() == SessionState::kStored)
     throw_conflict("session " + std::to_string(id) + " was stored by an earlier run; there is nothing to finish");
@@ -587,44 +554,46 @@ SessionTrajectory AtlasService::trajectory(SessionId id) const {
   return out;
 }
 
-nlohmann::json AtlasService::maps_json() const {
-  nlohmann::json maps = nlohmann::json::array();
-  for (const auto& map : atlas_.maps()) maps.push_back(map_json(map->id()));
-  return maps;
+std::vector<MapSummary> AtlasService::maps() const {
+  std::vector<MapSummary> out;
+  for (const auto& map : atlas_.maps()) {
+    try {
+      out.push_back(this->map(map->id()));
+    } catch (const ServiceError&) {
+      // merged away since the list was taken
+    }
+  }
+  return out;
 }
 
-nlohmann::json AtlasService::map_json(MapId id) const {
+MapSummary AtlasService::map(MapId id) const {
   const auto map = atlas_.map(id);
   if (!map) throw_not_found("no map " + std::to_string(id));
-  nlohmann::json j = {{"id", id}, {"keyframes", map->keyframe_count()}, {"map_points", map->map_point_count()}};
-  if (const auto holder = leases_.holder(id)) j["live_session"] = *holder;
+  MapSummary out;
+  out.id = id;
+  out.keyframes = map->keyframe_count();
+  out.map_points = map->map_point_count();
+  out.live_session = leases_.holder(id);
   const auto points = map->map_points();
   if (!points.empty()) {
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+    MapSummary::Bounds bounds{Eigen::Vector3d::Constant(1e300), Eigen::Vector3d::Constant(-1e300)};
     for (const auto& p : points) {
-      lo = lo.cwiseMin(p->p_w());
-      hi = hi.cwiseMax(p->p_w());
+      bounds.min = bounds.min.cwiseMin(p->p_w());
+      bounds.max = bounds.max.cwiseMax(p->p_w());
     }
-    j["bounds_m"] = {{"min", {lo.x(), lo.y(), lo.z()}}, {"max", {hi.x(), hi.y(), hi.z()}}};
+    out.bounds_m = bounds;
   }
-  return j;
+  return out;
 }
 
-std::string AtlasService::map_points_ply(MapId id) const {
+MapPointCloud AtlasService::map_points(MapId id) const {
   const auto map = atlas_.map(id);
   if (!map) throw_not_found("no map " + std::to_string(id));
-  std::vector<Eigen::Vector3d> points;
+  MapPointCloud out;
+  out.map = id;
   for (const auto& p : map->map_points())
-    if (!p->is_bad()) points.push_back(p->p_w());
-  std::ostringstream out;
-  out << "ply\nformat ascii 1.0\ncomment orbatlas map " << id << " (world frame of the map, metres)\n"
-      << "element vertex " << points.size() << "\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
-  char line[96];
-  for (const auto& p : points) {
-    std::snprintf(line, sizeof line, "%.5f %.5f %.5f\n", p.x(), p.y(), p.z());
-    out << line;
-  }
-  return out.str();
+    if (!p->is_bad()) out.points.push_back(p->p_w());
+  return out;
 }
 
 std::shared_ptr<AtlasService::LocalizerContext> AtlasService::localizer_for(const SettingsSource& source) {
@@ -676,17 +645,17 @@ LocalizeReply AtlasService::localize(const LocalizeRequest& request) {
   return reply;
 }
 
-nlohmann::json AtlasService::health() const {
+HealthReport AtlasService::health() const {
   std::lock_guard lock(mutex_);
-  std::size_t live = 0;
-  for (const auto& [_, s] : sessions_) live += s->state() == SessionState::kActive ? 1 : 0;
-  return {{"status", shut_down_ ? "shutting_down" : "ok"},
-          {"live_sessions", live},
-          {"maps", atlas_.maps().size()},
-          {"merges_pending", merger_ ? merger_->stats().pending : 0}};
+  HealthReport out;
+  out.shutting_down = shut_down_;
+  for (const auto& [_, s] : sessions_) out.live_sessions += s->state() == SessionState::kActive ? 1 : 0;
+  out.maps = atlas_.maps().size();
+  out.merges_pending = merger_ ? merger_->stats().pending : 0;
+  return out;
 }
 
-std::string AtlasService::metrics_text() const {
+std::vector<prometheus::MetricFamily> AtlasService::metrics() const {
   std::size_t live = 0, stored = 0, worker_errors = 0;
   {
     std::lock_guard lock(mutex_);
@@ -742,7 +711,7 @@ std::string AtlasService::metrics_text() const {
     set("orbatlas_map_merge_pending", "Maps waiting for (or in) the merging worker.",
         static_cast<double>(merging.pending));
   }
-  return metrics_.text();
+  return metrics_.collect();
 }
 
 void AtlasService::shutdown() {

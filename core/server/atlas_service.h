@@ -12,7 +12,6 @@
 #include <map>
 #include <memory>
 #include <mutex>
-#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -26,6 +25,7 @@
 #include "core/server/live_session.h"
 #include "core/server/map_leases.h"
 #include "core/server/map_merge_worker.h"
+#include "core/server/service_results.h"
 #include "core/slam/stereo_slam.h"
 #include "core/vocabulary/vocabulary.h"
 
@@ -122,24 +122,24 @@ class AtlasService {
   void check_upload(const SessionRequest& request) const;
   std::shared_ptr<LiveSession> session(SessionId id) const;    // ServiceError 404
   std::vector<std::shared_ptr<LiveSession>> sessions() const;  // by id
-  // GET /v1/sessions/{id}: LiveSession::status with "map" the map the session's
+  // GET /v1/sessions/{id}: LiveSession::status with `map` the map the session's
   // last frame is in now (a merge may have moved it). ServiceError 404.
-  nlohmann::json session_status(SessionId id) const;
+  SessionStatus session_status(SessionId id) const;
   FrameReply process_frame(SessionId id, TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
   std::size_t add_imu(SessionId id, const std::vector<ImuSample>& samples);
   // Ends the session and stores it (a durable checkpoint); idempotent for a
   // finished session, ServiceError 409 for a stored one. Returns its status.
-  nlohmann::json finish_session(SessionId id);
+  SessionStatus finish_session(SessionId id);
   // The same on the server's behalf: `ended_by` is shown in the status.
-  nlohmann::json finish_session(SessionId id, const std::string& ended_by);
+  SessionStatus finish_session(SessionId id, const std::string& ended_by);
   // The session's frames in their maps' frames (poses follow later corrections).
   SessionTrajectory trajectory(SessionId id) const;
 
-  nlohmann::json maps_json() const;
-  nlohmann::json map_json(MapId id) const;  // ServiceError 404
-  std::string map_points_ply(MapId id) const;
+  std::vector<MapSummary> maps() const;
+  MapSummary map(MapId id) const;            // ServiceError 404
+  MapPointCloud map_points(MapId id) const;  // ServiceError 404
   // GET /v1/merges: the merging worker's queue and the merges done.
-  nlohmann::json merges_json() const;
+  MergesReport merges() const;
   // Waits until the merging worker has nothing queued or running.
   void wait_for_merges();
 
@@ -148,8 +148,9 @@ class AtlasService {
   // unusable settings): requests are checked against it before decoding.
   cv::Size localize_image_size(const SettingsSource& settings);
 
-  std::string metrics_text() const;  // Prometheus exposition format
-  nlohmann::json health() const;
+  // The service's Prometheus metrics, brought up to date (the HTTP layer writes them out).
+  std::vector<prometheus::MetricFamily> metrics() const;
+  HealthReport health() const;
   // Finishes every live session, writes the final durable checkpoint. Idempotent.
   void shutdown();
 
@@ -205,13 +206,9 @@ class AtlasService {
     KeyframeId first_keyframe = 0;  // keyframe ids from here on are this session's or later ones
   };
   std::map<SessionId, SessionStart> session_starts_;  // of this run's sessions
-  struct LiveMergeRecord {
-    SessionId session = 0;
-    LiveMerge merge;
-  };
-  mutable std::mutex live_merges_mutex_;      // a leaf lock (taken on the loop-closing thread)
-  std::vector<LiveMergeRecord> live_merges_;  // the last kMergeHistory; guarded by live_merges_mutex_
-  std::size_t live_merges_total_ = 0;         // guarded by live_merges_mutex_
+  mutable std::mutex live_merges_mutex_;              // a leaf lock (taken on the loop-closing thread)
+  std::vector<LiveMergeRecord> live_merges_;          // the last kMergeHistory; guarded by live_merges_mutex_
+  std::size_t live_merges_total_ = 0;                 // guarded by live_merges_mutex_
   SessionId next_session_ = 1;
   bool shut_down_ = false;
   std::condition_variable idle_wake_;  // with mutex_: a session was created, or shutdown

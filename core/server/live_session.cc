@@ -123,7 +123,8 @@ bool LiveSession::finish(const std::string& ended_by) {
   try {
     slam_->finish();
     worker_errors_.store(slam_->worker_errors());
-    final_stats_ = to_json(slam_->stats());
+    const SlamStats stats = slam_->stats();
+    final_counts_ = SessionStatus::SlamCounts{stats.relocalizations, stats.loop.loops.size()};
     final_anchors_ = slam_->anchors();
     slam_.reset();
     state_ = SessionState::kFinished;
@@ -161,31 +162,29 @@ void LiveSession::release_anchors() {
   anchors_released_ = true;
 }
 
-nlohmann::json LiveSession::status() const {
+SessionStatus LiveSession::status() const {
   std::lock_guard lock(mutex_);
-  nlohmann::json j = {{"id", info_.id},
-                      {"name", info_.name},
-                      {"state", session_state_name(state_)},
-                      {"sensor", sensor_type_name(info_.sensor)},
-                      {"frames", frames_},
-                      {"tracked", tracked_},
-                      {"keyframes", keyframes_},
-                      {"rejected_frames", rejected_frames_},
-                      {"imu_samples", imu_samples_},
-                      {"worker_errors", worker_errors_.load()}};
-  if (!config_.empty()) j["config"] = config_;
-  if (!error_.empty()) j["error"] = error_;
-  if (!ended_by_.empty()) j["ended_by"] = ended_by_;
+  SessionStatus s;
+  s.id = info_.id;
+  s.name = info_.name;
+  s.state = state_;
+  s.sensor = info_.sensor;
+  s.frames = frames_;
+  s.tracked = tracked_;
+  s.keyframes = keyframes_;
+  s.rejected_frames = rejected_frames_;
+  s.imu_samples = imu_samples_;
+  s.worker_errors = worker_errors_.load();
+  s.config = config_;
+  s.error = error_;
+  s.ended_by = ended_by_;
   if (last_) {
-    j["map"] = last_->map;
-    j["last_frame"] = {{"t_ns", last_->t_ns}, {"tracked", last_->tracked}};
+    s.map = last_->map;
+    s.last_frame = SessionStatus::LastFrame{last_->t_ns, last_->tracked};
   }
-  if (!tracking_ms_.empty()) j["tracking_ms"] = to_json_summary(tracking_ms_);
-  if (!final_stats_.is_null()) {
-    j["slam"] = {{"relocalizations", final_stats_.value("relocalizations", 0)},
-                 {"loops", final_stats_.value("loops", 0)}};
-  }
-  return j;
+  s.tracking_ms = tracking_ms_;
+  s.slam = final_counts_;
+  return s;
 }
 
 }  // namespace orbatlas

@@ -8,7 +8,6 @@
 #include <chrono>
 #include <memory>
 #include <mutex>
-#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -17,12 +16,10 @@
 #include "core/io/euroc_types.h"
 #include "core/map/frame_anchor.h"
 #include "core/persistence/session_info.h"
+#include "core/server/service_results.h"
 #include "core/slam/session_slam.h"
 
 namespace orbatlas {
-
-enum class SessionState { kActive, kFinished, kFailed, kStored };
-const char* session_state_name(SessionState state);
 
 struct FrameOutcome {
   TrackResult result;
@@ -73,7 +70,7 @@ class LiveSession {
   void release_anchors();
   // Errors the session's workers contained (as of its last frame; any thread).
   std::size_t worker_errors() const { return worker_errors_.load(); }
-  nlohmann::json status() const;  // GET /v1/sessions/{id}
+  SessionStatus status() const;  // GET /v1/sessions/{id}
 
  private:
   void fail(const std::string& why);  // under mutex_
@@ -93,7 +90,7 @@ class LiveSession {
   std::size_t frames_ = 0, tracked_ = 0, keyframes_ = 0, rejected_frames_ = 0, imu_samples_ = 0;
   std::optional<TrackResult> last_;
   SampleSummary tracking_ms_;
-  nlohmann::json final_stats_;  // SLAM statistics captured by finish()
+  std::optional<SessionStatus::SlamCounts> final_counts_;  // captured by finish()
   std::atomic<std::size_t> worker_errors_{0};
   std::atomic<std::chrono::steady_clock::rep> last_activity_{
       std::chrono::steady_clock::now().time_since_epoch().count()};

@@ -1,7 +1,5 @@
 #include "core/server/metrics_registry.h"
 
-#include <prometheus/text_serializer.h>
-
 namespace orbatlas {
 
 MetricsRegistry::MetricsRegistry() : registry_(std::make_shared<prometheus::Registry>()) {}
@@ -21,7 +19,7 @@ prometheus::Histogram& MetricsRegistry::histogram(const std::string& name, const
   return prometheus::BuildHistogram().Name(name).Help(help).Register(*registry_).Add({}, std::move(buckets));
 }
 
-std::string MetricsRegistry::text() const { return prometheus::TextSerializer().Serialize(registry_->Collect()); }
+std::vector<prometheus::MetricFamily> MetricsRegistry::collect() const { return registry_->Collect(); }
 
 void advance_counter_to(prometheus::Counter& counter, double total) {
   if (total > counter.Value()) counter.Increment(total - counter.Value());

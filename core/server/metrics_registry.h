@@ -1,10 +1,9 @@
 #pragma once
 // The Prometheus metrics of one component, kept by prometheus-cpp (Debian
 // `prometheus-cpp-dev`, core library only): its counters, gauges and histograms
-// are thread-safe, and its serializer writes the text exposition format that
-// GET /metrics returns (the HTTP route is ours). Each component (the service, the
-// HTTP server, the upload jobs) owns one; /metrics concatenates their texts, so
-// the metric names must differ between components.
+// are thread-safe. Each component (the service, the HTTP server, the upload
+// jobs) owns one; GET /metrics (server/http) writes all of their families in
+// the text exposition format, so the metric names must differ between components.
 #include <memory>
 #include <string>
 #include <vector>
@@ -29,7 +28,8 @@ class MetricsRegistry {
   // Bucket upper bounds in the metric's unit (seconds for latencies), increasing.
   prometheus::Histogram& histogram(const std::string& name, const std::string& help, std::vector<double> buckets);
 
-  std::string text() const;  // the Prometheus text exposition format
+  // The metrics as they are now (the HTTP layer writes them in the text format).
+  std::vector<prometheus::MetricFamily> collect() const;
 
  private:
   std::shared_ptr<prometheus::Registry> registry_;

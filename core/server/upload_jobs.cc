@@ -241,39 +241,23 @@ void UploadJobs::run(JobId id) {
   });
 }
 
-std::string UploadJobs::metrics_text() const {
+std::vector<prometheus::MetricFamily> UploadJobs::metrics() const {
   for (const char* state : {"queued", "running", "done", "failed", "cancelled"})
     metrics_.gauge("orbatlas_jobs", "Upload jobs by state.", {{"state", state}}).Set(static_cast<double>(count(state)));
-  return metrics_.text();
+  return metrics_.collect();
 }
 
-nlohmann::json UploadJobs::to_json(const StoredJob& job) {
-  nlohmann::json j = {{"id", job.id},
-                      {"state", job.state},
-                      {"name", job.name},
-                      {"archive_bytes", job.archive_bytes},
-                      {"frames_total", job.frames_total},
-                      {"frames_done", job.frames_done},
-                      {"tracked", job.tracked},
-                      {"rejected", job.rejected},
-                      {"progress", job.frames_total ? static_cast<double>(job.frames_done) / job.frames_total : 0.0}};
-  if (job.session) j["session"] = *job.session;
-  if (job.ate_rmse_m) j["ate_rmse_m"] = *job.ate_rmse_m;
-  if (!job.error.empty()) j["error"] = job.error;
-  return j;
-}
-
-nlohmann::json UploadJobs::job_json(JobId id) const {
+StoredJob UploadJobs::job(JobId id) const {
   std::lock_guard lock(mutex_);
   const auto it = jobs_.find(id);
   if (it == jobs_.end()) throw_not_found("no job " + std::to_string(id));
-  return to_json(it->second.row);
+  return it->second.row;
 }
 
-nlohmann::json UploadJobs::jobs_json() const {
+std::vector<StoredJob> UploadJobs::jobs() const {
   std::lock_guard lock(mutex_);
-  nlohmann::json list = nlohmann::json::array();
-  for (const auto& [_, job] : jobs_) list.push_back(to_json(job.row));
+  std::vector<StoredJob> list;
+  for (const auto& [_, job] : jobs_) list.push_back(job.row);
   return list;
 }
 

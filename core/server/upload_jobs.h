@@ -15,7 +15,6 @@
 #include <filesystem>
 #include <map>
 #include <mutex>
-#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <thread>
@@ -49,12 +48,12 @@ class UploadJobs {
   // Queues the extracted upload (the folder is now the job's; it is deleted when
   // the job ends). ServiceError 503 when the queue is full (the folder is deleted).
   JobId submit(const std::filesystem::path& folder, SessionRequest request, std::uint64_t archive_bytes);
-  nlohmann::json job_json(JobId id) const;  // ServiceError 404
-  nlohmann::json jobs_json() const;
+  StoredJob job(JobId id) const;        // ServiceError 404
+  std::vector<StoredJob> jobs() const;  // by id
   // Jobs not started are dropped; running ones end at their next frame. Idempotent.
   void stop();
   std::size_t count(const std::string& state) const;
-  std::string metrics_text() const;  // orbatlas_jobs{state=...}
+  std::vector<prometheus::MetricFamily> metrics() const;  // orbatlas_jobs{state=...}
 
  private:
   struct Job {
@@ -67,7 +66,6 @@ class UploadJobs {
   // Changes a job under the mutex; `store`: then writes its row (outside the mutex).
   void update(JobId id, const std::function<void(Job&)>& change, bool store = true);
   void store_row(const StoredJob& row);
-  static nlohmann::json to_json(const StoredJob& job);
 
   AtlasService& service_;
   const UploadJobOptions options_;

@@ -133,14 +133,14 @@ ConnectionStats GuardedHttpServer::connection_stats() const {
   return stats_;
 }
 
-std::string GuardedHttpServer::metrics_text() const {
+std::vector<prometheus::MetricFamily> GuardedHttpServer::metrics() const {
   {
     std::lock_guard lock(mutex_);
     advance_counter_to(connections_total_, static_cast<double>(stats_.connections));
     advance_counter_to(closed_slow_, static_cast<double>(stats_.closed_slow));
     advance_counter_to(closed_for_room_, static_cast<double>(stats_.closed_for_room));
   }
-  return metrics_.text();
+  return metrics_.collect();
 }
 
 void GuardedHttpServer::set_waiting(std::uint64_t id, bool waiting) {

@@ -45,8 +45,8 @@ class GuardedHttpServer : public httplib::Server {
  public:
   explicit GuardedHttpServer(ConnectionLimits limits = {});
   ConnectionStats connection_stats() const;
-  // The figures in Prometheus text (HttpApiOptions::extra_metrics).
-  std::string metrics_text() const;
+  // The figures as Prometheus metrics (HttpApiOptions::extra_metrics).
+  std::vector<prometheus::MetricFamily> metrics() const;
 
   // A connection's phase, shared between its thread and the others (which may
   // close it to make room). Public for the stream in the .cc file.

@@ -9,6 +9,7 @@
 #include <regex>
 #include <sys/socket.h>
 #include <nlohmann/json.hpp>
+#include <prometheus/text_serializer.h>
 
 #include "core/archive/tar_stream_extractor.h"
 #include "core/common/log.h"
@@ -18,6 +19,7 @@
 #include "core/server/service_error.h"
 #include "core/server/atlas_service.h"
 #include "server/http/image_decode.h"
+#include "server/http/service_json.h"
 #include "wire/pose_json.h"
 #include "core/server/upload_jobs.h"
 
@@ -204,7 +206,7 @@ void require_multipart(const Request& req, const char* fields) {
 
 json session_list(const AtlasService& service) {
   json list = json::array();
-  for (const auto& s : service.sessions()) list.push_back(service.session_status(s->id()));
+  for (const auto& s : service.sessions()) list.push_back(to_json(service.session_status(s->id())));
   return {{"sessions", list}};
 }
 
@@ -226,11 +228,11 @@ void install_session_routes(Router& router, AtlasService& service) {
                 request.settings.config = optional_string(body, "config");
                 request.settings.settings_yaml = optional_string(body, "settings_yaml");
                 const SessionId id = service.create_session(request);
-                reply_json(res, {{"id", id}, {"session", service.session_status(id)}}, 201);
+                reply_json(res, {{"id", id}, {"session", to_json(service.session_status(id))}}, 201);
               }));
   router.get("/v1/sessions", ([&service](const Request&, Response& res) { reply_json(res, session_list(service)); }));
   router.get(R"(/v1/sessions/(\d+))", ([&service](const Request& req, Response& res) {
-               reply_json(res, service.session_status(id_from(req, 1, "session")));
+               reply_json(res, to_json(service.session_status(id_from(req, 1, "session"))));
              }));
   router.post(
       R"(/v1/sessions/(\d+)/frames)", ([&service](const Request& req, Response& res) {
@@ -285,7 +287,7 @@ void install_session_routes(Router& router, AtlasService& service) {
         reply_json(res, {{"accepted", service.add_imu(id, samples)}});
       }));
   router.post(R"(/v1/sessions/(\d+)/finish)", ([&service](const Request& req, Response& res) {
-                reply_json(res, service.finish_session(id_from(req, 1, "session")));
+                reply_json(res, to_json(service.finish_session(id_from(req, 1, "session"))));
               }));
   router.get(R"(/v1/sessions/(\d+)/trajectory)", ([&service](const Request& req, Response& res) {
                const SessionTrajectory t = service.trajectory(id_from(req, 1, "session"));
@@ -303,14 +305,16 @@ void install_session_routes(Router& router, AtlasService& service) {
 
 void install_map_routes(Router& router, AtlasService& service) {
   router.get("/v1/maps", ([&service](const Request&, Response& res) {
-               reply_json(res, {{"maps", service.maps_json()}});
+               json maps = json::array();
+               for (const MapSummary& map : service.maps()) maps.push_back(to_json(map));
+               reply_json(res, {{"maps", maps}});
              }));
   router.get(R"(/v1/maps/(\d+))", ([&service](const Request& req, Response& res) {
-               reply_json(res, service.map_json(id_from(req, 1, "map")));
+               reply_json(res, to_json(service.map(id_from(req, 1, "map"))));
              }));
-  router.get("/v1/merges", ([&service](const Request&, Response& res) { reply_json(res, service.merges_json()); }));
+  router.get("/v1/merges", ([&service](const Request&, Response& res) { reply_json(res, to_json(service.merges())); }));
   router.get(R"(/v1/maps/(\d+)/points\.ply)", ([&service](const Request& req, Response& res) {
-               res.set_content(service.map_points_ply(id_from(req, 1, "map")), "application/ply");
+               res.set_content(to_ply(service.map_points(id_from(req, 1, "map"))), "application/ply");
              }));
   router.post("/v1/localize", ([&service](const Request& req, Response& res) {
                 require_multipart(req, "'image' (or 'left' and 'right'), 'config' or 'settings_yaml', optional 'map'");
@@ -394,16 +398,19 @@ void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jo
       const TarExtractReport report = extractor.finish();  // a bad archive: DataError, 400
       const JobId id = jobs->submit(folder, request, report.archive_bytes);
       discard.keep = true;
-      reply_json(res, {{"job", id}, {"status", jobs->job_json(id)}}, 202);
+      reply_json(res, {{"job", id}, {"status", to_json(jobs->job(id))}}, 202);
     });
   });
   router.get("/v1/jobs", ([jobs](const Request&, Response& res) {
-               reply_json(res, {{"jobs", jobs ? jobs->jobs_json() : json::array()}});
+               json list = json::array();
+               if (jobs)
+                 for (const StoredJob& job : jobs->jobs()) list.push_back(to_json(job));
+               reply_json(res, {{"jobs", list}});
              }));
   router.get(R"(/v1/jobs/(\d+))", ([jobs](const Request& req, Response& res) {
                const JobId id = id_from(req, 1, "job");
                if (!jobs) throw_not_found("no job " + std::to_string(id));
-               reply_json(res, jobs->job_json(id));
+               reply_json(res, to_json(jobs->job(id)));
              }));
 }
 
@@ -531,12 +538,16 @@ void install_http_api(httplib::Server& server, AtlasService& service, const Http
     if (opts.log_requests) log_info(req.method + " " + req.path + " -> " + std::to_string(res.status));
     if (opts.on_request_end) opts.on_request_end();
   });
-  router.get("/healthz", ([&service](const Request&, Response& res) { reply_json(res, service.health()); }));
+  router.get("/healthz", ([&service](const Request&, Response& res) { reply_json(res, to_json(service.health())); }));
   router.get("/metrics", ([&service, jobs, opts](const Request&, Response& res) {
-               std::string text = service.metrics_text();
-               if (opts.extra_metrics) text += opts.extra_metrics();
-               if (jobs) text += jobs->metrics_text();
-               res.set_content(text, "text/plain; version=0.0.4");
+               std::vector<prometheus::MetricFamily> families = service.metrics();
+               const auto add = [&families](std::vector<prometheus::MetricFamily> more) {
+                 families.insert(families.end(), std::make_move_iterator(more.begin()),
+                                 std::make_move_iterator(more.end()));
+               };
+               if (opts.extra_metrics) add(opts.extra_metrics());
+               if (jobs) add(jobs->metrics());
+               res.set_content(prometheus::TextSerializer().Serialize(families), "text/plain; version=0.0.4");
              }));
   install_session_routes(router, service);
   install_map_routes(router, service);

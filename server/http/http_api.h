@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <prometheus/metric_family.h>
 #include <string>
 #include <utility>
 #include <vector>
@@ -30,8 +31,8 @@ struct HttpApiOptions {
   // its path), and once its reply is written (connection_guard.h).
   std::function<void(const std::string& path)> on_request_start;
   std::function<void()> on_request_end;
-  // Prometheus lines appended to /metrics (the HTTP server's connection figures).
-  std::function<std::string()> extra_metrics;
+  // More metrics for /metrics (the HTTP server's connection figures).
+  std::function<std::vector<prometheus::MetricFamily>()> extra_metrics;
 };
 
 // The redactions for a service's paths (its database, work folder, configs).

@@ -1,0 +1,84 @@
+#pragma once
+// What the map service (AtlasService, UploadJobs) answers, as data: the HTTP
+// layer (server/http/service_json.h) turns these into JSON and PLY, tests read
+// them directly. No wire format here.
+#include <Eigen/Core>
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/common/ids.h"
+#include "core/common/sample_summary.h"
+#include "core/common/timestamp.h"
+#include "core/io/settings.h"
+#include "core/loop/loop_closer.h"
+#include "core/server/map_merge_worker.h"
+
+namespace orbatlas {
+
+enum class SessionState { kActive, kFinished, kFailed, kStored };
+const char* session_state_name(SessionState state);
+
+// GET /v1/sessions/{id}.
+struct SessionStatus {
+  SessionId id = 0;
+  std::string name;
+  SessionState state = SessionState::kActive;
+  SensorType sensor = SensorType::kStereo;
+  std::size_t frames = 0, tracked = 0, keyframes = 0, rejected_frames = 0, imu_samples = 0;
+  std::size_t worker_errors = 0;
+  std::string config;    // the config name it was started with ("" for inline settings)
+  std::string error;     // why it failed ("" unless failed)
+  std::string ended_by;  // who ended it when not the client ("idle_timeout"; "" otherwise)
+  struct LastFrame {
+    TimestampNs t_ns = 0;
+    bool tracked = false;
+  };
+  std::optional<LastFrame> last_frame;
+  std::optional<MapId> map;   // the map its last frame is in now (a merge may have moved it)
+  SampleSummary tracking_ms;  // per frame (empty before the first)
+  struct SlamCounts {
+    std::size_t relocalizations = 0, loops = 0;
+  };
+  std::optional<SlamCounts> slam;  // once finished
+};
+
+// GET /v1/maps/{id}.
+struct MapSummary {
+  MapId id = 0;
+  std::size_t keyframes = 0, map_points = 0;
+  std::optional<SessionId> live_session;  // the session holding it now
+  struct Bounds {
+    Eigen::Vector3d min, max;
+  };
+  std::optional<Bounds> bounds_m;  // of its points, in the map's frame (none without points)
+};
+
+// GET /v1/maps/{id}/points: the map's good points in its frame, metres.
+struct MapPointCloud {
+  MapId map = 0;
+  std::vector<Eigen::Vector3d> points;
+};
+
+// A live merge with the session whose map was merged.
+struct LiveMergeRecord {
+  SessionId session = 0;
+  LiveMerge merge;
+};
+
+// GET /v1/merges.
+struct MergesReport {
+  bool enabled = false;                      // merging on at all
+  MapMergeWorkerStats worker;                // the server-wide worker (sessions' ends)
+  std::vector<LiveMergeRecord> live_merges;  // the last kMergeHistory
+  std::size_t live_merges_total = 0;
+};
+
+// GET /healthz.
+struct HealthReport {
+  bool shutting_down = false;
+  std::size_t live_sessions = 0, maps = 0, merges_pending = 0;
+};
+
+}  // namespace orbatlas
