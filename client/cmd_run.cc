@@ -8,6 +8,7 @@
 #include <sstream>
 #include <string>
 
+#include "cli/effective_options.h"
 #include "client/commands.h"
 #include "core/common/error.h"
 #include "core/common/log.h"
@@ -34,11 +35,7 @@ void write_stats_file(const std::string& path, const nlohmann::json& stats) {
 }
 
 void log_effective_options(const CLI::App& command) {
-  std::istringstream all(command.config_to_str(true, false));
-  std::string text;
-  for (std::string line; std::getline(all, line);)
-    if (!line.empty() && line.front() != '[') text += "\n  " + line;
-  log_info("orbatlas " + command.get_name() + ": options in effect:" + text);
+  log_info("orbatlas " + command.get_name() + ": options in effect:\n" + effective_options_text(command));
 }
 
 void print_run_summary(const DatasetRunReport& r) {

@@ -7,7 +7,7 @@ set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 command -v clang-format >/dev/null || { echo "check_format: clang-format is missing (scripts/setup.sh installs it)" >&2; exit 1; }
-mapfile -t listed < <(git ls-files --cached --others --exclude-standard '*.cc' '*.h' 2>/dev/null || find core server client wire tests -name '*.cc' -o -name '*.h')
+mapfile -t listed < <(git ls-files --cached --others --exclude-standard '*.cc' '*.h' 2>/dev/null || find cli core server client wire tests -name '*.cc' -o -name '*.h')
 files=()
 for f in "${listed[@]}"; do [ -f "$f" ] && files+=("$f"); done  # not files deleted in the work tree
 if [ "${1:-}" = "--fix" ]; then

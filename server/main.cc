@@ -9,6 +9,7 @@
 #include <sstream>
 #include <thread>
 
+#include "cli/effective_options.h"
 #include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/server/atlas_service.h"
@@ -40,20 +41,6 @@ Listen parse_listen(const std::string& text) {
   }
   ORBATLAS_CHECK(l.port >= 0 && l.port <= 65535, "--listen: port " << l.port << " is out of range");
   return l;
-}
-
-// The options in effect (from the command line, the --config file and the
-// defaults), in the config file's format, the token's value hidden.
-std::string effective_options(const CLI::App& app) {
-  std::istringstream all(app.config_to_str(true, false));
-  std::string out;
-  for (std::string line; std::getline(all, line);) {
-    if (line.rfind("token=", 0) == 0 || line.rfind("token =", 0) == 0)
-      line = line.find('"') == std::string::npos || line.find("\"\"") != std::string::npos ? "token=\"\""
-                                                                                           : "token=\"<set>\"";
-    out += "  " + line + "\n";
-  }
-  return out;
 }
 
 }  // namespace
@@ -127,7 +114,7 @@ int main(int argc, char** argv) {
       throw orbatlas::Error("--listen " + listen_text +
                             " reaches other machines: give --token (every route but /healthz then needs it), or "
                             "--insecure to serve without one");
-    orbatlas::log_info("options in effect:\n" + effective_options(app));
+    orbatlas::log_info("options in effect:\n" + orbatlas::effective_options_text(app));
     orbatlas::AtlasService service(service_options);
     job_options.work_dir = service_options.db.string() + ".work";
     orbatlas::UploadJobs jobs(service, job_options);

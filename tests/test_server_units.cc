@@ -8,7 +8,11 @@
 #include <opencv2/imgcodecs.hpp>
 #include <prometheus/text_serializer.h>
 
+#include "client/api/dataset_streamer.h"
 #include "core/common/error.h"
+#include "core/server/atlas_service.h"
+#include "core/server/upload_jobs.h"
+#include "server/http/http_api.h"
 #include "server/http/image_decode.h"
 #include "core/server/metrics_registry.h"
 #include "core/server/live_session.h"
@@ -162,6 +166,65 @@ TEST(PoseJson, RoundTrip) {
   const Pose3 back = pose_from_json(pose_to_json(pose));
   EXPECT_LT((back.t - pose.t).norm(), 1e-12);
   EXPECT_LT(rotation_distance(back, pose), 1e-12);
+}
+
+// The server's and the streaming client's options refuse values they cannot
+// work with, naming the option (checked before anything starts).
+template <class Options, class Change>
+void expect_refused(Options options, Change change, const std::string& field) {
+  change(options);
+  try {
+    options.check();
+    ADD_FAILURE() << field << ": accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+  }
+}
+
+TEST(ServerOptions, CheckThemselves) {
+  AtlasServiceOptions service;
+  service.db = "/tmp/x.db";
+  EXPECT_NO_THROW(service.check());
+  expect_refused(
+      service, [](auto& o) { o.db.clear(); }, "--db");
+  expect_refused(
+      service, [](auto& o) { o.max_live_sessions = 0; }, "max_live_sessions");
+  expect_refused(
+      service, [](auto& o) { o.max_imu_gap_s = 0.0; }, "max_imu_gap_s");
+  expect_refused(
+      service, [](auto& o) { o.loop_queue = 0; }, "loop_queue");
+  expect_refused(
+      service, [](auto& o) { o.merging.queue_capacity = 0; }, "queue_capacity");
+  expect_refused(
+      service, [](auto& o) { o.slam.new_map_after_failed_relocalizations = -1; },
+      "new_map_after_failed_relocalizations");
+
+  UploadJobOptions jobs;
+  jobs.work_dir = "/tmp/work";
+  EXPECT_NO_THROW(jobs.check());
+  expect_refused(
+      jobs, [](auto& o) { o.work_dir.clear(); }, "work folder");
+  expect_refused(
+      jobs, [](auto& o) { o.workers = 0; }, "workers");
+  expect_refused(
+      jobs, [](auto& o) { o.max_queued = 0; }, "max_queued");
+
+  HttpApiOptions http;
+  EXPECT_NO_THROW(http.check());
+  expect_refused(
+      http, [](auto& o) { o.max_body_bytes = 0; }, "max_body_bytes");
+  expect_refused(
+      http, [](auto& o) { o.max_upload_bytes = 0; }, "max_upload_bytes");
+
+  StreamOptions stream;
+  stream.dataset = "/tmp/MH_01";
+  EXPECT_NO_THROW(stream.check());
+  expect_refused(
+      stream, [](auto& o) { o.rate = -1.0; }, "rate");
+  expect_refused(
+      stream, [](auto& o) { o.start_s = -2.0; }, "start_s");
+  expect_refused(
+      stream, [](auto& o) { o.duration_s = 0.0; }, "duration_s");
 }
 
 }  // namespace

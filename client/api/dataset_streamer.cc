@@ -1,6 +1,7 @@
 #include "client/api/dataset_streamer.h"
 
 #include <chrono>
+#include <cmath>
 #include <fstream>
 #include <thread>
 #include <unistd.h>
@@ -24,7 +25,16 @@ double ms_between(Clock::time_point a, Clock::time_point b) {
 
 }  // namespace
 
+void StreamOptions::check() const {
+  ORBATLAS_CHECK(!dataset.empty(), "stream: no dataset folder given");
+  ORBATLAS_CHECK(rate >= 0.0 && std::isfinite(rate), "stream: rate must be >= 0 (0: no pacing), not " << rate);
+  ORBATLAS_CHECK(start_s >= 0.0 && std::isfinite(start_s), "stream: start_s must be >= 0 s, not " << start_s);
+  ORBATLAS_CHECK(!duration_s || (*duration_s > 0.0 && std::isfinite(*duration_s)),
+                 "stream: duration_s must be > 0 s, not " << duration_s.value_or(0.0));
+}
+
 StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) {
+  options.check();
   EurocReadOptions read_options;
   read_options.require_cam1 = false;  // a single camera needs cam0 only
   const EurocDataset dataset = read_euroc_dataset(options.dataset, read_options);

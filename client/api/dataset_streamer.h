@@ -26,6 +26,9 @@ struct StreamOptions {
   double start_s = 0.0;
   std::optional<double> duration_s;
   bool show_progress = true;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct StreamReport {

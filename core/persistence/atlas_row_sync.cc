@@ -7,8 +7,8 @@ namespace {
 
 // Walks two vectors sorted by key once, calling only_old / only_new / both.
 template <class T, class KeyOf, class OnlyOld, class OnlyNew, class Both>
-void merge_sorted(const std::vector<T>& old_rows, const std::vector<T>& new_rows, KeyOf key, OnlyOld only_old,
-                  OnlyNew only_new, Both both) {
+void walk_sorted_pair(const std::vector<T>& old_rows, const std::vector<T>& new_rows, KeyOf key, OnlyOld only_old,
+                      OnlyNew only_new, Both both) {
   auto a = old_rows.begin(), b = new_rows.begin();
   while (a != old_rows.end() || b != new_rows.end()) {
     if (b == new_rows.end() || (a != old_rows.end() && key(*a) < key(*b))) {
@@ -74,7 +74,7 @@ class RowSync {
   }
 
   void delete_links() {
-    merge_sorted(
+    walk_sorted_pair(
         before_.keyframes, now_.keyframes, keyframe_id,
         [&](const KeyframeRow& gone) {
           // Its observations and its own covisibility rows cascade with it.
@@ -89,7 +89,7 @@ class RowSync {
             w_.delete_observation(old_row.id, slot);
             if (is == kNoMapPoint) ++counts_.deleted;  // otherwise re-inserted below: an update
           }
-          merge_sorted(
+          walk_sorted_pair(
               old_row.covisibility, new_row.covisibility, neighbour_id,
               [&](const CovisibilityEdge& e) {
                 w_.delete_covisibility(old_row.id, e.keyframe);
@@ -97,7 +97,7 @@ class RowSync {
               },
               ignore<CovisibilityEdge>(), [](const CovisibilityEdge&, const CovisibilityEdge&) {});
         });
-    merge_sorted(
+    walk_sorted_pair(
         before_.loop_edges, now_.loop_edges, edge_key,
         [&](const LoopEdge& e) {
           w_.delete_loop_edge(e);
@@ -107,21 +107,21 @@ class RowSync {
   }
 
   void delete_objects() {
-    merge_sorted(
+    walk_sorted_pair(
         before_.points, now_.points, point_id,
         [&](const MapPointRow& gone) {
           w_.delete_map_point(gone.id);
           ++counts_.deleted;
         },
         ignore<MapPointRow>(), [](const MapPointRow&, const MapPointRow&) {});
-    merge_sorted(
+    walk_sorted_pair(
         before_.keyframes, now_.keyframes, keyframe_id,
         [&](const KeyframeRow& gone) {
           w_.delete_keyframe(gone.id);
           ++counts_.deleted;
         },
         ignore<KeyframeRow>(), [](const KeyframeRow&, const KeyframeRow&) {});
-    merge_sorted(
+    walk_sorted_pair(
         before_.culled, now_.culled, culled_id,
         [&](const CulledKeyframeRow& gone) {
           w_.delete_culled_keyframe(gone.anchor.id);
@@ -133,7 +133,7 @@ class RowSync {
   // Keyframes, then map points and culled keyframes (whose ids the keyframe
   // rows deleted above may have held).
   void write_objects() {
-    merge_sorted(
+    walk_sorted_pair(
         before_.keyframes, now_.keyframes, keyframe_id, ignore<KeyframeRow>(),
         [&](const KeyframeRow& added) {
           w_.insert_keyframe(added);
@@ -144,7 +144,7 @@ class RowSync {
           w_.update_keyframe(new_row);
           ++counts_.updated;
         });
-    merge_sorted(
+    walk_sorted_pair(
         before_.points, now_.points, point_id, ignore<MapPointRow>(),
         [&](const MapPointRow& added) {
           w_.upsert_map_point(added);
@@ -155,7 +155,7 @@ class RowSync {
           w_.upsert_map_point(new_row);
           ++counts_.updated;
         });
-    merge_sorted(
+    walk_sorted_pair(
         before_.culled, now_.culled, culled_id, ignore<CulledKeyframeRow>(),
         [&](const CulledKeyframeRow& added) {
           w_.upsert_culled_keyframe(added);
@@ -169,7 +169,7 @@ class RowSync {
   }
 
   void write_links() {
-    merge_sorted(
+    walk_sorted_pair(
         before_.keyframes, now_.keyframes, keyframe_id, ignore<KeyframeRow>(),
         [&](const KeyframeRow& added) {
           for (std::size_t slot = 0; slot < added.slots.size(); ++slot) {
@@ -190,7 +190,7 @@ class RowSync {
             w_.insert_observation(new_row.id, slot, is);
             ++(was == kNoMapPoint ? counts_.inserted : counts_.updated);
           }
-          merge_sorted(
+          walk_sorted_pair(
               old_row.covisibility, new_row.covisibility, neighbour_id, ignore<CovisibilityEdge>(),
               [&](const CovisibilityEdge& e) {
                 w_.upsert_covisibility(new_row.id, e);
@@ -202,7 +202,7 @@ class RowSync {
                 ++counts_.updated;
               });
         });
-    merge_sorted(
+    walk_sorted_pair(
         before_.loop_edges, now_.loop_edges, edge_key, ignore<LoopEdge>(),
         [&](const LoopEdge& e) {
           w_.insert_loop_edge(e);

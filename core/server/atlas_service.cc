@@ -1,6 +1,7 @@
 #include "core/server/atlas_service.h"
 
 #include <chrono>
+#include <cmath>
 #include <fstream>
 #include <regex>
 #include <sstream>
@@ -112,12 +113,22 @@ struct AtlasService::LocalizerContext {
   Pose3 T_b_c;
 };
 
+void AtlasServiceOptions::check() const {
+  ORBATLAS_CHECK(!db.empty(), "the server needs a database path (--db)");
+  ORBATLAS_CHECK(max_live_sessions > 0, "server: max_live_sessions must be > 0, not " << max_live_sessions);
+  ORBATLAS_CHECK(!std::isnan(idle_timeout_s), "server: idle_timeout_s is not a number");
+  ORBATLAS_CHECK(max_imu_gap_s > 0.0 && std::isfinite(max_imu_gap_s),
+                 "server: max_imu_gap_s must be > 0 s, not " << max_imu_gap_s);
+  ORBATLAS_CHECK(loop_queue > 0, "server: loop_queue must be > 0, not " << loop_queue);
+  slam.check();
+  merging.check();
+}
+
 AtlasService::AtlasService(AtlasServiceOptions options)
-    : options_(std::move(options)),
+    : options_((options.check(), std::move(options))),
       db_lock_(options_.db.empty() ? nullptr : std::make_unique<DatabaseLock>(options_.db)),
       vocabulary_(Vocabulary::load(options_.vocabulary.empty() ? default_vocabulary_path() : options_.vocabulary)),
-      loop_worker_(std::make_shared<SerialWorker>(std::max<std::size_t>(options_.loop_queue, 1))) {
-  ORBATLAS_CHECK(!options_.db.empty(), "the server needs a database path (--db)");
+      loop_worker_(std::make_shared<SerialWorker>(options_.loop_queue)) {
   const auto start = std::chrono::steady_clock::now();
   {
     AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());

@@ -63,6 +63,9 @@ struct AtlasServiceOptions {
   // (a full queue skips a keyframe, counted in the session's loop statistics).
   std::size_t loop_queue = 64;
   MapMergeWorkerOptions merging;
+
+  // Throws Error naming the first value out of range (also of the parts).
+  void check() const;
 };
 
 // Settings of a new session or of a localisation request: a config name

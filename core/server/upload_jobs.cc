@@ -34,9 +34,14 @@ struct RemoveOnExit {
 
 }  // namespace
 
+void UploadJobOptions::check() const {
+  ORBATLAS_CHECK(!work_dir.empty(), "uploads need a work folder");
+  ORBATLAS_CHECK(workers > 0, "uploads: workers must be > 0, not " << workers);
+  ORBATLAS_CHECK(max_queued > 0, "uploads: max_queued must be > 0, not " << max_queued);
+}
+
 UploadJobs::UploadJobs(AtlasService& service, UploadJobOptions options)
-    : service_(service), options_(std::move(options)), queue_(std::max<std::size_t>(1, options_.max_queued)) {
-  ORBATLAS_CHECK(!options_.work_dir.empty(), "uploads need a work folder");
+    : service_(service), options_((options.check(), std::move(options))), queue_(options_.max_queued) {
   // What an earlier run left (a killed upload, an extraction cut short) is
   // nobody's any more: no job reads what it did not write itself.
   std::error_code ec;

@@ -32,6 +32,9 @@ struct UploadJobOptions {
   std::filesystem::path work_dir;  // uploads and their extracted folders (cleaned up per job)
   std::size_t workers = 1;
   std::size_t max_queued = 8;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 class UploadJobs {

@@ -7,7 +7,7 @@
 #include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/loop/global_adjustment_merge.h"
-#include "core/slam/index_relocalizer.h"
+#include "core/place/index_relocalizer.h"
 #include "core/slam/slam_tuning.h"
 
 namespace orbatlas {

@@ -464,7 +464,14 @@ std::pair<std::string, std::string> status_code_and_message(int status, const Re
 
 }  // namespace
 
+void HttpApiOptions::check() const {
+  ORBATLAS_CHECK(max_body_bytes > 0, "http: max_body_bytes must be > 0");
+  ORBATLAS_CHECK(max_upload_bytes > 0, "http: max_upload_bytes must be > 0");
+  for (const auto& [from, _] : redactions) ORBATLAS_CHECK(!from.empty(), "http: a redaction of the empty text");
+}
+
 void install_http_api(httplib::Server& server, AtlasService& service, const HttpApiOptions& options, UploadJobs* jobs) {
+  options.check();
   const HttpApiOptions opts = options;
   auto context = std::make_shared<ErrorContext>();
   context->redactions = options.redactions;

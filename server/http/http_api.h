@@ -33,6 +33,9 @@ struct HttpApiOptions {
   std::function<void()> on_request_end;
   // More metrics for /metrics (the HTTP server's connection figures).
   std::function<std::vector<prometheus::MetricFamily>()> extra_metrics;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 // The redactions for a service's paths (its database, work folder, configs).

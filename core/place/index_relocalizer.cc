@@ -1,4 +1,4 @@
-#include "core/slam/index_relocalizer.h"
+#include "core/place/index_relocalizer.h"
 
 namespace orbatlas {
 
