@@ -75,6 +75,7 @@ Timing time_solver(const std::vector<Problem>& problems, int repeats, Solve&& so
 }  // namespace
 
 void run_alignment_bench(const AlignmentBenchOptions& options) {
+  options.check();
   std::mt19937 rng(7);
   nlohmann::json out = {{"problems", options.problems}};
   for (const int points : {3, 100}) {

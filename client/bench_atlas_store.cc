@@ -114,8 +114,7 @@ void remove_database(const fs::path& path) {
 }  // namespace
 
 void run_atlas_store_bench(const AtlasStoreBenchOptions& o) {
-  ORBATLAS_CHECK(o.keyframes >= 2 && o.keypoints > 0 && o.points_per_keyframe >= 0,
-                 "bench atlas-store needs at least 2 keyframes and some keypoints");
+  o.check();
   const fs::path db = o.database.empty() ? fs::temp_directory_path() /
                                                ("orbatlas_bench_atlas_store_" + std::to_string(::getpid()) + ".db")
                                          : o.database;

@@ -36,6 +36,7 @@ cv::Mat read_gray(const std::filesystem::path& path) {
 }  // namespace
 
 void run_feature_bench(const FeatureBenchOptions& o) {
+  o.check();
   cv::setNumThreads(1);  // single-thread figures: OpenCV's resize/blur would otherwise use every core
   const auto config = o.config.empty() ? shipped_config_dir() / "euroc" / "stereo.yaml" : o.config;
   const SlamSettings settings = read_settings(config, SensorType::kStereo);

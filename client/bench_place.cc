@@ -52,6 +52,7 @@ struct MappedKeyframe {
 }  // namespace
 
 void run_place_bench(const PlaceBenchOptions& o) {
+  o.check();
   const auto config = o.config.empty() ? shipped_config_dir() / "euroc" / "stereo.yaml" : o.config;
   const SlamSettings settings = read_settings(config, SensorType::kStereo);
   const Vocabulary vocabulary = Vocabulary::load(o.vocabulary.empty() ? default_vocabulary_path() : o.vocabulary);

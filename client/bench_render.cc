@@ -23,6 +23,7 @@ double percentile(std::vector<double> v, double p) {
 }
 
 void run_render_bench(const RenderBenchOptions& o) {
+  o.check();
   cv::setNumThreads(1);  // one core: cv::remap would otherwise use every core
   using Clock = std::chrono::steady_clock;
   const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo_inertial.yaml");

@@ -10,6 +10,9 @@ struct RenderBenchOptions {
   std::string sequence = "MH_01";
   int frames = 200;
   bool json = false;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 void run_render_bench(const RenderBenchOptions& options);
 
@@ -20,6 +23,9 @@ struct FeatureBenchOptions {
   int frames = 100;
   int database_keyframes = 1000;
   bool json = false;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 void run_feature_bench(const FeatureBenchOptions& options);
 
@@ -30,12 +36,18 @@ struct AtlasStoreBenchOptions {
   std::filesystem::path vocabulary;  // default: the shipped vocabulary (loading recomputes BoW with it)
   std::filesystem::path database;    // default: a temporary file, removed at the end
   bool json = false;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 void run_atlas_store_bench(const AtlasStoreBenchOptions& options);
 
 struct AlignmentBenchOptions {
   int problems = 2000;  // random Sim(3) problems per size
   bool json = false;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 void run_alignment_bench(const AlignmentBenchOptions& options);
 
@@ -47,6 +59,9 @@ struct PlaceBenchOptions {
   double revisit_m = 0.75, revisit_deg = 20.0;  // how close to a keyframe a query must be
   bool json = false;
   bool show_progress = true;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 void run_place_bench(const PlaceBenchOptions& options);
 

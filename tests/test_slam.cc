@@ -229,6 +229,31 @@ TEST(SlamTuning, SettingsKeysSetTheOptionsAndBadOnesAreRefused) {
   EXPECT_NE(refused({{"Tracker.MinInliers", 1e9}}).find("must be in"), std::string::npos);
   EXPECT_NE(refused({{"Tracker.MinInliers", 30.5}}).find("whole number"), std::string::npos);
   EXPECT_NE(refused({{"LoopClosing.Enabled", 2}}).find("must be in"), std::string::npos);
+  EXPECT_NE(refused({{"Tracker.MinInliers", -1}}).find("'Orbatlas.Tracker.MinInliers'"), std::string::npos);
+  // A value in its range that the resulting options refuse (their check()) names its key.
+  StereoSlamOptions localizing;
+  localizing.tracker.localization_only = true;
+  try {
+    apply_slam_tuning({{"Tracker.MinInliers", 40}, {"Tracker.Relocalization", 0}}, localizing);
+    ADD_FAILURE() << "localisation without a relocaliser accepted";
+  } catch (const DataError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("'Orbatlas.Tracker.Relocalization' = 0"), std::string::npos) << what;
+    EXPECT_EQ(what.find("MinInliers"), std::string::npos) << what;
+    EXPECT_NE(what.find("relocalization must be on"), std::string::npos) << what;
+  }
+  EXPECT_TRUE(localizing.relocalization) << "changed before refusing";
+  // Options out of range before any key applies: check()'s Error, not the settings' fault.
+  StereoSlamOptions broken;
+  broken.tracker.th_depth_m = -1.0;
+  try {
+    apply_slam_tuning({{"Tracker.MinInliers", 40}}, broken);
+    ADD_FAILURE() << "out-of-range options accepted";
+  } catch (const DataError& e) {
+    ADD_FAILURE() << "the settings were blamed: " << e.what();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("th_depth_m"), std::string::npos) << e.what();
+  }
   EXPECT_THROW(read_settings_text(text + "Orbatlas.Tracker.MinInliers2: many\n", "bad.yaml", SensorType::kStereo),
                DataError);  // not a number
 

@@ -35,6 +35,14 @@ int count_inliers(const Pose3& T_c_w, const opengv::bearingVectors_t& bearings, 
 
 }  // namespace
 
+void PnpRansacOptions::check() const {
+  ORBATLAS_CHECK(max_iterations >= 1, "PnP: max_iterations must be >= 1, not " << max_iterations);
+  ORBATLAS_CHECK(max_angle_rad > 0.0 && max_angle_rad <= M_PI,
+                 "PnP: max_angle_rad must be in (0, pi], not " << max_angle_rad);
+  ORBATLAS_CHECK(min_inliers >= 0, "PnP: min_inliers must be >= 0, not " << min_inliers);
+  ORBATLAS_CHECK(confidence >= 0.0 && confidence < 1.0, "PnP: confidence must be in [0, 1), not " << confidence);
+}
+
 PnpRansacResult solve_pnp_ransac(const std::vector<Eigen::Vector3d>& bearings,
                                  const std::vector<Eigen::Vector3d>& points_w, const PnpRansacOptions& options) {
   ORBATLAS_CHECK(bearings.size() == points_w.size(),

@@ -20,6 +20,9 @@ struct PnpRansacOptions {
   int min_inliers = 15;
   double confidence = 0.99;  // stop early when this sure to have drawn an all-inlier sample
   std::uint64_t seed = 1;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct PnpRansacResult {

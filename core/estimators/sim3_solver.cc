@@ -10,13 +10,18 @@
 
 namespace orbatlas {
 
+void Sim3SolverOptions::check() const {
+  ORBATLAS_CHECK(probability > 0.0 && probability < 1.0,
+                 "Sim3Solver: probability must be in (0, 1), not " << probability);
+  ORBATLAS_CHECK(min_inliers >= 0, "Sim3Solver: min_inliers must be >= 0, not " << min_inliers);
+  ORBATLAS_CHECK(max_iterations >= 0, "Sim3Solver: max_iterations must be >= 0, not " << max_iterations);
+  ORBATLAS_CHECK(chi2 > 0.0, "Sim3Solver: chi2 must be > 0, not " << chi2);
+}
+
 Sim3Solver::Sim3Solver(std::vector<Sim3Match> matches, const Camera& camera1, const Camera& camera2,
                        const Sim3SolverOptions& options)
     : matches_(std::move(matches)), camera1_(&camera1), camera2_(&camera2), options_(options), rng_(options.seed) {
-  ORBATLAS_CHECK(options.probability > 0.0 && options.probability < 1.0,
-                 "Sim3Solver: probability must be in (0, 1), got " << options.probability);
-  ORBATLAS_CHECK(options.max_iterations >= 0, "Sim3Solver: negative max_iterations " << options.max_iterations);
-  ORBATLAS_CHECK(options.chi2 > 0.0, "Sim3Solver: chi2 threshold must be positive, got " << options.chi2);
+  options_.check();
   for (std::size_t i = 0; i < matches_.size(); ++i) {
     const Sim3Match& m = matches_[i];
     ORBATLAS_CHECK(m.level_sigma2_1 > 0.0 && std::isfinite(m.level_sigma2_1) && m.level_sigma2_2 > 0.0 &&

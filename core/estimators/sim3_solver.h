@@ -35,6 +35,9 @@ struct Sim3SolverOptions {
   bool fix_scale = false;     // true for stereo / RGB-D (scale 1, SE3)
   double chi2 = 9.210;        // per image, times the keypoint's level sigma^2
   std::uint64_t seed = 1;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct Sim3SolverResult {

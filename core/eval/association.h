@@ -12,6 +12,9 @@ struct AssociationOptions {
   TimestampNs max_gap_ns = 100'000'000;  // 0.1 s
   // A ground-truth sample this close to the estimate's timestamp is used as is.
   TimestampNs exact_tol_ns = 1'000;  // 1 us
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct PosePair {

@@ -36,7 +36,15 @@ Coverage trajectory_coverage(const Trajectory& estimate, const std::vector<std::
   return c;
 }
 
+void EvalOptions::check() const {
+  ORBATLAS_CHECK(align == AlignMode::kNone || align == AlignMode::kSe3 || align == AlignMode::kSim3,
+                 "eval: align must be none, se3 or sim3, not " << static_cast<int>(align));
+  association.check();
+  ORBATLAS_CHECK(rpe_delta_ns > 0, "eval: rpe_delta_ns must be > 0, not " << rpe_delta_ns);
+}
+
 EvalResult evaluate_trajectory(const Trajectory& estimate, const Trajectory& ground_truth, const EvalOptions& options) {
+  options.check();
   EvalResult result;
   result.align = options.align;
   result.est_poses = estimate.size();

@@ -19,6 +19,9 @@ struct EvalOptions {
   // evaluated together); empty: the ground truth's first to last pose.
   // `orbatlas eval` passes each dataset's camera frames.
   std::vector<std::pair<TimestampNs, TimestampNs>> spans;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 // How much of a time span an estimate covers: the time between consecutive

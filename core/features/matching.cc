@@ -32,6 +32,22 @@ void keep_unique_in_b(std::size_t b_count, std::vector<FeatureMatch>& matches) {
 
 }  // namespace
 
+void BruteForceMatchOptions::check() const {
+  ORBATLAS_CHECK(max_distance >= 0, "matching: max_distance must be >= 0, not " << max_distance);
+  ORBATLAS_CHECK(ratio >= 0.0f && ratio <= 1.0f, "matching: ratio must be in [0, 1], not " << ratio);
+}
+
+void GuidedMatchOptions::check() const {
+  ORBATLAS_CHECK(std::isfinite(radius_px) && radius_px >= 0.0f,
+                 "guided matching: radius_px must be a finite value >= 0, not " << radius_px);
+  ORBATLAS_CHECK(std::isfinite(level_scale) && level_scale > 0.0f,
+                 "guided matching: level_scale must be a finite value > 0, not " << level_scale);
+  ORBATLAS_CHECK(level_window >= -1,
+                 "guided matching: level_window must be >= -1 (-1: any level), not " << level_window);
+  ORBATLAS_CHECK(max_distance >= 0, "guided matching: max_distance must be >= 0, not " << max_distance);
+  ORBATLAS_CHECK(ratio >= 0.0f && ratio <= 1.0f, "guided matching: ratio must be in [0, 1], not " << ratio);
+}
+
 void BestTwo::add(std::size_t candidate, int distance) {
   if (distance < best) {
     second = best;

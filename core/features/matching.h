@@ -79,6 +79,9 @@ struct BruteForceMatchOptions {
   int max_distance = kHammingHigh;
   float ratio = 0.8f;             // best < ratio * second-best over all of b
   bool check_orientation = true;  // RotationHistogram filter
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 // Every keypoint of `a` against every keypoint of `b`; the best one is kept if it
@@ -98,6 +101,9 @@ struct GuidedMatchOptions {
   int max_distance = kHammingHigh;
   float ratio = 0.9f;  // best < ratio * second-best among the candidates in the window
   bool check_orientation = true;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 // For each keypoint i of `a` with a finite prediction predicted_uv_b[i] (its

@@ -91,6 +91,16 @@ std::size_t StereoDepths::matched() const {
   return static_cast<std::size_t>(std::count_if(depth.begin(), depth.end(), [](float d) { return d > 0.0f; }));
 }
 
+void StereoMatchOptions::check() const {
+  ORBATLAS_CHECK(max_hamming >= 0, "stereo matching: max_hamming must be >= 0, not " << max_hamming);
+  // A one-pixel zero-mean SAD is always 0: no disparity could be refined.
+  ORBATLAS_CHECK(sad_half_window >= 1, "stereo matching: sad_half_window must be >= 1, not " << sad_half_window);
+  ORBATLAS_CHECK(sad_search >= 0, "stereo matching: sad_search must be >= 0, not " << sad_search);
+  ORBATLAS_CHECK(std::isfinite(min_depth_baselines) && min_depth_baselines > 0.0,
+                 "stereo matching: min_depth_baselines must be a finite value > 0, not " << min_depth_baselines);
+  ORBATLAS_CHECK(outlier_factor > 0.0, "stereo matching: outlier_factor must be > 0, not " << outlier_factor);
+}
+
 StereoDepths match_stereo_rectified(const ImageFeatures& left, const std::vector<cv::Mat>& left_pyramid,
                                     const ImageFeatures& right, const std::vector<cv::Mat>& right_pyramid,
                                     const std::vector<double>& scale_factors, double bf, double baseline,

@@ -41,6 +41,9 @@ struct StereoMatchOptions {
   int sad_search = 3;                 // +- full-resolution pixels around the descriptor match (plus the level scale)
   double min_depth_baselines = 1.0;   // nearest depth accepted, in baselines (max disparity = fx)
   double outlier_factor = 1.5 * 1.4;  // SAD cost above factor * median is rejected
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct StereoDepths {

@@ -5,7 +5,20 @@
 #include <limits>
 #include <opencv2/video/tracking.hpp>
 
+#include "core/common/error.h"
+
 namespace orbatlas {
+
+void TriangulatedStereoOptions::check() const {
+  ORBATLAS_CHECK(max_hamming >= 0, "triangulated stereo: max_hamming must be >= 0, not " << max_hamming);
+  ORBATLAS_CHECK(ratio >= 0.0 && ratio <= 1.0, "triangulated stereo: ratio must be in [0, 1], not " << ratio);
+  ORBATLAS_CHECK(max_reprojection_sigma2 > 0.0,
+                 "triangulated stereo: max_reprojection_sigma2 must be > 0, not " << max_reprojection_sigma2);
+  ORBATLAS_CHECK(min_parallax_deg >= 0.0 && min_parallax_deg <= 180.0,
+                 "triangulated stereo: min_parallax_deg must be in [0, 180], not " << min_parallax_deg);
+  // cv::calcOpticalFlowPyrLK needs a window of at least 3x3.
+  ORBATLAS_CHECK(sad_half_window >= 1, "triangulated stereo: sad_half_window must be >= 1, not " << sad_half_window);
+}
 
 bool triangulate_rays(const Eigen::Vector3d& o1, const Eigen::Vector3d& d1, const Eigen::Vector3d& o2,
                       const Eigen::Vector3d& d2, Eigen::Vector3d* point) {

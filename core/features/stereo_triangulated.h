@@ -19,6 +19,9 @@ struct TriangulatedStereoOptions {
   double max_reprojection_sigma2 = 5.991;  // chi2(2 dof, 95%) in units of the level's sigma^2
   double min_parallax_deg = 0.05;
   int sad_half_window = 7;  // sub-pixel refinement window half size (15x15 Lucas-Kanade)
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct TriangulatedStereo {

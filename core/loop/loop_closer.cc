@@ -25,7 +25,12 @@ class MappingPause {
 }  // namespace
 
 void LoopCloserOptions::check() const {
-  ORBATLAS_CHECK(queue_capacity > 0, "loop closing: queue_capacity must be > 0");
+  ORBATLAS_CHECK(queue_capacity > 0, "loop closing: queue_capacity must be > 0, not " << queue_capacity);
+  recognition.check();
+  correction.check();
+  global.check();
+  merge_recognition.check();
+  merge.check();
 }
 
 LoopCloser::LoopCloser(Atlas& atlas, FrameCamera cam, LocalMapper& mapper, LoopCloserOptions options,

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <set>
 #include <unordered_map>
 #include <unordered_set>
@@ -174,9 +175,18 @@ void apply_solution(Map& map, const CorrectedGroup& g, const GraphSolution& solu
 
 }  // namespace
 
+void LoopCorrectionOptions::check() const {
+  ORBATLAS_CHECK(std::isfinite(fusion_th) && fusion_th >= 0.0f,
+                 "loop correction: fusion_th must be a finite value >= 0, not " << fusion_th);
+  ORBATLAS_CHECK(strong_covisibility >= 0,
+                 "loop correction: strong_covisibility must be >= 0, not " << strong_covisibility);
+  graph.check();
+}
+
 LoopCorrectionStats correct_loop(Map& map, const PlaceMatch& loop, const FrameCamera& cam,
                                  const LoopCorrectionOptions& options) {
   const auto start = std::chrono::steady_clock::now();
+  options.check();
   LoopCorrectionStats stats;
   ORBATLAS_CHECK(loop.current && loop.matched, "loop correction needs both keyframes");
   ORBATLAS_CHECK(loop.current->map_id() == map.id() && loop.matched->map_id() == map.id(),

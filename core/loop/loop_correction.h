@@ -22,6 +22,9 @@ struct LoopCorrectionOptions {
   float fusion_th = 4.0f;         // ORB-SLAM's SearchAndFuse radius (pixels x scale)
   int strong_covisibility = 100;  // covisibility edges of the essential graph
   EssentialGraphOptions graph;    // fix_scale is forced for stereo maps
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct LoopCorrectionStats {

@@ -1,6 +1,7 @@
 #include "core/loop/map_merge.h"
 
 #include <chrono>
+#include <cmath>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -26,9 +27,15 @@ void join_spanning_trees(const std::shared_ptr<KeyFrame>& current, const std::sh
 
 }  // namespace
 
+void MapMergeOptions::check() const {
+  ORBATLAS_CHECK(std::isfinite(fusion_th) && fusion_th >= 0.0f,
+                 "map merge: fusion_th must be a finite value >= 0, not " << fusion_th);
+}
+
 MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamera& cam,
                          const MapMergeOptions& options) {
   const auto start = std::chrono::steady_clock::now();
+  options.check();
   const auto& current = match.current;
   const auto& matched = match.matched;
   ORBATLAS_CHECK(current && matched, "map merge needs both keyframes");

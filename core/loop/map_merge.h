@@ -20,6 +20,9 @@ namespace orbatlas {
 
 struct MapMergeOptions {
   float fusion_th = 4.0f;  // ORB-SLAM's SearchAndFuse radius (pixels x scale)
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct MapMergeStats {

@@ -1,6 +1,7 @@
 #include "core/loop/place_recognizer.h"
 
 #include <algorithm>
+#include <cmath>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -48,8 +49,32 @@ std::optional<Sim3Match> PlaceRecognizer::make_match(const KeyFrame& keyframe, c
   return Sim3Match{*p_a, p_m, ka.uv.cast<double>(), uv_m, cam_.pyramid.sigma2(ka.level), sigma2_m};
 }
 
+void PlaceRecognitionOptions::check() const {
+  ORBATLAS_CHECK(scope == PlaceScope::kSameMap || scope == PlaceScope::kOtherMaps,
+                 "place recognition: scope must be kSameMap or kOtherMaps, not " << static_cast<int>(scope));
+  ORBATLAS_CHECK(bow_ratio >= 0.0f && bow_ratio <= 1.0f,
+                 "place recognition: bow_ratio must be in [0, 1], not " << bow_ratio);
+  ORBATLAS_CHECK(min_bow_matches >= 0, "place recognition: min_bow_matches must be >= 0, not " << min_bow_matches);
+  ORBATLAS_CHECK(min_ransac_inliers >= 0,
+                 "place recognition: min_ransac_inliers must be >= 0, not " << min_ransac_inliers);
+  ORBATLAS_CHECK(std::isfinite(first_search_th) && first_search_th >= 0.0f,
+                 "place recognition: first_search_th must be a finite value >= 0, not " << first_search_th);
+  ORBATLAS_CHECK(min_projection_matches >= 0,
+                 "place recognition: min_projection_matches must be >= 0, not " << min_projection_matches);
+  ORBATLAS_CHECK(min_refined_inliers >= 0,
+                 "place recognition: min_refined_inliers must be >= 0, not " << min_refined_inliers);
+  ORBATLAS_CHECK(std::isfinite(second_search_th) && second_search_th >= 0.0f,
+                 "place recognition: second_search_th must be a finite value >= 0, not " << second_search_th);
+  ORBATLAS_CHECK(min_final_matches >= 0,
+                 "place recognition: min_final_matches must be >= 0, not " << min_final_matches);
+  ORBATLAS_CHECK(verify_matches >= 0, "place recognition: verify_matches must be >= 0, not " << verify_matches);
+  ORBATLAS_CHECK(verify_keyframes >= 0, "place recognition: verify_keyframes must be >= 0, not " << verify_keyframes);
+  ORBATLAS_CHECK(max_consecutive_failures >= 0,
+                 "place recognition: max_consecutive_failures must be >= 0, not " << max_consecutive_failures);
+}
+
 PlaceRecognizer::PlaceRecognizer(const KeyframeIndex& index, FrameCamera cam, PlaceRecognitionOptions options)
-    : index_(index), cam_(std::move(cam)), options_(std::move(options)) {
+    : index_(index), cam_(std::move(cam)), options_((options.check(), std::move(options))) {
   ORBATLAS_CHECK(cam_.camera != nullptr, "place recognition needs a camera");
 }
 

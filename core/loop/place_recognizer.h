@@ -53,6 +53,9 @@ struct PlaceRecognitionOptions {
   int max_consecutive_failures = 2;    // later keyframes failing in a row drop the hypothesis
   std::size_t verify_covisibles = 5;   // covisibles of the detecting keyframe tried at once
   std::uint64_t seed = 1;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct PlaceRecognitionStep {

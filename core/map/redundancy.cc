@@ -1,6 +1,13 @@
 #include "core/map/redundancy.h"
 
+#include "core/common/error.h"
+
 namespace orbatlas {
+
+void RedundancyOptions::check() const {
+  ORBATLAS_CHECK(redundant_fraction >= 0.0 && redundant_fraction <= 1.0,
+                 "keyframe culling: redundant_fraction must be in [0, 1], not " << redundant_fraction);
+}
 
 RedundancyCount count_redundant_scan(const KeyFrame& keyframe, int min_observers) {
   RedundancyCount count;

@@ -17,6 +17,9 @@ struct RedundancyOptions {
   // The keyframe is redundant when redundant > fraction * map_points. ORB-SLAM3
   // uses 0.9 (monocular) and counts only close points for stereo; see docs/map_model.md.
   double redundant_fraction = 0.9;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 // Scan: for every map point of the keyframe, count the other observers at the same

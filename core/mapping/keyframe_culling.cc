@@ -2,6 +2,8 @@
 
 #include <chrono>
 
+#include "core/common/error.h"
+
 namespace orbatlas {
 namespace {
 
@@ -10,6 +12,12 @@ double micros_since(std::chrono::steady_clock::time_point start) {
 }
 
 }  // namespace
+
+void KeyframeCullingOptions::check() const {
+  ORBATLAS_CHECK(scheme == CullingScheme::kScan || scheme == CullingScheme::kIncremental,
+                 "keyframe culling: scheme must be scan or incremental, not " << static_cast<int>(scheme));
+  redundancy.check();
+}
 
 const char* culling_scheme_name(CullingScheme scheme) {
   return scheme == CullingScheme::kScan ? "scan" : "incremental";

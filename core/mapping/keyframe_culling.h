@@ -22,6 +22,9 @@ struct KeyframeCullingOptions {
   CullingScheme scheme = CullingScheme::kIncremental;
   bool compare_schemes = false;  // also run the other scheme and count disagreements
   RedundancyOptions redundancy;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct KeyframeCullingResult {

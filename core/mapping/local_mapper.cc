@@ -1,6 +1,7 @@
 #include "core/mapping/local_mapper.h"
 
 #include <chrono>
+#include <cmath>
 #include <limits>
 #include <unordered_set>
 
@@ -27,11 +28,19 @@ int weighted_observations(const MapPoint& point) {
 
 }  // namespace
 
+void LocalMapperOptions::check() const {
+  ORBATLAS_CHECK(queue_capacity > 0, "local mapping: queue_capacity must be > 0, not " << queue_capacity);
+  ORBATLAS_CHECK(std::isfinite(fusion_radius) && fusion_radius >= 0.0f,
+                 "local mapping: fusion_radius must be a finite value >= 0, not " << fusion_radius);
+  culling.check();
+  bundle_adjustment.check();
+}
+
 LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options, KeyframeIndex* index)
     : atlas_(atlas),
       index_(index),
       cam_(std::move(cam)),
-      options_(std::move(options)),
+      options_((options.check(), std::move(options))),
       worker_(
           QueueWorkerOptions::own_thread("local mapping", options_.queue_capacity),
           [this](std::shared_ptr<KeyFrame>& keyframe) { run_one(keyframe); },

@@ -35,6 +35,9 @@ struct LocalMapperOptions {
   LocalBundleAdjustmentOptions bundle_adjustment;  // origin and level_sigma2 are filled in
   bool run_bundle_adjustment = true;
   bool run_culling = true;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 // Figures of a run (copies; safe to read while the mapper runs).

@@ -69,11 +69,16 @@ std::size_t find_root(std::vector<std::size_t>& parent, std::size_t a) {
 
 }  // namespace
 
+void EssentialGraphOptions::check() const {
+  ORBATLAS_CHECK(max_iterations >= 0, "essential graph: max_iterations must be >= 0, not " << max_iterations);
+  ORBATLAS_CHECK(num_threads >= 1, "essential graph: num_threads must be >= 1, not " << num_threads);
+}
+
 EssentialGraphResult optimize_essential_graph(const std::vector<PoseGraphNode>& nodes,
                                               const std::vector<PoseGraphEdge>& edges,
                                               const EssentialGraphOptions& options) {
   const auto start = std::chrono::steady_clock::now();
-  ORBATLAS_CHECK(options.max_iterations >= 0, "essential graph: negative max_iterations " << options.max_iterations);
+  options.check();
 
   std::unordered_map<std::uint64_t, std::size_t> index;
   index.reserve(nodes.size());

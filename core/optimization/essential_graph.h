@@ -54,6 +54,9 @@ struct EssentialGraphOptions {
   int max_iterations = 20;  // ORB-SLAM's OptimizeEssentialGraph
   bool fix_scale = false;   // stereo / RGB-D / mature inertial maps
   int num_threads = 1;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct EssentialGraphResult {

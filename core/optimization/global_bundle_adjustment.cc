@@ -4,13 +4,23 @@
 #include <algorithm>
 #include <chrono>
 
+#include "core/common/error.h"
 #include "core/optimization/bundle_problem.h"
 
 namespace orbatlas {
 
+void GlobalBundleAdjustmentOptions::check() const {
+  ORBATLAS_CHECK(iterations >= 0, "global BA: iterations must be >= 0, not " << iterations);
+  ORBATLAS_CHECK(huber_mono > 0.0, "global BA: huber_mono must be > 0, not " << huber_mono);
+  ORBATLAS_CHECK(huber_stereo > 0.0, "global BA: huber_stereo must be > 0, not " << huber_stereo);
+  check_level_sigma2(level_sigma2, "global BA");
+  ORBATLAS_CHECK(num_threads >= 1, "global BA: num_threads must be >= 1, not " << num_threads);
+}
+
 GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Camera& camera, double bf,
                                                       const GlobalBundleAdjustmentOptions& options,
                                                       const std::atomic<bool>* stop) {
+  options.check();
   const auto start = std::chrono::steady_clock::now();
   GlobalBundleAdjustmentResult result;
   const auto keyframes = map.keyframes();

@@ -27,6 +27,9 @@ struct GlobalBundleAdjustmentOptions {
   // Fixed for the gauge; by default the map's oldest live keyframe.
   std::optional<KeyframeId> origin;
   int num_threads = 1;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct GlobalBundleAdjustmentResult {

@@ -47,6 +47,17 @@ void write_back(const BundleProblem& lp) {
 
 }  // namespace
 
+void LocalBundleAdjustmentOptions::check() const {
+  ORBATLAS_CHECK(first_iterations >= 0, "local BA: first_iterations must be >= 0, not " << first_iterations);
+  ORBATLAS_CHECK(second_iterations >= 0, "local BA: second_iterations must be >= 0, not " << second_iterations);
+  ORBATLAS_CHECK(chi2_mono > 0.0, "local BA: chi2_mono must be > 0, not " << chi2_mono);
+  ORBATLAS_CHECK(chi2_stereo > 0.0, "local BA: chi2_stereo must be > 0, not " << chi2_stereo);
+  ORBATLAS_CHECK(huber_mono > 0.0, "local BA: huber_mono must be > 0, not " << huber_mono);
+  ORBATLAS_CHECK(huber_stereo > 0.0, "local BA: huber_stereo must be > 0, not " << huber_stereo);
+  check_level_sigma2(level_sigma2, "local BA");
+  ORBATLAS_CHECK(num_threads >= 1, "local BA: num_threads must be >= 1, not " << num_threads);
+}
+
 LocalBundleAdjustmentStats local_bundle_adjustment(Map& map, const std::shared_ptr<KeyFrame>& current,
                                                    const Camera& camera, double bf,
                                                    const LocalBundleAdjustmentOptions& options,

@@ -41,6 +41,9 @@ struct LocalBundleAdjustmentOptions {
   // from the map (ORB-SLAM discards them in EraseObservation); 0 never culls.
   std::size_t min_observers = 2;
   int num_threads = 1;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct LocalBundleAdjustmentStats {

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <memory>
 
+#include "core/common/error.h"
 #include "core/optimization/pose_parameters.h"
 #include "core/optimization/reprojection_residuals.h"
 
@@ -29,6 +30,21 @@ ceres::Solver::Options solver_options(int iterations) {
 }
 
 }  // namespace
+
+void PoseOptimizerOptions::check() const {
+  ORBATLAS_CHECK(rounds >= 0, "pose optimisation: rounds must be >= 0, not " << rounds);
+  ORBATLAS_CHECK(iterations_per_round >= 0,
+                 "pose optimisation: iterations_per_round must be >= 0, not " << iterations_per_round);
+  ORBATLAS_CHECK(robust_rounds >= 0, "pose optimisation: robust_rounds must be >= 0, not " << robust_rounds);
+  ORBATLAS_CHECK(chi2_mono > 0.0, "pose optimisation: chi2_mono must be > 0, not " << chi2_mono);
+  ORBATLAS_CHECK(chi2_stereo > 0.0, "pose optimisation: chi2_stereo must be > 0, not " << chi2_stereo);
+  ORBATLAS_CHECK(huber_mono > 0.0, "pose optimisation: huber_mono must be > 0, not " << huber_mono);
+  ORBATLAS_CHECK(huber_stereo > 0.0, "pose optimisation: huber_stereo must be > 0, not " << huber_stereo);
+  ORBATLAS_CHECK(min_correspondences >= 0,
+                 "pose optimisation: min_correspondences must be >= 0, not " << min_correspondences);
+  ORBATLAS_CHECK(min_round_inliers >= 0,
+                 "pose optimisation: min_round_inliers must be >= 0, not " << min_round_inliers);
+}
 
 PoseOptimizerResult optimize_pose(const Camera& camera, const PoseOptimizerInput& input,
                                   const PoseOptimizerOptions& options) {

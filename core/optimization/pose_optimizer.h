@@ -40,6 +40,9 @@ struct PoseOptimizerOptions {
   double huber_stereo = std::sqrt(kChi2Stereo95);
   int min_correspondences = 3;  // fewer: the pose is returned unchanged, no inliers
   int min_round_inliers = 10;   // stop the rounds when fewer inliers remain
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct PoseOptimizerResult {

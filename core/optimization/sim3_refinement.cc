@@ -52,10 +52,18 @@ ceres::Solver::Options solver_options(int iterations) {
 
 }  // namespace
 
+void Sim3RefinementOptions::check() const {
+  ORBATLAS_CHECK(chi2_threshold > 0.0, "Sim3 refinement: chi2_threshold must be > 0, not " << chi2_threshold);
+  ORBATLAS_CHECK(first_iterations >= 0, "Sim3 refinement: first_iterations must be >= 0, not " << first_iterations);
+  ORBATLAS_CHECK(second_iterations >= 0, "Sim3 refinement: second_iterations must be >= 0, not " << second_iterations);
+  ORBATLAS_CHECK(second_iterations_clean >= 0,
+                 "Sim3 refinement: second_iterations_clean must be >= 0, not " << second_iterations_clean);
+  ORBATLAS_CHECK(min_inliers >= 0, "Sim3 refinement: min_inliers must be >= 0, not " << min_inliers);
+}
+
 Sim3RefinementResult refine_sim3(const Sim3& S_1_2_initial, const std::vector<Sim3Match>& matches,
                                  const Camera& camera1, const Camera& camera2, const Sim3RefinementOptions& options) {
-  ORBATLAS_CHECK(options.chi2_threshold > 0.0,
-                 "refine_sim3: chi2 threshold must be positive, got " << options.chi2_threshold);
+  options.check();
   const std::size_t n = matches.size();
   Sim3RefinementResult result;
   result.S_1_2 = S_1_2_initial;

@@ -30,6 +30,9 @@ struct Sim3RefinementOptions {
   int second_iterations_clean = 5;  // when no outlier was dropped
   bool robust_second_pass = true;   // ORB-SLAM keeps the Huber kernel in the second pass
   int min_inliers = 10;             // fewer matches left after the first pass: failure (ORB-SLAM returns 0)
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct Sim3RefinementResult {

@@ -2,19 +2,27 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <sstream>
 
+#include "core/common/error.h"
 #include "core/common/log.h"
 
 namespace orbatlas {
 
 using Clock = std::chrono::steady_clock;
 
+void CheckpointOptions::check() const {
+  ORBATLAS_CHECK(!std::isnan(every_seconds),
+                 "atlas checkpoints: every_seconds (--checkpoint-seconds) must be a number (<= 0: no timer), not "
+                     << every_seconds);
+}
+
 AtlasCheckpointer::AtlasCheckpointer(const Atlas& atlas, const std::filesystem::path& path,
                                      const std::string& vocabulary_hash, CheckpointOptions options,
                                      std::optional<CheckpointSession> session)
     : path_(path),
-      options_(std::move(options)),
+      options_((options.check(), std::move(options))),
       writer_(atlas, AtlasStore::open(path, vocabulary_hash), std::move(session)) {
   // A checkpoint is superseded by the next one within seconds: a commit that
   // survives a crash of the process is enough (docs/schema.md).

@@ -29,6 +29,9 @@ struct CheckpointOptions {
   // Called on the checkpoint thread just before a checkpoint opens its write
   // transaction (instrumentation; the crash-safety test marks it in a pipe).
   std::function<void()> before_transaction;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct CheckpointStats {

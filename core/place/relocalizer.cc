@@ -1,7 +1,9 @@
 #include "core/place/relocalizer.h"
 
+#include <cmath>
 #include <unordered_set>
 
+#include "core/common/error.h"
 #include "core/map/map_point.h"
 #include "core/tracking/frame_pose.h"
 #include "core/tracking/projection_search.h"
@@ -71,8 +73,19 @@ int solve_pose(Frame& frame, const KeyFrame& kf, const FrameCamera& cam, const P
 
 }  // namespace
 
+void RelocalizationOptions::check() const {
+  ORBATLAS_CHECK(min_bow_matches >= 0, "relocalisation: min_bow_matches must be >= 0, not " << min_bow_matches);
+  ORBATLAS_CHECK(bow_ratio >= 0.0f && bow_ratio <= 1.0f,
+                 "relocalisation: bow_ratio must be in [0, 1], not " << bow_ratio);
+  ORBATLAS_CHECK(min_inliers >= 0, "relocalisation: min_inliers must be >= 0, not " << min_inliers);
+  ORBATLAS_CHECK(std::isfinite(guided_radius) && guided_radius >= 0.0f,
+                 "relocalisation: guided_radius must be a finite value >= 0, not " << guided_radius);
+  pnp.check();
+}
+
 RelocalizationResult relocalize(Frame& frame, const Vocabulary& vocabulary, const KeyframeIndex& index,
                                 const FrameCamera& cam, const Pose3& T_b_c, const RelocalizationOptions& options) {
+  options.check();
   RelocalizationResult result;
   if (frame.bow.empty()) vocabulary.transform(frame.features.descriptors, &frame.bow, &frame.feature_vector);
   std::size_t windows = 0;

@@ -33,6 +33,9 @@ struct RelocalizationOptions {
   // When set, candidates of maps it refuses are skipped (the server keeps a
   // session out of maps another live session is working in).
   std::function<bool(MapId)> may_enter;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct RelocalizationResult {

@@ -9,7 +9,10 @@
 namespace orbatlas {
 
 void MapMergeWorkerOptions::check() const {
-  ORBATLAS_CHECK(queue_capacity > 0, "map merging: queue_capacity must be > 0");
+  ORBATLAS_CHECK(queue_capacity > 0, "map merging: queue_capacity must be > 0, not " << queue_capacity);
+  recognition.check();
+  merge.check();
+  global.check();
 }
 
 MapMergeWorker::MapMergeWorker(Atlas& atlas, MapLeases& leases, MayMerge may_merge, OnMerged on_merged,

@@ -28,10 +28,31 @@ ImuSample ideal_imu_from_state(const SplineState& s, TimestampNs t, const Pose3&
   return m;
 }
 
+void ImuSynthesisOptions::check() const {
+  ORBATLAS_CHECK(std::isfinite(calibration.rate_hz) && calibration.rate_hz > 0.0,
+                 "IMU synthesis: calibration.rate_hz must be a finite value > 0, not " << calibration.rate_hz);
+  const auto non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
+  ORBATLAS_CHECK(non_negative(calibration.gyro_noise_density),
+                 "IMU synthesis: calibration.gyro_noise_density must be >= 0, not " << calibration.gyro_noise_density);
+  ORBATLAS_CHECK(non_negative(calibration.gyro_random_walk),
+                 "IMU synthesis: calibration.gyro_random_walk must be >= 0, not " << calibration.gyro_random_walk);
+  ORBATLAS_CHECK(
+      non_negative(calibration.accel_noise_density),
+      "IMU synthesis: calibration.accel_noise_density must be >= 0, not " << calibration.accel_noise_density);
+  ORBATLAS_CHECK(non_negative(calibration.accel_random_walk),
+                 "IMU synthesis: calibration.accel_random_walk must be >= 0, not " << calibration.accel_random_walk);
+  ORBATLAS_CHECK(non_negative(initial_gyro_bias_sigma),
+                 "IMU synthesis: initial_gyro_bias_sigma must be >= 0, not " << initial_gyro_bias_sigma);
+  ORBATLAS_CHECK(non_negative(initial_accel_bias_sigma),
+                 "IMU synthesis: initial_accel_bias_sigma must be >= 0, not " << initial_accel_bias_sigma);
+  ORBATLAS_CHECK(non_negative(vibration_accel), "IMU synthesis: vibration_accel must be >= 0, not " << vibration_accel);
+  ORBATLAS_CHECK(non_negative(vibration_gyro), "IMU synthesis: vibration_gyro must be >= 0, not " << vibration_gyro);
+}
+
 SyntheticImu synthesize_imu(const TrajectorySpline& trajectory, TimestampNs first_ns, TimestampNs last_ns,
                             const ImuSynthesisOptions& options) {
+  options.check();
   const ImuCalibration& cal = options.calibration;
-  ORBATLAS_CHECK(cal.rate_hz > 0.0, "IMU rate must be positive");
   const TimestampNs period = s_to_ns(1.0 / cal.rate_hz);
   const double dt = ns_to_s(period);
   std::mt19937_64 rng(options.seed);

@@ -24,6 +24,9 @@ struct ImuSynthesisOptions {
   // with these amplitudes (0: none).
   double vibration_accel = 0.0;  // m/s^2
   double vibration_gyro = 0.0;   // rad/s
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct SyntheticImu {

@@ -38,6 +38,9 @@ struct RealCameraOptions {
   double shot_noise = 0.06;      // variance per grey level of signal at gain 1
   int max_blur_subframes = 8;    // renders averaged over the exposure time
   double blur_px_per_subframe = 1.0;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 // The `real` look as a whole; defaults per sequence from real_look_for().
@@ -50,6 +53,9 @@ struct RealLookOptions {
   // adds it, see sequence_simulator.cc).
   double calibration_error = 0.0;
   double imu_vibration = 1.0;  // scale of the IMU vibration (0: none)
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 // MH_04 and MH_05 are the dark sequences of the real Machine Hall.

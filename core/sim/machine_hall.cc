@@ -52,8 +52,19 @@ void add_surface(World& world, const Eigen::Vector3d& origin, const Eigen::Vecto
 
 }  // namespace
 
+void MachineHallOptions::check() const {
+  ORBATLAS_CHECK(std::isfinite(clearance_m) && clearance_m >= 0.0,
+                 "machine hall: clearance_m must be a finite value >= 0, not " << clearance_m);
+  ORBATLAS_CHECK(std::isfinite(margin_m) && margin_m >= 0.0,
+                 "machine hall: margin_m must be a finite value >= 0, not " << margin_m);
+  ORBATLAS_CHECK(machine_count >= 0, "machine hall: machine_count must be >= 0, not " << machine_count);
+  ORBATLAS_CHECK(std::isfinite(texel_size_m) && texel_size_m > 0.0,
+                 "machine hall: texel_size_m must be a finite value > 0, not " << texel_size_m);
+}
+
 World build_machine_hall(const std::vector<Trajectory>& trajectories, const MachineHallOptions& options,
                          HallBounds* bounds_out) {
+  options.check();
   ORBATLAS_CHECK(!trajectories.empty(), "machine hall: no trajectories given");
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e18), hi = Eigen::Vector3d::Constant(-1e18);
   for (const auto& tr : trajectories)

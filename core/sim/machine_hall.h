@@ -18,6 +18,9 @@ struct MachineHallOptions {
   int machine_count = 70;        // target number of machines/crates
   double texel_size_m = 0.005;   // finest texture detail
   bool sparse_textures = false;  // the real look's textures (TextureRequest::sparse)
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct HallBounds {

@@ -12,10 +12,7 @@ namespace orbatlas::sim {
 
 RealCamera::RealCamera(const RealCameraOptions& options, int width, int height, int camera_index, std::uint64_t seed)
     : options_(options) {
-  ORBATLAS_CHECK(options.illumination > 0.0, "real look: illumination must be positive");
-  ORBATLAS_CHECK(options.base_exposure_ms > 0.0 && options.max_exposure_ms >= options.base_exposure_ms * 0.1,
-                 "real look: bad exposure limits");
-  ORBATLAS_CHECK(options.max_gain >= 1.0, "real look: max_gain must be at least 1");
+  options.check();
   std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ULL + static_cast<std::uint64_t>(camera_index) * 7919ULL + 11ULL);
   std::uniform_real_distribution<double> uni(0.0, 2.0 * M_PI);
   phase1_ = uni(rng);

@@ -41,11 +41,20 @@ struct Vertex {
 
 }  // namespace
 
+void RenderOptions::check() const {
+  ORBATLAS_CHECK(std::isfinite(noise_sigma) && noise_sigma >= 0.0,
+                 "renderer: noise_sigma must be a finite value >= 0, not " << noise_sigma);
+  ORBATLAS_CHECK(std::isfinite(near_m) && near_m > 0.0, "renderer: near_m must be a finite value > 0, not " << near_m);
+  ORBATLAS_CHECK(std::isfinite(max_canvas_scale) && max_canvas_scale > 0.0,
+                 "renderer: max_canvas_scale must be a finite value > 0, not " << max_canvas_scale);
+  ORBATLAS_CHECK(canvas_focal_scale > 0.1 && canvas_focal_scale <= 4.0,
+                 "renderer: canvas_focal_scale must be in (0.1, 4], not " << canvas_focal_scale);
+}
+
 Renderer::Renderer(const World& world, const Camera& camera, const RenderOptions& options)
     : world_(world), options_(options), width_(camera.width()), height_(camera.height()) {
+  options_.check();
   const CameraCalibration cal = camera.calibration();
-  ORBATLAS_CHECK(options_.canvas_focal_scale > 0.1 && options_.canvas_focal_scale <= 4.0,
-                 "renderer: canvas_focal_scale out of range");
   fx_ = cal.fx * options_.canvas_focal_scale;
   fy_ = cal.fy * options_.canvas_focal_scale;
   // Normalised canvas coordinates of every image pixel.

@@ -29,6 +29,9 @@ struct RenderOptions {
   // samples on detail the image cannot show; at 0.8 the centre is upsampled by
   // 1.25 (a softness comparable to the real EuRoC optics) and rendering is ~1.5x faster.
   double canvas_focal_scale = 0.8;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 class Renderer {

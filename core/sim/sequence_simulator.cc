@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <functional>
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
@@ -78,12 +79,25 @@ std::uint64_t hash_name(const std::string& s) {
 
 }  // namespace
 
+void SimulationOptions::check() const {
+  ORBATLAS_CHECK(!out_dir.empty(), "sim: no output folder given (out_dir, --out)");
+  ORBATLAS_CHECK(std::isfinite(start_s) && start_s >= 0.0, "sim: start_s (--start) must be >= 0, not " << start_s);
+  ORBATLAS_CHECK(!std::isnan(duration_s),
+                 "sim: duration_s (--duration) must be a number (negative: to the end), not " << duration_s);
+  ORBATLAS_CHECK(every >= 1, "sim: every (--every) must be >= 1, not " << every);
+  ORBATLAS_CHECK(imu == ImuSource::kSynthetic || imu == ImuSource::kReal,
+                 "sim: imu (--imu) must be synthetic or real, not " << static_cast<int>(imu));
+  ORBATLAS_CHECK(noise_sigma >= 0.0 && noise_sigma <= 50.0,
+                 "sim: noise_sigma (--noise) must be in [0, 50] grey levels, not " << noise_sigma);
+  ORBATLAS_CHECK(look == Look::kClean || look == Look::kReal,
+                 "sim: look (--look) must be clean or real, not " << static_cast<int>(look));
+  if (real) real->check();
+  ORBATLAS_CHECK(threads >= 0, "sim: threads (--threads) must be >= 0 (0: all cores), not " << threads);
+}
+
 SimulationReport simulate_sequence(const SimulationOptions& options) {
+  options.check();
   SimulationReport report;
-  ORBATLAS_CHECK(!options.out_dir.empty(), "sim: no output folder given");
-  ORBATLAS_CHECK(options.start_s >= 0.0, "sim: --start must be >= 0");
-  ORBATLAS_CHECK(options.noise_sigma >= 0.0 && options.noise_sigma <= 50.0,
-                 "sim: --noise must be in [0, 50] grey levels");
   const SequenceInfo sequence = find_sequence(options.sequence);
   ORBATLAS_CHECK(options.imu == ImuSource::kSynthetic || sequence.name == "MH_05",
                  "sim: --imu real is only available for MH_05 (the only real IMU shipped); use --imu synthetic");
@@ -103,7 +117,6 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   ORBATLAS_CHECK(!all_stamps.empty(), "sim: no camera timestamps for " << sequence.name);
   const TimestampNs t_begin = all_stamps.front() + s_to_ns(options.start_s);
   const TimestampNs t_end = options.duration_s < 0 ? all_stamps.back() : t_begin + s_to_ns(options.duration_s);
-  ORBATLAS_CHECK(options.every >= 1, "sim: --every must be at least 1");
   std::vector<TimestampNs> stamps;
   std::size_t in_range = 0;
   for (const TimestampNs t : all_stamps) {

@@ -30,6 +30,9 @@ struct SimulationOptions {
   std::optional<RealLookOptions> real;
   int threads = 0;  // 0: all cores
   bool show_progress = true;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct SimulationReport {

@@ -62,9 +62,16 @@ Pose3 smoothed_sample(const Trajectory& s, TimestampNs t, double sigma_s) {
 
 }  // namespace
 
+void SplineOptions::check() const {
+  ORBATLAS_CHECK(std::isfinite(knot_spacing_s) && knot_spacing_s >= 1e-9,
+                 "trajectory spline: knot_spacing_s must be a finite value >= 1e-9 (1 ns), not " << knot_spacing_s);
+  ORBATLAS_CHECK(std::isfinite(smoothing_sigma_s),
+                 "trajectory spline: smoothing_sigma_s must be finite (<= 0: no smoothing), not " << smoothing_sigma_s);
+}
+
 TrajectorySpline::TrajectorySpline(const Trajectory& samples, const SplineOptions& options) {
+  options.check();
   ORBATLAS_CHECK(samples.size() >= 8, "trajectory spline needs at least 8 samples, got " << samples.size());
-  ORBATLAS_CHECK(options.knot_spacing_s > 0.0, "knot spacing must be positive");
   check_strictly_increasing(samples, "trajectory spline samples");
   spacing_ns_ = s_to_ns(options.knot_spacing_s);
   const TimestampNs t0 = samples.front().t_ns, t1 = samples.back().t_ns;

@@ -24,6 +24,9 @@ struct SplineOptions {
   // the measurement noise of the real ground truth, which a second derivative
   // would amplify into unrealistic accelerations.
   double smoothing_sigma_s = 0.03;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 class TrajectorySpline {

@@ -1,6 +1,7 @@
 #include "core/slam/dataset_runner.h"
 
 #include <chrono>
+#include <cmath>
 #include <functional>
 #include <map>
 #include <thread>
@@ -242,11 +243,20 @@ void collect_results(const StereoSlam& slam, const EurocDataset& dataset, Datase
 
 }  // namespace
 
+void DatasetRunOptions::check() const {
+  ORBATLAS_CHECK(std::isfinite(start_s) && start_s >= 0.0, "run: start_s (--start) must be >= 0, not " << start_s);
+  ORBATLAS_CHECK(!duration_s || (std::isfinite(*duration_s) && *duration_s > 0.0),
+                 "run: duration_s (--duration) must be > 0, not " << duration_s.value_or(0.0));
+  ORBATLAS_CHECK(!localize_only || !atlas.empty(), "run: localize_only needs a stored atlas (--atlas)");
+  slam.check();
+  checkpoints.check();
+}
+
 DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
+  options.check();
   const RunInputs in = read_inputs(options);
   const Vocabulary vocabulary =
       Vocabulary::load(options.vocabulary.empty() ? default_vocabulary_path() : options.vocabulary);
-  ORBATLAS_CHECK(!options.localize_only || !options.atlas.empty(), "localisation needs a stored atlas (--atlas)");
   Atlas atlas;
   DatasetRunReport report;
   const StoredAtlas stored = open_atlas(options, in.settings, vocabulary, atlas, report);

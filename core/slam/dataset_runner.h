@@ -32,6 +32,9 @@ struct DatasetRunOptions {
   // nothing written; the trajectory holds the localised frames only.
   bool localize_only = false;
   bool show_progress = true;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct DatasetRunReport {

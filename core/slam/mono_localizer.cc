@@ -17,9 +17,12 @@ class MonoLocalizer::NoKeyframes final : public KeyframeSink {
   void interrupt_optimization() override {}
 };
 
+void MonoLocalizerOptions::check() const { tracker.check(); }
+
 MonoLocalizer::MonoLocalizer(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
                              MonoLocalizerOptions options, SessionWiring wiring)
     : atlas_(atlas), frontend_(settings), sink_(std::make_unique<NoKeyframes>()) {
+  options.check();
   cam_ = frontend_.frame_camera();  // no stereo: bf 0
   const Pose3 T_b_c = frontend_.calibration().T_b_c;
   relocalizer_ = std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c,

@@ -26,6 +26,9 @@ namespace orbatlas {
 
 struct MonoLocalizerOptions {
   TrackerOptions tracker;  // localization_only is forced on
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 class MonoLocalizer final : public SessionSlam {

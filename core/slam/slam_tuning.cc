@@ -80,6 +80,35 @@ std::string known_keys() {
   return out;
 }
 
+const Binding& binding(const std::string& key) {
+  for (const Binding& b : bindings())
+    if (b.key.key == key) return b;
+  throw DataError("settings: unknown key 'Orbatlas." + key + "' (known: " + known_keys() + ")");
+}
+
+bool passes_check(const StereoSlamOptions& options) {
+  try {
+    options.check();
+    return true;
+  } catch (const Error&) {
+    return false;
+  }
+}
+
+// The keys to blame for options that fail their check: the first key that alone
+// makes `options` fail, else all of them (only together out of range).
+std::string blamed_keys(const std::map<std::string, double>& tuning, const StereoSlamOptions& options) {
+  for (const auto& [key, value] : tuning) {
+    StereoSlamOptions one = options;
+    binding(key).set(one, value);
+    if (!passes_check(one)) return "'Orbatlas." + key + "' = " + text(value);
+  }
+  std::string all;
+  for (const auto& [key, value] : tuning)
+    all += (all.empty() ? "" : ", ") + ("'Orbatlas." + key + "' = " + text(value));
+  return all;
+}
+
 }  // namespace
 
 const std::vector<SlamTuningKey>& slam_tuning_keys() {
@@ -94,17 +123,21 @@ const std::vector<SlamTuningKey>& slam_tuning_keys() {
 void apply_slam_tuning(const std::map<std::string, double>& tuning, StereoSlamOptions& options) {
   StereoSlamOptions changed = options;
   for (const auto& [key, value] : tuning) {
-    const Binding* found = nullptr;
-    for (const Binding& b : bindings())
-      if (b.key.key == key) found = &b;
-    if (!found) throw DataError("settings: unknown key 'Orbatlas." + key + "' (known: " + known_keys() + ")");
-    const SlamTuningKey& k = found->key;
+    const Binding& found = binding(key);
+    const SlamTuningKey& k = found.key;
     if (!(value >= k.min && value <= k.max))
       throw DataError("settings: 'Orbatlas." + key + "' must be in " + text(k.min) + " .. " + text(k.max) + ", got " +
                       text(value));
     if (k.integer && value != std::floor(value))
       throw DataError("settings: 'Orbatlas." + key + "' must be a whole number, got " + text(value));
-    found->set(changed, value);
+    found.set(changed, value);
+  }
+  // Each key is in its range; the options as a whole must pass their check too.
+  try {
+    changed.check();
+  } catch (const Error& e) {
+    if (!passes_check(options)) throw;  // out of range before any key was applied: not the settings' fault
+    throw DataError("settings: " + blamed_keys(tuning, options) + " cannot be used here: " + e.what());
   }
   options = std::move(changed);
 }

@@ -22,8 +22,10 @@ struct SlamTuningKey {
 const std::vector<SlamTuningKey>& slam_tuning_keys();
 
 // Sets `options` from `tuning` (SlamSettings::orbatlas). Throws DataError naming
-// the key for an unknown key (with the known ones), a value out of range, or a
-// fraction where a whole number is needed; `options` is unchanged then.
+// the key for an unknown key (with the known ones), a value out of range, a
+// fraction where a whole number is needed, or a value the resulting options'
+// check() refuses (e.g. Tracker.Relocalization 0 in a localisation run); `options`
+// is unchanged then. Options already out of range give check()'s Error as is.
 void apply_slam_tuning(const std::map<std::string, double>& tuning, StereoSlamOptions& options);
 
 // The value of every key in `options` (for logs: what is in effect).

@@ -13,9 +13,16 @@
 namespace orbatlas {
 
 void StereoSlamOptions::check() const {
-  ORBATLAS_CHECK(new_map_after_failed_relocalizations >= 0,
-                 "new_map_after_failed_relocalizations must be >= 0, not " << new_map_after_failed_relocalizations);
+  ORBATLAS_CHECK(
+      new_map_after_failed_relocalizations >= 0,
+      "slam: new_map_after_failed_relocalizations must be >= 0, not " << new_map_after_failed_relocalizations);
+  // The tracker refuses to localise without a relocaliser.
+  ORBATLAS_CHECK(relocalization || !tracker.localization_only,
+                 "slam: relocalization must be on when tracker.localization_only is set");
+  tracker.check();
+  mapper.check();
   loop.check();
+  final_ba.check();
 }
 
 StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,

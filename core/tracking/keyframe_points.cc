@@ -4,9 +4,15 @@
 #include <utility>
 #include <vector>
 
+#include "core/common/error.h"
 #include "core/map/map_point_update.h"
 
 namespace orbatlas {
+
+void KeyframePointsOptions::check() const {
+  ORBATLAS_CHECK(th_depth_m >= 0.0, "keyframe points: th_depth_m must be >= 0, not " << th_depth_m);
+  ORBATLAS_CHECK(min_points >= 0, "keyframe points: min_points must be >= 0, not " << min_points);
+}
 
 KeyframePointsResult add_keyframe_points(Map& map, const std::shared_ptr<KeyFrame>& keyframe, Frame& frame,
                                          const Pose3& T_b_c, const ScalePyramid& pyramid,

@@ -22,6 +22,9 @@ struct KeyframePointsOptions {
   double th_depth_m = 3.5;         // close stereo points (ORB-SLAM's ThDepth * baseline)
   bool all_stereo_points = false;  // a map's first keyframe: every stereo match
   int min_points = 100;            // keep adding the closest matches until this many
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct KeyframePointsResult {

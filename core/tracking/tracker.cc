@@ -28,6 +28,24 @@ int count_inliers(const Frame& frame) {
 
 }  // namespace
 
+void TrackerOptions::check() const {
+  ORBATLAS_CHECK(min_init_stereo_points > 0,
+                 "tracker: min_init_stereo_points must be > 0, not " << min_init_stereo_points);
+  ORBATLAS_CHECK(th_depth_m >= 0.0, "tracker: th_depth_m must be >= 0, not " << th_depth_m);
+  ORBATLAS_CHECK(max_frames_between_keyframes >= 1,
+                 "tracker: max_frames_between_keyframes must be >= 1, not " << max_frames_between_keyframes);
+  ORBATLAS_CHECK(min_inliers >= 0, "tracker: min_inliers must be >= 0, not " << min_inliers);
+  ORBATLAS_CHECK(min_inliers_after_recovery >= 0,
+                 "tracker: min_inliers_after_recovery must be >= 0, not " << min_inliers_after_recovery);
+  ORBATLAS_CHECK(recently_lost_s >= 0.0, "tracker: recently_lost_s must be >= 0, not " << recently_lost_s);
+  ORBATLAS_CHECK(
+      new_map_after_failed_relocalizations >= 0,
+      "tracker: new_map_after_failed_relocalizations must be >= 0, not " << new_map_after_failed_relocalizations);
+  ORBATLAS_CHECK(max_local_keyframes >= 0, "tracker: max_local_keyframes must be >= 0, not " << max_local_keyframes);
+  ORBATLAS_CHECK(min_keyframes_to_keep_map >= 0,
+                 "tracker: min_keyframes_to_keep_map must be >= 0, not " << min_keyframes_to_keep_map);
+}
+
 const char* tracking_state_name(TrackingState state) {
   switch (state) {
     case TrackingState::kNotInitialized:
@@ -51,6 +69,7 @@ Tracker::Tracker(Atlas& atlas, const Vocabulary& vocabulary, KeyframeSink& sink,
       cam_(std::move(cam)),
       T_b_c_(T_b_c),
       options_(options) {
+  options_.check();
   ORBATLAS_CHECK(cam_.camera != nullptr, "tracker needs a camera");
   ORBATLAS_CHECK(cam_.bf > 0.0 || options_.localization_only,
                  "the tracker needs a stereo rig (bf > 0) unless it only localises");

@@ -46,6 +46,9 @@ struct TrackerOptions {
   // tracks in that map, in its frame, and makes no map of its own; otherwise a
   // new map starts as usual (and may be merged later).
   bool start_in_stored_map = false;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct TrackResult {

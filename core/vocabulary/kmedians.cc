@@ -125,12 +125,17 @@ std::vector<Descriptor> seed_centres(std::span<const Descriptor> members, const 
 
 }  // namespace
 
+void KmediansOptions::check() const {
+  ORBATLAS_CHECK(k >= 2 && k < kUnassigned, "k-medians: k must be in [2, " << kUnassigned - 1 << "], not " << k);
+  ORBATLAS_CHECK(iterations >= 1, "k-medians: iterations must be >= 1, not " << iterations);
+  ORBATLAS_CHECK(threads >= 0, "k-medians: threads must be >= 0, not " << threads);
+}
+
 KmediansSplit kmedians_split(std::span<Descriptor> members, const KmediansOptions& options,
                              const std::function<void(std::size_t)>& on_work) {
   const std::size_t n = members.size();
   ORBATLAS_CHECK(n > 0, "k-medians needs at least one descriptor");
-  ORBATLAS_CHECK(options.k >= 2 && options.k < kUnassigned, "k-medians: invalid k = " << options.k);
-  ORBATLAS_CHECK(options.iterations >= 1, "k-medians: iterations must be at least 1");
+  options.check();
   const std::size_t chunks =
       (options.threads > 1 && n >= kParallelMembers) ? static_cast<std::size_t>(options.threads) : std::size_t{1};
   const Pass pass{chunks, options.threads};

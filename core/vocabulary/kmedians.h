@@ -18,6 +18,9 @@ struct KmediansOptions {
   int iterations = 10;
   std::uint64_t seed = 1;
   int threads = 1;  // for the seeding and assignment passes (worth it for large nodes only)
+
+  // Throws Error naming the first value out of range.
+  void check() const;
 };
 
 struct KmediansSplit {
