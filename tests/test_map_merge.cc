@@ -15,7 +15,7 @@
 #include "core/common/data_paths.h"
 #include "core/eval/evaluate.h"
 #include "core/io/tum_trajectory.h"
-#include "core/loop/global_adjustment_merge.h"
+#include "core/loop/apply_global_adjustment.h"
 #include "core/loop/map_merge.h"
 #include "core/loop/place_recognizer.h"
 #include "core/slam/stereo_slam.h"
@@ -132,7 +132,7 @@ TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {
       "moved, %zu points fused, %zu new links, %.1f ms\n",
       searched, static_cast<unsigned long long>(match->current->id()),
       static_cast<unsigned long long>(match->matched->id()), match->matches, merged.keyframes_moved,
-      merged.points_moved, merged.points_merged, merged.new_links, merged.ms);
+      merged.points_moved, merged.points_fused, merged.new_links, merged.ms);
   ASSERT_EQ(atlas.maps().size(), 1u);
   EXPECT_EQ(atlas.maps().front()->id(), a.map);
   EXPECT_EQ(atlas.maps().front()->keyframe_count(), keyframes);
@@ -145,7 +145,7 @@ TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {
   const double ate_merged = joint_ate(atlas, {&a, &b});
   Map& map = *atlas.maps().front();
   const GlobalBundleAdjustmentResult ba = global_bundle_adjustment(map, *cam.camera, cam.bf);
-  merge_global_adjustment(map, ba, cam.pyramid);
+  apply_global_adjustment(map, ba, cam.pyramid);
   const double ate_refined = joint_ate(atlas, {&a, &b});
   std::printf(
       "joint ATE of both sessions under one alignment: apart %.3f m, merged %.4f m, after global BA %.4f m "
@@ -201,7 +201,7 @@ TEST(MapMerge, ARunningSessionsMapIsMergedLiveAndTrackingFollows) {
       static_cast<double>(merge.current_t_ns - b.results.front().t_ns) * 1e-9,
       static_cast<std::size_t>(std::count_if(b.results.begin(), b.results.end(),
                                              [&](const TrackResult& r) { return r.t_ns <= merge.current_t_ns; })),
-      b.results.size(), merge.matches, merge.merge.keyframes_moved, merge.merge.points_moved, merge.merge.points_merged,
+      b.results.size(), merge.matches, merge.merge.keyframes_moved, merge.merge.points_moved, merge.merge.points_fused,
       merge.merge.ms, ate);
   EXPECT_LT(ate, 0.007);  // measured 0.0033 m
 }

@@ -5,7 +5,7 @@
 #include "core/common/error.h"
 #include "core/common/stopwatch.h"
 #include "core/common/log.h"
-#include "core/loop/global_adjustment_merge.h"
+#include "core/loop/apply_global_adjustment.h"
 
 namespace orbatlas {
 namespace {
@@ -173,7 +173,7 @@ bool LoopCloser::merge_live(const PlaceMatch& match) {
   log_info("live merge: map " + std::to_string(source) + " merged into map " + std::to_string(target) +
            " at keyframe " + std::to_string(match.current->id()) + " ~ " + std::to_string(match.matched->id()) + " (" +
            std::to_string(match.matches) + " matches, " + std::to_string(merged.keyframes_moved) +
-           " keyframes moved, " + std::to_string(merged.points_merged) + " points fused, " + std::to_string(merged.ms) +
+           " keyframes moved, " + std::to_string(merged.points_fused) + " points fused, " + std::to_string(merged.ms) +
            " ms)");
   LiveMerge record;
   record.current = match.current->id();
@@ -209,12 +209,13 @@ void LoopCloser::start_global_adjustment(MapId map_id) {
       if (map) {
         const auto start = std::chrono::steady_clock::now();
         const GlobalBundleAdjustmentResult result =
-            global_bundle_adjustment(*map, *cam_.camera, cam_.bf, options_.global, &stop_global_);
+            global_bundle_adjustment(*map, *cam_.camera, cam_.bf,
+                                     with_level_sigma2(options_.global, cam_.pyramid.level_sigma2()), &stop_global_);
         if (!result.stopped) {
           std::lock_guard lock(correction_mutex_);
           MappingPause pause(mapper_);
           const auto tracking = pause_tracking();
-          merge_global_adjustment(*map, result, cam_.pyramid);
+          apply_global_adjustment(*map, result, cam_.pyramid);
         }
         GlobalAdjustmentRun run{result.keyframes, result.points, ms_since(start) * 1e-3, result.stopped};
         log_info("global bundle adjustment: " + std::to_string(run.keyframes) + " keyframes, " +

@@ -3,7 +3,7 @@
 // mapping hands it every processed keyframe through a bounded queue; it runs
 // place recognition, corrects verified loops with local mapping paused, and
 // starts a global bundle adjustment in a background thread, which a new loop
-// interrupts. The adjustment's result is merged into the map (again with local
+// interrupts. The adjustment's result is applied to the map (again with local
 // mapping paused) together with what was created meanwhile.
 // With live merging on, each keyframe is first looked for in the atlas's OTHER
 // maps: a verified place there merges the session's active map into that map
@@ -69,7 +69,7 @@ struct LoopCloserWiring {
   std::function<bool(MapId)> hold_map;
   std::function<void(const LiveMerge&)> on_merged;
   // Held by tracking for each frame (StereoSlam); the closer holds it while it
-  // edits the map (loop correction, merge, merging a global adjustment), so a
+  // edits the map (loop correction, merge, applying a global adjustment), so a
   // frame never sees a half-moved map. May be null (then not taken).
   std::shared_ptr<std::mutex> tracking_mutex;
 };

@@ -76,7 +76,7 @@ std::unordered_map<KeyframeId, std::vector<KeyframeId>> fuse_across_loop(Map& ma
   for (const auto& kf : g.keyframes) {
     const FusionStats f = fuse_into_keyframe(map, kf, loop.window_points, cam, options.fusion_th);
     stats.observations_fused += static_cast<std::size_t>(f.added);
-    stats.points_merged += static_cast<std::size_t>(f.merged);
+    stats.points_fused += static_cast<std::size_t>(f.merged);
   }
   std::unordered_map<KeyframeId, std::vector<KeyframeId>> loop_links;
   for (const auto& kf : g.keyframes) {

@@ -29,7 +29,7 @@ struct LoopCorrectionOptions {
 
 struct LoopCorrectionStats {
   std::size_t group_keyframes = 0, corrected_points = 0;
-  std::size_t observations_fused = 0, points_merged = 0, new_links = 0;
+  std::size_t observations_fused = 0, points_fused = 0, new_links = 0;
   std::size_t graph_nodes = 0, graph_edges = 0;
   double correction_m = 0.0;    // translation applied to the current keyframe
   double correction_deg = 0.0;  // rotation applied to the current keyframe

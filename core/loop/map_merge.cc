@@ -72,7 +72,7 @@ MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamer
     if (kf->is_bad()) continue;
     const FusionStats f = fuse_into_keyframe(*target, kf, match.window_points, cam, options.fusion_th);
     stats.observations_fused += static_cast<std::size_t>(f.added);
-    stats.points_merged += static_cast<std::size_t>(f.merged);
+    stats.points_fused += static_cast<std::size_t>(f.merged);
   }
   for (const auto& kf : group) {
     if (kf->is_bad()) continue;

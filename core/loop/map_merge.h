@@ -28,7 +28,7 @@ struct MapMergeOptions {
 struct MapMergeStats {
   MapId source = 0, target = 0;
   std::size_t keyframes_moved = 0, points_moved = 0;
-  std::size_t observations_fused = 0, points_merged = 0, new_links = 0;
+  std::size_t observations_fused = 0, points_fused = 0, new_links = 0;
   double ms = 0.0;
 };
 

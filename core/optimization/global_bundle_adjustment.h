@@ -44,6 +44,14 @@ struct GlobalBundleAdjustmentResult {
 
 // Reads `map` through its snapshots (other threads may edit it meanwhile).
 // `stop` (may be null) is polled at every iteration.
+// `options` with the sigmas of the camera's own pyramid (the defaults are ORB-SLAM's
+// 8 levels of 1.2; a camera with other settings weights its observations by these).
+inline GlobalBundleAdjustmentOptions with_level_sigma2(GlobalBundleAdjustmentOptions options,
+                                                       std::vector<double> level_sigma2) {
+  options.level_sigma2 = std::move(level_sigma2);
+  return options;
+}
+
 GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Camera& camera, double bf,
                                                       const GlobalBundleAdjustmentOptions& options = {},
                                                       const std::atomic<bool>* stop = nullptr);

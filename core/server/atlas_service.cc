@@ -122,6 +122,7 @@ void AtlasServiceOptions::check() const {
   ORBATLAS_CHECK(loop_queue > 0, "server: loop_queue must be > 0, not " << loop_queue);
   slam.check();
   merging.check();
+  checkpoints.check();
 }
 
 AtlasService::AtlasService(AtlasServiceOptions options)
@@ -609,8 +610,12 @@ MapPointCloud AtlasService::map_points(MapId id) const {
 
 std::shared_ptr<AtlasService::LocalizerContext> AtlasService::localizer_for(const SettingsSource& source) {
   const std::string key = source.config.empty() ? "yaml:" + source.settings_yaml : "config:" + source.config;
-  std::lock_guard lock(localizers_mutex_);
-  if (const auto it = localizers_.find(key); it != localizers_.end()) return it->second;
+  {
+    std::lock_guard lock(localizers_mutex_);
+    if (const auto it = localizers_.find(key); it != localizers_.end()) return it->second;
+  }
+  // Read and built outside the (leaf) lock: a config file on a slow disk holds
+  // up no other localisation. Two first requests may both build; one is kept.
   const LoadedSettings loaded = load_settings(source);
   std::shared_ptr<LocalizerContext> context;
   try {
@@ -618,6 +623,8 @@ std::shared_ptr<AtlasService::LocalizerContext> AtlasService::localizer_for(cons
   } catch (const std::exception& e) {
     throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", std::string("unusable settings: ") + e.what());
   }
+  std::lock_guard lock(localizers_mutex_);
+  if (const auto it = localizers_.find(key); it != localizers_.end()) return it->second;
   if (localizers_.size() >= kMaxLocalizers) localizers_.erase(localizers_.begin());
   localizers_[key] = context;
   return context;

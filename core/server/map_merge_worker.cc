@@ -4,7 +4,7 @@
 
 #include "core/common/log.h"
 #include "core/common/stopwatch.h"
-#include "core/loop/global_adjustment_merge.h"
+#include "core/loop/apply_global_adjustment.h"
 
 namespace orbatlas {
 
@@ -133,7 +133,7 @@ void MapMergeWorker::process(const MergeRequest& request) {
   log_info("map merging: map " + std::to_string(source_id) + " merged into map " + std::to_string(target_id) +
            " (keyframe " + std::to_string(record.current) + " ~ " + std::to_string(record.matched) + ", " +
            std::to_string(record.matches) + " matches, " + std::to_string(record.merge.keyframes_moved) +
-           " keyframes moved, " + std::to_string(record.merge.points_merged) + " points fused)");
+           " keyframes moved, " + std::to_string(record.merge.points_fused) + " points fused)");
 
   if (options_.global_bundle_adjustment) {
     if (const auto map = atlas_.map(target_id)) {
@@ -152,9 +152,9 @@ void MapMergeWorker::process(const MergeRequest& request) {
 
 GlobalBundleAdjustmentResult MapMergeWorker::refine(Map& map, const FrameCamera& cam, double* seconds) {
   const auto start = std::chrono::steady_clock::now();
-  const GlobalBundleAdjustmentResult result =
-      global_bundle_adjustment(map, *cam.camera, cam.bf, options_.global, &stopping_);
-  if (!result.stopped) merge_global_adjustment(map, result, cam.pyramid);
+  const GlobalBundleAdjustmentResult result = global_bundle_adjustment(
+      map, *cam.camera, cam.bf, with_level_sigma2(options_.global, cam.pyramid.level_sigma2()), &stopping_);
+  if (!result.stopped) apply_global_adjustment(map, result, cam.pyramid);
   *seconds = ms_since(start) * 1e-3;
   return result;
 }

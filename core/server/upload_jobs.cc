@@ -85,17 +85,22 @@ void UploadJobs::stop() {
   for (auto& w : workers_)
     if (w.joinable()) w.join();
   std::vector<StoredJob> cancelled;
+  std::vector<fs::path> folders;
   {
     std::lock_guard lock(mutex_);
     for (auto& [_, job] : jobs_) {
       if (job.row.state == "queued") {
         job.row.state = "cancelled";
         job.row.error = "the server stopped before this job started";
-        std::error_code ec;
-        fs::remove_all(job.folder, ec);
+        folders.push_back(job.folder);
         cancelled.push_back(job.row);
       }
     }
+  }
+  // Files are removed outside the (leaf) lock.
+  for (const fs::path& folder : folders) {
+    std::error_code ec;
+    fs::remove_all(folder, ec);
   }
   for (const StoredJob& row : cancelled) store_row(row);
 }
@@ -136,8 +141,10 @@ JobId UploadJobs::submit(const fs::path& folder, SessionRequest request, std::ui
   }
   const JobId id = job.row.id;
   if (!queue_.try_push(id)) {
-    std::lock_guard lock(mutex_);
-    jobs_.erase(id);
+    {
+      std::lock_guard lock(mutex_);
+      jobs_.erase(id);
+    }
     std::error_code ec;
     fs::remove_all(folder, ec);
     throw ServiceError(ServiceErrorKind::kUnavailable, "busy",

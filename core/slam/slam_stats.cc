@@ -46,7 +46,7 @@ nlohmann::json to_json(const LiveMerge& m) {
           {"verified_keyframes", m.verified_keyframes},
           {"keyframes_moved", m.merge.keyframes_moved},
           {"map_points_moved", m.merge.points_moved},
-          {"points_fused", m.merge.points_merged},
+          {"points_fused", m.merge.points_fused},
           {"merge_ms", m.merge.ms}};
 }
 
@@ -103,7 +103,7 @@ nlohmann::json to_json(const SlamStats& s) {
                           {"correction_m", l.correction.correction_m},
                           {"correction_deg", l.correction.correction_deg},
                           {"group_keyframes", l.correction.group_keyframes},
-                          {"points_merged", l.correction.points_merged},
+                          {"points_fused", l.correction.points_fused},
                           {"essential_graph_edges", l.correction.graph_edges},
                           {"essential_graph_ms", l.correction.graph_ms},
                           {"correction_ms", l.correction.total_ms}};

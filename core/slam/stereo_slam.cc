@@ -6,7 +6,7 @@
 
 #include "core/common/error.h"
 #include "core/common/log.h"
-#include "core/loop/global_adjustment_merge.h"
+#include "core/loop/apply_global_adjustment.h"
 #include "core/place/index_relocalizer.h"
 #include "core/slam/slam_tuning.h"
 
@@ -108,9 +108,9 @@ void StereoSlam::finish() {
     for (const MapId id : maps) {
       const auto map = atlas_.map(id);
       if (!map || map->keyframe_count() < 2) continue;
-      const GlobalBundleAdjustmentResult result =
-          global_bundle_adjustment(*map, *cam_.camera, cam_.bf, options_.final_ba);
-      merge_global_adjustment(*map, result, cam_.pyramid);
+      const GlobalBundleAdjustmentResult result = global_bundle_adjustment(
+          *map, *cam_.camera, cam_.bf, with_level_sigma2(options_.final_ba, cam_.pyramid.level_sigma2()));
+      apply_global_adjustment(*map, result, cam_.pyramid);
       final_ba_keyframes_ += result.keyframes;
     }
     final_ba_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -78,6 +78,39 @@ Tracker::Tracker(Atlas& atlas, const Vocabulary& vocabulary, KeyframeSink& sink,
 }
 
 TrackResult Tracker::track(Frame frame) {
+  accept_frame(frame);
+  TrackResult result;
+  result.t_ns = frame.t_ns;
+
+  follow_merged_map();
+  const bool joined_stored_map = !options_.localization_only && !map_ && options_.start_in_stored_map && relocalizer_ &&
+                                 join_stored_map(frame, result);
+  bool ok = joined_stored_map;
+  if (!options_.localization_only && (state_ == TrackingState::kLost || !map_)) start_new_map();
+
+  if (joined_stored_map) {
+    // tracked above
+  } else if (options_.localization_only && state_ != TrackingState::kOk && state_ != TrackingState::kRecentlyLost) {
+    ok = localize_in_stored_maps(frame, result);
+  } else if (state_ == TrackingState::kNotInitialized) {
+    ok = initialize(frame);
+    if (ok) {
+      result.keyframe = true;
+      result.keyframe_id = reference_->id();
+    }
+  } else {
+    ok = track_from_last_frame(frame);
+    update_state(frame, ok);
+    if (ok)
+      after_tracked(frame, result);
+    else
+      velocity_.reset();
+  }
+  finish_frame(std::move(frame), ok, result);
+  return result;
+}
+
+void Tracker::accept_frame(const Frame& frame) {
   ORBATLAS_DATA_CHECK(!has_last_t_ || frame.t_ns > last_t_ns_,
                       "frame timestamps must increase: " << frame.t_ns << " ns after " << last_t_ns_ << " ns");
   ORBATLAS_CHECK(frame.map_points.size() == frame.size() && frame.outlier.size() == frame.size() &&
@@ -86,97 +119,84 @@ TrackResult Tracker::track(Frame frame) {
   has_last_t_ = true;
   last_t_ns_ = frame.t_ns;
   ++frame_index_;
+}
 
-  TrackResult result;
-  result.t_ns = frame.t_ns;
-
-  follow_merged_map();
-  const bool localizing = options_.localization_only;
-  bool ok = false;
-  bool joined_stored_map = false;
-  if (!localizing && !map_ && options_.start_in_stored_map && relocalizer_) {
-    // The session's first frame: is this a place a stored map knows?
-    joined_stored_map = recover(frame) && track_local_map(frame);
-    if (joined_stored_map) {
-      ok = true;
-      state_ = TrackingState::kOk;
-      last_recovery_index_ = frame_index_;
-      velocity_.reset();
-      const int inliers = count_inliers(frame);
-      result.inliers = inliers;
-    } else {
-      map_.reset();  // not recognised (or not confirmed): a map of its own below
-      reference_.reset();
-      last_keyframe_.reset();
-      local_keyframes_.clear();
-    }
-  }
-  if (!localizing && state_ == TrackingState::kLost) start_new_map();
-  if (!localizing && !map_) start_new_map();
-
-  if (joined_stored_map) {
-    // tracked above
-  } else if (localizing && state_ != TrackingState::kOk && state_ != TrackingState::kRecentlyLost) {
-    // Not localised yet, or lost for good: look for the place in every stored map.
-    ok = recover(frame);
-    if (ok) {
-      last_recovery_index_ = frame_index_;
-      ok = track_local_map(frame);
-    }
-    if (ok) state_ = TrackingState::kOk;
-    if (ok) {
-      const int inliers = count_inliers(frame);
-      result.inliers = inliers;
-    }
+bool Tracker::join_stored_map(Frame& frame, TrackResult& result) {
+  // The session's first frame: is this a place a stored map knows?
+  if (recover(frame) && track_local_map(frame)) {
+    state_ = TrackingState::kOk;
+    last_recovery_index_ = frame_index_;
     velocity_.reset();
-  } else if (state_ == TrackingState::kNotInitialized) {
-    ok = initialize(frame);
-    if (ok) {
-      result.keyframe = true;
-      result.keyframe_id = reference_->id();
-    }
-  } else {
-    refresh_last_frame_pose();
-    if (state_ == TrackingState::kOk) {
-      ok = velocity_ && track_motion_model(frame);
-      if (!ok) ok = reference_ && track_reference_keyframe(frame, reference_);
-    } else {  // kRecentlyLost
-      ok = recover(frame);
-      if (ok) last_recovery_index_ = frame_index_;
-      failed_relocalizations_ = ok ? 0 : failed_relocalizations_ + 1;
-    }
-    if (ok) ok = track_local_map(frame);
-
-    if (ok) {
-      state_ = TrackingState::kOk;
-    } else if (state_ == TrackingState::kOk) {
-      // A small map is given up at once, unless relocalisation gets a few
-      // frames before a new map starts anyway (then an older map may be found).
-      const bool keep = localizing || options_.new_map_after_failed_relocalizations > 0 ||
-                        map_->keyframe_count() > static_cast<std::size_t>(options_.min_keyframes_to_keep_map);
-      state_ = keep ? TrackingState::kRecentlyLost : TrackingState::kLost;
-      lost_since_ns_ = frame.t_ns;
-      failed_relocalizations_ = 0;
-    } else if (seconds_between(lost_since_ns_, frame.t_ns) > options_.recently_lost_s ||
-               (!localizing && options_.new_map_after_failed_relocalizations > 0 &&
-                failed_relocalizations_ >= options_.new_map_after_failed_relocalizations)) {
-      state_ = TrackingState::kLost;
-    }
-
-    if (ok) {
-      const int inliers = count_inliers(frame);
-      result.inliers = inliers;
-      if (last_ && last_->has_pose) velocity_ = last_->T_w_b.inverse() * frame.T_w_b;
-      if (need_new_keyframe(frame, inliers)) {
-        create_keyframe(frame, false);
-        result.keyframe = true;
-        result.keyframe_id = reference_->id();
-      }
-    } else {
-      velocity_.reset();
-    }
+    result.inliers = count_inliers(frame);
+    return true;
   }
+  map_.reset();  // not recognised (or not confirmed): a map of its own follows
+  reference_.reset();
+  last_keyframe_.reset();
+  local_keyframes_.clear();
+  return false;
+}
 
+bool Tracker::localize_in_stored_maps(Frame& frame, TrackResult& result) {
+  // Not localised yet, or lost for good: look for the place in every stored map.
+  bool ok = recover(frame);
+  if (ok) {
+    last_recovery_index_ = frame_index_;
+    ok = track_local_map(frame);
+  }
+  if (ok) {
+    state_ = TrackingState::kOk;
+    result.inliers = count_inliers(frame);
+  }
+  velocity_.reset();
+  return ok;
+}
+
+bool Tracker::track_from_last_frame(Frame& frame) {
+  refresh_last_frame_pose();
+  bool ok = false;
+  if (state_ == TrackingState::kOk) {
+    ok = velocity_ && track_motion_model(frame);
+    if (!ok) ok = reference_ && track_reference_keyframe(frame, reference_);
+  } else {  // kRecentlyLost
+    ok = recover(frame);
+    if (ok) last_recovery_index_ = frame_index_;
+    failed_relocalizations_ = ok ? 0 : failed_relocalizations_ + 1;
+  }
+  return ok && track_local_map(frame);
+}
+
+void Tracker::update_state(const Frame& frame, bool ok) {
+  const bool localizing = options_.localization_only;
+  if (ok) {
+    state_ = TrackingState::kOk;
+  } else if (state_ == TrackingState::kOk) {
+    // A small map is given up at once, unless relocalisation gets a few
+    // frames before a new map starts anyway (then an older map may be found).
+    const bool keep = localizing || options_.new_map_after_failed_relocalizations > 0 ||
+                      map_->keyframe_count() > static_cast<std::size_t>(options_.min_keyframes_to_keep_map);
+    state_ = keep ? TrackingState::kRecentlyLost : TrackingState::kLost;
+    lost_since_ns_ = frame.t_ns;
+    failed_relocalizations_ = 0;
+  } else if (seconds_between(lost_since_ns_, frame.t_ns) > options_.recently_lost_s ||
+             (!localizing && options_.new_map_after_failed_relocalizations > 0 &&
+              failed_relocalizations_ >= options_.new_map_after_failed_relocalizations)) {
+    state_ = TrackingState::kLost;
+  }
+}
+
+void Tracker::after_tracked(Frame& frame, TrackResult& result) {
+  const int inliers = count_inliers(frame);
+  result.inliers = inliers;
+  if (last_ && last_->has_pose) velocity_ = last_->T_w_b.inverse() * frame.T_w_b;
+  if (need_new_keyframe(frame, inliers)) {
+    create_keyframe(frame, false);
+    result.keyframe = true;
+    result.keyframe_id = reference_->id();
+  }
+}
+
+void Tracker::finish_frame(Frame frame, bool ok, TrackResult& result) {
   result.state = state_;
   result.map = map_ ? map_->id() : 0;
   result.tracked = ok;
@@ -193,7 +213,6 @@ TrackResult Tracker::track(Frame frame) {
     last_reference_.reset();
   }
   last_ = std::move(frame);
-  return result;
 }
 
 void Tracker::release_frames() {

@@ -86,6 +86,18 @@ class Tracker {
   void release_frames();
 
  private:
+  // The steps of track(), in order.
+  void accept_frame(const Frame& frame);  // timestamps increase, arrays consistent
+  // First frame of a mapping session: track in a stored map that knows the place.
+  bool join_stored_map(Frame& frame, TrackResult& result);
+  // Localisation only, not (or no longer) localised: relocalise in the stored maps.
+  bool localize_in_stored_maps(Frame& frame, TrackResult& result);
+  // Motion model, else reference keyframe (else relocalisation when recently
+  // lost), then the local map.
+  bool track_from_last_frame(Frame& frame);
+  void update_state(const Frame& frame, bool ok);                // OK / RECENTLY_LOST / LOST
+  void after_tracked(Frame& frame, TrackResult& result);         // velocity, a keyframe when needed
+  void finish_frame(Frame frame, bool ok, TrackResult& result);  // result, anchor, last frame
   bool initialize(Frame& frame);
   bool track_motion_model(Frame& frame);
   bool track_reference_keyframe(Frame& frame, const std::shared_ptr<KeyFrame>& keyframe);

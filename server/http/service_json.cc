@@ -74,7 +74,7 @@ nlohmann::json to_json(const MergesReport& m) {
          {"search_ms", r.search_ms},
          {"keyframes_moved", r.merge.keyframes_moved},
          {"map_points_moved", r.merge.points_moved},
-         {"points_fused", r.merge.points_merged},
+         {"points_fused", r.merge.points_fused},
          {"observations_added", r.merge.observations_fused},
          {"merge_ms", r.merge.ms},
          {"global_ba", {{"keyframes", r.ba_keyframes}, {"seconds", r.ba_seconds}, {"interrupted", r.ba_interrupted}}}});

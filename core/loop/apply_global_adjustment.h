@@ -10,12 +10,12 @@
 
 namespace orbatlas {
 
-struct GlobalAdjustmentMergeStats {
+struct GlobalAdjustmentApplyStats {
   std::size_t keyframes_set = 0, keyframes_propagated = 0;
   std::size_t points_set = 0, points_propagated = 0;
 };
 
-GlobalAdjustmentMergeStats merge_global_adjustment(Map& map, const GlobalBundleAdjustmentResult& result,
+GlobalAdjustmentApplyStats apply_global_adjustment(Map& map, const GlobalBundleAdjustmentResult& result,
                                                    const ScalePyramid& pyramid);
 
 }  // namespace orbatlas

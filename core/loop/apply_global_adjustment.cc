@@ -1,4 +1,4 @@
-#include "core/loop/global_adjustment_merge.h"
+#include "core/loop/apply_global_adjustment.h"
 
 #include <deque>
 #include <unordered_map>
@@ -7,9 +7,9 @@
 
 namespace orbatlas {
 
-GlobalAdjustmentMergeStats merge_global_adjustment(Map& map, const GlobalBundleAdjustmentResult& result,
+GlobalAdjustmentApplyStats apply_global_adjustment(Map& map, const GlobalBundleAdjustmentResult& result,
                                                    const ScalePyramid& pyramid) {
-  GlobalAdjustmentMergeStats stats;
+  GlobalAdjustmentApplyStats stats;
   const auto keyframes = map.keyframes();
   std::unordered_map<KeyframeId, Pose3> now, next;  // body poses before / after the merge
   for (const auto& kf : keyframes) now[kf->id()] = kf->T_w_b();
