@@ -91,6 +91,10 @@ void register_stream(CLI::App& app) {
   cmd->add_option("--sensor", args->stream.sensor,
                   "stereo or mono (default: the config's Sensor.type); mono sends the left images and localises in the "
                   "stored maps");
+  cmd->add_option("--mode", args->stream.mode,
+                  "map (track and add to a map; stereo only) or localize (track in the stored maps, change nothing); "
+                  "default: map for stereo, localize for mono")
+      ->check(CLI::IsMember({"map", "localize"}));
   cmd->add_option("--name", args->stream.name, "Session name (default: the dataset folder's name)");
   cmd->add_option("--rate", args->stream.rate,
                   "1: at the sensor rate, 2: twice as fast, 0: as fast as the server answers")

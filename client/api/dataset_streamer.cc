@@ -27,6 +27,8 @@ double ms_between(Clock::time_point a, Clock::time_point b) {
 
 void StreamOptions::check() const {
   ORBATLAS_CHECK(!dataset.empty(), "stream: no dataset folder given");
+  ORBATLAS_CHECK(mode.empty() || mode == "map" || mode == "localize",
+                 "stream: mode must be map or localize, not '" << mode << "'");
   ORBATLAS_CHECK(rate >= 0.0 && std::isfinite(rate), "stream: rate must be >= 0 (0: no pacing), not " << rate);
   ORBATLAS_CHECK(start_s >= 0.0 && std::isfinite(start_s), "stream: start_s must be >= 0 s, not " << start_s);
   ORBATLAS_CHECK(!duration_s || (*duration_s > 0.0 && std::isfinite(*duration_s)),
@@ -43,7 +45,7 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   StreamReport report;
   std::string name = options.name;
   if (name.empty()) name = std::filesystem::absolute(options.dataset).lexically_normal().filename().string();
-  const nlohmann::json started = client.start_session(options.config, name, options.sensor);
+  const nlohmann::json started = client.start_session(options.config, name, options.sensor, options.mode);
   report.session = started.at("id").get<std::uint64_t>();
   const std::string sensor = started.at("session").value("sensor", "stereo");
   const bool single_camera = sensor == "mono" || sensor == "mono_inertial";

@@ -20,6 +20,8 @@ struct StreamOptions {
   // Empty: the config's Sensor.type. "mono" (or a mono config): only the left
   // images are sent, and the session localises in the stored maps.
   std::string sensor;
+  // "map" or "localize"; empty: map for a stereo rig, localize for a single camera.
+  std::string mode;
   std::string name;   // default: the dataset folder's name
   double rate = 0.0;  // 1: real time; 2: twice as fast; 0: no pacing
   ImageEncoding encoding = ImageEncoding::kRaw;

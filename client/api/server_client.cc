@@ -111,13 +111,15 @@ SettingsChoice choose_settings(const std::string& config) {
   return {config, ""};
 }
 
-json ServerClient::start_session(const std::string& config, const std::string& name, const std::string& sensor) {
+json ServerClient::start_session(const std::string& config, const std::string& name, const std::string& sensor,
+                                 const std::string& mode) {
   const SettingsChoice settings = choose_settings(config);
   json body = json::object();
   if (!settings.config.empty()) body["config"] = settings.config;
   if (!settings.settings_yaml.empty()) body["settings_yaml"] = settings.settings_yaml;
   if (!name.empty()) body["name"] = name;
   if (!sensor.empty()) body["sensor"] = sensor;
+  if (!mode.empty()) body["mode"] = mode;
   return post_json("/v1/sessions", body);
 }
 

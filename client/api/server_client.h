@@ -62,7 +62,9 @@ class ServerClient {
   // POST /v1/sessions with a config name or a local settings file
   // (choose_settings), and a sensor (empty takes the config's Sensor.type);
   // returns the reply: {"id", "session": {... "sensor"}}.
-  nlohmann::json start_session(const std::string& config, const std::string& name = {}, const std::string& sensor = {});
+  // `mode`: "map" or "localize" (empty: the server's default for the sensor).
+  nlohmann::json start_session(const std::string& config, const std::string& name = {}, const std::string& sensor = {},
+                               const std::string& mode = {});
   // The same; returns the session id.
   std::uint64_t create_session(const std::string& config, const std::string& name = {}) {
     return start_session(config, name).at("id").get<std::uint64_t>();

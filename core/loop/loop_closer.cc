@@ -134,6 +134,7 @@ void LoopCloser::close_loop(const PlaceMatch& loop) {
     std::lock_guard lock(correction_mutex_);
     MappingPause pause(mapper_);
     const auto tracking = pause_tracking();
+    const auto whole = atlas_.lock_maps_exclusive();  // localisations see the map before or after
     correction = correct_loop(*map, loop, cam_, options_.correction);
   }
   log_info("loop closed: keyframe " + std::to_string(loop.current->id()) + " with " +
@@ -215,6 +216,7 @@ void LoopCloser::start_global_adjustment(MapId map_id) {
           std::lock_guard lock(correction_mutex_);
           MappingPause pause(mapper_);
           const auto tracking = pause_tracking();
+          const auto whole = atlas_.lock_maps_exclusive();  // localisations see the map before or after
           apply_global_adjustment(*map, result, cam_.pyramid);
         }
         GlobalAdjustmentRun run{result.keyframes, result.points, ms_since(start) * 1e-3, result.stopped};

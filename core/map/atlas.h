@@ -8,6 +8,7 @@
 #include <shared_mutex>
 #include <vector>
 
+#include "core/common/writer_priority_mutex.h"
 #include "core/map/frame_anchor.h"
 #include "core/map/id_allocator.h"
 #include "core/map/keyframe_index.h"
@@ -49,11 +50,15 @@ class Atlas {
   // The same with the map the frame is in now.
   std::optional<std::pair<MapId, Pose3>> locate_frame(const FrameAnchor& anchor) const;
 
-  // Edits that span maps (a merge) hold this exclusively; readers that must see
-  // every map whole (a checkpoint collecting rows) hold it shared. Outermost
-  // lock: taken before any map's or object's lock.
-  std::unique_lock<std::shared_mutex> lock_maps_exclusive() { return std::unique_lock(maps_edit_mutex_); }
-  std::shared_lock<std::shared_mutex> lock_maps_shared() const { return std::shared_lock(maps_edit_mutex_); }
+  // Edits that move whole maps or many of their objects at once (a merge, a loop
+  // correction, applying a global BA) hold this exclusively; readers that must
+  // see every map whole (a checkpoint collecting rows, a localisation request, a
+  // localisation session's frame) hold it shared: they see a map before or after
+  // such an edit, never half-way. A waiting edit goes before new readers
+  // (WriterPriorityMutex), so a stream of frames cannot hold it off. Taken before
+  // any map's or object's lock; never twice by one thread.
+  std::unique_lock<WriterPriorityMutex> lock_maps_exclusive() { return std::unique_lock(maps_edit_mutex_); }
+  std::shared_lock<WriterPriorityMutex> lock_maps_shared() const { return std::shared_lock(maps_edit_mutex_); }
 
   IdAllocator& ids() { return *ids_; }
   const IdAllocator& ids() const { return *ids_; }  // for peek() (saving an atlas)
@@ -71,7 +76,7 @@ class Atlas {
  private:
   const std::shared_ptr<IdAllocator> ids_;
   const std::shared_ptr<ObjectCounters> counters_;
-  mutable std::shared_mutex maps_edit_mutex_;
+  mutable WriterPriorityMutex maps_edit_mutex_;
   mutable std::mutex mutex_;  // guards maps_ and active_; no other lock is taken under it
   std::map<MapId, std::shared_ptr<Map>> maps_;
   std::vector<MapId> removed_;

@@ -76,6 +76,19 @@ void check_session_name(const std::string& name) {
 namespace {
 
 // The request's sensor, else the settings' Sensor.type; 400 for an unknown name.
+// The session's mode: as asked, else map for a stereo rig and localize for a
+// single camera (which cannot map yet).
+SessionMode session_mode(const SessionRequest& request, bool single_camera) {
+  if (request.mode.empty()) return single_camera ? SessionMode::kLocalize : SessionMode::kMap;
+  if (request.mode == "localize") return SessionMode::kLocalize;
+  if (request.mode != "map") throw_bad_request("unknown mode '" + request.mode + "' (map or localize)");
+  if (single_camera)
+    throw ServiceError(ServiceErrorKind::kUnprocessable, "cannot_map",
+                       "a single camera cannot map yet (monocular mapping does not exist); start it with mode "
+                       "\"localize\" to track in the stored maps");
+  return SessionMode::kMap;
+}
+
 SensorType session_sensor(const SessionRequest& request, const SlamSettings& settings) {
   if (request.sensor.empty()) return settings.sensor;
   const auto sensor = parse_sensor_type(request.sensor);
@@ -269,9 +282,24 @@ void AtlasService::check_upload(const SessionRequest& request) const {
 }
 
 std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const SessionInfo& info,
-                                                            const SlamSettings& settings) {
+                                                            const SlamSettings& settings, SessionMode mode) {
   StereoSlamOptions slam_options = options_.slam;
   SessionWiring wiring;
+  if (mode == SessionMode::kLocalize) {
+    // Tracks in the stored maps of its own rig and changes nothing: no lease,
+    // no keyframes, no loop closing or merging.
+    slam_options.tracker.localization_only = true;
+    slam_options.relocalization = true;
+    slam_options.loop_closing = false;
+    slam_options.live_merging = false;
+    wiring.may_enter_map = [this, rig = info.cameras](MapId map) { return rig_matches(rig, map); };
+    try {
+      return std::make_unique<StereoSlam>(atlas_, settings, vocabulary_, slam_options, std::move(wiring));
+    } catch (const std::exception& e) {
+      throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
+                         std::string("cannot start a stereo session with these settings: ") + e.what());
+    }
+  }
   // Stored maps of its own rig only: local mapping would adjust another rig's
   // keyframes with this session's camera.
   wiring.may_enter_map = [this, id, rig = info.cameras](MapId map) {
@@ -310,6 +338,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   // visually, their IMU checked and counted. A single camera may also be the
   // first camera of a stereo config.
   const bool single_camera = is_single_camera(sensor);
+  const SessionMode mode = session_mode(request, single_camera);
   if (!single_camera && !loaded.settings.is_stereo())
     throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
                        "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
@@ -338,8 +367,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   if (single_camera) {
     MonoLocalizerOptions mono;
     mono.tracker = options_.slam.tracker;
-    SessionWiring wiring;
-    wiring.may_enter_map = [this, id](MapId map) { return leases_.claim(id, map); };
+    SessionWiring wiring;  // it reads any stored map, holding no lease (it changes nothing)
     try {
       slam = std::make_unique<MonoLocalizer>(atlas_, loaded.settings, vocabulary_, mono, std::move(wiring));
     } catch (const std::exception& e) {
@@ -347,7 +375,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
                          std::string("cannot start a single-camera session with these settings: ") + e.what());
     }
   } else {
-    slam = make_stereo_slam(id, info, loaded.settings);
+    slam = make_stereo_slam(id, info, loaded.settings, mode);
   }
   // Stored before its id is handed out: an id is never given twice, even when
   // the server dies before the session's first checkpoint.
@@ -358,7 +386,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
     throw ServiceError(ServiceErrorKind::kUnavailable, "storage_failed",
                        std::string("cannot store the new session: ") + e.what());
   }
-  auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam));
+  auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam), mode);
   {
     std::lock_guard lock(mutex_);
     sessions_[id] = live;
@@ -506,7 +534,9 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     frames_rejected_.Increment();
     throw;
   }
-  leases_.settle(id, reply.result.tracked ? std::optional<MapId>(reply.result.map) : std::nullopt);
+  // A localisation holds no lease: it changes nothing, any number share a map.
+  if (live->mode() != SessionMode::kLocalize)
+    leases_.settle(id, reply.result.tracked ? std::optional<MapId>(reply.result.map) : std::nullopt);
   if (reply.result.keyframe) checkpointer_->notify_keyframe(id, reply.result.keyframe_id);
   frames_.Increment();
   tracking_latency_.Observe(reply.tracking_ms / 1000.0);
@@ -578,6 +608,14 @@ std::vector<MapSummary> AtlasService::maps() const {
   return out;
 }
 
+std::vector<SessionId> AtlasService::sessions_in(MapId map) const {
+  std::vector<SessionId> in;
+  std::lock_guard lock(mutex_);
+  for (const auto& [id, s] : sessions_)
+    if (s->current_map() == map) in.push_back(id);
+  return in;
+}
+
 MapSummary AtlasService::map(MapId id) const {
   const auto map = atlas_.map(id);
   if (!map) throw_not_found("no map " + std::to_string(id));
@@ -586,6 +624,7 @@ MapSummary AtlasService::map(MapId id) const {
   out.keyframes = map->keyframe_count();
   out.map_points = map->map_point_count();
   out.live_session = leases_.holder(id);
+  out.sessions = sessions_in(id);
   const auto points = map->map_points();
   if (!points.empty()) {
     MapSummary::Bounds bounds{Eigen::Vector3d::Constant(1e300), Eigen::Vector3d::Constant(-1e300)};

@@ -78,6 +78,9 @@ struct SettingsSource {
 struct SessionRequest {
   std::string name;
   std::string sensor;  // empty: the config's Sensor.type
+  // "map" or "localize"; empty: map for a stereo rig, localize for a single
+  // camera (which cannot map yet: "map" with a single camera is refused).
+  std::string mode;
   SettingsSource settings;
 };
 
@@ -172,9 +175,12 @@ class AtlasService {
   LoadedSettings load_settings(const SettingsSource& source) const;
   std::shared_ptr<LocalizerContext> localizer_for(const SettingsSource& source);
   // A stereo session's SLAM with the server's policies (leases, live merging).
-  std::unique_ptr<SessionSlam> make_stereo_slam(SessionId id, const SessionInfo& info, const SlamSettings& settings);
+  std::unique_ptr<SessionSlam> make_stereo_slam(SessionId id, const SessionInfo& info, const SlamSettings& settings,
+                                                SessionMode mode);
   // Leases and checkpoints after a session ended; returns the maps it held.
   std::vector<MapId> end_session_storage(SessionId id);
+  // Live sessions whose last frame was tracked in `map` (lock-free reads of each).
+  std::vector<SessionId> sessions_in(MapId map) const;
   // Hands a finished session's maps to the merging worker.
   void submit_merges(SessionId id, const std::vector<MapId>& maps);
   // May two maps be merged (made with one camera rig)?

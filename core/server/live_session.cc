@@ -9,6 +9,8 @@
 
 namespace orbatlas {
 
+const char* session_mode_name(SessionMode mode) { return mode == SessionMode::kLocalize ? "localize" : "map"; }
+
 const char* session_state_name(SessionState state) {
   switch (state) {
     case SessionState::kActive:
@@ -23,8 +25,12 @@ const char* session_state_name(SessionState state) {
   return "?";
 }
 
-LiveSession::LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam)
-    : info_(std::move(info)), config_(std::move(config)), slam_(std::move(slam)), state_(SessionState::kActive) {}
+LiveSession::LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam, SessionMode mode)
+    : info_(std::move(info)),
+      config_(std::move(config)),
+      mode_(mode),
+      slam_(std::move(slam)),
+      state_(SessionState::kActive) {}
 
 LiveSession::LiveSession(SessionInfo info, std::size_t tracked_frames, std::optional<FrameAnchor> last_frame)
     : info_(std::move(info)), state_(SessionState::kStored), anchors_released_(true), last_anchor_(last_frame) {
@@ -85,6 +91,7 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
   if (out.result.keyframe) ++keyframes_;
   tracking_ms_.add(out.tracking_ms);
   last_ = out.result;
+  current_map_.store(out.result.tracked ? out.result.map : kInvalidMapId);
   return out;
 }
 
@@ -169,6 +176,7 @@ SessionStatus LiveSession::status() const {
   s.name = info_.name;
   s.state = state_;
   s.sensor = info_.sensor;
+  s.mode = mode_;
   s.frames = frames_;
   s.tracked = tracked_;
   s.keyframes = keyframes_;

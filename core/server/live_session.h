@@ -28,7 +28,8 @@ struct FrameOutcome {
 
 class LiveSession {
  public:
-  LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam);
+  LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam,
+              SessionMode mode = SessionMode::kMap);
   // A stored session (an earlier run's): how many frames it tracked and its
   // last frame; its trajectory stays in the database.
   LiveSession(SessionInfo info, std::size_t tracked_frames, std::optional<FrameAnchor> last_frame);
@@ -37,6 +38,9 @@ class LiveSession {
   LiveSession& operator=(const LiveSession&) = delete;
 
   SessionId id() const { return info_.id; }
+  std::optional<SessionMode> mode() const { return mode_; }  // none for a stored session
+  // The map its last frame was tracked in (kInvalidMapId: none, or not active); lock-free.
+  MapId current_map() const { return state_.load() == SessionState::kActive ? current_map_.load() : kInvalidMapId; }
   const SessionInfo& info() const { return info_; }
   SessionState state() const { return state_.load(); }  // never waits for a frame or a finish
 
@@ -77,7 +81,8 @@ class LiveSession {
 
   const SessionInfo info_;
   const std::string config_;
-  mutable std::mutex mutex_;  // serialises frames, IMU and finish
+  const std::optional<SessionMode> mode_;  // none for a stored session (the database does not keep it)
+  mutable std::mutex mutex_;               // serialises frames, IMU and finish
   std::unique_ptr<SessionSlam> slam_;
   // Written under mutex_; read without it (state()), so asking a session for its
   // state never waits for its frame or its finish (docs/architecture.md, locks).
@@ -92,6 +97,7 @@ class LiveSession {
   SampleSummary tracking_ms_;
   std::optional<SessionStatus::SlamCounts> final_counts_;  // captured by finish()
   std::atomic<std::size_t> worker_errors_{0};
+  std::atomic<MapId> current_map_{kInvalidMapId};
   std::atomic<std::chrono::steady_clock::rep> last_activity_{
       std::chrono::steady_clock::now().time_since_epoch().count()};
   std::string ended_by_;  // under mutex_; empty: the client finished it

@@ -154,7 +154,10 @@ GlobalBundleAdjustmentResult MapMergeWorker::refine(Map& map, const FrameCamera&
   const auto start = std::chrono::steady_clock::now();
   const GlobalBundleAdjustmentResult result = global_bundle_adjustment(
       map, *cam.camera, cam.bf, with_level_sigma2(options_.global, cam.pyramid.level_sigma2()), &stopping_);
-  if (!result.stopped) apply_global_adjustment(map, result, cam.pyramid);
+  if (!result.stopped) {
+    const auto whole = atlas_.lock_maps_exclusive();  // localisations see the map before or after
+    apply_global_adjustment(map, result, cam.pyramid);
+  }
   *seconds = ms_since(start) * 1e-3;
   return result;
 }

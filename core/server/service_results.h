@@ -20,12 +20,19 @@ namespace orbatlas {
 enum class SessionState { kActive, kFinished, kFailed, kStored };
 const char* session_state_name(SessionState state);
 
+// What a session does in the atlas: map (track and add keyframes to its map,
+// close loops, merge) or localize (track in the stored maps and change nothing:
+// no lease, so any number of them share a map, also while it is edited).
+enum class SessionMode { kMap, kLocalize };
+const char* session_mode_name(SessionMode mode);
+
 // GET /v1/sessions/{id}.
 struct SessionStatus {
   SessionId id = 0;
   std::string name;
   SessionState state = SessionState::kActive;
   SensorType sensor = SensorType::kStereo;
+  std::optional<SessionMode> mode;  // none for a session of an earlier run (not stored)
   std::size_t frames = 0, tracked = 0, keyframes = 0, rejected_frames = 0, imu_samples = 0;
   std::size_t worker_errors = 0;
   std::string config;    // the config name it was started with ("" for inline settings)
@@ -48,7 +55,8 @@ struct SessionStatus {
 struct MapSummary {
   MapId id = 0;
   std::size_t keyframes = 0, map_points = 0;
-  std::optional<SessionId> live_session;  // the session holding it now
+  std::optional<SessionId> live_session;  // the mapping session holding it now (its lease)
+  std::vector<SessionId> sessions;        // live sessions whose last frame was tracked in it (any mode)
   struct Bounds {
     Eigen::Vector3d min, max;
   };

@@ -39,7 +39,8 @@ TrackResult MonoLocalizer::process(TimestampNs t_ns, const cv::Mat& left, const 
   ORBATLAS_CHECK(!finished_, "this localisation session has finished; it takes no more frames");
   ORBATLAS_DATA_CHECK(right.empty(), "a single-camera session takes one image per frame, not a stereo pair");
   const auto start = std::chrono::steady_clock::now();
-  return frames_.track(*tracker_, frontend_.make_frame(t_ns, left), nullptr, start);
+  // It reads maps other sessions edit: it sees each edit whole.
+  return frames_.track(*tracker_, frontend_.make_frame(t_ns, left), nullptr, &atlas_, start);
 }
 
 void MonoLocalizer::finish() {

@@ -82,7 +82,9 @@ TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv:
   ORBATLAS_DATA_CHECK(!right.empty(), "a stereo session takes a stereo pair: the right image is missing");
   const auto start = std::chrono::steady_clock::now();
   Frame frame = frontend_.make_frame(t_ns, left, right);
-  const TrackResult result = frames_.track(*tracker_, std::move(frame), tracking_mutex_.get(), start);
+  // A localisation reads maps other sessions edit: it sees each edit whole.
+  const Atlas* read_whole = options_.tracker.localization_only ? &atlas_ : nullptr;
+  const TrackResult result = frames_.track(*tracker_, std::move(frame), tracking_mutex_.get(), read_whole, start);
   if (result.keyframe) {
     ++keyframes_made_;
     if (options_.synchronous_mapping) {
@@ -110,7 +112,10 @@ void StereoSlam::finish() {
       if (!map || map->keyframe_count() < 2) continue;
       const GlobalBundleAdjustmentResult result = global_bundle_adjustment(
           *map, *cam_.camera, cam_.bf, with_level_sigma2(options_.final_ba, cam_.pyramid.level_sigma2()));
-      apply_global_adjustment(*map, result, cam_.pyramid);
+      {
+        const auto whole = atlas_.lock_maps_exclusive();  // other sessions' localisations see it whole
+        apply_global_adjustment(*map, result, cam_.pyramid);
+      }
       final_ba_keyframes_ += result.keyframes;
     }
     final_ba_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -23,11 +23,13 @@ namespace orbatlas {
 
 class TrackedFrames {
  public:
-  // Tracks `frame` with `tracker` (holding `tracking_mutex` when not null);
-  // `started`: when the frame's processing began (its front end included).
+  // Tracks `frame` with `tracker` (holding `tracking_mutex` when not null, and
+  // `read_whole`'s maps shared when not null: a localisation that must see maps
+  // before or after another session's edit, never half-way); `started`: when
+  // the frame's processing began (its front end included).
   // Rethrows DataError (the frame's fault), WorkerFailed, and the error that
   // makes tracking fail too many times in a row.
-  TrackResult track(Tracker& tracker, Frame frame, std::mutex* tracking_mutex,
+  TrackResult track(Tracker& tracker, Frame frame, std::mutex* tracking_mutex, const Atlas* read_whole,
                     std::chrono::steady_clock::time_point started);
 
   std::vector<FrameAnchor> anchors() const;  // any thread

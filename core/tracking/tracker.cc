@@ -240,12 +240,22 @@ void Tracker::follow_merged_map() {
   // Merged away: the keyframes went with it, so the reference says where to.
   std::shared_ptr<Map> into = reference_ ? atlas_.map(reference_->map_id()) : nullptr;
   if (!into) {
-    map_.reset();  // nothing to follow (a map without keyframes is never merged): a map of its own
-    start_new_map();
+    map_.reset();  // nothing to follow (a map without keyframes is never merged)
+    if (options_.localization_only) {
+      // Localised again from scratch at this frame; a localisation makes no map.
+      state_ = TrackingState::kLost;
+      reference_.reset();
+      last_keyframe_.reset();
+      local_keyframes_.clear();
+      last_reference_.reset();
+      velocity_.reset();
+    } else {
+      start_new_map();  // a map of its own
+    }
     return;
   }
   map_ = std::move(into);
-  atlas_.set_active(map_->id());
+  if (!options_.localization_only) atlas_.set_active(map_->id());
   ++maps_followed_;
 }
 
@@ -310,7 +320,7 @@ bool Tracker::recover(Frame& frame) {
       auto map = atlas_.map(found->map);
       if (!map) return false;
       map_ = std::move(map);
-      atlas_.set_active(found->map);
+      if (!options_.localization_only) atlas_.set_active(found->map);  // a localisation changes nothing
       last_keyframe_.reset();
     }
     reference_ = found->keyframe;
@@ -381,11 +391,14 @@ void Tracker::update_local_map(const Frame& frame) {
 
 bool Tracker::track_local_map(Frame& frame) {
   update_local_map(frame);
+  // A point's visible / found counts feed point culling in the map's own
+  // mapping; a localisation changes nothing in the map, these counts included.
+  const bool count = !options_.localization_only;
   std::unordered_set<MapPointId> seen;
   for (std::size_t i = 0; i < frame.size(); ++i) {
     const auto& mp = frame.map_points[i];
     if (!mp || mp->is_bad()) continue;
-    mp->increase_visible();
+    if (count) mp->increase_visible();
     seen.insert(mp->id());
   }
   const Pose3 T_c_w = (frame.T_w_b * T_b_c_).inverse();
@@ -395,7 +408,7 @@ bool Tracker::track_local_map(Frame& frame) {
       if (mp->is_bad() || !seen.insert(mp->id()).second) continue;
       ProjectedPoint pp;
       if (!project_into_frame(*mp, T_c_w, cam_, &pp)) continue;
-      mp->increase_visible();
+      if (count) mp->increase_visible();
       pp.point = mp;
       candidates.push_back(std::move(pp));
     }
@@ -410,7 +423,7 @@ bool Tracker::track_local_map(Frame& frame) {
   for (std::size_t i = 0; i < frame.size(); ++i) {
     const auto& mp = frame.map_points[i];
     if (!mp || frame.outlier[i] || mp->is_bad()) continue;
-    mp->increase_found();
+    if (count) mp->increase_found();
     if (mp->observation_count() > 0) ++inliers;
   }
   const bool recovering = frame_index_ < last_recovery_index_ + options_.max_frames_between_keyframes;

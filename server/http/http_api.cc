@@ -225,6 +225,7 @@ void install_session_routes(Router& router, AtlasService& service) {
                 SessionRequest request;
                 request.name = optional_string(body, "name");
                 if (body.contains("sensor")) request.sensor = optional_string(body, "sensor");
+                if (body.contains("mode")) request.mode = optional_string(body, "mode");
                 request.settings.config = optional_string(body, "config");
                 request.settings.settings_yaml = optional_string(body, "settings_yaml");
                 const SessionId id = service.create_session(request);

@@ -18,6 +18,7 @@ nlohmann::json to_json(const SessionStatus& s) {
                       {"rejected_frames", s.rejected_frames},
                       {"imu_samples", s.imu_samples},
                       {"worker_errors", s.worker_errors}};
+  if (s.mode) j["mode"] = session_mode_name(*s.mode);
   if (!s.config.empty()) j["config"] = s.config;
   if (!s.error.empty()) j["error"] = s.error;
   if (!s.ended_by.empty()) j["ended_by"] = s.ended_by;
@@ -31,6 +32,7 @@ nlohmann::json to_json(const SessionStatus& s) {
 nlohmann::json to_json(const MapSummary& map) {
   nlohmann::json j = {{"id", map.id}, {"keyframes", map.keyframes}, {"map_points", map.map_points}};
   if (map.live_session) j["live_session"] = *map.live_session;
+  j["sessions"] = map.sessions;
   if (map.bounds_m) {
     const auto& b = *map.bounds_m;
     j["bounds_m"] = {{"min", {b.min.x(), b.min.y(), b.min.z()}}, {"max", {b.max.x(), b.max.y(), b.max.z()}}};

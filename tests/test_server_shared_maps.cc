@@ -1,0 +1,191 @@
+// Shared maps (issue 18), first part: localisation sessions read, never lock.
+// Eight sessions (single camera and stereo, mode "localize") stream at once
+// into one stored map over HTTP: each is tracked in that map's frame from its
+// first recognised frame, and the map's rows in the database are unchanged.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+#include <sqlite3.h>
+
+#include <cmath>
+#include <cstdint>
+#include <future>
+#include <string>
+#include <vector>
+
+#include "client/api/dataset_streamer.h"
+#include "core/common/error.h"
+#include "tests/server_test_fixture.h"
+#include "tests/slam_test_clip.h"
+
+namespace orbatlas {
+namespace {
+
+StreamOptions stream_options(const std::filesystem::path& clip) {
+  StreamOptions o;
+  o.dataset = clip;
+  o.show_progress = false;
+  return o;
+}
+
+// Per table that holds maps: its row count and an FNV-1a digest of every row
+// (blobs included byte for byte) in a fixed order; equal exactly when the
+// stored maps are unchanged (up to a digest collision).
+std::string map_rows(const std::filesystem::path& db) {
+  sqlite3* handle = nullptr;
+  EXPECT_EQ(sqlite3_open_v2(db.c_str(), &handle, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK);
+  std::string out;
+  for (const char* table :
+       {"maps", "keyframes", "map_points", "observations", "covisibility", "loop_edges", "culled_keyframes"}) {
+    sqlite3_stmt* stmt = nullptr;
+    // maps.saved_ns says when a map's row was last written, not what the map holds.
+    const std::string columns = std::string(table) == "maps" ? "id" : "*";
+    const std::string sql = "SELECT " + columns + " FROM " + table + " ORDER BY 1" + (columns == "*" ? ", 2" : "");
+    EXPECT_EQ(sqlite3_prepare_v2(handle, sql.c_str(), -1, &stmt, nullptr), SQLITE_OK) << table;
+    std::size_t rows = 0;
+    std::uint64_t digest = 14695981039346656037ULL;
+    const auto add = [&digest](const unsigned char* bytes, int n) {
+      for (int i = 0; i < n; ++i) digest = (digest ^ bytes[i]) * 1099511628211ULL;
+    };
+    while (sqlite3_step(stmt) == SQLITE_ROW) {
+      ++rows;
+      for (int c = 0; c < sqlite3_column_count(stmt); ++c) {
+        const auto* bytes = static_cast<const unsigned char*>(sqlite3_column_blob(stmt, c));
+        const int n = sqlite3_column_bytes(stmt, c);
+        const unsigned char separator[2] = {static_cast<unsigned char>(bytes ? 1 : 0), 0x1f};
+        if (bytes) add(bytes, n);
+        add(separator, 2);
+      }
+    }
+    sqlite3_finalize(stmt);
+    out += std::string(table) + ": " + std::to_string(rows) + " rows, digest " + std::to_string(digest) + "\n";
+  }
+  sqlite3_close(handle);
+  return out;
+}
+
+// The body pose of `clip` at t_ns in the frame of a map whose origin is the
+// body at the first frame of `origin` (all Machine Hall sequences share one world).
+std::optional<Pose3> truth_in_map(const EurocDataset& clip, TimestampNs t_ns, const EurocDataset& origin) {
+  Trajectory gt, origin_gt;
+  for (const auto& s : clip.ground_truth) gt.push_back({s.t_ns, s.T_w_b});
+  for (const auto& s : origin.ground_truth) origin_gt.push_back({s.t_ns, s.T_w_b});
+  const auto pose = pose_at(gt, t_ns, 50'000'000);
+  const auto first = pose_at(origin_gt, pair_stereo_frames(origin).front().t_ns, 50'000'000);
+  if (!pose || !first) return std::nullopt;
+  return first->inverse() * *pose;
+}
+
+TEST(SharedMaps, EightLocalisationSessionsShareAStoredMapAndChangeNothing) {
+  const auto built = test::simulated_clip("MH_01", 40.0, 4.0);
+  test::ClipCleanup built_cleanup{built};
+  // Another flight through that place (no pose that built the map is re-rendered).
+  const auto visit = test::simulated_clip("MH_02", 41.0, 3.0);
+  test::ClipCleanup visit_cleanup{visit};
+  test::TempDbPath db("shared_localize");
+  {
+    test::TestServer server(test::server_options(db.path));
+    ServerClient client(server.url());
+    const StreamReport report = stream_dataset(client, stream_options(built));
+    ASSERT_EQ(report.tracked, report.frames);
+  }
+  const std::string rows_before = map_rows(db.path);
+
+  // Enough HTTP threads for the eight streams and this test's own connection,
+  // and room for all of their keep-alive connections to wait between frames at
+  // once (the default, 4, closes the longest-waiting: a stream's next frame then
+  // fails to write; noted on the shared-maps issue).
+  ConnectionLimits limits;
+  limits.max_waiting = 12;
+  test::TestServer server(test::server_options(db.path), {}, limits, 12);
+  ServerClient client(server.url());
+  const nlohmann::json maps = client.get_json("/v1/maps");
+  ASSERT_EQ(maps["maps"].size(), 1u);
+  const std::uint64_t stored_map = maps["maps"][0]["id"];
+
+  // A session in localize mode shows in the map's session list once it tracks there.
+  {
+    const auto frames = test::stereo_frames(visit);
+    const nlohmann::json started = client.start_session("euroc/stereo", "probe", "", "localize");
+    EXPECT_EQ(started["session"]["mode"], "localize");
+    const std::uint64_t id = started["id"];
+    const auto reply = client.post_frame(id, frames[5].t_ns, cv::imread(frames[5].left.string(), cv::IMREAD_GRAYSCALE),
+                                         cv::imread(frames[5].right.string(), cv::IMREAD_GRAYSCALE));
+    ASSERT_TRUE(reply["tracked"].get<bool>()) << reply.dump();
+    const nlohmann::json map = client.get_json("/v1/maps/" + std::to_string(stored_map));
+    EXPECT_EQ(map["sessions"], nlohmann::json::array({id})) << map.dump();
+    EXPECT_FALSE(map.contains("live_session")) << "a localisation holds no lease";
+    client.finish_session(id);
+  }
+
+  // Eight at once: four single-camera and four stereo localisation sessions,
+  // starting at different moments of the visit.
+  std::vector<std::future<StreamReport>> running;
+  for (int i = 0; i < 8; ++i) {
+    running.push_back(std::async(std::launch::async, [&, i] {
+      ServerClient own(server.url());
+      StreamOptions o = stream_options(visit);
+      o.config = i % 2 == 0 ? "euroc/mono" : "euroc/stereo";
+      o.mode = "localize";
+      o.name = "localizer " + std::to_string(i);
+      o.start_s = 0.25 * (i / 2);
+      return stream_dataset(own, o);
+    }));
+  }
+  std::vector<StreamReport> reports;
+  for (auto& r : running) reports.push_back(r.get());
+
+  const EurocDataset visit_data = test::stereo_dataset(visit);
+  const EurocDataset built_data = test::stereo_dataset(built);
+  double sum_sq = 0.0;
+  std::size_t poses = 0;
+  for (std::size_t i = 0; i < reports.size(); ++i) {
+    const StreamReport& r = reports[i];
+    EXPECT_EQ(r.rejected, 0u) << "session " << i;
+    EXPECT_EQ(r.keyframes, 0u) << "session " << i;
+    // Tracked from the first recognised frame on (the first may be spent recognising).
+    EXPECT_GE(r.tracked + 2, r.frames) << "session " << i;
+    for (const auto m : r.reply_maps) EXPECT_EQ(m, stored_map) << "session " << i;
+    // No alignment: the poses are in the stored map's frame, as the truth is.
+    for (const auto& p : r.trajectory) {
+      const auto truth = truth_in_map(visit_data, p.t_ns, built_data);
+      if (!truth) continue;
+      sum_sq += (p.pose.t - truth->t).squaredNorm();
+      ++poses;
+    }
+  }
+  ASSERT_GT(poses, 8u * 40u);
+  const double rmse = std::sqrt(sum_sq / static_cast<double>(poses));
+  std::printf("8 localisation sessions in one map: %zu poses, error in the map's frame %.4f m RMSE\n", poses, rmse);
+  EXPECT_LT(rmse, 0.011);  // measured 0.0055 m
+
+  server.service().shutdown();  // the final checkpoint: what would change, is written
+  EXPECT_EQ(map_rows(db.path), rows_before) << "a localisation changed the stored map";
+}
+
+TEST(SharedMaps, TheModeIsCheckedAtStart) {
+  test::TempDbPath db("shared_mode");
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  const auto refused = [&](const nlohmann::json& body) {
+    const auto res = client.http().Post("/v1/sessions", body.dump(), "application/json");
+    EXPECT_TRUE(res);
+    return res ? std::make_pair(res->status, res->body) : std::make_pair(0, std::string());
+  };
+  const auto [bad_status, bad_body] = refused({{"config", "euroc/stereo"}, {"mode", "fly"}});
+  EXPECT_EQ(bad_status, 400) << bad_body;
+  EXPECT_NE(bad_body.find("map or localize"), std::string::npos) << bad_body;
+  const auto [mono_status, mono_body] = refused({{"config", "euroc/mono"}, {"mode", "map"}});
+  EXPECT_EQ(mono_status, 422) << mono_body;
+  EXPECT_NE(mono_body.find("cannot_map"), std::string::npos) << mono_body;
+  // Defaults: map for a stereo rig, localize for a single camera.
+  const nlohmann::json stereo = client.start_session("euroc/stereo", "s");
+  EXPECT_EQ(stereo["session"]["mode"], "map");
+  const nlohmann::json mono = client.start_session("euroc/mono", "m");
+  EXPECT_EQ(mono["session"]["mode"], "localize");
+  client.finish_session(stereo["id"]);
+  client.finish_session(mono["id"]);
+}
+
+}  // namespace
+}  // namespace orbatlas
