@@ -1,5 +1,6 @@
 #include "client/api/server_client.h"
 
+#include <functional>
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/archive/tar_writer.h"
@@ -81,6 +82,19 @@ httplib::Client& ServerClient::http() { return *client_; }
 
 namespace {
 
+// A keep-alive connection the server closed while it sat idle (its slow-client
+// guard makes room for other clients) fails the next request on it. A request
+// that could not be written was never received: it is sent once more, on a new
+// connection; a GET, a localisation and a frame also when the reply could not
+// be read (the first two change nothing; a frame the server did take is refused
+// the second time, 422 for a timestamp not after the last, and the session goes on).
+httplib::Result send(const std::function<httplib::Result()>& request, bool idempotent) {
+  httplib::Result result = request();
+  if (!result && (result.error() == httplib::Error::Write || (idempotent && result.error() == httplib::Error::Read)))
+    result = request();
+  return result;
+}
+
 const httplib::Response& checked(const httplib::Result& result, const std::string& url, const std::string& what) {
   if (!result)
     throw Error("cannot reach the server at " + url + " (" + what + "): " + httplib::to_string(result.error()));
@@ -91,13 +105,17 @@ const httplib::Response& checked(const httplib::Result& result, const std::strin
 }  // namespace
 
 json ServerClient::get_json(const std::string& path) {
-  return json::parse(checked(client_->Get(path), url_, path).body);
+  return json::parse(checked(send([&] { return client_->Get(path); }, true), url_, path).body);
 }
 
-std::string ServerClient::get_text(const std::string& path) { return checked(client_->Get(path), url_, path).body; }
+std::string ServerClient::get_text(const std::string& path) {
+  return checked(send([&] { return client_->Get(path); }, true), url_, path).body;
+}
 
 json ServerClient::post_json(const std::string& path, const json& body) {
-  return json::parse(checked(client_->Post(path, body.dump(), "application/json"), url_, path).body);
+  const std::string text = body.dump();
+  return json::parse(
+      checked(send([&] { return client_->Post(path, text, "application/json"); }, false), url_, path).body);
 }
 
 SettingsChoice choose_settings(const std::string& config) {
@@ -131,7 +149,7 @@ json ServerClient::post_frame(std::uint64_t session, std::int64_t t_ns, const cv
   if (!right.empty()) add_image(items, "right", right, encoding);
   add_raw_size(items, left, encoding);
   const std::string path = "/v1/sessions/" + std::to_string(session) + "/frames";
-  return json::parse(checked(client_->Post(path, items), url_, path).body);
+  return json::parse(checked(send([&] { return client_->Post(path, items); }, true), url_, path).body);
 }
 
 json ServerClient::finish_session(std::uint64_t session) {
@@ -153,7 +171,8 @@ json ServerClient::localize(const std::string& config, const cv::Mat& left, cons
   add_image(items, right.empty() ? "image" : "left", left, encoding);
   if (!right.empty()) add_image(items, "right", right, encoding);
   add_raw_size(items, left, encoding);
-  return json::parse(checked(client_->Post("/v1/localize", items), url_, "/v1/localize").body);
+  return json::parse(
+      checked(send([&] { return client_->Post("/v1/localize", items); }, true), url_, "/v1/localize").body);
 }
 
 std::uint64_t ServerClient::upload(const std::filesystem::path& dataset, const std::string& config,
