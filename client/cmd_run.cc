@@ -20,7 +20,7 @@ namespace {
 
 struct RunArgs {
   DatasetRunOptions run;
-  std::string config, dataset, out_trajectory, stats, vocabulary, culling = "incremental";
+  std::string config, dataset, out_trajectory, stats, vocabulary, culling = "incremental", mode = "map";
   double start_s = 0.0, duration_s = 0.0;
   bool compare_culling = false;
 };
@@ -119,6 +119,11 @@ void register_run_command(CLI::App& app) {
   cmd->add_flag("!--no-loop-closing", args->run.slam.loop_closing,
                 "No place recognition, loop correction or global bundle adjustment");
   cmd->add_flag("!--no-progress", args->run.show_progress, "Do not print progress");
+  cmd->add_option("--mode", args->mode,
+                  "map (track, add keyframes, close loops) or localize (with --atlas: track in the stored maps and "
+                  "change nothing, as `orbatlas localize` does)")
+      ->check(CLI::IsMember({"map", "localize"}))
+      ->capture_default_str();
   cmd->add_flag("--final-ba", args->run.slam.final_global_ba,
                 "After the last frame, one global bundle adjustment over the session's maps (offline refinement)");
   cmd->callback([args, cmd]() {
@@ -131,6 +136,7 @@ void register_run_command(CLI::App& app) {
     if (args->duration_s > 0.0) options.duration_s = args->duration_s;
     options.slam.mapper.culling.scheme = args->culling == "scan" ? CullingScheme::kScan : CullingScheme::kIncremental;
     options.slam.mapper.culling.compare_schemes = args->compare_culling;
+    options.localize_only = args->mode == "localize";  // DatasetRunOptions::check: needs --atlas
 
     const DatasetRunReport report = run_stereo_dataset(options);
     write_tum_trajectory(args->out_trajectory, report.trajectory);
