@@ -4,6 +4,7 @@
 #include <signal.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -54,7 +55,7 @@ int main(int argc, char** argv) {
   std::size_t max_body_mb = 64;
   std::uint64_t max_upload_gb = 32;
   orbatlas::UploadJobOptions job_options;
-  int threads = 8;
+  int threads = 0;  // 0: from --max-sessions (below)
   bool log_requests = false;
   app.add_option("--db", service_options.db, "Atlas database (SQLite; created when missing)")->required();
   app.add_option("--listen", listen_text, "HOST:PORT to listen on (port 0: any free port)")->capture_default_str();
@@ -66,7 +67,11 @@ int main(int argc, char** argv) {
                  "Live sessions at most (each has its own mapping threads)")
       ->capture_default_str();
   app.add_option("--max-upload-gb", max_upload_gb, "Largest upload")->capture_default_str();
-  app.add_option("--threads", threads, "HTTP worker threads")->capture_default_str()->check(CLI::Range(2, 256));
+  app.add_option("--threads", threads,
+                 "HTTP worker threads (0: 2 x --max-sessions + 4, so that every live session's connection can "
+                 "wait between frames and requests still find a free thread)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 256));
   app.add_option("--max-body-mb", max_body_mb, "Largest request body (frames, localisation)")->capture_default_str();
   app.add_option("--config-dir", service_options.config_dir, "Folder of named configs (default: the shipped ones)");
   app.add_option("--vocabulary", service_options.vocabulary, "ORB vocabulary (default: the shipped one)");
@@ -114,7 +119,10 @@ int main(int argc, char** argv) {
       throw orbatlas::Error("--listen " + listen_text +
                             " reaches other machines: give --token (every route but /healthz then needs it), or "
                             "--insecure to serve without one");
-    orbatlas::log_info("options in effect:\n" + orbatlas::effective_options_text(app));
+    if (threads == 0) threads = static_cast<int>(std::min<std::size_t>(256, 2 * service_options.max_live_sessions + 4));
+    ORBATLAS_CHECK(threads >= 2, "--threads must be 0 (automatic) or at least 2");
+    orbatlas::log_info("options in effect:\n" + orbatlas::effective_options_text(app) +
+                       "  (HTTP threads in use: " + std::to_string(threads) + ")");
     orbatlas::AtlasService service(service_options);
     job_options.work_dir = service_options.db.string() + ".work";
     orbatlas::UploadJobs jobs(service, job_options);
