@@ -9,6 +9,7 @@
 #include <thread>
 #include <unistd.h>
 
+#include "client/api/dataset_streamer.h"
 #include "core/server/atlas_service.h"
 #include "server/http/guarded_http_server.h"
 #include "server/http/http_api.h"
@@ -18,6 +19,14 @@
 #include <httplib.h>
 
 namespace orbatlas::test {
+
+// Streaming a recorded clip, without the progress line.
+inline StreamOptions stream_options(const std::filesystem::path& clip) {
+  StreamOptions o;
+  o.dataset = clip;
+  o.show_progress = false;
+  return o;
+}
 
 inline AtlasServiceOptions server_options(const std::filesystem::path& db) {
   AtlasServiceOptions o;

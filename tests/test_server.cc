@@ -25,13 +25,6 @@
 namespace orbatlas {
 namespace {
 
-StreamOptions stream_options(const std::filesystem::path& clip) {
-  StreamOptions o;
-  o.dataset = clip;
-  o.show_progress = false;
-  return o;
-}
-
 // Another flight through the place MH_01 maps at 40-50 s: MH_02 at 41-44 s
 // passes 0.3 to 0.9 m from it, looking the same way within 25 deg; no pose
 // that built the map is re-rendered.
@@ -74,7 +67,7 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   {
     test::TestServer server(test::server_options(db.path));
     ServerClient client(server.url());
-    streamed = stream_dataset(client, stream_options(clip));
+    streamed = stream_dataset(client, test::stream_options(clip));
     maps_before = client.get_json("/v1/maps");
     const auto status = client.get_json("/v1/sessions/" + std::to_string(streamed.session));
     EXPECT_EQ(status["state"], "finished");
@@ -160,7 +153,7 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
   for (const auto& clip : clips) {
     running.push_back(std::async(std::launch::async, [&server, clip] {
       ServerClient client(server.url());  // one client (connection) per thread
-      return stream_dataset(client, stream_options(clip));
+      return stream_dataset(client, test::stream_options(clip));
     }));
   }
   std::set<std::uint64_t> sessions, maps;
@@ -200,7 +193,7 @@ TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
   {
     test::TestServer server(test::server_options(db.path));
     ServerClient client(server.url());
-    const StreamReport stereo = stream_dataset(client, stream_options(clip));
+    const StreamReport stereo = stream_dataset(client, test::stream_options(clip));
     ASSERT_EQ(stereo.tracked, stereo.frames);
   }
   test::TestServer server(test::server_options(db.path));
@@ -242,7 +235,7 @@ TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
   // A whole clip through `orbatlas stream --config euroc/mono`, from a recording
   // of the left camera only.
   std::filesystem::remove_all(visit / "mav0" / "cam1");
-  StreamOptions mono = stream_options(visit);
+  StreamOptions mono = test::stream_options(visit);
   mono.config = "euroc/mono";
   const StreamReport report = stream_dataset(client, mono);
   EXPECT_EQ(report.rejected, 0u);
@@ -380,7 +373,7 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
     test::TestServer server(options);
     ServerClient client(server.url());
     for (const auto& clip : clips) {
-      const StreamReport report = stream_dataset(client, stream_options(clip));
+      const StreamReport report = stream_dataset(client, test::stream_options(clip));
       EXPECT_EQ(report.tracked, report.frames);
       sessions.push_back(report.session);
       ASSERT_FALSE(report.trajectory_maps.empty());
@@ -422,7 +415,7 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
   // A new session over a known place starts in the stored map (its frame, no
   // map of its own): the second clip streamed again lands where it was.
   const std::size_t searched_before = client.get_json("/v1/merges")["keyframes_searched"].get<std::size_t>();
-  const StreamReport again = stream_dataset(client, stream_options(clips[1]));
+  const StreamReport again = stream_dataset(client, test::stream_options(clips[1]));
   EXPECT_EQ(again.tracked, again.frames);
   EXPECT_EQ(std::set<std::uint64_t>(again.trajectory_maps.begin(), again.trajectory_maps.end()),
             std::set<std::uint64_t>{stream_maps[0]});
@@ -469,10 +462,10 @@ TEST(ServerMerging, ASessionsMapIsMergedWhileItStreams) {
     options.start_in_stored_maps = false;  // the second session starts apart
     test::TestServer server(options);
     ServerClient client(server.url());
-    const StreamReport a = stream_dataset(client, stream_options(clips[0]));
+    const StreamReport a = stream_dataset(client, test::stream_options(clips[0]));
     ASSERT_FALSE(a.reply_maps.empty());
     first_map = a.reply_maps.back();
-    const StreamReport b = stream_dataset(client, stream_options(clips[1]));
+    const StreamReport b = stream_dataset(client, test::stream_options(clips[1]));
     sessions = {a.session, b.session};
     EXPECT_EQ(b.tracked, b.frames);
     ASSERT_EQ(b.reply_maps.size(), b.tracked);
@@ -522,7 +515,7 @@ TEST(ServerMerging, ASessionOfAnotherRigStaysOutOfStoredMaps) {
   test::TempDbPath db("rig");
   test::TestServer server(test::server_options(db.path));
   ServerClient client(server.url());
-  const StreamReport first = stream_dataset(client, stream_options(clip));
+  const StreamReport first = stream_dataset(client, test::stream_options(clip));
   ASSERT_EQ(first.tracked, first.frames);
   const std::uint64_t stored_map = first.trajectory_maps.front();
 

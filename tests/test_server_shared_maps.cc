@@ -21,13 +21,6 @@
 namespace orbatlas {
 namespace {
 
-StreamOptions stream_options(const std::filesystem::path& clip) {
-  StreamOptions o;
-  o.dataset = clip;
-  o.show_progress = false;
-  return o;
-}
-
 // Per table that holds maps: its row count and an FNV-1a digest of every row
 // (blobs included byte for byte) in a fixed order; equal exactly when the
 // stored maps are unchanged (up to a digest collision).
@@ -86,7 +79,7 @@ TEST(SharedMaps, EightLocalisationSessionsShareAStoredMapAndChangeNothing) {
   {
     test::TestServer server(test::server_options(db.path));
     ServerClient client(server.url());
-    const StreamReport report = stream_dataset(client, stream_options(built));
+    const StreamReport report = stream_dataset(client, test::stream_options(built));
     ASSERT_EQ(report.tracked, report.frames);
   }
   const std::string rows_before = map_rows(db.path);
@@ -124,7 +117,7 @@ TEST(SharedMaps, EightLocalisationSessionsShareAStoredMapAndChangeNothing) {
   for (int i = 0; i < 8; ++i) {
     running.push_back(std::async(std::launch::async, [&, i] {
       ServerClient own(server.url());
-      StreamOptions o = stream_options(visit);
+      StreamOptions o = test::stream_options(visit);
       o.config = i % 2 == 0 ? "euroc/mono" : "euroc/stereo";
       o.mode = "localize";
       o.name = "localizer " + std::to_string(i);

@@ -10,12 +10,9 @@
 // sessions are never candidates. Bounded queue: a full queue skips the request
 // (logged and counted).
 #include <atomic>
-#include <condition_variable>
 #include <functional>
-#include <limits>
 #include <memory>
 #include <mutex>
-#include <thread>
 #include <vector>
 
 #include "core/common/queue_worker.h"
