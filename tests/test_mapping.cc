@@ -13,6 +13,7 @@
 #include "core/map/map_point_update.h"
 #include "core/mapping/fusion.h"
 #include "core/mapping/local_mapper.h"
+#include "core/slam/mapping_workers.h"
 #include "core/mapping/keyframe_culling.h"
 #include "core/mapping/triangulation.h"
 #include "core/slam/slam_stats.h"
@@ -452,6 +453,69 @@ TEST(LocalMapping, FailingOnEveryKeyframeFailsTheSessionAtLast) {
   EXPECT_TRUE(failed);
   EXPECT_TRUE(mapper.stats().errors.fatal);
   EXPECT_THROW(mapper.finish(), WorkerFailed);
+}
+
+// Local mapping belongs to the map: sessions (sinks) tracking in one map feed
+// its one mapper; a map paused for a loop correction takes no keyframes, also
+// before it has a mapper; a merge hands the merged map's mapping over; a map
+// nobody maps lets its mapper go and gets a new one with its next keyframe.
+TEST(MappingWorkers, SessionsInOneMapFeedOneMapper) {
+  const Scene s = make_scene(200, 19);
+  Atlas atlas;
+  auto a = atlas.create_map();
+  auto b = atlas.create_map();
+  MappingWorkersOptions o;
+  o.mapper.run_bundle_adjustment = false;
+  o.mapper.run_culling = false;
+  o.loop_closing = false;
+  MappingWorkers workers(atlas, s.cam(), o);
+  const auto first = workers.attach();
+  const auto second = workers.attach();
+  const auto keyframe = [&s](Map& map, double x) {
+    std::vector<std::size_t> idx;
+    return map.new_keyframe(keyframe_data(s, at(x, 0, 0), &idx));
+  };
+  EXPECT_TRUE(first->accepting(a->id()));
+  EXPECT_TRUE(first->idle(a->id()));  // no mapper yet: nothing queued
+  for (int k = 0; k < 3; ++k) {
+    first->insert(keyframe(*a, 0.05 * k));
+    second->insert(keyframe(*a, 0.05 * k + 0.02));
+  }
+  EXPECT_EQ(workers.mapped_maps(), (std::vector<MapId>{a->id()}));  // one mapper for both sessions
+  second->insert(keyframe(*b, 0.5));
+  EXPECT_EQ(workers.mapped_maps(), (std::vector<MapId>{a->id(), b->id()}));
+  workers.wait_until_idle();
+  EXPECT_EQ(workers.mapping_stats().keyframes, 7u);
+
+  workers.pause(a->id());
+  EXPECT_FALSE(first->accepting(a->id()));
+  EXPECT_TRUE(second->accepting(b->id()));
+  workers.resume(a->id());
+  EXPECT_TRUE(first->accepting(a->id()));
+  const MapId later = a->id() + 100;  // a map without a mapper stays paused too
+  workers.pause(later);
+  EXPECT_FALSE(first->accepting(later));
+  workers.resume(later);
+  EXPECT_TRUE(first->accepting(later));
+
+  // b merged into a (both paused, as the loop closer does): b's mapping ends.
+  workers.pause(a->id());
+  workers.pause(b->id());
+  workers.merged(b->id(), a->id());
+  workers.resume(b->id());
+  workers.resume(a->id());
+  EXPECT_EQ(workers.mapped_maps(), (std::vector<MapId>{a->id()}));
+  // Nobody maps a now: its mapper goes; a keyframe later starts a new one.
+  workers.retire(a->id());
+  EXPECT_TRUE(workers.mapped_maps().empty());
+  first->insert(keyframe(*a, 0.3));
+  EXPECT_EQ(workers.mapped_maps(), (std::vector<MapId>{a->id()}));
+  workers.finish();
+  const LocalMapperStats stats = workers.mapping_stats();
+  EXPECT_EQ(stats.keyframes, 8u);  // every mapper's figures, the retired ones' too
+  EXPECT_EQ(stats.errors.errors, 0u);
+  EXPECT_THROW(first->insert(keyframe(*a, 0.4)), Error);
+  EXPECT_THROW(workers.attach(), Error);
 }
 
 }  // namespace

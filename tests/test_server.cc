@@ -170,9 +170,12 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
                 static_cast<unsigned long long>(report.session), report.frames, *report.ate_rmse_m, report.fps());
   }
   EXPECT_EQ(sessions.size(), 3u);
-  EXPECT_EQ(maps.size(), 3u);  // each live session works in a map of its own
+  // A session whose first frame sees a place another session is mapping joins
+  // that map (MH_02 and MH_03 at 30 s may: it depends on which starts first).
+  EXPECT_GE(maps.size(), 1u);
+  EXPECT_LE(maps.size(), 3u);
   ServerClient client(server.url());
-  EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 3u);
+  EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), maps.size());
   const std::string metrics = client.get_text("/metrics");
   EXPECT_NE(metrics.find("orbatlas_sessions_created_total 3"), std::string::npos) << metrics;
   // Errors contained by the workers are reported (none expected here).

@@ -22,33 +22,48 @@
 namespace orbatlas {
 namespace {
 
-TEST(MapLeases, SessionsNeverShareAMap) {
+TEST(MapLeases, SessionsShareMapsTheMergingWorkerTakesAlone) {
+  constexpr SessionId kWorker = 1000;
   MapLeases leases;
   leases.add_free(1);
   leases.add_free(2);
   // Session 10 tries maps 1 and 2 while relocalising and tracks in 2.
   EXPECT_TRUE(leases.claim(10, 1));
   EXPECT_TRUE(leases.claim(10, 2));
-  EXPECT_FALSE(leases.claim(11, 2));  // held (tentatively) by 10
+  EXPECT_TRUE(leases.claim(11, 2));  // mapping sessions share a map
   leases.settle(10, 2);
-  EXPECT_EQ(leases.holder(2), 10u);
-  EXPECT_FALSE(leases.holder(1).has_value());  // the tentative claim was given back
-  EXPECT_TRUE(leases.claim(11, 1));
-  EXPECT_FALSE(leases.claim(11, 2));
-  leases.settle(11, 1);
-  // A map a session creates (never free) is its own; nobody else may enter it.
-  leases.settle(11, 7);
-  EXPECT_EQ(leases.holder(7), 11u);
+  EXPECT_EQ(leases.holders(2), (std::vector<SessionId>{10, 11}));
+  EXPECT_TRUE(leases.holders(1).empty());  // the tentative claim was given back
+  EXPECT_TRUE(leases.is_free(1));
+  leases.settle(11, 1);  // 11 tracked in 1 after all: its claim on 2 goes back
+  EXPECT_EQ(leases.holders(2), (std::vector<SessionId>{10}));
+  // A map a session creates is unknown until its first settle, then others may enter it.
   EXPECT_FALSE(leases.claim(10, 7));
-  EXPECT_FALSE(leases.claim(10, 8));  // unknown: some live session's new map
+  leases.settle(11, 7);
   EXPECT_EQ(leases.held_by(11), (std::vector<MapId>{1, 7}));
+  EXPECT_TRUE(leases.claim(10, 7));
+  leases.settle(10, 7);
+  EXPECT_EQ(leases.held_by(10), (std::vector<MapId>{2, 7}));  // held for good stays held
   // Lost (no map this frame): held maps stay held.
   leases.settle(11, std::nullopt);
   EXPECT_EQ(leases.held_by(11), (std::vector<MapId>{1, 7}));
+  // The merging worker takes a map alone, and only a map nobody holds.
+  EXPECT_FALSE(leases.claim_exclusive(kWorker, 7));
+  EXPECT_FALSE(leases.claim_exclusive(kWorker, 1));
   leases.release_all(11);
   EXPECT_TRUE(leases.held_by(11).empty());
-  EXPECT_TRUE(leases.claim(10, 7));  // free after the session finished
-  EXPECT_TRUE(leases.claim(10, 1));
+  EXPECT_TRUE(leases.claim_exclusive(kWorker, 1));
+  EXPECT_FALSE(leases.claim(10, 1));  // no session enters it while the worker holds it
+  EXPECT_FALSE(leases.share(7, 1));   // nor does a live merge go into it
+  leases.release_all(kWorker);
+  // A live merge of 7 into 1: 7's sessions hold 1 for good; 7 is forgotten.
+  EXPECT_TRUE(leases.share(7, 1));
+  leases.forget(7);
+  EXPECT_EQ(leases.holders(1), (std::vector<SessionId>{10}));
+  EXPECT_FALSE(leases.claim(11, 7));
+  leases.release_all(10);
+  EXPECT_TRUE(leases.is_free(1));
+  EXPECT_TRUE(leases.is_free(2));
 }
 
 TEST(RequestImage, DecodesPngAndRawAndRefusesTheRest) {

@@ -10,16 +10,28 @@
 namespace orbatlas {
 namespace {
 
-// Pauses local mapping for the scope (resumes on every exit path).
+// Pauses the local mapping of one or two maps for the scope (resumes on every
+// exit path). Two maps are paused in id order.
 class MappingPause {
  public:
-  explicit MappingPause(LocalMapper& mapper) : mapper_(mapper) { mapper_.pause(); }
-  ~MappingPause() { mapper_.resume(); }
+  MappingPause(MappingControl& mapping, MapId a, MapId b = kInvalidMapId) : mapping_(mapping) {
+    if (b != kInvalidMapId && b < a) std::swap(a, b);
+    for (const MapId map : {a, b}) {
+      if (map == kInvalidMapId || (count_ > 0 && maps_[0] == map)) continue;
+      mapping_.pause(map);
+      maps_[count_++] = map;
+    }
+  }
+  ~MappingPause() {
+    while (count_ > 0) mapping_.resume(maps_[--count_]);
+  }
   MappingPause(const MappingPause&) = delete;
   MappingPause& operator=(const MappingPause&) = delete;
 
  private:
-  LocalMapper& mapper_;
+  MappingControl& mapping_;
+  MapId maps_[2] = {kInvalidMapId, kInvalidMapId};
+  int count_ = 0;
 };
 
 }  // namespace
@@ -33,26 +45,45 @@ void LoopCloserOptions::check() const {
   merge.check();
 }
 
-LoopCloser::LoopCloser(Atlas& atlas, FrameCamera cam, LocalMapper& mapper, LoopCloserOptions options,
+LoopCloser::LoopCloser(Atlas& atlas, FrameCamera cam, MappingControl& mapping, LoopCloserOptions options,
                        LoopCloserWiring wiring)
     : atlas_(atlas),
       cam_(std::move(cam)),
-      mapper_(mapper),
+      mapping_(mapping),
       options_((options.check(), std::move(options))),
       wiring_(std::move(wiring)),
-      recognizer_(atlas.keyframe_index(), cam_, options_.recognition),
       worker_(
           QueueWorkerOptions{
               .name = "loop closing", .capacity = options_.queue_capacity, .shared = wiring_.shared_worker},
-          [this](std::shared_ptr<KeyFrame>& keyframe) { process(keyframe); },
-          [](const std::shared_ptr<KeyFrame>& keyframe) { return "keyframe " + std::to_string(keyframe->id()); }) {
-  if (options_.live_merging) {
-    PlaceRecognitionOptions merging = options_.merge_recognition;
-    merging.scope = PlaceScope::kOtherMaps;
-    merging.may_use_map = wiring_.may_merge_into;
-    merge_recognizer_ = std::make_unique<PlaceRecognizer>(atlas.keyframe_index(), cam_, merging);
+          [this](Item& item) { process(item); },
+          [](const Item& item) { return "keyframe " + std::to_string(item.keyframe->id()); }) {}
+
+LoopCloser::Recognizers& LoopCloser::recognizers(std::uint64_t stream) {
+  {
+    std::lock_guard lock(forgotten_mutex_);
+    for (const std::uint64_t gone : forgotten_) recognizers_.erase(gone);
+    forgotten_.clear();
   }
-  mapper_.set_processed_listener([this](const std::shared_ptr<KeyFrame>& kf) { insert(kf); });
+  auto it = recognizers_.find(stream);
+  if (it == recognizers_.end()) {
+    std::unique_ptr<PlaceRecognizer> merges;
+    if (options_.live_merging) {
+      PlaceRecognitionOptions merging = options_.merge_recognition;
+      merging.scope = PlaceScope::kOtherMaps;
+      merging.may_use_map = wiring_.may_merge_into;
+      merges = std::make_unique<PlaceRecognizer>(atlas_.keyframe_index(), cam_, merging);
+    }
+    it = recognizers_
+             .emplace(stream, Recognizers{PlaceRecognizer(atlas_.keyframe_index(), cam_, options_.recognition),
+                                          std::move(merges)})
+             .first;
+  }
+  return it->second;
+}
+
+void LoopCloser::forget_stream(std::uint64_t stream) {
+  std::lock_guard lock(forgotten_mutex_);
+  forgotten_.push_back(stream);
 }
 
 LoopCloser::~LoopCloser() {
@@ -63,8 +94,8 @@ LoopCloser::~LoopCloser() {
   }
 }
 
-void LoopCloser::insert(const std::shared_ptr<KeyFrame>& keyframe) {
-  if (worker_.try_push(keyframe)) return;
+void LoopCloser::insert(const std::shared_ptr<KeyFrame>& keyframe, std::uint64_t stream) {
+  if (worker_.try_push(Item{keyframe, stream})) return;
   std::lock_guard stats_lock(stats_mutex_);
   ++stats_.keyframes_skipped;
 }
@@ -97,17 +128,14 @@ LoopClosingStats LoopCloser::stats() const {
   return out;
 }
 
-std::unique_lock<std::mutex> LoopCloser::pause_tracking() {
-  if (!wiring_.tracking_mutex) return {};
-  return std::unique_lock(*wiring_.tracking_mutex);
-}
-
-void LoopCloser::process(const std::shared_ptr<KeyFrame>& keyframe) {
-  if (merge_recognizer_) {
+void LoopCloser::process(const Item& item) {
+  const std::shared_ptr<KeyFrame>& keyframe = item.keyframe;
+  Recognizers& recognizers = this->recognizers(item.stream);
+  if (recognizers.merges) {
     // ORB-SLAM3 looks for a merge first: a keyframe that joins another map is
     // not also taken as a loop.
     const auto start = std::chrono::steady_clock::now();
-    const PlaceRecognitionStep step = merge_recognizer_->process(keyframe);
+    const PlaceRecognitionStep step = recognizers.merges->process(keyframe);
     {
       std::lock_guard lock(stats_mutex_);
       stats_.merge_search_ms.add(ms_since(start));
@@ -115,7 +143,7 @@ void LoopCloser::process(const std::shared_ptr<KeyFrame>& keyframe) {
     if (step.match && !step.match->same_map() && merge_live(*step.match)) return;
   }
   const auto start = std::chrono::steady_clock::now();
-  const PlaceRecognitionStep step = recognizer_.process(keyframe);
+  const PlaceRecognitionStep step = recognizers.loops.process(keyframe);
   {
     std::lock_guard lock(stats_mutex_);
     ++stats_.keyframes;
@@ -132,9 +160,8 @@ void LoopCloser::close_loop(const PlaceMatch& loop) {
   LoopCorrectionStats correction;
   {
     std::lock_guard lock(correction_mutex_);
-    MappingPause pause(mapper_);
-    const auto tracking = pause_tracking();
-    const auto whole = atlas_.lock_maps_exclusive();  // localisations see the map before or after
+    MappingPause pause(mapping_, map->id());
+    const auto whole = atlas_.lock_maps_exclusive();  // tracking sees the map before or after
     correction = correct_loop(*map, loop, cam_, options_.correction);
   }
   log_info("loop closed: keyframe " + std::to_string(loop.current->id()) + " with " +
@@ -159,7 +186,7 @@ bool LoopCloser::merge_live(const PlaceMatch& match) {
   const MapId source = match.current->map_id();
   const MapId target = match.matched->map_id();
   if (source == target || !atlas_.map(source) || !atlas_.map(target)) return false;
-  if (wiring_.hold_map && !wiring_.hold_map(target)) {
+  if (wiring_.hold_map && !wiring_.hold_map(source, target)) {
     log_info("live merge: map " + std::to_string(target) + " was taken by another session meanwhile; not merged");
     return false;
   }
@@ -167,9 +194,9 @@ bool LoopCloser::merge_live(const PlaceMatch& match) {
   MapMergeStats merged;
   {
     std::lock_guard lock(correction_mutex_);
-    MappingPause pause(mapper_);
-    const auto tracking = pause_tracking();
-    merged = merge_maps(atlas_, match, cam_, options_.merge);
+    MappingPause pause(mapping_, source, target);
+    merged = merge_maps(atlas_, match, cam_, options_.merge);  // holds the maps exclusive
+    mapping_.merged(source, target);
   }
   log_info("live merge: map " + std::to_string(source) + " merged into map " + std::to_string(target) +
            " at keyframe " + std::to_string(match.current->id()) + " ~ " + std::to_string(match.matched->id()) + " (" +
@@ -214,9 +241,8 @@ void LoopCloser::start_global_adjustment(MapId map_id) {
                                      with_level_sigma2(options_.global, cam_.pyramid.level_sigma2()), &stop_global_);
         if (!result.stopped) {
           std::lock_guard lock(correction_mutex_);
-          MappingPause pause(mapper_);
-          const auto tracking = pause_tracking();
-          const auto whole = atlas_.lock_maps_exclusive();  // localisations see the map before or after
+          MappingPause pause(mapping_, map_id);
+          const auto whole = atlas_.lock_maps_exclusive();  // tracking sees the map before or after
           apply_global_adjustment(*map, result, cam_.pyramid);
         }
         GlobalAdjustmentRun run{result.keyframes, result.points, ms_since(start) * 1e-3, result.stopped};

@@ -12,6 +12,7 @@
 #include <atomic>
 #include <functional>
 #include <condition_variable>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -26,7 +27,8 @@
 #include "core/loop/map_merge.h"
 #include "core/loop/place_recognizer.h"
 #include "core/map/atlas.h"
-#include "core/mapping/local_mapper.h"
+#include "core/loop/mapping_control.h"
+#include "core/tracking/frame_camera.h"
 #include "core/optimization/global_bundle_adjustment.h"
 
 namespace orbatlas {
@@ -62,16 +64,13 @@ struct LoopCloserWiring {
   // with other sessions (the server: one for all), not on a thread of the
   // closer's own; its bounded queue then decides what is skipped.
   std::shared_ptr<SerialWorker> shared_worker;
-  // Live merging: only into maps this accepts (empty: all). Before a merge
-  // `hold_map` must agree (the server takes the map's lease; empty: yes);
-  // `on_merged` is told afterwards (on the worker thread).
+  // Live merging: only into maps this accepts (empty: all). Before a merge of
+  // `source` into `target`, `hold_map` must agree (the server: the sessions in
+  // `source` take `target`'s lease; empty: yes); `on_merged` is told afterwards
+  // (on the worker thread).
   std::function<bool(MapId)> may_merge_into;
-  std::function<bool(MapId)> hold_map;
+  std::function<bool(MapId source, MapId target)> hold_map;
   std::function<void(const LiveMerge&)> on_merged;
-  // Held by tracking for each frame (StereoSlam); the closer holds it while it
-  // edits the map (loop correction, merge, applying a global adjustment), so a
-  // frame never sees a half-moved map. May be null (then not taken).
-  std::shared_ptr<std::mutex> tracking_mutex;
 };
 
 struct ClosedLoop {
@@ -102,19 +101,26 @@ struct LoopClosingStats {
 
 class LoopCloser {
  public:
-  // `atlas`, the camera and `mapper` must outlive the loop closer. Registers
-  // itself as the mapper's processed-keyframe listener. The thread starts at once.
-  LoopCloser(Atlas& atlas, FrameCamera cam, LocalMapper& mapper, LoopCloserOptions options = {},
+  // `atlas`, the camera and `mapping` must outlive the loop closer. Local
+  // mapping hands it every keyframe it has processed (insert()). The thread
+  // starts at once. Edits of a map (loop correction, merge, applying a global
+  // adjustment) pause the map's mapping and hold the atlas's maps exclusive,
+  // so tracking (which holds them shared per frame) never sees a half-moved map.
+  LoopCloser(Atlas& atlas, FrameCamera cam, MappingControl& mapping, LoopCloserOptions options = {},
              LoopCloserWiring wiring = {});
   ~LoopCloser();  // finish()
   LoopCloser(const LoopCloser&) = delete;
   LoopCloser& operator=(const LoopCloser&) = delete;
 
-  // Non-blocking (called on the mapper thread): a full queue skips the keyframe.
-  void insert(const std::shared_ptr<KeyFrame>& keyframe);
+  // Non-blocking (called on a mapper thread): a full queue skips the keyframe.
+  // `stream`: the trajectory the keyframe belongs to (a session); place
+  // recognition verifies a hypothesis with later keyframes of the same stream.
+  void insert(const std::shared_ptr<KeyFrame>& keyframe, std::uint64_t stream = 0);
+  // The stream has ended: its recognition state goes (any thread).
+  void forget_stream(std::uint64_t stream);
   // Waits until every inserted keyframe is processed and no global adjustment runs.
   void wait_until_idle();
-  // Call after the mapper has finished: processes what is queued, waits for a
+  // Call after local mapping has finished: processes what is queued, waits for a
   // running global adjustment and merges it, stops the threads. Idempotent;
   // rethrows a fatal error (a keyframe that failed alone is only counted).
   void finish();
@@ -123,21 +129,31 @@ class LoopCloser {
   WorkerErrorCounts errors() const { return worker_.errors(); }  // cheap
 
  private:
-  void process(const std::shared_ptr<KeyFrame>& keyframe);
+  struct Item {
+    std::shared_ptr<KeyFrame> keyframe;
+    std::uint64_t stream = 0;
+  };
+  // Place recognition of one stream (its pending hypotheses).
+  struct Recognizers {
+    PlaceRecognizer loops;
+    std::unique_ptr<PlaceRecognizer> merges;  // live merging only
+  };
+  Recognizers& recognizers(std::uint64_t stream);  // worker thread
+  void process(const Item& item);
   void close_loop(const PlaceMatch& loop);
   // True when the active map was merged into the match's map.
   bool merge_live(const PlaceMatch& match);
-  std::unique_lock<std::mutex> pause_tracking();
   void stop_global_adjustment();
   void start_global_adjustment(MapId map);
 
   Atlas& atlas_;
   const FrameCamera cam_;
-  LocalMapper& mapper_;
+  MappingControl& mapping_;
   const LoopCloserOptions options_;
   const LoopCloserWiring wiring_;
-  PlaceRecognizer recognizer_;
-  std::unique_ptr<PlaceRecognizer> merge_recognizer_;  // live merging only
+  std::map<std::uint64_t, Recognizers> recognizers_;  // worker thread only
+  std::mutex forgotten_mutex_;                        // leaf: guards forgotten_
+  std::vector<std::uint64_t> forgotten_;              // streams to drop on the worker thread
 
   std::mutex global_mutex_;  // leaf: guards global_running_
   std::condition_variable global_cv_;
@@ -153,7 +169,7 @@ class LoopCloser {
 
   // Queue (or the shared thread), idle wait and errors (fatal after 20
   // failures in a row). Last: its thread starts after everything above exists.
-  QueueWorker<std::shared_ptr<KeyFrame>> worker_;
+  QueueWorker<Item> worker_;
 };
 
 }  // namespace orbatlas

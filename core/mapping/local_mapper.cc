@@ -36,11 +36,13 @@ void LocalMapperOptions::check() const {
   bundle_adjustment.check();
 }
 
-LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options, KeyframeIndex* index)
+LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options, KeyframeIndex* index,
+                         std::shared_ptr<LocalMapperStatsBoard> board)
     : atlas_(atlas),
       index_(index),
       cam_(std::move(cam)),
       options_((options.check(), std::move(options))),
+      board_(board ? std::move(board) : std::make_shared<LocalMapperStatsBoard>()),
       worker_(
           QueueWorkerOptions::own_thread("local mapping", options_.queue_capacity),
           [this](std::shared_ptr<KeyFrame>& keyframe) { run_one(keyframe); },
@@ -56,15 +58,13 @@ LocalMapper::~LocalMapper() {
   }
 }
 
-void LocalMapper::insert(std::shared_ptr<KeyFrame> keyframe) {
-  if (!worker_.push(std::move(keyframe))) throw Error("local mapping has stopped; no keyframe can be inserted");
-}
+bool LocalMapper::insert(std::shared_ptr<KeyFrame> keyframe) { return worker_.push(std::move(keyframe)); }
 
 LocalMapperStats LocalMapper::stats() const {
   LocalMapperStats out;
   {
-    std::lock_guard lock(stats_mutex_);
-    out = stats_;
+    std::lock_guard lock(board_->mutex);
+    out = board_->stats;
   }
   out.errors = worker_.errors();
   return out;
@@ -116,21 +116,21 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   }
   ++sequence_;
 
-  std::lock_guard lock(stats_mutex_);
-  ++stats_.keyframes;
-  stats_.keyframe_ms.add(ms_since(start));
-  if (ba_ms >= 0.0) stats_.bundle_adjustment_ms.add(ba_ms);
-  if (interrupted) ++stats_.bundle_adjustments_interrupted;
+  std::lock_guard lock(board_->mutex);
+  ++board_->stats.keyframes;
+  board_->stats.keyframe_ms.add(ms_since(start));
+  if (ba_ms >= 0.0) board_->stats.bundle_adjustment_ms.add(ba_ms);
+  if (interrupted) ++board_->stats.bundle_adjustments_interrupted;
   if (culling_ran) {
     const bool scan = options_.culling.scheme == CullingScheme::kScan || options_.culling.compare_schemes;
     const bool incremental = options_.culling.scheme == CullingScheme::kIncremental || options_.culling.compare_schemes;
-    if (scan) stats_.culling_scan_ms.add(culling.scan_us * 1e-3);
-    if (incremental) stats_.culling_incremental_ms.add(culling.incremental_us * 1e-3);
-    stats_.culling_candidates += static_cast<std::size_t>(culling.candidates);
-    stats_.culling_disagreements += static_cast<std::size_t>(culling.disagreements);
-    stats_.culled_keyframes += culling.culled.size();
+    if (scan) board_->stats.culling_scan_ms.add(culling.scan_us * 1e-3);
+    if (incremental) board_->stats.culling_incremental_ms.add(culling.incremental_us * 1e-3);
+    board_->stats.culling_candidates += static_cast<std::size_t>(culling.candidates);
+    board_->stats.culling_disagreements += static_cast<std::size_t>(culling.disagreements);
+    board_->stats.culled_keyframes += culling.culled.size();
     for (const KeyframeId id : culling.culled)
-      stats_.culled_keyframes_digest = (stats_.culled_keyframes_digest ^ id) * 1099511628211ULL;
+      board_->stats.culled_keyframes_digest = (board_->stats.culled_keyframes_digest ^ id) * 1099511628211ULL;
   }
 }
 
@@ -186,8 +186,8 @@ void LocalMapper::cull_recent_points(Map& map) {
     }
   }
   recent_ = std::move(kept);
-  std::lock_guard lock(stats_mutex_);
-  stats_.recent_points_culled += culled;
+  std::lock_guard lock(board_->mutex);
+  board_->stats.recent_points_culled += culled;
 }
 
 void LocalMapper::triangulate(Map& map, const std::shared_ptr<KeyFrame>& keyframe) {
@@ -198,8 +198,8 @@ void LocalMapper::triangulate(Map& map, const std::shared_ptr<KeyFrame>& keyfram
     triangulate_pair(map, keyframe, neighbour, cam_, &created);
   }
   for (auto& mp : created) recent_.push_back({mp, sequence_});
-  std::lock_guard lock(stats_mutex_);
-  stats_.points_triangulated += created.size();
+  std::lock_guard lock(board_->mutex);
+  board_->stats.points_triangulated += created.size();
 }
 
 void LocalMapper::fuse_with_neighbours(Map& map, const std::shared_ptr<KeyFrame>& keyframe) {
@@ -232,9 +232,9 @@ void LocalMapper::fuse_with_neighbours(Map& map, const std::shared_ptr<KeyFrame>
     if (!mp->is_bad()) update_map_point(*mp, cam_.pyramid);
   keyframe->update_connections();
 
-  std::lock_guard lock(stats_mutex_);
-  stats_.points_fused += static_cast<std::size_t>(total.merged);
-  stats_.observations_fused += static_cast<std::size_t>(total.added);
+  std::lock_guard lock(board_->mutex);
+  board_->stats.points_fused += static_cast<std::size_t>(total.merged);
+  board_->stats.observations_fused += static_cast<std::size_t>(total.added);
 }
 
 }  // namespace orbatlas

@@ -1,6 +1,7 @@
 #pragma once
-// Local mapping (ORB-SLAM's LocalMapping) in its own thread, fed by tracking
-// through a bounded queue. Per keyframe: complete the new keyframe (point
+// Local mapping (ORB-SLAM's LocalMapping) of one map in its own thread, fed by
+// tracking through a bounded queue (every session tracking in the map feeds the
+// same mapper: core/slam/mapping_workers.h). Per keyframe: complete the new keyframe (point
 // normals and descriptors, covisibility, spanning-tree parent), cull recent
 // points that tracking does not confirm, triangulate new points with the
 // covisible keyframes, fuse duplicates with the neighbours, run local bundle
@@ -21,7 +22,6 @@
 #include "core/mapping/keyframe_culling.h"
 #include "core/optimization/local_bundle_adjustment.h"
 #include "core/tracking/frame_camera.h"
-#include "core/tracking/keyframe_sink.h"
 
 namespace orbatlas {
 
@@ -59,22 +59,31 @@ struct LocalMapperStats {
   WorkerErrorCounts errors;  // keyframes whose processing failed (given up, the mapper went on)
 };
 
-class LocalMapper final : public KeyframeSink {
+// Where mappers write their figures: one board may collect those of several
+// mappers (the maps of a session or of a server, in order of processing).
+struct LocalMapperStatsBoard {
+  mutable std::mutex mutex;
+  LocalMapperStats stats;  // errors: filled in by LocalMapper::stats()
+};
+
+class LocalMapper final {
  public:
   // `atlas`, `cam.camera` and `index` (may be null) must outlive the mapper. The
   // thread starts at once. Processed keyframes are added to `index`, culled ones
-  // erased from it.
-  LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options, KeyframeIndex* index = nullptr);
-  ~LocalMapper() override;  // finish()
+  // erased from it. Figures go to `board` (null: one of its own).
+  LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options, KeyframeIndex* index = nullptr,
+              std::shared_ptr<LocalMapperStatsBoard> board = nullptr);
+  ~LocalMapper();  // finish()
   LocalMapper(const LocalMapper&) = delete;
   LocalMapper& operator=(const LocalMapper&) = delete;
 
-  // KeyframeSink
-  bool idle() const override { return worker_.idle(); }
-  std::size_t queued() const override { return worker_.queued(); }
-  void insert(std::shared_ptr<KeyFrame> keyframe) override;
-  void interrupt_optimization() override { abort_ba_.store(true); }
-  bool accepting() const override { return !worker_.pause_requested(); }
+  // What tracking asks (KeyframeSink, for the mapper's map).
+  bool idle() const { return worker_.idle(); }
+  std::size_t queued() const { return worker_.queued(); }
+  // Blocks while the queue is full; false (not taken) once finishing.
+  bool insert(std::shared_ptr<KeyFrame> keyframe);
+  void interrupt_optimization() { abort_ba_.store(true); }
+  bool accepting() const { return !worker_.pause_requested(); }
 
   // Called on the mapper thread with every keyframe it has processed (loop
   // detection). Must not block: hand the keyframe to a queue with try_push.
@@ -124,8 +133,7 @@ class LocalMapper final : public KeyframeSink {
   std::vector<RecentPoint> recent_;
   std::size_t sequence_ = 0;
 
-  mutable std::mutex stats_mutex_;
-  LocalMapperStats stats_;
+  const std::shared_ptr<LocalMapperStatsBoard> board_;
 
   // Queue, thread, idle wait, pause and errors (fatal after 20 failed keyframes
   // in a row). Last: its thread starts after everything above exists.

@@ -300,27 +300,17 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
                          std::string("cannot start a stereo session with these settings: ") + e.what());
     }
   }
-  // Stored maps of its own rig only: local mapping would adjust another rig's
-  // keyframes with this session's camera.
+  // Stored maps of its own rig only (local mapping would adjust another rig's
+  // keyframes with this session's camera), also maps other sessions are
+  // mapping right now: it then maps with them (one mapper per map).
   wiring.may_enter_map = [this, id, rig = info.cameras](MapId map) {
-    const auto holder = leases_.holder(map);
-    if (holder) return *holder == id;
     return rig_matches(rig, map) && leases_.claim(id, map);
   };
   slam_options.tracker.start_in_stored_map = options_.start_in_stored_maps;
-  wiring.loop_worker = loop_worker_;
   slam_options.live_merging = options_.merge_maps && options_.live_merging;
-  if (slam_options.live_merging) {
-    // Into maps this session holds (its own earlier ones) or free maps made
-    // with the same rig; the lease is taken for good just before the merge.
-    wiring.may_merge_into = [this, id, rig = info.cameras](MapId map) {
-      const auto holder = leases_.holder(map);
-      if (holder) return *holder == id;
-      return leases_.is_free(map) && rig_matches(rig, map);
-    };
-    wiring.hold_map = [this, id](MapId map) { return leases_.hold(id, map); };
-    wiring.on_merged = [this, id](const LiveMerge& merge) { merged_live(id, merge); };
-  }
+  wiring.mapping = [this, rig = info.cameras](const FrameCamera& cam, const MappingWorkersOptions& mapping) {
+    return mapping_for(rig, cam, mapping);
+  };
   try {
     return std::make_unique<StereoSlam>(atlas_, settings, vocabulary_, slam_options, std::move(wiring));
   } catch (const std::exception& e) {
@@ -424,13 +414,47 @@ SessionStatus AtlasService::session_status(SessionId id) const {
   return status;
 }
 
+std::shared_ptr<MappingWorkers> AtlasService::mapping_for(const std::vector<CameraCalibration>& rig,
+                                                          const FrameCamera& cam,
+                                                          const MappingWorkersOptions& options) {
+  std::lock_guard lock(mappings_mutex_);
+  for (const RigMapping& m : mappings_)
+    if (same_rig(m.rig, rig)) return m.workers;
+  LoopCloserWiring wiring;
+  wiring.shared_worker = loop_worker_;
+  // Live merging into maps of the same rig, also those other sessions are
+  // mapping now (their sessions and the merged map's then share the joined
+  // map), never one the merging worker holds.
+  wiring.may_merge_into = [this, rig](MapId map) {
+    const auto holders = leases_.holders(map);
+    return holders != std::vector<SessionId>{kMergeWorkerLease} && rig_matches(rig, map);
+  };
+  wiring.hold_map = [this](MapId source, MapId target) { return leases_.share(source, target); };
+  wiring.on_merged = [this](const LiveMerge& merge) { merged_live(merge); };
+  auto workers = std::make_shared<MappingWorkers>(atlas_, cam, options, std::move(wiring));
+  mappings_.push_back({rig, workers});
+  return workers;
+}
+
 std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
   const std::vector<MapId> held = leases_.held_by(id);
-  if (const auto live = session(id); !is_single_camera(live->info().sensor)) {
+  const auto live = session(id);
+  if (!is_single_camera(live->info().sensor)) {
     std::lock_guard lock(rigs_mutex_);
     for (const MapId map : held) map_rigs_.try_emplace(map, live->info().cameras);
   }
   leases_.release_all(id);
+  // The local mapping of maps nobody maps now ends (its thread goes); the
+  // merging worker may take those maps from here on.
+  std::shared_ptr<MappingWorkers> mapping;
+  {
+    std::lock_guard lock(mappings_mutex_);
+    for (const RigMapping& m : mappings_)
+      if (same_rig(m.rig, live->info().cameras)) mapping = m.workers;
+  }
+  if (mapping)
+    for (const MapId map : held)
+      if (leases_.is_free(map)) mapping->retire(map);
   checkpointer_->end_session(id);
   return held;
 }
@@ -473,7 +497,10 @@ bool AtlasService::rig_matches(const std::vector<CameraCalibration>& rig, MapId 
   return b != map_rigs_.end() && same_rig(rig, b->second);
 }
 
-void AtlasService::merged_live(SessionId session, const LiveMerge& merge) {
+void AtlasService::merged_live(const LiveMerge& merge) {
+  // The sessions that were in the merged map (they hold the joined one now).
+  const std::vector<SessionId> moved = leases_.holders(merge.merge.source);
+  const SessionId session = moved.empty() ? kInvalidSessionId : moved.front();
   leases_.forget(merge.merge.source);
   {
     std::lock_guard lock(rigs_mutex_);
@@ -535,8 +562,14 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     throw;
   }
   // A localisation holds no lease: it changes nothing, any number share a map.
-  if (live->mode() != SessionMode::kLocalize)
+  if (live->mode() != SessionMode::kLocalize) {
     leases_.settle(id, reply.result.tracked ? std::optional<MapId>(reply.result.map) : std::nullopt);
+    if (reply.result.tracked) {
+      // Known to be of this rig from its first frame: other sessions may enter it.
+      std::lock_guard lock(rigs_mutex_);
+      map_rigs_.try_emplace(reply.result.map, live->info().cameras);
+    }
+  }
   if (reply.result.keyframe) checkpointer_->notify_keyframe(id, reply.result.keyframe_id);
   frames_.Increment();
   tracking_latency_.Observe(reply.tracking_ms / 1000.0);
@@ -623,7 +656,8 @@ MapSummary AtlasService::map(MapId id) const {
   out.id = id;
   out.keyframes = map->keyframe_count();
   out.map_points = map->map_point_count();
-  out.live_session = leases_.holder(id);
+  if (const auto holders = leases_.holders(id); !holders.empty() && holders.front() != kMergeWorkerLease)
+    out.live_session = holders.front();
   out.sessions = sessions_in(id);
   const auto points = map->map_points();
   if (!points.empty()) {
@@ -724,11 +758,40 @@ std::vector<prometheus::MetricFamily> AtlasService::metrics() const {
     }
   }
   if (merger_) worker_errors += merger_->stats().errors;
+  // The shared mappings (sessions count only their own tracking's errors in them).
+  std::size_t mapped_keyframes = 0, loops = 0, global_adjustments = 0, mappers = 0;
+  {
+    std::lock_guard lock(mappings_mutex_);
+    for (const RigMapping& m : mappings_) {
+      worker_errors += m.workers->errors();
+      mapped_keyframes += m.workers->mapping_stats().keyframes;
+      const LoopClosingStats loop = m.workers->loop_stats();
+      loops += loop.loops.size();
+      global_adjustments += loop.global_adjustments.size();
+      mappers += m.workers->mapped_maps().size();
+    }
+  }
   std::size_t keyframes = 0, points = 0;
   const auto maps = atlas_.maps();
+  // Per map: what it holds and how many live sessions track in it now (built
+  // at each scrape: a merged map's series goes with it).
+  prometheus::MetricFamily map_sessions{"orbatlas_map_sessions",
+                                        "Live sessions whose last frame was tracked in the map.",
+                                        prometheus::MetricType::Gauge,
+                                        {}};
+  prometheus::MetricFamily map_keyframes{
+      "orbatlas_map_keyframes", "Keyframes in the map.", prometheus::MetricType::Gauge, {}};
   for (const auto& m : maps) {
     keyframes += m->keyframe_count();
     points += m->map_point_count();
+    const prometheus::ClientMetric::Label label{"map", std::to_string(m->id())};
+    prometheus::ClientMetric sessions, kfs;
+    sessions.label = {label};
+    sessions.gauge.value = static_cast<double>(sessions_in(m->id()).size());
+    kfs.label = {label};
+    kfs.gauge.value = static_cast<double>(m->keyframe_count());
+    map_sessions.metric.push_back(std::move(sessions));
+    map_keyframes.metric.push_back(std::move(kfs));
   }
   const CheckpointStats checkpoints = checkpointer_->stats();
   // What is a state, not an event, is read now; totals other parts keep
@@ -752,6 +815,13 @@ std::vector<prometheus::MetricFamily> AtlasService::metrics() const {
       heap_in_use_mb() * 1024.0 * 1024.0);
   set("orbatlas_database_bytes", "Size of the atlas database with its write-ahead log.",
       static_cast<double>(file_size_or_zero(options_.db) + file_size_or_zero(options_.db.string() + "-wal")));
+  set("orbatlas_local_mappers", "Maps whose local mapping runs now (one thread each).", static_cast<double>(mappers));
+  total("orbatlas_mapped_keyframes_total", "Keyframes local mapping has processed.",
+        static_cast<double>(mapped_keyframes));
+  total("orbatlas_loops_closed_total", "Loops closed in live sessions' maps.", static_cast<double>(loops));
+  total("orbatlas_global_adjustments_total",
+        "Global bundle adjustments run after loops and live merges (interrupted ones included).",
+        static_cast<double>(global_adjustments));
   total("orbatlas_checkpoints_total", "Checkpoints completed.", static_cast<double>(checkpoints.checkpoints));
   total("orbatlas_checkpoint_failures_total", "Checkpoints that failed (retried).",
         static_cast<double>(checkpoints.failures));
@@ -768,7 +838,10 @@ std::vector<prometheus::MetricFamily> AtlasService::metrics() const {
     set("orbatlas_map_merge_pending", "Maps waiting for (or in) the merging worker.",
         static_cast<double>(merging.pending));
   }
-  return metrics_.collect();
+  std::vector<prometheus::MetricFamily> out = metrics_.collect();
+  out.push_back(std::move(map_sessions));
+  out.push_back(std::move(map_keyframes));
+  return out;
 }
 
 void AtlasService::shutdown() {
@@ -796,7 +869,23 @@ void AtlasService::shutdown() {
     }
     end_session_storage(s->id());
   }
-  loop_worker_->stop();   // every session's loop closing has finished above
+  {
+    // Every session has finished above: the mappings finish (a running global
+    // adjustment is waited for), then the loop-closing thread stops.
+    std::vector<RigMapping> mappings;
+    {
+      std::lock_guard lock(mappings_mutex_);
+      mappings.swap(mappings_);
+    }
+    for (const RigMapping& m : mappings) {
+      try {
+        m.workers->finish();
+      } catch (const std::exception& e) {
+        log_warn(std::string("mapping stopped with an error: ") + e.what());
+      }
+    }
+  }
+  loop_worker_->stop();
   checkpointer_->stop();  // the final, durable checkpoint
   const CheckpointStats stats = checkpointer_->stats();
   if (stats.failures > 0)

@@ -177,6 +177,10 @@ class AtlasService {
   // A stereo session's SLAM with the server's policies (leases, live merging).
   std::unique_ptr<SessionSlam> make_stereo_slam(SessionId id, const SessionInfo& info, const SlamSettings& settings,
                                                 SessionMode mode);
+  // The mapping (local mapping per map, loop closing) every mapping session of
+  // this camera rig shares; made with the first session's options.
+  std::shared_ptr<MappingWorkers> mapping_for(const std::vector<CameraCalibration>& rig, const FrameCamera& cam,
+                                              const MappingWorkersOptions& options);
   // Leases and checkpoints after a session ended; returns the maps it held.
   std::vector<MapId> end_session_storage(SessionId id);
   // Live sessions whose last frame was tracked in `map` (lock-free reads of each).
@@ -190,7 +194,7 @@ class AtlasService {
   // The idle-session thread: waits for the earliest idle deadline, finishes
   // the sessions past it.
   void finish_idle_sessions();
-  void merged_live(SessionId session, const LiveMerge& merge);  // on the loop-closing thread
+  void merged_live(const LiveMerge& merge);  // on the loop-closing thread
 
   const AtlasServiceOptions options_;
   // First: held while anything below may write the database; destroyed last.
@@ -207,6 +211,14 @@ class AtlasService {
 
   // The server-wide loop-closing thread (before sessions_: destroyed after them).
   const std::shared_ptr<SerialWorker> loop_worker_;
+  // One mapping per camera rig, shared by its mapping sessions (after
+  // loop_worker_: destroyed before it). mappings_mutex_ is a leaf.
+  struct RigMapping {
+    std::vector<CameraCalibration> rig;
+    std::shared_ptr<MappingWorkers> workers;
+  };
+  mutable std::mutex mappings_mutex_;
+  std::vector<RigMapping> mappings_;
 
   mutable std::mutex mutex_;  // guards sessions_, next_session_, shut_down_
   std::map<SessionId, std::shared_ptr<LiveSession>> sessions_;

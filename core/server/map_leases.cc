@@ -1,7 +1,5 @@
 #include "core/server/map_leases.h"
 
-#include "core/common/log.h"
-
 namespace orbatlas {
 
 void MapLeases::add_free(MapId map) {
@@ -11,9 +9,27 @@ void MapLeases::add_free(MapId map) {
 
 bool MapLeases::claim(SessionId session, MapId map) {
   std::lock_guard lock(mutex_);
-  if (const auto it = leases_.find(map); it != leases_.end()) return it->second.session == session;
-  if (free_.erase(map) == 0) return false;  // another live session's new map
-  leases_[map] = {session, true};
+  if (const auto it = leases_.find(map); it != leases_.end()) {
+    if (it->second.contains(session)) return true;
+    for (const auto& [holder, lease] : it->second)
+      if (lease.exclusive) return false;
+    it->second[session] = {.tentative = true};
+    return true;
+  }
+  if (free_.erase(map) == 0) return false;  // unknown: a live session's map before its first settle
+  leases_[map][session] = {.tentative = true};
+  return true;
+}
+
+bool MapLeases::claim_exclusive(SessionId owner, MapId map) {
+  std::lock_guard lock(mutex_);
+  if (const auto it = leases_.find(map); it != leases_.end()) {
+    if (it->second.size() != 1 || !it->second.contains(owner)) return false;
+    it->second[owner] = {.tentative = false, .exclusive = true};
+    return true;
+  }
+  if (free_.erase(map) == 0) return false;
+  leases_[map][owner] = {.tentative = false, .exclusive = true};
   return true;
 }
 
@@ -22,52 +38,48 @@ bool MapLeases::is_free(MapId map) const {
   return free_.contains(map);
 }
 
-bool MapLeases::hold(SessionId session, MapId map) {
+bool MapLeases::share(MapId source, MapId target) {
   std::lock_guard lock(mutex_);
-  if (const auto it = leases_.find(map); it != leases_.end()) {
-    if (it->second.session != session) return false;
-    it->second.tentative = false;
-    return true;
-  }
-  if (free_.erase(map) == 0) return false;
-  leases_[map] = {session, false};
+  const auto it = leases_.find(target);
+  if (it != leases_.end())
+    for (const auto& [holder, lease] : it->second)
+      if (lease.exclusive) return false;
+  const auto from = leases_.find(source);
+  if (from == leases_.end()) return true;  // nobody to move over
+  free_.erase(target);
+  auto& into = leases_[target];
+  for (const auto& [holder, lease] : from->second) into[holder] = {.tentative = false};
   return true;
 }
 
 void MapLeases::settle(SessionId session, std::optional<MapId> tracked_in) {
   std::lock_guard lock(mutex_);
   if (tracked_in) {
-    const auto it = leases_.find(*tracked_in);
-    if (it == leases_.end()) {
-      free_.erase(*tracked_in);  // a map the session created
-      leases_[*tracked_in] = {session, false};
-    } else if (it->second.session == session) {
-      it->second.tentative = false;
-    } else {
-      log_warn("map " + std::to_string(*tracked_in) + " is held by session " + std::to_string(it->second.session) +
-               " but session " + std::to_string(session) + " tracked in it");
-    }
+    free_.erase(*tracked_in);  // a map the session created is known from now on
+    leases_[*tracked_in][session].tentative = false;
   }
-  for (auto it = leases_.begin(); it != leases_.end();) {
-    if (it->second.session == session && it->second.tentative) {
-      free_.insert(it->first);
-      it = leases_.erase(it);
-    } else {
-      ++it;
-    }
+  std::vector<MapId> tentative;
+  for (const auto& [map, holders] : leases_)
+    if (const auto it = holders.find(session); it != holders.end() && it->second.tentative) tentative.push_back(map);
+  for (const MapId map : tentative) give_back(map, session);
+}
+
+void MapLeases::give_back(MapId map, SessionId session) {
+  const auto it = leases_.find(map);
+  if (it == leases_.end()) return;
+  it->second.erase(session);
+  if (it->second.empty()) {
+    leases_.erase(it);
+    free_.insert(map);
   }
 }
 
 void MapLeases::release_all(SessionId session) {
   std::lock_guard lock(mutex_);
-  for (auto it = leases_.begin(); it != leases_.end();) {
-    if (it->second.session == session) {
-      free_.insert(it->first);
-      it = leases_.erase(it);
-    } else {
-      ++it;
-    }
-  }
+  std::vector<MapId> held;
+  for (const auto& [map, holders] : leases_)
+    if (holders.contains(session)) held.push_back(map);
+  for (const MapId map : held) give_back(map, session);
 }
 
 void MapLeases::forget(MapId map) {
@@ -76,18 +88,19 @@ void MapLeases::forget(MapId map) {
   leases_.erase(map);
 }
 
-std::optional<SessionId> MapLeases::holder(MapId map) const {
+std::vector<SessionId> MapLeases::holders(MapId map) const {
   std::lock_guard lock(mutex_);
-  const auto it = leases_.find(map);
-  if (it == leases_.end()) return std::nullopt;
-  return it->second.session;
+  std::vector<SessionId> out;
+  if (const auto it = leases_.find(map); it != leases_.end())
+    for (const auto& [holder, lease] : it->second) out.push_back(holder);
+  return out;
 }
 
 std::vector<MapId> MapLeases::held_by(SessionId session) const {
   std::lock_guard lock(mutex_);
   std::vector<MapId> out;
-  for (const auto& [map, lease] : leases_)
-    if (lease.session == session) out.push_back(map);
+  for (const auto& [map, holders] : leases_)
+    if (holders.contains(session)) out.push_back(map);
   return out;
 }
 

@@ -74,16 +74,17 @@ void MapMergeWorker::run_one(const MergeRequest& request) {
 
 void MapMergeWorker::process(const MergeRequest& request) {
   const auto source = atlas_.map(request.map);
-  if (!source || !request.cam || !request.cam->camera) return;  // merged away meanwhile
-  if (!leases_.claim(kMergeWorkerLease, source->id())) return;  // a session works in it again
+  if (!source || !request.cam || !request.cam->camera) return;            // merged away meanwhile
+  if (!leases_.claim_exclusive(kMergeWorkerLease, source->id())) return;  // a session works in it again
   const auto search_start = std::chrono::steady_clock::now();
 
   PlaceRecognitionOptions recognition = options_.recognition;
   recognition.scope = PlaceScope::kOtherMaps;
   const MapId source_id = source->id();
   recognition.may_use_map = [this, source_id](MapId target) {
-    const auto holder = leases_.holder(target);
-    return (!holder || *holder == kMergeWorkerLease) && (!may_merge_ || may_merge_(source_id, target));
+    const auto holders = leases_.holders(target);
+    return (holders.empty() || holders == std::vector<SessionId>{kMergeWorkerLease}) &&
+           (!may_merge_ || may_merge_(source_id, target));
   };
   PlaceRecognizer recognizer(atlas_.keyframe_index(), *request.cam, recognition);
 
@@ -119,7 +120,7 @@ void MapMergeWorker::process(const MergeRequest& request) {
     return;
   }
   const MapId target_id = match->matched->map_id();
-  if (!leases_.claim(kMergeWorkerLease, target_id)) return;  // a session entered it just now
+  if (!leases_.claim_exclusive(kMergeWorkerLease, target_id)) return;  // a session entered it just now
 
   MergeRecord record;
   record.current = match->current->id();

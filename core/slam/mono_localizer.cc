@@ -7,16 +7,6 @@
 
 namespace orbatlas {
 
-// Tracking in localisation mode never makes a keyframe; one would be a bug.
-class MonoLocalizer::NoKeyframes final : public KeyframeSink {
- public:
-  bool idle() const override { return true; }
-  std::size_t queued() const override { return 0; }
-  bool accepting() const override { return false; }
-  void insert(std::shared_ptr<KeyFrame>) override { throw Error("a localisation session made a keyframe"); }
-  void interrupt_optimization() override {}
-};
-
 void MonoLocalizerOptions::check() const { tracker.check(); }
 
 MonoLocalizer::MonoLocalizer(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
@@ -40,7 +30,7 @@ TrackResult MonoLocalizer::process(TimestampNs t_ns, const cv::Mat& left, const 
   ORBATLAS_DATA_CHECK(right.empty(), "a single-camera session takes one image per frame, not a stereo pair");
   const auto start = std::chrono::steady_clock::now();
   // It reads maps other sessions edit: it sees each edit whole.
-  return frames_.track(*tracker_, frontend_.make_frame(t_ns, left), nullptr, &atlas_, start);
+  return frames_.track(*tracker_, frontend_.make_frame(t_ns, left), atlas_, start);
 }
 
 void MonoLocalizer::finish() {

@@ -49,7 +49,6 @@ class MonoLocalizer final : public SessionSlam {
   std::size_t worker_errors() const override { return frames_.errors().errors; }
 
  private:
-  class NoKeyframes;
   Atlas& atlas_;
   MonoFrontend frontend_;
   FrameCamera cam_;

@@ -11,7 +11,6 @@
 #include "core/slam/slam_tuning.h"
 
 namespace orbatlas {
-
 void StereoSlamOptions::check() const {
   ORBATLAS_CHECK(
       new_map_after_failed_relocalizations >= 0,
@@ -47,34 +46,41 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
   if (options_.relocalization)
     relocalizer_ =
         std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c, wiring.may_enter_map);
-  mapper_ = std::make_unique<LocalMapper>(atlas_, cam_, options_.mapper, &atlas_.keyframe_index());
-  if (options_.loop_closing && !options_.tracker.localization_only) {
-    LoopCloserOptions loop = options_.loop;
-    LoopCloserWiring loop_wiring{.shared_worker = wiring.loop_worker,
-                                 .may_merge_into = wiring.may_merge_into,
-                                 .hold_map = wiring.hold_map,
-                                 .on_merged = wiring.on_merged,
-                                 .tracking_mutex = tracking_mutex_};
-    if (options_.live_merging) {
-      loop.live_merging = true;
-      if (options_.relocalization && options_.tracker.new_map_after_failed_relocalizations == 0)
-        options_.tracker.new_map_after_failed_relocalizations = options_.new_map_after_failed_relocalizations;
+  if (options_.tracker.localization_only) {
+    sink_ = std::make_unique<NoKeyframes>();
+  } else {
+    if (options_.live_merging && options_.loop_closing && options_.relocalization &&
+        options_.tracker.new_map_after_failed_relocalizations == 0)
+      options_.tracker.new_map_after_failed_relocalizations = options_.new_map_after_failed_relocalizations;
+    MappingWorkersOptions mapping{
+        .mapper = options_.mapper, .loop_closing = options_.loop_closing, .loop = options_.loop};
+    mapping.loop.live_merging = mapping.loop.live_merging || options_.live_merging;
+    if (wiring.mapping) mapping_ = wiring.mapping(cam_, mapping);
+    if (!mapping_) {
+      own_mapping_ = true;
+      mapping_ = std::make_shared<MappingWorkers>(atlas_, cam_, std::move(mapping),
+                                                  LoopCloserWiring{.shared_worker = wiring.loop_worker,
+                                                                   .may_merge_into = wiring.may_merge_into,
+                                                                   .hold_map = wiring.hold_map,
+                                                                   .on_merged = wiring.on_merged});
     }
-    loop_closer_ = std::make_unique<LoopCloser>(atlas_, cam_, *mapper_, loop, std::move(loop_wiring));
+    sink_ = mapping_->attach();
   }
-  tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *mapper_, cam_, T_b_c, options_.tracker, relocalizer_.get());
+  tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *sink_, cam_, T_b_c, options_.tracker, relocalizer_.get());
 }
 
 StereoSlam::~StereoSlam() {
-  // The tracker refers to the mapper, the loop closer to the mapper: they go first.
+  // The tracker refers to the sink, the sink to the mapping: they go in that order.
   tracker_.reset();
-  try {
-    if (mapper_) mapper_->finish();  // no keyframe reaches the loop closer afterwards
-  } catch (const std::exception& e) {
-    log_warn(std::string("local mapping stopped with an error: ") + e.what());
+  if (mapping_ && own_mapping_) {
+    try {
+      mapping_->finish();
+    } catch (const std::exception& e) {
+      log_warn(std::string("mapping stopped with an error: ") + e.what());
+    }
   }
-  loop_closer_.reset();
-  mapper_.reset();
+  sink_.reset();
+  mapping_.reset();
 }
 
 TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
@@ -82,15 +88,10 @@ TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv:
   ORBATLAS_DATA_CHECK(!right.empty(), "a stereo session takes a stereo pair: the right image is missing");
   const auto start = std::chrono::steady_clock::now();
   Frame frame = frontend_.make_frame(t_ns, left, right);
-  // A localisation reads maps other sessions edit: it sees each edit whole.
-  const Atlas* read_whole = options_.tracker.localization_only ? &atlas_ : nullptr;
-  const TrackResult result = frames_.track(*tracker_, std::move(frame), tracking_mutex_.get(), read_whole, start);
+  const TrackResult result = frames_.track(*tracker_, std::move(frame), atlas_, start);
   if (result.keyframe) {
     ++keyframes_made_;
-    if (options_.synchronous_mapping) {
-      mapper_->wait_until_idle();
-      if (loop_closer_) loop_closer_->wait_until_idle();
-    }
+    if (options_.synchronous_mapping && mapping_) mapping_->wait_until_idle();
   }
   return result;
 }
@@ -98,10 +99,13 @@ TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv:
 void StereoSlam::finish() {
   if (finished_) return;
   finished_ = true;
-  mapper_->finish();
-  if (loop_closer_) loop_closer_->finish();
+  if (mapping_ && own_mapping_) {
+    mapping_->finish();
+  } else if (mapping_) {
+    mapping_->wait_for_map(tracker_->map_id());  // its last keyframes are complete
+  }
   tracker_->release_frames();
-  if (options_.final_global_ba && !options_.tracker.localization_only) {
+  if (options_.final_global_ba && mapping_ && own_mapping_) {
     // Nothing else edits these maps now: mapping and loop closing have stopped.
     std::set<MapId> maps;
     for (const auto& anchor : tracker_->anchors())
@@ -133,9 +137,7 @@ std::vector<TimedPose> StereoSlam::trajectory() const {
 
 std::vector<FrameAnchor> StereoSlam::anchors() const { return frames_.anchors(); }
 
-std::size_t StereoSlam::worker_errors() const {
-  return frames_.errors().errors + mapper_->errors().errors + (loop_closer_ ? loop_closer_->errors().errors : 0);
-}
+std::size_t StereoSlam::worker_errors() const { return frames_.errors().errors + (mapping_ ? mapping_->errors() : 0); }
 
 SlamStats StereoSlam::stats() const {
   SlamStats s;
@@ -151,10 +153,12 @@ SlamStats StereoSlam::stats() const {
   s.keyframes_made = keyframes_made_;
   add_atlas_counts(atlas_, s);
   s.tracking_ms = frames_.tracking_ms();
-  s.mapping = mapper_->stats();
-  if (loop_closer_) {
-    s.loop_closing = true;
-    s.loop = loop_closer_->stats();
+  if (mapping_) {
+    s.mapping = mapping_->mapping_stats();
+    if (mapping_->loop_closing()) {
+      s.loop_closing = true;
+      s.loop = mapping_->loop_stats();
+    }
   }
   s.culling_scheme = options_.mapper.culling.scheme;
   return s;

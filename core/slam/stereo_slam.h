@@ -1,17 +1,17 @@
 #pragma once
-// One stereo SLAM session: the front end, tracking on the caller's thread and
-// local mapping on its own, working on a map of an atlas the caller owns (so
-// several sessions and several atlases can live in one process).
+// One stereo SLAM session: the front end and tracking on the caller's thread,
+// attached to the mapping of the maps it is in (MappingWorkers: local mapping
+// per map, loop closing; its own, or the owner's shared with other sessions),
+// working in an atlas the caller owns (so several sessions and several atlases
+// can live in one process).
 #include <functional>
 #include <memory>
-#include <mutex>
 #include <opencv2/core/mat.hpp>
 #include <vector>
 
 #include "core/io/settings.h"
 #include "core/map/atlas.h"
-#include "core/loop/loop_closer.h"
-#include "core/mapping/local_mapper.h"
+#include "core/slam/mapping_workers.h"
 #include "core/slam/session_slam.h"
 #include "core/slam/session_wiring.h"
 #include "core/slam/slam_stats.h"
@@ -43,7 +43,8 @@ struct StereoSlamOptions {
   bool synchronous_mapping = false;
   // After the last frame, one global bundle adjustment over every map the
   // session tracked in (offline runs: every covisibility constraint the run
-  // found, refined jointly; frames follow through their keyframes).
+  // found, refined jointly; frames follow through their keyframes). Only with
+  // mapping of its own (a shared one is still running for others).
   bool final_global_ba = false;
   GlobalBundleAdjustmentOptions final_ba;
 
@@ -70,9 +71,9 @@ class StereoSlam final : public SessionSlam {
   // One stereo pair (throws Error on bad images or a timestamp that does not increase).
   TrackResult process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) override;
 
-  // Lets local mapping finish what is queued, stops it and releases the last
-  // frame (so every culled object can be reclaimed). Idempotent; process() may
-  // not be called afterwards.
+  // Lets local mapping finish what is queued (its own mapping stops; a shared
+  // one goes on for the others) and releases the last frame (so every culled
+  // object can be reclaimed). Idempotent; process() may not be called afterwards.
   void finish() override;
 
   // Every tracked frame's body pose, from its reference keyframe's current pose.
@@ -81,7 +82,7 @@ class StereoSlam final : public SessionSlam {
   // frames are processed (a checkpoint thread storing the trajectory).
   std::vector<FrameAnchor> anchors() const override;
   SlamStats stats() const override;
-  std::size_t worker_errors() const override;
+  std::size_t worker_errors() const override;  // tracking's, and its mapping's when its own
   const StereoFrontend& frontend() const { return frontend_; }
 
  private:
@@ -90,14 +91,13 @@ class StereoSlam final : public SessionSlam {
   StereoFrontend frontend_;
   FrameCamera cam_;
   std::unique_ptr<FrameRelocalizer> relocalizer_;
-  std::unique_ptr<LocalMapper> mapper_;
-  std::unique_ptr<LoopCloser> loop_closer_;  // null when loop closing is off
+  std::shared_ptr<MappingWorkers> mapping_;  // null when localising
+  bool own_mapping_ = false;                 // made here (not the owner's shared one)
+  std::unique_ptr<KeyframeSink> sink_;       // the tracker's: into mapping_, or none when localising
   std::unique_ptr<Tracker> tracker_;
   bool finished_ = false;
   std::size_t final_ba_keyframes_ = 0;
   double final_ba_s_ = 0.0;
-  // Held for each frame; the loop closer holds it while it edits the map.
-  std::shared_ptr<std::mutex> tracking_mutex_ = std::make_shared<std::mutex>();
   TrackedFrames frames_;
   std::size_t keyframes_made_ = 0;
 };

@@ -7,15 +7,12 @@
 
 namespace orbatlas {
 
-TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, std::mutex* tracking_mutex, const Atlas* read_whole,
+TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, const Atlas& atlas,
                                  std::chrono::steady_clock::time_point started) {
   const TimestampNs t_ns = frame.t_ns;
   TrackResult result;
   try {
-    std::unique_lock<std::mutex> lock;
-    if (tracking_mutex) lock = std::unique_lock(*tracking_mutex);
-    std::shared_lock<WriterPriorityMutex> whole;
-    if (read_whole) whole = read_whole->lock_maps_shared();
+    const auto whole = atlas.lock_maps_shared();
     result = tracker.track(std::move(frame));
     errors_.succeeded();
   } catch (const DataError&) {

@@ -16,6 +16,7 @@
 
 #include "core/common/sample_summary.h"
 #include "core/common/worker_errors.h"
+#include "core/map/atlas.h"
 #include "core/map/frame_anchor.h"
 #include "core/tracking/tracker.h"
 
@@ -23,14 +24,13 @@ namespace orbatlas {
 
 class TrackedFrames {
  public:
-  // Tracks `frame` with `tracker` (holding `tracking_mutex` when not null, and
-  // `read_whole`'s maps shared when not null: a localisation that must see maps
-  // before or after another session's edit, never half-way); `started`: when
-  // the frame's processing began (its front end included).
+  // Tracks `frame` with `tracker`, holding `atlas`'s maps shared: the frame
+  // sees every map before or after an edit of loop closing or merging, never
+  // half-way (those hold them exclusive); `started`: when the frame's
+  // processing began (its front end included).
   // Rethrows DataError (the frame's fault), WorkerFailed, and the error that
   // makes tracking fail too many times in a row.
-  TrackResult track(Tracker& tracker, Frame frame, std::mutex* tracking_mutex, const Atlas* read_whole,
-                    std::chrono::steady_clock::time_point started);
+  TrackResult track(Tracker& tracker, Frame frame, const Atlas& atlas, std::chrono::steady_clock::time_point started);
 
   std::vector<FrameAnchor> anchors() const;  // any thread
   std::size_t frames() const { return frames_; }

@@ -1,9 +1,13 @@
 #pragma once
-// Where tracking hands new keyframes (the local mapper, in its own thread). An
-// interface so that tracking does not depend on the mapping library.
+// Where tracking hands new keyframes: local mapping, which belongs to the map
+// (one mapper per map being mapped, fed by every session tracking in it). An
+// interface so that tracking does not depend on the mapping library. The
+// questions name the map the tracker is in.
 #include <cstddef>
 #include <memory>
 
+#include "core/common/error.h"
+#include "core/common/ids.h"
 #include "core/map/keyframe.h"
 
 namespace orbatlas {
@@ -11,16 +15,27 @@ namespace orbatlas {
 class KeyframeSink {
  public:
   virtual ~KeyframeSink() = default;
-  // True when the consumer has nothing queued and is not processing (ORB-SLAM's AcceptKeyFrames).
-  virtual bool idle() const = 0;
-  virtual std::size_t queued() const = 0;
-  // False while the consumer is paused (a loop correction is moving the map):
-  // tracking then makes no keyframe, as ORB-SLAM does while local mapping is stopped.
-  virtual bool accepting() const { return true; }
-  // Blocks while the queue is full.
+  // True when the map's mapping has nothing queued and is not processing (ORB-SLAM's AcceptKeyFrames).
+  virtual bool idle(MapId map) const = 0;
+  virtual std::size_t queued(MapId map) const = 0;
+  // False while the map's mapping is paused (a loop correction or a merge is
+  // moving the map): tracking then makes no keyframe, as ORB-SLAM does while
+  // local mapping is stopped.
+  virtual bool accepting(MapId map) const = 0;
+  // To the mapping of the keyframe's map. Blocks while its queue is full.
   virtual void insert(std::shared_ptr<KeyFrame> keyframe) = 0;
-  // Asks a running local bundle adjustment to finish early (a keyframe is waiting).
-  virtual void interrupt_optimization() = 0;
+  // Asks the map's running local bundle adjustment to finish early (a keyframe is waiting).
+  virtual void interrupt_optimization(MapId map) = 0;
+};
+
+// The sink of a localisation, which never makes a keyframe (one would be a bug).
+class NoKeyframes final : public KeyframeSink {
+ public:
+  bool idle(MapId) const override { return true; }
+  std::size_t queued(MapId) const override { return 0; }
+  bool accepting(MapId) const override { return false; }
+  void insert(std::shared_ptr<KeyFrame>) override { throw Error("a localisation session made a keyframe"); }
+  void interrupt_optimization(MapId) override {}
 };
 
 }  // namespace orbatlas

@@ -274,7 +274,7 @@ bool Tracker::initialize(Frame& frame) {
   // A new map waits (a frame or two) while local mapping cannot take its first
   // keyframe: the insert below blocks on a full queue, under the tracking lock a
   // paused mapper's loop correction is waiting for (docs/architecture.md, Locks).
-  if (!options_.localization_only && (!sink_.accepting() || sink_.queued() >= 3)) return false;
+  if (!options_.localization_only && (!sink_.accepting(map_->id()) || sink_.queued(map_->id()) >= 3)) return false;
   frame.T_w_b = Pose3();
   frame.has_pose = true;
   std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
@@ -431,7 +431,7 @@ bool Tracker::track_local_map(Frame& frame) {
 }
 
 bool Tracker::need_new_keyframe(const Frame& frame, int inliers) const {
-  if (options_.localization_only || !reference_ || !sink_.accepting()) return false;
+  if (options_.localization_only || !reference_ || !sink_.accepting(map_->id())) return false;
   const std::size_t n_kfs = map_->keyframe_count();
   const int min_obs = n_kfs <= 2 ? 1 : 2;  // keyframes; ORB-SLAM counts stereo observations twice (3 of 4)
   int ref_matches = 0;
@@ -450,15 +450,15 @@ bool Tracker::need_new_keyframe(const Frame& frame, int inliers) const {
   }
   const bool need_close = tracked_close < 100 && untracked_close > 70;
   const double ref_ratio = n_kfs < 2 ? 0.4 : 0.75;
-  const bool idle = sink_.idle();
+  const bool idle = sink_.idle(map_->id());
   const bool c1a = frame_index_ >= last_keyframe_index_ + options_.max_frames_between_keyframes;
   const bool c1b = idle;
   const bool c1c = inliers < ref_matches * 0.25 || need_close;
   const bool c2 = (inliers < ref_matches * ref_ratio || need_close) && inliers > 15;
   if (!((c1a || c1b || c1c) && c2)) return false;
   if (idle) return true;
-  sink_.interrupt_optimization();
-  return sink_.queued() < 3;
+  sink_.interrupt_optimization(map_->id());
+  return sink_.queued(map_->id()) < 3;
 }
 
 void Tracker::create_keyframe(Frame& frame, bool all_stereo_points) {

@@ -74,6 +74,7 @@ class Tracker {
   TrackResult track(Frame frame);
 
   TrackingState state() const { return state_; }
+  MapId map_id() const { return map_ ? map_->id() : kInvalidMapId; }  // the map it is in (tracking thread)
   const std::vector<FrameAnchor>& anchors() const { return anchors_; }
   std::size_t maps_started() const { return maps_started_; }
   std::size_t maps_followed() const { return maps_followed_; }  // merges tracking followed
