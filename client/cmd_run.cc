@@ -1,12 +1,14 @@
 // `orbatlas run`: stereo SLAM over an EuRoC ASL dataset; writes the trajectory
 // (TUM, body frame) and optionally a stats JSON.
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
 #include <set>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "cli/effective_options.h"
 #include "client/commands.h"
@@ -20,7 +22,8 @@ namespace {
 
 struct RunArgs {
   DatasetRunOptions run;
-  std::string config, dataset, out_trajectory, stats, vocabulary, culling = "incremental", mode = "map";
+  std::string config, stats, vocabulary, culling = "incremental", mode = "map";
+  std::vector<std::string> datasets, out_trajectories;
   double start_s = 0.0, duration_s = 0.0;
   bool compare_culling = false;
 };
@@ -93,10 +96,15 @@ void register_run_command(CLI::App& app) {
   auto args = std::make_shared<RunArgs>();
   auto* cmd = app.add_subcommand("run", "Stereo SLAM over an EuRoC ASL dataset (real or simulated)");
   cmd->add_option("--config", args->config, "ORB-SLAM3-style settings, e.g. config/euroc/stereo.yaml")->required();
-  cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)")->required();
-  cmd->add_option("--out-trajectory", args->out_trajectory, "Trajectory to write (TUM, body frame, seconds)")
+  cmd->add_option("--dataset", args->datasets,
+                  "Folder holding mav0/ (cam0, cam1); repeat it to run several recordings at once into one atlas "
+                  "(one session each, mapping shared maps together)")
       ->required();
-  cmd->add_option("--stats", args->stats, "Write run figures as JSON here");
+  cmd->add_option("--out-trajectory", args->out_trajectories,
+                  "Trajectory to write (TUM, body frame, seconds); one per --dataset, in the same order")
+      ->required();
+  cmd->add_option("--stats", args->stats,
+                  "Write run figures as JSON here (several recordings: {\"runs\": [one object each]})");
   cmd->add_flag("--realtime", args->run.realtime, "Feed frames at the sensor rate and count late frames");
   cmd->add_option("--vocabulary", args->vocabulary, "Vocabulary file (default: the shipped one)");
   cmd->add_option("--start", args->start_s, "Seconds of the sequence to skip")->capture_default_str();
@@ -130,7 +138,6 @@ void register_run_command(CLI::App& app) {
     log_effective_options(*cmd);
     DatasetRunOptions options = args->run;
     options.settings = args->config;
-    options.dataset = args->dataset;
     options.vocabulary = args->vocabulary;
     options.start_s = args->start_s;
     if (args->duration_s > 0.0) options.duration_s = args->duration_s;
@@ -138,17 +145,36 @@ void register_run_command(CLI::App& app) {
     options.slam.mapper.culling.compare_schemes = args->compare_culling;
     options.localize_only = args->mode == "localize";  // DatasetRunOptions::check: needs --atlas
 
-    const DatasetRunReport report = run_stereo_dataset(options);
-    write_tum_trajectory(args->out_trajectory, report.trajectory);
-    if (!args->stats.empty()) write_stats_file(args->stats, report.to_json());
-    print_run_summary(report);
-    if (report.stats.maps > report.loaded_maps + 1)
-      std::printf("note: tracking was lost and %zu maps were made; the trajectory mixes their frames\n",
-                  report.stats.maps - report.loaded_maps);
-    std::printf("trajectory: %zu poses -> %s\n", report.trajectory.size(), args->out_trajectory.c_str());
-    if (!report.failed.empty())
-      throw Error("the session failed after " + std::to_string(report.stats.frames) + " frames (" + report.failed +
-                  "); the trajectory and figures until then were written");
+    if (args->out_trajectories.size() != args->datasets.size())
+      throw Error("give one --out-trajectory per --dataset (" + std::to_string(args->datasets.size()) + " datasets, " +
+                  std::to_string(args->out_trajectories.size()) + " trajectories)");
+    std::vector<std::filesystem::path> datasets(args->datasets.begin(), args->datasets.end());
+    options.dataset = datasets.front();
+    const std::vector<DatasetRunReport> reports = run_stereo_datasets(options, datasets);
+    nlohmann::json runs = nlohmann::json::array();
+    std::string failed;
+    for (std::size_t i = 0; i < reports.size(); ++i) {
+      const DatasetRunReport& report = reports[i];
+      write_tum_trajectory(args->out_trajectories[i], report.trajectory);
+      runs.push_back(report.to_json());
+      if (reports.size() > 1) std::printf("== %s\n", args->datasets[i].c_str());
+      print_run_summary(report);
+      if (reports.size() == 1 && report.stats.maps > report.loaded_maps + 1)
+        std::printf("note: tracking was lost and %zu maps were made; the trajectory mixes their frames\n",
+                    report.stats.maps - report.loaded_maps);
+      std::printf("trajectory: %zu poses -> %s\n", report.trajectory.size(), args->out_trajectories[i].c_str());
+      if (!report.failed.empty() && failed.empty())
+        failed = "the session of " + args->datasets[i] + " failed after " + std::to_string(report.stats.frames) +
+                 " frames (" + report.failed + ")";
+    }
+    if (reports.size() > 1) {
+      std::set<MapId> maps;
+      for (const auto& report : reports) maps.insert(report.trajectory_maps.begin(), report.trajectory_maps.end());
+      std::printf("%zu recordings at once: their trajectories end in %zu map(s)\n", reports.size(), maps.size());
+    }
+    if (!args->stats.empty())
+      write_stats_file(args->stats, reports.size() == 1 ? runs[0] : nlohmann::json{{"runs", runs}});
+    if (!failed.empty()) throw Error(failed + "; the trajectories and figures until then were written");
   });
 }
 

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <functional>
 #include <map>
+#include <mutex>
 #include <thread>
 
 #include "core/common/error.h"
@@ -162,9 +163,10 @@ StereoSlamOptions run_slam_options(const DatasetRunOptions& options) {
 // rate with --realtime; bad frames are skipped and counted; a failure that leaves
 // the map unusable stops the run with what was tracked.
 void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame>& frames, StereoSlam& slam,
-                 AtlasCheckpointer* checkpointer, Clock::time_point wall_start, DatasetRunReport& report) {
+                 AtlasCheckpointer* checkpointer, Clock::time_point wall_start, DatasetRunReport& report,
+                 const std::string& label = "run") {
   StereoPairLoader loaded(frames);  // decodes images ahead of tracking
-  Progress progress("run", static_cast<std::int64_t>(frames.size()), options.show_progress);
+  Progress progress(label, static_cast<std::int64_t>(frames.size()), options.show_progress);
   std::size_t index = 0;
   while (auto pair = loaded.next()) {
     const TimestampNs next_t = index + 1 < frames.size() ? frames[index + 1].t_ns : pair->t_ns;
@@ -178,7 +180,13 @@ void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame
     } else {
       try {
         const TrackResult r = slam.process(pair->t_ns, pair->left, pair->right);
-        if (r.keyframe && checkpointer) checkpointer->notify_keyframe();
+        if (r.keyframe && checkpointer) {
+          if (report.session) {
+            checkpointer->notify_keyframe(*report.session, r.keyframe_id);
+          } else {
+            checkpointer->notify_keyframe();
+          }
+        }
       } catch (const DataError& e) {
         log_warn(std::string("frame at ") + std::to_string(pair->t_ns) + " ns skipped: " + e.what());
         ++report.skipped_frames;
@@ -199,12 +207,15 @@ void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame
 
 // Lets mapping and loop closing finish, then writes the final durable checkpoint
 // (every keyframe and the whole trajectory) and records a clean stop.
-void finish_run(StereoSlam& slam, AtlasCheckpointer* checkpointer, DatabaseLock* lock, DatasetRunReport& report) {
+void finish_session(StereoSlam& slam, DatasetRunReport& report) {
   try {
     slam.finish();
   } catch (const WorkerFailed& e) {
     if (report.failed.empty()) report.failed = e.what();
   }
+}
+
+void finish_storage(AtlasCheckpointer* checkpointer, DatabaseLock* lock, DatasetRunReport& report) {
   if (!checkpointer) return;
   checkpointer->stop();
   report.checkpoints = checkpointer->stats();
@@ -269,10 +280,103 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   }
   const auto wall_start = Clock::now();
   feed_frames(options, in.frames, slam, checkpointer.get(), wall_start, report);
-  finish_run(slam, checkpointer.get(), stored.lock.get(), report);
+  finish_session(slam, report);
+  finish_storage(checkpointer.get(), stored.lock.get(), report);
   report.wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
   collect_results(slam, in.dataset, report);
   return report;
+}
+
+std::vector<DatasetRunReport> run_stereo_datasets(const DatasetRunOptions& options,
+                                                  const std::vector<std::filesystem::path>& datasets) {
+  ORBATLAS_CHECK(!datasets.empty(), "run: no dataset given");
+  const std::size_t n = datasets.size();
+  std::vector<DatasetRunOptions> each(n, options);
+  for (std::size_t i = 0; i < n; ++i) {
+    each[i].dataset = datasets[i];
+    each[i].show_progress = options.show_progress && i == 0;  // one progress line, the first recording's
+  }
+  if (n == 1) return {run_stereo_dataset(each[0])};
+  options.check();
+  std::vector<RunInputs> inputs;
+  for (const auto& o : each) inputs.push_back(read_inputs(o));
+  const Vocabulary vocabulary =
+      Vocabulary::load(options.vocabulary.empty() ? default_vocabulary_path() : options.vocabulary);
+  Atlas atlas;
+  std::vector<DatasetRunReport> reports(n);
+  const StoredAtlas stored = open_atlas(each[0], inputs[0].settings, vocabulary, atlas, reports[0]);
+  // One session per recording (consecutive ids after the stored ones).
+  std::vector<std::optional<SessionInfo>> sessions(n);
+  sessions[0] = stored.session;
+  for (std::size_t i = 1; i < n; ++i) {
+    reports[i].loaded_maps = reports[0].loaded_maps;
+    reports[i].loaded_keyframes = reports[0].loaded_keyframes;
+    reports[i].atlas_load_s = reports[0].atlas_load_s;
+    if (!stored.session) continue;
+    SessionInfo info = *stored.session;
+    info.id += i;
+    info.name = std::filesystem::absolute(datasets[i]).lexically_normal().filename().string();
+    sessions[i] = info;
+    reports[i].session = info.id;
+  }
+  // One mapping for all of them (one rig: the same settings): local mapping
+  // per map, fed by whichever recordings map in it, and loop closing over them.
+  std::mutex mapping_mutex;
+  std::shared_ptr<MappingWorkers> mapping;
+  SessionWiring wiring = run_wiring(stored);
+  wiring.mapping = [&](const FrameCamera& cam, const MappingWorkersOptions& mapping_options) {
+    std::lock_guard lock(mapping_mutex);
+    if (!mapping) {
+      LoopCloserWiring loop_wiring;
+      loop_wiring.may_merge_into = wiring.may_merge_into;
+      mapping = std::make_shared<MappingWorkers>(atlas, cam, mapping_options, std::move(loop_wiring));
+    }
+    return mapping;
+  };
+  std::vector<std::unique_ptr<StereoSlam>> slams;
+  for (std::size_t i = 0; i < n; ++i)
+    slams.push_back(
+        std::make_unique<StereoSlam>(atlas, inputs[i].settings, vocabulary, run_slam_options(each[i]), wiring));
+  std::unique_ptr<AtlasCheckpointer> checkpointer;
+  if (stored.session) {
+    checkpointer = std::make_unique<AtlasCheckpointer>(
+        atlas, options.atlas, vocabulary.hash(), options.checkpoints,
+        CheckpointSession{*sessions[0], [slam = slams[0].get()] { return slam->anchors(); }});
+    for (std::size_t i = 1; i < n; ++i)
+      checkpointer->add_session(CheckpointSession{*sessions[i], [slam = slams[i].get()] { return slam->anchors(); }});
+  }
+  // Every recording on a thread of its own, at once.
+  const auto wall_start = Clock::now();
+  std::vector<std::thread> threads;
+  for (std::size_t i = 0; i < n; ++i) {
+    threads.emplace_back([&, i] {
+      try {
+        feed_frames(each[i], inputs[i].frames, *slams[i], checkpointer.get(), wall_start, reports[i],
+                    "run " + std::to_string(i + 1));
+      } catch (const std::exception& e) {
+        reports[i].failed = e.what();
+        log_warn("recording " + datasets[i].string() + " stopped: " + e.what());
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (std::size_t i = 0; i < n; ++i) finish_session(*slams[i], reports[i]);
+  if (mapping) {
+    try {
+      mapping->finish();  // the shared local mapping and loop closing, after every session
+    } catch (const WorkerFailed& e) {
+      for (auto& r : reports)
+        if (r.failed.empty()) r.failed = e.what();
+    }
+  }
+  finish_storage(checkpointer.get(), stored.lock.get(), reports[0]);
+  const double wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i > 0) reports[i].checkpoints = reports[0].checkpoints;
+    reports[i].wall_s = wall_s;
+    collect_results(*slams[i], inputs[i].dataset, reports[i]);
+  }
+  return reports;
 }
 
 }  // namespace orbatlas

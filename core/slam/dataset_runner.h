@@ -62,4 +62,14 @@ struct DatasetRunReport {
 // a session that fails while it runs ends the run with `failed` set instead.
 DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options);
 
+// Several recordings at once into one atlas (`orbatlas run --dataset A
+// --dataset B`): one session each (options.dataset is ignored), each on its own
+// thread, all attached to one mapping (MappingWorkers: recordings that see the
+// same place map in one map together). One report per recording, in order; the
+// mapping and loop-closing figures in each are those of the shared mapping.
+// --final-ba is not run (it is a single session's refinement). One recording:
+// exactly run_stereo_dataset().
+std::vector<DatasetRunReport> run_stereo_datasets(const DatasetRunOptions& options,
+                                                  const std::vector<std::filesystem::path>& datasets);
+
 }  // namespace orbatlas
