@@ -45,6 +45,7 @@ nlohmann::json stream_json(const StreamReport& r) {
                       {"tracked", r.tracked},
                       {"rejected", r.rejected},
                       {"keyframes", r.keyframes},
+                      {"late_frames", r.late_frames},
                       {"wall_s", r.wall_s},
                       {"fps", r.fps()},
                       {"tracking_ms", to_json_summary(r.tracking_ms)},
@@ -65,8 +66,9 @@ void print_stream_summary(const nlohmann::json& j) {
               j["tracked"].get<std::size_t>(), j["rejected"].get<std::size_t>(), j["keyframes"].get<std::size_t>(),
               j["fps"].get<double>());
   if (j["frames"].get<std::size_t>() > 0) {
-    std::printf("  tracking p50 %.1f / p95 %.1f ms; round trip p50 %.1f / p95 %.1f ms\n", p("tracking_ms", "p50"),
-                p("tracking_ms", "p95"), p("round_trip_ms", "p50"), p("round_trip_ms", "p95"));
+    std::printf("  tracking p50 %.1f / p95 %.1f ms; round trip p50 %.1f / p95 %.1f ms; late frames %zu\n",
+                p("tracking_ms", "p50"), p("tracking_ms", "p95"), p("round_trip_ms", "p50"), p("round_trip_ms", "p95"),
+                j["late_frames"].get<std::size_t>());
     std::printf(
         "  added by the server (request - tracking) p50 %.2f / p95 %.2f ms; by HTTP and the client p50 %.2f ms\n",
         p("server_overhead_ms", "p50"), p("server_overhead_ms", "p95"), p("client_overhead_ms", "p50"));

@@ -3,8 +3,12 @@
 # or TSan ("thread") in build-<mode>/, renders a Machine Hall clip once, and
 # runs `orbatlas run` on it with the sanitizer set to stop at the first report.
 # A clean run ends with "sanitize_run: clean". Also runs the map/mapping/SLAM
-# tests (and, with SERVER=1, the server's three-concurrent-sessions test) under
-# the same sanitizer.
+# tests (and, with SERVER=1, the server's three-concurrent-sessions test and the
+# shared-maps tests: eight localisations in one map, two mapping sessions in one
+# map, a localisation through a live merge and global BA) under the same
+# sanitizer. SHARED=1 also runs two recordings at once into one atlas
+# (`orbatlas run --dataset A --dataset B`, the clip and the same window of the
+# next sequence) and the runner's several-recordings test.
 #   scripts/sanitize_run.sh address
 #   scripts/sanitize_run.sh thread
 #   SEQUENCE=MH_03 DURATION=full LOOK=real SERVER=1 scripts/sanitize_run.sh thread   # a full-length run
@@ -24,7 +28,8 @@ DURATION="${DURATION:-20}"
 START="${START:-40}"
 [ "$DURATION" = "full" ] && START=0
 TARGETS=(orbatlas test_map test_mapping test_slam)
-[ "${SERVER:-0}" = "1" ] && TARGETS+=(test_server)
+[ "${SERVER:-0}" = "1" ] && TARGETS+=(test_server test_server_shared_maps)
+[ "${SHARED:-0}" = "1" ] && TARGETS+=(test_atlas_sessions)
 cmake -S "$ROOT" -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DORBATLAS_SANITIZE="$MODE" >/dev/null
 ninja -C "$BUILD" -j"$(nproc)" "${TARGETS[@]}"
 CLIP="${CLIP:-$BUILD/clip_${SEQUENCE}_${LOOK}_${START}_${DURATION}}"
@@ -52,5 +57,26 @@ echo "sanitize_run: orbatlas run on $SEQUENCE ($LOOK, start $START s, duration $
 for t in test_map test_mapping test_slam; do "$BUILD/tests/$t" --gtest_brief=1; done
 if [ "${SERVER:-0}" = "1" ]; then
   "$BUILD/tests/test_server" --gtest_brief=1 --gtest_filter='ServerEndToEnd.ThreeSessionsStreamConcurrently'
+  "$BUILD/tests/test_server_shared_maps" --gtest_brief=1
+fi
+if [ "${SHARED:-0}" = "1" ]; then
+  # The same window of the next Machine Hall sequence: another flight, at once.
+  NEXT="MH_0$(( ${SEQUENCE#MH_0} % 5 + 1 ))"
+  CLIP2="$BUILD/clip_${NEXT}_${LOOK}_${START}_${DURATION}"
+  if [ ! -f "$CLIP2/mav0/cam1/data.csv" ]; then
+    rm -rf "$CLIP2"
+    RANGE=(--start "$START")
+    [ "$DURATION" != "full" ] && RANGE+=(--duration "$DURATION")
+    OA_SIM="$ROOT/build/client/orbatlas"
+    [ -x "$OA_SIM" ] || OA_SIM="$BUILD/client/orbatlas"
+    "$OA_SIM" sim --sequence "$NEXT" --look "$LOOK" "${RANGE[@]}" --out "$CLIP2" --threads 1 --no-progress
+  fi
+  rm -f "$BUILD/sanitize_shared.db"*
+  start=$(date +%s)
+  "$BUILD/client/orbatlas" run --config "$ROOT/config/euroc/stereo.yaml" --atlas "$BUILD/sanitize_shared.db" \
+      --dataset "$CLIP" --out-trajectory "$BUILD/sanitize_shared_a.txt" \
+      --dataset "$CLIP2" --out-trajectory "$BUILD/sanitize_shared_b.txt" --no-progress
+  echo "sanitize_run: $SEQUENCE and $NEXT at once into one atlas clean in $(( $(date +%s) - start )) s"
+  "$BUILD/tests/test_atlas_sessions" --gtest_brief=1 --gtest_filter='AtlasSessions.SeveralRecordingsAtOnce*'
 fi
 echo "sanitize_run: clean ($MODE)"

@@ -9,6 +9,8 @@
 #   scripts/stress.sh                       # 20 runs: MH_01..MH_05 x {clean, real} x 2 seeds
 #   RUNS=4 scripts/stress.sh MH_03 MH_04    # the first 4 runs of that plan
 #   LOOKS=real SEEDS="1 2 3" scripts/stress.sh MH_05
+#   SHARED=1 scripts/stress.sh              # and, per look and seed, recordings at once into one
+#                                           # atlas (MH_01+MH_02, MH_03+MH_04+MH_05: shared maps)
 #
 # Datasets are rendered once per (sequence, look, seed) into $ORBATLAS_STRESS_DATA
 # (default build/stress_data, ~1.7 GB each) and removed after their run unless
@@ -73,5 +75,42 @@ for item in "${plan[@]}"; do
   echo "[$n/${#plan[@]}] $name: $status ($secs s)$([ "$status" = ABORTED ] && echo ": $(grep -m1 'error' "$OUT/$name.run.log")")"
   [ "${KEEP:-0}" = "1" ] || rm -rf "$dataset"
 done
+
+if [ "${SHARED:-0}" = "1" ]; then
+  # Several full-length recordings at once into one atlas (one session each,
+  # one shared mapping): they meet in the hall, join or merge into one map.
+  for seed in "${SEED_LIST[@]}"; do
+    for look in "${LOOK_LIST[@]}"; do
+      for group in "MH_01 MH_02" "MH_03 MH_04 MH_05"; do
+        name="shared_$(echo "$group" | tr ' ' '+')_${look}_s${seed}"
+        args=()
+        missing=0
+        for s in $group; do
+          dataset="$DATA/${s}_${look}_s${seed}"
+          if [ ! -f "$dataset/mav0/cam1/data.csv" ]; then
+            rm -rf "$dataset"
+            CALIB=()
+            [ "$look" = real ] && [ "$seed" -ge 2 ] && CALIB=(--calib-error 1)
+            "$OA" sim --sequence "$s" --look "$look" --scene-seed "$seed" --sensor-seed $((seed * 7919 + 1)) \
+                "${CALIB[@]}" --out "$dataset" --no-progress > "$OUT/$name.sim.log" 2>&1 || missing=1
+          fi
+          args+=(--dataset "$dataset" --out-trajectory "$OUT/${name}_$s.txt")
+        done
+        [ $missing -eq 1 ] && { echo "$name: simulation failed"; continue; }
+        rm -f "$OUT/$name.db"*
+        start=$(date +%s)
+        "$OA" run --config "$ROOT/config/euroc/stereo.yaml" --atlas "$OUT/$name.db" "${args[@]}" --no-progress \
+            --stats "$OUT/$name.json" > "$OUT/$name.run.log" 2>&1
+        rc=$?
+        status=ok
+        [ $rc -ne 0 ] && status=ABORTED
+        echo "$name: $status ($(( $(date +%s) - start )) s); $(grep -m1 'recordings at once' "$OUT/$name.run.log")"
+        printf '%s\t%s\t%s\t%s\t%s\n' "$name" "$group" "$look" "$seed" "$status" >> "$OUT/shared_runs.tsv"
+        rm -f "$OUT/$name.db"*
+        if [ "${KEEP:-0}" != "1" ]; then for s in $group; do rm -rf "$DATA/${s}_${look}_s${seed}"; done; fi
+      done
+    done
+  done
+fi
 
 /usr/bin/python3 "$ROOT/scripts/stress_summary.py" "$OUT" | tee "$OUT/summary.txt"

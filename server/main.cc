@@ -64,7 +64,7 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
   app.add_option("--max-sessions", service_options.max_live_sessions,
-                 "Live sessions at most (each has its own mapping threads)")
+                 "Live sessions at most (mapping sessions share a local-mapping thread per map)")
       ->capture_default_str();
   app.add_option("--max-upload-gb", max_upload_gb, "Largest upload")->capture_default_str();
   app.add_option("--threads", threads,
@@ -94,15 +94,18 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   bool insecure = false;
   app.add_flag("--insecure", insecure, "Allow listening on a non-loopback address without --token");
-  bool no_merging = false, no_live_merging = false;
+  bool no_merging = false, no_live_merging = false, no_join_at_start = false;
   app.add_flag("--no-merging", no_merging, "Never merge maps (not live, not when a session finishes)");
   app.add_flag("--no-live-merging", no_live_merging, "Merge a session's maps only when it finishes, not while it runs");
+  app.add_flag("--no-join-at-start", no_join_at_start,
+               "A mapping session starts a map of its own at its first frame, even where a map knows the place");
   app.set_config("--config", "",
                  "Read options from this file (TOML: one 'name = value' per option, as the flags are named, e.g. "
                  "max-sessions = 4); flags given on the command line override it");
   CLI11_PARSE(app, argc, argv);
   service_options.merge_maps = !no_merging;
   service_options.live_merging = !no_live_merging;
+  service_options.start_in_stored_maps = !no_join_at_start;
 
   // Signals go to one thread that asks the server to stop (no handler state).
   sigset_t signals;

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <optional>
 #include <thread>
 #include <unistd.h>
 
@@ -66,11 +67,13 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   Progress progress("stream", static_cast<std::int64_t>(frames.size()), options.show_progress);
   StereoPairLoader loaded(std::move(frames));
   const auto start = Clock::now();
+  std::optional<Clock::time_point> last_reply;  // of the frame before this one
   while (auto pair = loaded.next()) {
     if (options.rate > 0) {
-      const auto offset =
-          std::chrono::nanoseconds(static_cast<std::int64_t>(static_cast<double>(pair->t_ns - first_t) / options.rate));
-      std::this_thread::sleep_until(start + offset);
+      const auto due = start + std::chrono::nanoseconds(
+                                   static_cast<std::int64_t>(static_cast<double>(pair->t_ns - first_t) / options.rate));
+      if (last_reply && *last_reply > due) ++report.late_frames;
+      std::this_thread::sleep_until(due);
     }
     progress.advance();
     if (!pair->error.empty()) {
@@ -81,7 +84,8 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
     const auto sent = Clock::now();
     try {
       const auto reply = client.post_frame(report.session, pair->t_ns, pair->left, pair->right, options.encoding);
-      report.round_trip_ms.push_back(ms_between(sent, Clock::now()));
+      last_reply = Clock::now();
+      report.round_trip_ms.push_back(ms_between(sent, *last_reply));
       report.tracking_ms.push_back(reply.at("tracking_ms").get<double>());
       report.server_ms.push_back(reply.at("server_ms").get<double>());
       ++report.frames;
