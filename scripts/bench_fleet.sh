@@ -62,14 +62,17 @@ MH01=$(clip MH_01)
 MH02=$(clip MH_02)
 MH03=$(clip MH_03)
 
+if [ ${#FLEET[@]} -gt 0 ]; then
 echo "== fleet: one mapping session + N localisation sessions in one map (${SECONDS_PER_SESSION} s, 20 Hz)"
-rm -f "$OUT"/fleet_base.db*
+rm -rf "$OUT"/fleet_base.db*
 start_server "$OUT/fleet_base.db"
 "$OA" stream --dataset "$MH01" --name stored --no-progress > /dev/null
 stop_server
 for N in "${FLEET[@]}"; do
-  rm -f "$OUT"/fleet.db* "$OUT"/fleet_"$N"_*.json
-  cp "$OUT/fleet_base.db" "$OUT/fleet.db"
+  rm -rf "$OUT"/fleet.db* "$OUT"/fleet_"$N"_*.json
+  for f in "$OUT"/fleet_base.db "$OUT"/fleet_base.db-wal; do
+    [ -f "$f" ] && cp "$f" "$OUT/fleet.db${f#"$OUT"/fleet_base.db}"
+  done
   start_server "$OUT/fleet.db"
   ticks0=$(cpu_ticks)
   t0=$(date +%s.%N)
@@ -107,20 +110,21 @@ for n in fleet:
     print(f"| {n} | {m['fps']:.1f} | {m['late_frames']} / {m['frames']} | {m['tracking_ms']['p50']:.1f} / {m['tracking_ms']['p95']:.1f} "
           f"| {fps:.1f} | {late} / {frames} | {tracked / max(frames, 1):.3f} | {p50:.1f} / {p95:.1f} (worst) | {cores:.2f} |")
 PY
+fi
 
 joint_ate() {  # joint_ate PREFIX SEQ...: one alignment for every session's trajectory
   local prefix=$1
   shift
   local args=()
   for s in "$@"; do args+=(--gt "$(clip "$s")" --est "${prefix}_$s.txt"); done
-  "$OA" eval "${args[@]}" --align se3 --json | /usr/bin/python3 -c 'import json,sys; print("%.4f" % json.load(sys.stdin)["ate"]["rmse"])'
+  "$OA" eval "${args[@]}" --align se3 --json | /usr/bin/python3 -c 'import json,sys; print("%.4f" % json.load(sys.stdin)["ate_rmse_m"])'
 }
 
 for K in "${MAPPERS[@]}"; do
   SEQS=(MH_01 MH_02 MH_03)
   SEQS=("${SEQS[@]:0:$K}")
   echo "== $K mapping sessions in one place at once (${SEQS[*]}, ${SECONDS_PER_SESSION} s, 20 Hz)"
-  rm -f "$OUT"/together.db* "$OUT"/together_*
+  rm -rf "$OUT"/together.db* "$OUT"/together_*
   start_server "$OUT/together.db"
   PIDS=()
   for s in "${SEQS[@]}"; do
@@ -132,7 +136,7 @@ for K in "${MAPPERS[@]}"; do
   together_maps=$(count_maps)
   stop_server
   echo "== the same $K sessions built apart (one after another, each its own map) and merged"
-  rm -f "$OUT"/apart.db* "$OUT"/apart_*
+  rm -rf "$OUT"/apart.db* "$OUT"/apart_*
   start_server "$OUT/apart.db" --no-join-at-start --no-live-merging
   for s in "${SEQS[@]}"; do
     "$OA" stream --dataset "$(clip "$s")" --name "$s" --mode map --rate 1 --no-progress \

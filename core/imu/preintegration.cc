@@ -66,6 +66,10 @@ Preintegration Preintegration::between(const std::vector<ImuSample>& samples, Ti
     out.integrate(0.5 * (start.gyro + end.gyro), 0.5 * (start.accel + end.accel),
                   static_cast<double>(to - from) * 1e-9);
   }
+  // A frame just after the newest sample (a live stream's next IMU batch is on
+  // its way): the newest sample holds until t1.
+  const ImuSample& last = samples.back();
+  if (last.t_ns < t1) out.integrate(last.gyro, last.accel, static_cast<double>(t1 - std::max(t0, last.t_ns)) * 1e-9);
   return out;
 }
 

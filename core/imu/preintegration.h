@@ -39,8 +39,10 @@ class Preintegration {
 
   // The samples between t0 and t1 (t0 < t1), each interval between two
   // consecutive samples held at the mean of its ends, the ends interpolated at
-  // t0 and t1 (ORB-SLAM3 does the same). Throws DataError when the samples do not
-  // cover [t0, t1] or leave a gap longer than `max_gap_s` inside it.
+  // t0 and t1 (ORB-SLAM3 does the same); the newest sample holds until t1 when
+  // it is at most `max_gap_s` before it (a live stream's next batch is on its
+  // way). Throws DataError when the samples do not cover [t0, t1] so, or leave
+  // a gap longer than `max_gap_s` inside it.
   static Preintegration between(const std::vector<ImuSample>& samples, TimestampNs t0, TimestampNs t1,
                                 const ImuBias& bias, const ImuNoise& noise, double max_gap_s = 0.05);
 

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/common/ids.h"
+#include "core/imu/preintegration.h"
 #include "core/map/keyframe_data.h"
 #include "core/map/map_point.h"
 #include "core/map/object_counters.h"
@@ -108,6 +109,21 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   void add_loop_edge(const std::shared_ptr<KeyFrame>& other);
   std::vector<KeyframeId> loop_edge_ids() const;
 
+  // --- inertial chain (visual-inertial sessions; weak links, both ways) ---
+  // The IMU preintegrated from the session's previous keyframe in this map to
+  // this one. Culling a keyframe of the chain joins its two increments
+  // (Map::cull_keyframe), so the chain skips it.
+  struct InertialLink {
+    std::weak_ptr<KeyFrame> previous;
+    KeyframeId previous_id = 0;
+    std::shared_ptr<const Preintegration> from_previous;
+  };
+  void set_inertial_link(const std::shared_ptr<KeyFrame>& previous,
+                         std::shared_ptr<const Preintegration> from_previous);
+  std::optional<InertialLink> inertial_link() const;
+  std::shared_ptr<KeyFrame> inertial_next() const;  // the keyframe whose link leads here (null: none)
+  void clear_inertial_link();                       // the chain breaks before this keyframe
+
  private:
   friend class Map;  // culling
 
@@ -151,6 +167,8 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   std::optional<KeyframeId> parent_id_;
   std::map<KeyframeId, std::weak_ptr<KeyFrame>> children_;
   std::map<KeyframeId, std::weak_ptr<KeyFrame>> loop_edges_;
+  std::optional<InertialLink> inertial_;
+  std::weak_ptr<KeyFrame> inertial_next_;
 };
 
 }  // namespace orbatlas

@@ -170,4 +170,31 @@ std::map<KeyframeId, std::weak_ptr<KeyFrame>> KeyFrame::take_loop_edges() {
   return std::exchange(loop_edges_, {});
 }
 
+void KeyFrame::set_inertial_link(const std::shared_ptr<KeyFrame>& previous,
+                                 std::shared_ptr<const Preintegration> from_previous) {
+  ORBATLAS_CHECK(previous != nullptr && previous.get() != this && from_previous != nullptr,
+                 "keyframe " << id_ << ": bad inertial link");
+  {
+    std::lock_guard lock(mutex_);
+    inertial_ = InertialLink{previous, previous->id(), std::move(from_previous)};
+  }
+  std::lock_guard lock(previous->mutex_);
+  previous->inertial_next_ = weak_from_this();
+}
+
+std::optional<KeyFrame::InertialLink> KeyFrame::inertial_link() const {
+  std::lock_guard lock(mutex_);
+  return inertial_;
+}
+
+std::shared_ptr<KeyFrame> KeyFrame::inertial_next() const {
+  std::lock_guard lock(mutex_);
+  return inertial_next_.lock();
+}
+
+void KeyFrame::clear_inertial_link() {
+  std::lock_guard lock(mutex_);
+  inertial_.reset();
+}
+
 }  // namespace orbatlas

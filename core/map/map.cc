@@ -162,4 +162,14 @@ Map::AbsorbCounts Map::absorb(Map& source, const Pose3& T_this_source) {
   return counts;
 }
 
+std::optional<Map::InertialState> Map::inertial_state() const {
+  std::lock_guard lock(objects_mutex_);
+  return inertial_;
+}
+
+void Map::set_inertial_state(const InertialState& state) {
+  std::lock_guard lock(objects_mutex_);
+  inertial_ = state;
+}
+
 }  // namespace orbatlas

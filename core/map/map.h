@@ -81,6 +81,18 @@ class Map {
 
   const std::shared_ptr<ObjectCounters>& counters() const { return counters_; }
 
+  // The inertial initialisation of a visual-inertial map (issue 19): when, the
+  // gravity in the map's frame and the IMU biases it found. Not yet persisted.
+  struct InertialState {
+    TimestampNs initialized_at_ns = 0;  // the newest keyframe of the window
+    Eigen::Vector3d gravity_w = Eigen::Vector3d::Zero();
+    ImuBias bias;
+    std::size_t keyframes = 0;  // in the window
+    double span_s = 0.0;
+  };
+  std::optional<InertialState> inertial_state() const;
+  void set_inertial_state(const InertialState& state);
+
  private:
   struct CulledAnchor {
     std::optional<KeyframeId> parent;  // none: T is the world pose
@@ -102,6 +114,7 @@ class Map {
   std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> map_points_;
   std::unordered_map<KeyframeId, std::shared_ptr<KeyFrame>> keyframes_;
   std::unordered_map<KeyframeId, CulledAnchor> culled_anchors_;
+  std::optional<InertialState> inertial_;  // guarded by objects_mutex_
 };
 
 }  // namespace orbatlas

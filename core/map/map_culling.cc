@@ -24,6 +24,20 @@ bool Map::cull_keyframe(KeyframeId id) {
     if (auto other = edge.lock()) other->erase_loop_edge(id);
   for (std::size_t slot = 0; slot < kf->slot_count(); ++slot) kf->erase_slot(slot);
   reattach_children(kf);
+  // The inertial chain skips the culled keyframe: its successor's increments
+  // start at the culled one's predecessor (both joined), or the chain breaks.
+  if (const auto next = kf->inertial_next()) {
+    const auto link = kf->inertial_link();
+    const auto next_link = next->inertial_link();
+    const auto previous = link ? link->previous.lock() : nullptr;
+    if (previous && !previous->is_bad() && next_link && next_link->previous_id == id) {
+      auto joined = std::make_shared<Preintegration>(*link->from_previous);
+      joined->append(*next_link->from_previous);
+      next->set_inertial_link(previous, std::move(joined));
+    } else {
+      next->clear_inertial_link();
+    }
+  }
   {
     CulledAnchor anchor;
     if (const auto parent = kf->parent()) {

@@ -1,6 +1,7 @@
 #include "core/mapping/keyframe_culling.h"
 
 #include <chrono>
+#include <cmath>
 
 #include "core/common/error.h"
 
@@ -17,10 +18,27 @@ void KeyframeCullingOptions::check() const {
   ORBATLAS_CHECK(scheme == CullingScheme::kScan || scheme == CullingScheme::kIncremental,
                  "keyframe culling: scheme must be scan or incremental, not " << static_cast<int>(scheme));
   redundancy.check();
+  ORBATLAS_CHECK(std::isfinite(max_inertial_span_s) && max_inertial_span_s >= 0.0,
+                 "keyframe culling: max_inertial_span_s must be >= 0, not " << max_inertial_span_s);
+  ORBATLAS_CHECK(
+      std::isfinite(max_inertial_span_initialized_s) && max_inertial_span_initialized_s >= 0.0,
+      "keyframe culling: max_inertial_span_initialized_s must be >= 0, not " << max_inertial_span_initialized_s);
 }
 
 const char* culling_scheme_name(CullingScheme scheme) {
   return scheme == CullingScheme::kScan ? "scan" : "incremental";
+}
+
+// The inertial chain around `kf` may lose it (KeyframeCullingOptions::max_inertial_span_s).
+static bool inertial_span_allows(const Map& map, const KeyFrame& kf, const KeyframeCullingOptions& options) {
+  const double limit = map.inertial_state() ? options.max_inertial_span_initialized_s : options.max_inertial_span_s;
+  if (limit <= 0.0) return true;
+  const auto link = kf.inertial_link();
+  const auto next = kf.inertial_next();
+  if (!link || !next) return !next;  // the chain's newest keyframe is kept; one outside the chain may go
+  const auto previous = link->previous.lock();
+  if (!previous) return true;
+  return ns_to_s(next->timestamp_ns() - previous->timestamp_ns()) <= limit;
 }
 
 KeyframeCullingResult cull_redundant_keyframes(Map& map, const KeyFrame& current, std::optional<KeyframeId> origin,
@@ -46,6 +64,7 @@ KeyframeCullingResult cull_redundant_keyframes(Map& map, const KeyFrame& current
     }
     if (run_scan && run_incremental && scan_says != incremental_says) ++result.disagreements;
     const bool redundant = options.scheme == CullingScheme::kScan ? scan_says : incremental_says;
+    if (redundant && !inertial_span_allows(map, *kf, options)) continue;
     if (redundant && map.cull_keyframe(kf->id())) result.culled.push_back(kf->id());
   }
   return result;

@@ -22,6 +22,12 @@ struct KeyframeCullingOptions {
   CullingScheme scheme = CullingScheme::kIncremental;
   bool compare_schemes = false;  // also run the other scheme and count disagreements
   RedundancyOptions redundancy;
+  // Visual-inertial maps (ORB-SLAM3's rule): a keyframe of the inertial chain
+  // is culled only when its predecessor and successor are at most this far apart
+  // (their joined increments stay short enough to preintegrate well): before
+  // the map's inertial initialisation, and once it is initialised. 0: no limit.
+  double max_inertial_span_s = 0.0;
+  double max_inertial_span_initialized_s = 0.0;
 
   // Throws Error naming the first value out of range.
   void check() const;

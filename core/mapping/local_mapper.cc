@@ -34,6 +34,7 @@ void LocalMapperOptions::check() const {
                  "local mapping: fusion_radius must be a finite value >= 0, not " << fusion_radius);
   culling.check();
   bundle_adjustment.check();
+  inertial.check();
 }
 
 LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options, KeyframeIndex* index,
@@ -115,6 +116,13 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
     }
   }
   ++sequence_;
+  if (options_.inertial.enabled && !map->inertial_state()) {
+    try {
+      initialize_map_inertial(*map, keyframe, options_.inertial);
+    } catch (const Error& e) {
+      log_warn("inertial initialisation of map " + std::to_string(map->id()) + " failed: " + e.what() + " (retried)");
+    }
+  }
 
   std::lock_guard lock(board_->mutex);
   ++board_->stats.keyframes;

@@ -19,6 +19,7 @@
 #include "core/common/worker_errors.h"
 #include "core/map/atlas.h"
 #include "core/map/keyframe_index.h"
+#include "core/mapping/inertial_initializer.h"
 #include "core/mapping/keyframe_culling.h"
 #include "core/optimization/local_bundle_adjustment.h"
 #include "core/tracking/frame_camera.h"
@@ -35,6 +36,7 @@ struct LocalMapperOptions {
   LocalBundleAdjustmentOptions bundle_adjustment;  // origin and level_sigma2 are filled in
   bool run_bundle_adjustment = true;
   bool run_culling = true;
+  InertialInitializationOptions inertial;  // visual-inertial sessions: initialise each map's IMU state
 
   // Throws Error naming the first value out of range.
   void check() const;

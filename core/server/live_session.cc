@@ -116,6 +116,7 @@ std::size_t LiveSession::add_imu(const std::vector<ImuSample>& samples, double m
                       std::to_string(i) + " (the limit is " + std::to_string(max_gap_ns / 1'000'000) + " ms)");
     previous = s.t_ns;
   }
+  slam_->add_imu(samples);  // a session that fuses its IMU (stereo-inertial) keeps them; others ignore them
   last_imu_t_ = previous;
   imu_samples_ += samples.size();
   return samples.size();

@@ -162,13 +162,21 @@ StereoSlamOptions run_slam_options(const DatasetRunOptions& options) {
 // Every frame through SLAM (decoded ahead on a loader thread), paced at the sensor
 // rate with --realtime; bad frames are skipped and counted; a failure that leaves
 // the map unusable stops the run with what was tracked.
-void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame>& frames, StereoSlam& slam,
-                 AtlasCheckpointer* checkpointer, Clock::time_point wall_start, DatasetRunReport& report,
-                 const std::string& label = "run") {
+void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame>& frames,
+                 const std::vector<ImuSample>& imu, StereoSlam& slam, AtlasCheckpointer* checkpointer,
+                 Clock::time_point wall_start, DatasetRunReport& report, const std::string& label = "run") {
   StereoPairLoader loaded(frames);  // decodes images ahead of tracking
   Progress progress(label, static_cast<std::int64_t>(frames.size()), options.show_progress);
-  std::size_t index = 0;
+  std::size_t index = 0, imu_next = 0;
   while (auto pair = loaded.next()) {
+    if (slam.inertial()) {
+      // The IMU up to this frame and the first sample after it (as a device
+      // sends it), before the frame.
+      std::vector<ImuSample> batch;
+      while (imu_next < imu.size() && imu[imu_next].t_ns <= pair->t_ns) batch.push_back(imu[imu_next++]);
+      if (imu_next < imu.size()) batch.push_back(imu[imu_next++]);
+      slam.add_imu(batch);
+    }
     const TimestampNs next_t = index + 1 < frames.size() ? frames[index + 1].t_ns : pair->t_ns;
     ++index;
     if (options.realtime) {
@@ -279,7 +287,7 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
                                             CheckpointSession{*stored.session, [&slam] { return slam.anchors(); }});
   }
   const auto wall_start = Clock::now();
-  feed_frames(options, in.frames, slam, checkpointer.get(), wall_start, report);
+  feed_frames(options, in.frames, in.dataset.imu, slam, checkpointer.get(), wall_start, report);
   finish_session(slam, report);
   finish_storage(checkpointer.get(), stored.lock.get(), report);
   report.wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
@@ -351,8 +359,8 @@ std::vector<DatasetRunReport> run_stereo_datasets(const DatasetRunOptions& optio
   for (std::size_t i = 0; i < n; ++i) {
     threads.emplace_back([&, i] {
       try {
-        feed_frames(each[i], inputs[i].frames, *slams[i], checkpointer.get(), wall_start, reports[i],
-                    "run " + std::to_string(i + 1));
+        feed_frames(each[i], inputs[i].frames, inputs[i].dataset.imu, *slams[i], checkpointer.get(), wall_start,
+                    reports[i], "run " + std::to_string(i + 1));
       } catch (const std::exception& e) {
         reports[i].failed = e.what();
         log_warn("recording " + datasets[i].string() + " stopped: " + e.what());

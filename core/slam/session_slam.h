@@ -17,6 +17,10 @@ class SessionSlam {
   // DataError for a frame this session cannot take (wrong size, a pair where
   // one image is expected or the reverse, a timestamp that does not increase).
   virtual TrackResult process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) = 0;
+  // IMU samples up to (and just past) the next frame, in time order (DataError
+  // for one that is not after the previous or not finite). A session without an
+  // IMU in its settings, or that does not fuse it yet, ignores them.
+  virtual void add_imu(const std::vector<ImuSample>& samples) { (void)samples; }
   // Stops the session's workers; process() may not be called afterwards. Idempotent.
   virtual void finish() = 0;
   // The tracked frames' anchors so far; safe from any thread.

@@ -65,6 +65,17 @@ nlohmann::json to_json(const SlamStats& s) {
   j["keyframes_made"] = s.keyframes_made;
   j["relocalizations"] = s.relocalizations;
   j["maps_started"] = s.maps_started;
+  if (s.inertial) {
+    j["imu"] = {{"samples", s.imu_samples},
+                {"linked_keyframes", s.imu_linked_keyframes},
+                {"uncovered_keyframes", s.imu_uncovered_keyframes}};
+    if (s.imu_initialized_at_s) {
+      const auto v = [](const Eigen::Vector3d& x) { return nlohmann::json::array({x.x(), x.y(), x.z()}); };
+      j["imu_initialized_at_s"] = *s.imu_initialized_at_s;
+      j["imu_gravity_w"] = v(s.imu_gravity_w);
+      j["imu_bias"] = {{"gyro", v(s.imu_bias.gyro)}, {"acc", v(s.imu_bias.accel)}};
+    }
+  }
   j["live_merges"] = s.loop.merges.size();
   j["tracking_ms"] = summary(s.tracking_ms);
   j["local_mapping_ms_per_kf"] = summary(s.mapping.keyframe_ms);

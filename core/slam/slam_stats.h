@@ -3,11 +3,13 @@
 #include <cstddef>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <optional>
 #include <vector>
 
 #include "core/common/sample_summary.h"
 #include "core/map/atlas.h"
 #include "core/map/object_counters.h"
+#include "core/imu/imu_noise.h"
 #include "core/loop/loop_closer.h"
 #include "core/mapping/local_mapper.h"
 
@@ -41,6 +43,15 @@ struct SlamStats {
   WorkerErrorCounts tracking_errors;
   // New-keyframe slots local mapping filled while tracking filled them (handled).
   std::size_t slot_races = 0;
+  // Visual-inertial sessions (issue 19): IMU samples received, keyframes linked
+  // to their predecessor by preintegrated IMU, and the inertial initialisation
+  // of the map the session is in (when it happened: seconds since the session's
+  // first frame; the gravity in the map's frame; the biases it found).
+  bool inertial = false;
+  std::size_t imu_samples = 0, imu_linked_keyframes = 0, imu_uncovered_keyframes = 0;
+  std::optional<double> imu_initialized_at_s;
+  Eigen::Vector3d imu_gravity_w = Eigen::Vector3d::Zero();
+  ImuBias imu_bias;
 };
 
 // Every worker's contained errors together (tracking, local mapping, loop closing).
@@ -55,7 +66,9 @@ std::size_t worker_error_total(const SlamStats& stats);
 // global_ba[], false_loops, live_merges[], merge_search_ms_per_kf}, maps_started,
 // live_merges (count), final_global_ba{keyframes, seconds} (when it ran),
 // worker_errors (total), worker_errors_by{tracking, local_mapping, loop_closing},
-// last_worker_error (when any), slot_races.
+// last_worker_error (when any), slot_races; with an IMU: imu{samples, linked_keyframes,
+// uncovered_keyframes}, imu_initialized_at_s, imu_gravity_w, imu_bias{gyro, acc}
+// (once initialised).
 // Fills maps, keyframes, mappoints (maps holding keyframes) and the object
 // counters from the atlas as it is now.
 void add_atlas_counts(const Atlas& atlas, SlamStats& stats);

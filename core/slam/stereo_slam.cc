@@ -41,6 +41,18 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
     }
     log_info("settings:" + set);
   }
+  if (options_.inertial && settings.imu && !options_.tracker.localization_only) {
+    imu_noise_ = ImuNoise::from(*settings.imu);
+    options_.mapper.inertial.enabled = true;
+    options_.mapper.inertial.T_b_i = settings.imu->T_b_i;
+    // ORB-SLAM3's inertial keyframe rules: one at least every 0.5 s, and
+    // culling keeps the joined increments short (0.5 s before the map's
+    // initialisation, 3 s after).
+    if (options_.tracker.max_keyframe_interval_s == 0.0) options_.tracker.max_keyframe_interval_s = 0.5;
+    if (options_.mapper.culling.max_inertial_span_s == 0.0) options_.mapper.culling.max_inertial_span_s = 0.5;
+    if (options_.mapper.culling.max_inertial_span_initialized_s == 0.0)
+      options_.mapper.culling.max_inertial_span_initialized_s = 3.0;
+  }
   options_.check();
   const Pose3 T_b_c = frontend_.calibration().T_b_c;
   if (options_.relocalization)
@@ -67,6 +79,25 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
     sink_ = mapping_->attach();
   }
   tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *sink_, cam_, T_b_c, options_.tracker, relocalizer_.get());
+  if (imu_noise_) {
+    // Each keyframe is linked to the previous one of this session in its map
+    // by the IMU between them, preintegrated at the map's bias estimate.
+    tracker_->set_keyframe_listener(
+        [this](const std::shared_ptr<KeyFrame>& made, const std::shared_ptr<KeyFrame>& previous) {
+          if (!previous || previous->is_bad() || previous->map_id() != made->map_id()) return;
+          ImuBias bias;
+          if (const auto map = atlas_.map(made->map_id()))
+            if (const auto state = map->inertial_state()) bias = state->bias;
+          auto increments = imu_.between(previous->timestamp_ns(), made->timestamp_ns(), bias, *imu_noise_);
+          if (!increments) return;  // not covered (counted by the buffer)
+          made->set_inertial_link(previous, std::make_shared<const Preintegration>(std::move(*increments)));
+          ++imu_linked_;
+        });
+  }
+}
+
+void StereoSlam::add_imu(const std::vector<ImuSample>& samples) {
+  if (imu_noise_) imu_.add(samples);
 }
 
 StereoSlam::~StereoSlam() {
@@ -88,6 +119,7 @@ TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv:
   ORBATLAS_DATA_CHECK(!right.empty(), "a stereo session takes a stereo pair: the right image is missing");
   const auto start = std::chrono::steady_clock::now();
   Frame frame = frontend_.make_frame(t_ns, left, right);
+  if (first_t_ns_.load() < 0) first_t_ns_.store(t_ns);
   const TrackResult result = frames_.track(*tracker_, std::move(frame), atlas_, start);
   if (result.keyframe) {
     ++keyframes_made_;
@@ -161,6 +193,22 @@ SlamStats StereoSlam::stats() const {
     }
   }
   s.culling_scheme = options_.mapper.culling.scheme;
+  if (imu_noise_) {
+    s.inertial = true;
+    s.imu_samples = imu_.total();
+    s.imu_linked_keyframes = imu_linked_.load();
+    s.imu_uncovered_keyframes = imu_.uncovered();
+    // The map the session tracked in last (after merges: the one it is in now).
+    const auto anchors = frames_.anchors();
+    if (!anchors.empty())
+      if (const auto located = atlas_.locate_frame(anchors.back()))
+        if (const auto map = atlas_.map(located->first))
+          if (const auto state = map->inertial_state()) {
+            s.imu_initialized_at_s = ns_to_s(state->initialized_at_ns - first_t_ns_.load());
+            s.imu_gravity_w = state->gravity_w;
+            s.imu_bias = state->bias;
+          }
+  }
   return s;
 }
 

@@ -4,11 +4,14 @@
 // per map, loop closing; its own, or the owner's shared with other sessions),
 // working in an atlas the caller owns (so several sessions and several atlases
 // can live in one process).
+#include <atomic>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <opencv2/core/mat.hpp>
 #include <vector>
 
+#include "core/imu/imu_buffer.h"
 #include "core/io/settings.h"
 #include "core/map/atlas.h"
 #include "core/slam/mapping_workers.h"
@@ -38,6 +41,10 @@ struct StereoSlamOptions {
   // recognised) instead of waiting tracker.recently_lost_s.
   bool live_merging = true;
   int new_map_after_failed_relocalizations = 5;
+  // With IMU settings (a stereo_inertial config): keyframes are linked by the
+  // IMU preintegrated between them and each map gets its inertial initialisation
+  // (gravity, biases; issue 19, first stage). Off: the IMU is ignored.
+  bool inertial = true;
   // Wait for local mapping to finish each keyframe before the next frame: slower,
   // but the run is deterministic (tests, comparing culling schemes).
   bool synchronous_mapping = false;
@@ -70,6 +77,8 @@ class StereoSlam final : public SessionSlam {
 
   // One stereo pair (throws Error on bad images or a timestamp that does not increase).
   TrackResult process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) override;
+  void add_imu(const std::vector<ImuSample>& samples) override;
+  bool inertial() const { return imu_noise_.has_value(); }
 
   // Lets local mapping finish what is queued (its own mapping stops; a shared
   // one goes on for the others) and releases the last frame (so every culled
@@ -95,6 +104,12 @@ class StereoSlam final : public SessionSlam {
   bool own_mapping_ = false;                 // made here (not the owner's shared one)
   std::unique_ptr<KeyframeSink> sink_;       // the tracker's: into mapping_, or none when localising
   std::unique_ptr<Tracker> tracker_;
+  // Visual-inertial (settings with IMU.*, options.inertial): the samples, their
+  // noise, and the keyframes linked so far (tracking thread).
+  std::optional<ImuNoise> imu_noise_;
+  ImuBuffer imu_;
+  std::atomic<std::size_t> imu_linked_{0};
+  std::atomic<TimestampNs> first_t_ns_{-1};  // the session's first frame
   bool finished_ = false;
   std::size_t final_ba_keyframes_ = 0;
   double final_ba_s_ = 0.0;

@@ -34,6 +34,8 @@ void TrackerOptions::check() const {
   ORBATLAS_CHECK(th_depth_m >= 0.0, "tracker: th_depth_m must be >= 0, not " << th_depth_m);
   ORBATLAS_CHECK(max_frames_between_keyframes >= 1,
                  "tracker: max_frames_between_keyframes must be >= 1, not " << max_frames_between_keyframes);
+  ORBATLAS_CHECK(std::isfinite(max_keyframe_interval_s) && max_keyframe_interval_s >= 0.0,
+                 "tracker: max_keyframe_interval_s must be >= 0, not " << max_keyframe_interval_s);
   ORBATLAS_CHECK(min_inliers >= 0, "tracker: min_inliers must be >= 0, not " << min_inliers);
   ORBATLAS_CHECK(min_inliers_after_recovery >= 0,
                  "tracker: min_inliers_after_recovery must be >= 0, not " << min_inliers_after_recovery);
@@ -432,6 +434,10 @@ bool Tracker::track_local_map(Frame& frame) {
 
 bool Tracker::need_new_keyframe(const Frame& frame, int inliers) const {
   if (options_.localization_only || !reference_ || !sink_.accepting(map_->id())) return false;
+  if (options_.max_keyframe_interval_s > 0.0 && last_keyframe_ &&
+      ns_to_s(frame.t_ns - last_keyframe_->timestamp_ns()) >= options_.max_keyframe_interval_s && inliers > 15 &&
+      sink_.queued(map_->id()) < 3)
+    return true;
   const std::size_t n_kfs = map_->keyframe_count();
   const int min_obs = n_kfs <= 2 ? 1 : 2;  // keyframes; ORB-SLAM counts stereo observations twice (3 of 4)
   int ref_matches = 0;
@@ -481,6 +487,7 @@ void Tracker::create_keyframe(Frame& frame, bool all_stereo_points) {
   const KeyframePointsResult added = add_keyframe_points(*map_, kf, frame, T_b_c_, cam_.pyramid, points);
   slot_races_ += added.lost_races;
 
+  if (keyframe_listener_) keyframe_listener_(kf, last_keyframe_);
   reference_ = kf;
   last_keyframe_ = kf;
   last_keyframe_index_ = frame_index_;

@@ -5,6 +5,7 @@
 // NOT_INITIALIZED -> OK <-> RECENTLY_LOST -> LOST. When tracking is lost for good
 // a new map is started in the atlas and initialised from the next stereo frame.
 // Runs on the caller's thread; keyframes go to a KeyframeSink (the local mapper).
+#include <functional>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -26,9 +27,13 @@ struct TrackerOptions {
   int min_init_stereo_points = 500;       // stereo matches needed to start a map
   double th_depth_m = 3.5;                // close / far stereo points (ORB-SLAM's ThDepth * baseline)
   int max_frames_between_keyframes = 20;  // a keyframe at least this often (the frame rate)
-  int min_inliers = 30;                   // after the local-map search
-  int min_inliers_after_recovery = 50;    // during the first second after recovering
-  double recently_lost_s = 5.0;           // then LOST and a new map
+  // Visual-inertial sessions (ORB-SLAM3): a keyframe at least every this many
+  // seconds while local mapping takes one, so the IMU between keyframes stays
+  // short to preintegrate. 0: off.
+  double max_keyframe_interval_s = 0.0;
+  int min_inliers = 30;                 // after the local-map search
+  int min_inliers_after_recovery = 50;  // during the first second after recovering
+  double recently_lost_s = 5.0;         // then LOST and a new map
   // When > 0: LOST (and a new map) after this many frames in a row that the
   // relocaliser did not place, however short the time. For sessions whose
   // maps are merged live (the new map joins the old one when a place is
@@ -85,6 +90,13 @@ class Tracker {
   // Drops the last frame and the keyframes tracking holds (end of a session), so
   // that nothing keeps culled objects alive; the anchors stay.
   void release_frames();
+  // Told of each keyframe made, with the keyframe this tracker made before it
+  // (null at a map's first; it may be in another map), before local mapping
+  // gets it (the session links them by its IMU). Set before the first frame.
+  void set_keyframe_listener(
+      std::function<void(const std::shared_ptr<KeyFrame>& made, const std::shared_ptr<KeyFrame>& previous)> listener) {
+    keyframe_listener_ = std::move(listener);
+  }
 
  private:
   // The steps of track(), in order.
@@ -123,6 +135,7 @@ class Tracker {
 
   TrackingState state_ = TrackingState::kNotInitialized;
   std::shared_ptr<Map> map_;
+  std::function<void(const std::shared_ptr<KeyFrame>&, const std::shared_ptr<KeyFrame>&)> keyframe_listener_;
   std::optional<Frame> last_;
   std::optional<Pose3> velocity_;  // T_last_current of the body, when the last two frames were tracked
   std::shared_ptr<KeyFrame> reference_;

@@ -1,0 +1,43 @@
+#include "core/imu/imu_buffer.h"
+
+#include <algorithm>
+#include <limits>
+
+#include "core/common/error.h"
+
+namespace orbatlas {
+
+ImuBuffer::ImuBuffer(double keep_s) : keep_s_(keep_s) {
+  ORBATLAS_CHECK(keep_s > 0.0, "imu buffer: keep_s must be > 0, not " << keep_s);
+}
+
+void ImuBuffer::add(const std::vector<ImuSample>& samples) {
+  TimestampNs last = samples_.empty() ? std::numeric_limits<TimestampNs>::min() : samples_.back().t_ns;
+  for (const ImuSample& s : samples) {
+    ORBATLAS_DATA_CHECK(s.t_ns > last,
+                        "imu: sample at " << format_seconds_exact(s.t_ns) << " s is not after the previous one");
+    ORBATLAS_DATA_CHECK(s.gyro.allFinite() && s.accel.allFinite(),
+                        "imu: sample at " << format_seconds_exact(s.t_ns) << " s is not finite");
+    last = s.t_ns;
+  }
+  samples_.insert(samples_.end(), samples.begin(), samples.end());
+  total_ += samples.size();
+  if (samples_.empty()) return;
+  const TimestampNs oldest = samples_.back().t_ns - s_to_ns(keep_s_);
+  const auto keep = std::lower_bound(samples_.begin(), samples_.end(), oldest,
+                                     [](const ImuSample& s, TimestampNs t) { return s.t_ns < t; });
+  if (keep - samples_.begin() > static_cast<std::ptrdiff_t>(samples_.size() / 2))
+    samples_.erase(samples_.begin(), keep);  // amortised: at most every other call moves the rest
+}
+
+std::optional<Preintegration> ImuBuffer::between(TimestampNs t0, TimestampNs t1, const ImuBias& bias,
+                                                 const ImuNoise& noise, double max_gap_s) {
+  try {
+    return Preintegration::between(samples_, t0, t1, bias, noise, max_gap_s);
+  } catch (const DataError&) {
+    ++uncovered_;
+    return std::nullopt;
+  }
+}
+
+}  // namespace orbatlas

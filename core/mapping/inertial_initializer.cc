@@ -1,0 +1,73 @@
+#include "core/mapping/inertial_initializer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "core/common/error.h"
+#include "core/common/log.h"
+
+namespace orbatlas {
+
+void InertialInitializationOptions::check() const {
+  ORBATLAS_CHECK(std::isfinite(after_s) && after_s > 0.0,
+                 "inertial initialisation: after_s must be > 0, not " << after_s);
+  ORBATLAS_CHECK(min_keyframes >= 3, "inertial initialisation: min_keyframes must be >= 3, not " << min_keyframes);
+  solver.check();
+}
+
+std::vector<std::shared_ptr<KeyFrame>> inertial_chain(const std::shared_ptr<KeyFrame>& newest) {
+  std::vector<std::shared_ptr<KeyFrame>> chain;
+  std::shared_ptr<KeyFrame> current = newest;
+  while (current && !current->is_bad()) {
+    chain.push_back(current);
+    const auto link = current->inertial_link();
+    if (!link) break;
+    auto previous = link->previous.lock();
+    if (!previous || previous->map_id() != current->map_id()) break;
+    current = std::move(previous);
+  }
+  std::reverse(chain.begin(), chain.end());
+  return chain;
+}
+
+std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
+                                                          const InertialInitializationOptions& options) {
+  if (!options.enabled || map.inertial_state() || !newest || newest->is_bad()) return std::nullopt;
+  const auto chain = inertial_chain(newest);
+  if (chain.size() < options.min_keyframes) return std::nullopt;
+  const double span_s = ns_to_s(chain.back()->timestamp_ns() - chain.front()->timestamp_ns());
+  if (span_s < options.after_s) return std::nullopt;
+
+  std::vector<Pose3> poses;
+  std::vector<Preintegration> increments;
+  for (std::size_t k = 0; k < chain.size(); ++k) {
+    poses.push_back(chain[k]->T_w_b());
+    if (k > 0) increments.push_back(*chain[k]->inertial_link()->from_previous);
+  }
+  // One linearisation point for the window (the session preintegrates at its
+  // current estimate; before the first initialisation that is zero).
+  for (auto& pre : increments)
+    if (!(pre.bias() == increments.front().bias())) pre.reintegrate(increments.front().bias());
+  const InertialInitResult result = initialize_inertial(poses, increments, options.T_b_i, options.solver);
+  if (!result.gravity_w.allFinite() || result.final_cost > result.initial_cost) {
+    log_warn("inertial initialisation of map " + std::to_string(map.id()) + " found no consistent solution (retried)");
+    return std::nullopt;
+  }
+  Map::InertialState state;
+  state.initialized_at_ns = newest->timestamp_ns();
+  state.gravity_w = result.gravity_w;
+  state.bias = result.bias;
+  state.keyframes = chain.size();
+  state.span_s = span_s;
+  map.set_inertial_state(state);
+  std::ostringstream line;
+  line << "inertial initialisation of map " << map.id() << ": " << chain.size() << " keyframes over " << span_s
+       << " s; gravity (" << result.gravity_w.transpose() << ") m/s^2 in the map; gyro bias ("
+       << result.bias.gyro.transpose() << ") rad/s, accelerometer bias (" << result.bias.accel.transpose()
+       << ") m/s^2; " << result.iterations << " iterations";
+  log_info(line.str());
+  return state;
+}
+
+}  // namespace orbatlas

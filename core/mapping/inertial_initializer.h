@@ -1,0 +1,40 @@
+#pragma once
+// When a visual-inertial map is initialised (ORB-SLAM3's LocalMapping::
+// InitializeIMU, first stage): once the inertial chain of keyframes reaching
+// the newest one spans about 2 s, the inertial-only MAP estimate
+// (core/imu/inertial_initialization.h) gives the map its gravity and IMU biases.
+// Run by local mapping after a keyframe; what it finds is the map's
+// InertialState (stats: imu_initialized_at_s, imu_bias). Not yet: aligning the
+// map with gravity, the refinements at 5 and 15 s, and visual-inertial BA.
+#include <memory>
+#include <optional>
+
+#include "core/geometry/pose.h"
+#include "core/imu/inertial_initialization.h"
+#include "core/map/map.h"
+
+namespace orbatlas {
+
+struct InertialInitializationOptions {
+  bool enabled = false;  // the session fuses an IMU (its keyframes carry inertial links)
+  Pose3 T_b_i;           // the IMU in the body frame (the settings')
+  double after_s = 2.0;  // span of the chain needed
+  // Keyframes needed in the chain (ORB-SLAM3: 10; a stereo map here makes fewer
+  // keyframes in its first seconds, each seeing its points in depth).
+  std::size_t min_keyframes = 5;
+  InertialInitOptions solver;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
+};
+
+// The chain of keyframes linked by preintegrated IMU that ends at `newest`
+// (oldest first; culled keyframes were skipped when they were culled).
+std::vector<std::shared_ptr<KeyFrame>> inertial_chain(const std::shared_ptr<KeyFrame>& newest);
+
+// Initialises `map` when it is not yet and the chain ending at `newest` is long
+// enough; returns the state it set.
+std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
+                                                          const InertialInitializationOptions& options);
+
+}  // namespace orbatlas
