@@ -23,8 +23,8 @@ OA="$BUILD_DIR/client/orbatlas"
 SERVER="$BUILD_DIR/server/orbatlas-server"
 SECONDS_PER_SESSION="${1:-30}"
 LOOK="${LOOK:-clean}"
-read -r -a FLEET <<< "${FLEET:-1 2 4 8}"
-read -r -a MAPPERS <<< "${MAPPERS:-2 3}"
+read -r -a FLEET <<< "${FLEET-1 2 4 8}"  # FLEET="" skips the fleet
+read -r -a MAPPERS <<< "${MAPPERS-2 3}"
 OUT="$ROOT/out/bench_fleet_$LOOK"
 mkdir -p "$OUT"
 SERVER_PID=""
@@ -112,12 +112,25 @@ for n in fleet:
 PY
 fi
 
-joint_ate() {  # joint_ate PREFIX SEQ...: one alignment for every session's trajectory
+joint_ate() {  # joint_ate PREFIX SEQ...: per map the sessions end in, one alignment for all of them
   local prefix=$1
   shift
-  local args=()
-  for s in "$@"; do args+=(--gt "$(clip "$s")" --est "${prefix}_$s.txt"); done
-  "$OA" eval "${args[@]}" --align se3 --json | /usr/bin/python3 -c 'import json,sys; print("%.4f" % json.load(sys.stdin)["ate_rmse_m"])'
+  /usr/bin/python3 - "$OA" "$prefix" "$OUT" "$SECONDS_PER_SESSION" "$@" <<'PY'
+import json, subprocess, sys
+oa, prefix, out, secs, seqs = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5:]
+groups = {}
+for s in seqs:
+    maps = sorted({l.split()[2] for l in open(f"{prefix}_{s}.txt") if l.startswith("# map")})
+    groups.setdefault(",".join(maps), []).append(s)
+parts = []
+for maps, members in sorted(groups.items()):
+    args = [oa, "eval", "--align", "se3", "--json"]
+    for s in members:
+        args += ["--gt", f"{out}/clips/{s}_{secs}", "--est", f"{prefix}_{s}.txt"]
+    ate = json.loads(subprocess.run(args, check=True, capture_output=True, text=True).stdout)["ate_rmse_m"]
+    parts.append(f"{'+'.join(members)} (map {maps}) {ate:.4f} m")
+print("; ".join(parts))
+PY
 }
 
 for K in "${MAPPERS[@]}"; do
@@ -162,6 +175,6 @@ for kind in ("together", "apart"):
         f"{s} {r['keyframes']} keyframes, {r['fps']:.1f} frames/s, late {r['late_frames']}/{r['frames']}, ATE alone {r.get('ate_rmse_m', float('nan')):.4f} m"
         for s, r in zip(seqs, rows)))
 PY
-  echo "together: maps at the end $together_maps, joint ATE $(joint_ate "$OUT/together" "${SEQS[@]}") m"
-  echo "apart:    maps at the end $apart_maps, joint ATE $(joint_ate "$OUT/apart" "${SEQS[@]}") m"
+  echo "together: maps at the end $together_maps; joint ATE per map: $(joint_ate "$OUT/together" "${SEQS[@]}")"
+  echo "apart:    maps at the end $apart_maps; joint ATE per map: $(joint_ate "$OUT/apart" "${SEQS[@]}")"
 done
