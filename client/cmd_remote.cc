@@ -46,6 +46,7 @@ nlohmann::json stream_json(const StreamReport& r) {
                       {"rejected", r.rejected},
                       {"keyframes", r.keyframes},
                       {"late_frames", r.late_frames},
+                      {"imu_samples", r.imu_samples},
                       {"wall_s", r.wall_s},
                       {"fps", r.fps()},
                       {"tracking_ms", to_json_summary(r.tracking_ms)},
@@ -55,6 +56,10 @@ nlohmann::json stream_json(const StreamReport& r) {
                       {"client_overhead_ms", to_json_summary(client_overhead)}};
   std::set<std::uint64_t> maps(r.trajectory_maps.begin(), r.trajectory_maps.end());
   j["maps"] = maps;
+  if (r.finish_status.contains("slam") && r.finish_status["slam"].contains("imu_initialized_at_s")) {
+    j["imu_initialized_at_s"] = r.finish_status["slam"]["imu_initialized_at_s"];
+    j["imu_bias"] = r.finish_status["slam"]["imu_bias"];
+  }
   if (r.ate_rmse_m) j["ate_rmse_m"] = *r.ate_rmse_m;
   return j;
 }

@@ -140,6 +140,32 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   EXPECT_TRUE(none.contains("reason"));
 }
 
+// A stereo-inertial session over HTTP (issue 19, first stage): orbatlas stream
+// sends the recording's IMU before each frame, the session links its keyframes
+// by it, and the finished session reports its map's inertial initialisation.
+TEST(ServerEndToEnd, AStereoInertialStreamInitialisesItsMap) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 6.0);
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath db("inertial");
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  StreamOptions o = test::stream_options(clip);
+  o.config = "euroc/stereo_inertial";
+  const StreamReport report = stream_dataset(client, o);
+  EXPECT_EQ(report.tracked, report.frames);
+  EXPECT_GT(report.imu_samples, 1000u);  // 200 Hz over 6 s
+  const nlohmann::json& slam = report.finish_status.at("slam");
+  ASSERT_TRUE(slam.contains("imu_initialized_at_s")) << report.finish_status.dump();
+  EXPECT_GE(slam["imu_initialized_at_s"].get<double>(), 2.0);
+  EXPECT_LT(slam["imu_initialized_at_s"].get<double>(), 4.0);
+  EXPECT_EQ(slam["imu_bias"]["gyro"].size(), 3u);
+  // A plain stereo session given the same IMU only counts it.
+  ServerClient other(server.url());
+  const std::uint64_t id = other.create_session("euroc/stereo");
+  EXPECT_EQ(other.post_imu(id, {ImuSample{1, Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 9.81)}})["accepted"], 1);
+  other.finish_session(id);
+}
+
 TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
   const std::array<std::filesystem::path, 3> clips = {test::simulated_clip("MH_01", 40.0, 4.0),
                                                       test::simulated_clip("MH_02", 30.0, 4.0),

@@ -10,6 +10,7 @@
 #include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/common/progress.h"
+#include "core/io/imu_batches.h"
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
 #include "core/io/stereo_pair_loader.h"
@@ -50,6 +51,10 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   report.session = started.at("id").get<std::uint64_t>();
   const std::string sensor = started.at("session").value("sensor", "stereo");
   const bool single_camera = sensor == "mono" || sensor == "mono_inertial";
+  // An inertial session gets the recording's imu0: before each frame, the
+  // samples up to it and the first one past it.
+  const bool send_imu = (sensor == "stereo_inertial" || sensor == "mono_inertial") && !dataset.imu.empty();
+  std::size_t imu_next = 0;
   std::vector<StereoFrame> frames;
   try {
     if (single_camera) {
@@ -76,6 +81,13 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
       std::this_thread::sleep_until(due);
     }
     progress.advance();
+    if (send_imu) {
+      const std::vector<ImuSample> batch = take_imu_batch(dataset.imu, imu_next, pair->t_ns);
+      if (!batch.empty()) {
+        client.post_imu(report.session, batch);
+        report.imu_samples += batch.size();
+      }
+    }
     if (!pair->error.empty()) {
       log_warn(pair->error + " (frame skipped)");
       ++report.rejected;

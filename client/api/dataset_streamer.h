@@ -38,6 +38,7 @@ struct StreamReport {
   std::size_t frames = 0, tracked = 0, rejected = 0, keyframes = 0;
   // With pacing (rate > 0): replies that arrived after the next frame was due.
   std::size_t late_frames = 0;
+  std::size_t imu_samples = 0;        // sent (inertial sessions: the recording's imu0)
   std::vector<double> tracking_ms;    // the server's tracking time per frame
   std::vector<double> server_ms;      // the server's time per request (parsing, decoding, tracking)
   std::vector<double> round_trip_ms;  // seen by the client (encoding, transfer, server)

@@ -152,6 +152,13 @@ json ServerClient::post_frame(std::uint64_t session, std::int64_t t_ns, const cv
   return json::parse(checked(send([&] { return client_->Post(path, items); }, true), url_, path).body);
 }
 
+json ServerClient::post_imu(std::uint64_t session, const std::vector<ImuSample>& samples) {
+  json rows = json::array();
+  for (const ImuSample& s : samples)
+    rows.push_back({s.t_ns, s.gyro.x(), s.gyro.y(), s.gyro.z(), s.accel.x(), s.accel.y(), s.accel.z()});
+  return post_json("/v1/sessions/" + std::to_string(session) + "/imu", json{{"samples", std::move(rows)}});
+}
+
 json ServerClient::finish_session(std::uint64_t session) {
   return post_json("/v1/sessions/" + std::to_string(session) + "/finish", json::object());
 }

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "core/common/error.h"
+#include "core/io/euroc_types.h"
 
 namespace httplib {
 class Client;
@@ -73,6 +74,9 @@ class ServerClient {
   // `right` empty); the reply (pose, state, map, timings).
   nlohmann::json post_frame(std::uint64_t session, std::int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
                             ImageEncoding encoding = ImageEncoding::kRaw);
+  // POST /v1/sessions/{id}/imu: samples in time order (send those up to a
+  // frame, and the first one past it, before the frame); the reply {"accepted"}.
+  nlohmann::json post_imu(std::uint64_t session, const std::vector<ImuSample>& samples);
   nlohmann::json finish_session(std::uint64_t session);
   std::string trajectory_tum(std::uint64_t session);
   // POST /v1/localize: a single image when `right` is empty. The settings are

@@ -11,6 +11,7 @@
 #include "core/common/ids.h"
 #include "core/common/sample_summary.h"
 #include "core/common/timestamp.h"
+#include "core/imu/imu_noise.h"
 #include "core/io/settings.h"
 #include "core/loop/loop_closer.h"
 #include "core/server/map_merge_worker.h"
@@ -47,6 +48,10 @@ struct SessionStatus {
   SampleSummary tracking_ms;  // per frame (empty before the first)
   struct SlamCounts {
     std::size_t relocalizations = 0, loops = 0;
+    // Stereo-inertial sessions: the inertial initialisation of its map (s after
+    // its first frame), and the biases found.
+    std::optional<double> imu_initialized_at_s;
+    ImuBias imu_bias;
   };
   std::optional<SlamCounts> slam;  // once finished
 };

@@ -6,6 +6,7 @@
 #include "core/common/log.h"
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
+#include "core/io/imu_batches.h"
 #include "core/io/tum_trajectory.h"
 #include "core/server/service_error.h"
 
@@ -211,9 +212,17 @@ void UploadJobs::run(JobId id) {
     j.row.session = session;
     j.row.frames_total = frames.size();
   });
-  std::size_t tracked = 0, rejected = 0;
+  std::size_t tracked = 0, rejected = 0, imu_next = 0;
   for (std::size_t i = 0; i < frames.size(); ++i) {
     if (stopping_) break;  // the service's shutdown finishes and stores the session
+    if (!dataset.imu.empty()) {
+      // As a device sends it (a session without an inertial config only counts it).
+      try {
+        service_.add_imu(session, take_imu_batch(dataset.imu, imu_next, frames[i].t_ns));
+      } catch (const DataError& e) {
+        log_warn("upload job " + std::to_string(id) + ": IMU skipped: " + e.what());
+      }
+    }
     const cv::Mat left = cv::imread(frames[i].left.string(), cv::IMREAD_GRAYSCALE);
     const cv::Mat right = cv::imread(frames[i].right.string(), cv::IMREAD_GRAYSCALE);
     try {

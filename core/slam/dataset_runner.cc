@@ -14,6 +14,7 @@
 #include "core/common/worker_errors.h"
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
+#include "core/io/imu_batches.h"
 #include "core/io/stereo_pair_loader.h"
 #include "core/io/tum_trajectory.h"
 #include "core/persistence/atlas_store.h"
@@ -172,10 +173,7 @@ void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame
     if (slam.inertial()) {
       // The IMU up to this frame and the first sample after it (as a device
       // sends it), before the frame.
-      std::vector<ImuSample> batch;
-      while (imu_next < imu.size() && imu[imu_next].t_ns <= pair->t_ns) batch.push_back(imu[imu_next++]);
-      if (imu_next < imu.size()) batch.push_back(imu[imu_next++]);
-      slam.add_imu(batch);
+      slam.add_imu(take_imu_batch(imu, imu_next, pair->t_ns));
     }
     const TimestampNs next_t = index + 1 < frames.size() ? frames[index + 1].t_ns : pair->t_ns;
     ++index;

@@ -25,7 +25,14 @@ nlohmann::json to_json(const SessionStatus& s) {
   if (s.map) j["map"] = *s.map;
   if (s.last_frame) j["last_frame"] = {{"t_ns", s.last_frame->t_ns}, {"tracked", s.last_frame->tracked}};
   if (!s.tracking_ms.empty()) j["tracking_ms"] = to_json_summary(s.tracking_ms);
-  if (s.slam) j["slam"] = {{"relocalizations", s.slam->relocalizations}, {"loops", s.slam->loops}};
+  if (s.slam) {
+    j["slam"] = {{"relocalizations", s.slam->relocalizations}, {"loops", s.slam->loops}};
+    if (s.slam->imu_initialized_at_s) {
+      const auto v = [](const Eigen::Vector3d& x) { return nlohmann::json::array({x.x(), x.y(), x.z()}); };
+      j["slam"]["imu_initialized_at_s"] = *s.slam->imu_initialized_at_s;
+      j["slam"]["imu_bias"] = {{"gyro", v(s.slam->imu_bias.gyro)}, {"acc", v(s.slam->imu_bias.accel)}};
+    }
+  }
   return j;
 }
 
