@@ -293,5 +293,43 @@ TEST(MapModel, ObservationRulesAreChecked) {
   EXPECT_THROW(map->new_keyframe(bad), Error);
 }
 
+// The inertial chain (issue 19): each keyframe links to its predecessor with
+// the IMU preintegrated between them; culling a keyframe of the chain joins its
+// two increments into its successor's link, so the chain skips it and spans the
+// same time; culling the chain's first keyframe breaks the chain there.
+TEST(MapModel, CullingAKeyframeOfTheInertialChainJoinsItsIncrements) {
+  Atlas atlas;
+  auto map = atlas.create_map();
+  std::vector<std::shared_ptr<KeyFrame>> kfs;
+  for (int k = 0; k < 4; ++k) {
+    KeyFrameData data = keyframe_data(2);
+    data.timestamp_ns = k * 400'000'000LL;
+    kfs.push_back(map->new_keyframe(std::move(data)));
+  }
+  // A constant rotation and acceleration, 0.4 s between keyframes at 200 Hz.
+  const auto increments = [](int steps) {
+    auto pre = std::make_shared<Preintegration>(ImuBias{}, ImuNoise{});
+    for (int i = 0; i < steps; ++i)
+      pre->integrate(Eigen::Vector3d(0.1, 0.0, 0.2), Eigen::Vector3d(0.3, 0.0, 9.81), 0.005);
+    return pre;
+  };
+  for (int k = 1; k < 4; ++k) kfs[k]->set_inertial_link(kfs[k - 1], increments(80));
+  EXPECT_EQ(kfs[0]->inertial_next(), kfs[1]);
+  ASSERT_TRUE(map->cull_keyframe(kfs[1]->id()));
+  const auto joined = kfs[2]->inertial_link();
+  ASSERT_TRUE(joined.has_value());
+  EXPECT_EQ(joined->previous_id, kfs[0]->id());
+  EXPECT_EQ(kfs[0]->inertial_next(), kfs[2]);
+  const auto whole = increments(160);  // what one link over both would hold
+  EXPECT_NEAR(joined->from_previous->dt(), 0.8, 1e-12);
+  EXPECT_LT((joined->from_previous->delta_p() - whole->delta_p()).norm(), 1e-12);
+  EXPECT_LT((joined->from_previous->delta_v() - whole->delta_v()).norm(), 1e-12);
+  // The chain's first keyframe goes: its successor's link goes with it.
+  ASSERT_TRUE(map->cull_keyframe(kfs[0]->id()));
+  EXPECT_FALSE(kfs[2]->inertial_link().has_value());
+  EXPECT_TRUE(kfs[3]->inertial_link().has_value());
+  EXPECT_THROW(kfs[3]->set_inertial_link(kfs[3], increments(1)), Error);
+}
+
 }  // namespace
 }  // namespace orbatlas

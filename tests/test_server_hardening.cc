@@ -301,6 +301,46 @@ TEST(ServerHardening, IdleSessionsAreFinishedAndFreeTheirSlot) {
   EXPECT_NE(client.get_text("/metrics").find("orbatlas_sessions_timed_out_total 1"), std::string::npos);
 }
 
+// The guard closes an idle keep-alive connection (a device between frames) to
+// make room when more connections wait than it allows. The client sends the
+// request again once on a new connection, so a device whose idle connection was
+// cut goes on without an error: a GET, a session start (POST), an IMU batch and
+// a finish after each cut all succeed.
+TEST(ServerHardening, TheClientResendsOnceAfterTheServerClosedItsIdleConnection) {
+  test::TempDbPath db("resend");
+  ConnectionLimits limits;
+  limits.max_waiting = 1;  // a second waiting connection crowds out the first
+  test::TestServer server(test::server_options(db.path), {}, limits, 4);
+  ServerClient client(server.url());
+  EXPECT_EQ(client.get_json("/healthz")["status"], "ok");
+  // Another device connects and waits: the client's idle connection is closed for room.
+  std::size_t cuts = 0;
+  const auto crowd_out = [&] {
+    ServerClient other(server.url());
+    // The closure is counted as the other connection starts waiting: look a few times.
+    for (int attempt = 0; attempt < 50; ++attempt) {
+      const std::string metrics = other.get_text("/metrics");
+      const std::string key = "orbatlas_http_connections_closed_total{reason=\"room\"} ";
+      const auto at = metrics.find(key);
+      const std::size_t now = at == std::string::npos ? 0 : std::stoul(metrics.substr(at + key.size()));
+      if (now > cuts) {
+        cuts = now;
+        return true;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return false;
+  };
+  EXPECT_TRUE(crowd_out());
+  EXPECT_EQ(client.get_json("/healthz")["status"], "ok");  // GET on the closed connection: resent
+  EXPECT_TRUE(crowd_out());
+  const std::uint64_t id = client.create_session("euroc/stereo", "after a pause");  // POST: resent
+  EXPECT_TRUE(crowd_out());
+  EXPECT_EQ(client.post_imu(id, {ImuSample{1, Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 9.81)}})["accepted"], 1);
+  EXPECT_TRUE(crowd_out());
+  EXPECT_EQ(client.finish_session(id).at("state"), "finished");
+}
+
 TEST(ServerHardening, SlowClientsCannotStarveHealthChecks) {
   // Ten connections sending one header line every 0.5 s (before: they held all
   // 8 HTTP threads, and /healthz timed out for as long as they went on).
