@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <algorithm>
 #include <chrono>
 #include <future>
 #include <thread>
@@ -75,6 +76,22 @@ std::optional<Pose3> truth_in_map(const EurocDataset& clip, TimestampNs t_ns, co
   return first->inverse() * *pose;
 }
 
+// Position errors of `poses` (of a flight through `visit`) in the frame of a map
+// built from `built`, no alignment fitted, accumulated into a running sum.
+struct MapFrameError {
+  double sum_sq = 0.0;
+  std::size_t poses = 0;
+  void add(const Trajectory& poses_in_map, const EurocDataset& visit, const EurocDataset& built) {
+    for (const auto& p : poses_in_map) {
+      const auto truth = truth_in_map(visit, p.t_ns, built);
+      if (!truth) continue;
+      sum_sq += (p.pose.t - truth->t).squaredNorm();
+      ++poses;
+    }
+  }
+  double rmse() const { return std::sqrt(sum_sq / static_cast<double>(std::max<std::size_t>(poses, 1))); }
+};
+
 TEST(SharedMaps, EightLocalisationSessionsShareAStoredMapAndChangeNothing) {
   const auto built = test::simulated_clip("MH_01", 40.0, 4.0);
   test::ClipCleanup built_cleanup{built};
@@ -136,8 +153,7 @@ TEST(SharedMaps, EightLocalisationSessionsShareAStoredMapAndChangeNothing) {
 
   const EurocDataset visit_data = test::stereo_dataset(visit);
   const EurocDataset built_data = test::stereo_dataset(built);
-  double sum_sq = 0.0;
-  std::size_t poses = 0;
+  MapFrameError error;
   for (std::size_t i = 0; i < reports.size(); ++i) {
     const StreamReport& r = reports[i];
     EXPECT_EQ(r.rejected, 0u) << "session " << i;
@@ -146,16 +162,12 @@ TEST(SharedMaps, EightLocalisationSessionsShareAStoredMapAndChangeNothing) {
     EXPECT_GE(r.tracked + 2, r.frames) << "session " << i;
     for (const auto m : r.reply_maps) EXPECT_EQ(m, stored_map) << "session " << i;
     // No alignment: the poses are in the stored map's frame, as the truth is.
-    for (const auto& p : r.trajectory) {
-      const auto truth = truth_in_map(visit_data, p.t_ns, built_data);
-      if (!truth) continue;
-      sum_sq += (p.pose.t - truth->t).squaredNorm();
-      ++poses;
-    }
+    error.add(r.trajectory, visit_data, built_data);
   }
-  ASSERT_GT(poses, 8u * 40u);
-  const double rmse = std::sqrt(sum_sq / static_cast<double>(poses));
-  std::printf("8 localisation sessions in one map: %zu poses, error in the map's frame %.4f m RMSE\n", poses, rmse);
+  ASSERT_GT(error.poses, 8u * 40u);
+  const double rmse = error.rmse();
+  std::printf("8 localisation sessions in one map: %zu poses, error in the map's frame %.4f m RMSE\n", error.poses,
+              rmse);
   EXPECT_LT(rmse, 0.011);  // measured 0.0055 m
 
   server.service().shutdown();  // the final checkpoint: what would change, is written
@@ -289,20 +301,14 @@ TEST(SharedMaps, ALocalisationKeepsTrackingWhileAMergeAndAGlobalAdjustmentRewrit
   for (const auto m : rl.trajectory_maps) EXPECT_EQ(m, stored_map);
   const EurocDataset visit_data = test::stereo_dataset(visit);
   const EurocDataset built_data = test::stereo_dataset(built);
-  double sum_sq = 0.0;
-  std::size_t poses = 0;
-  for (const auto& p : rl.trajectory) {
-    const auto truth = truth_in_map(visit_data, p.t_ns, built_data);
-    if (!truth) continue;
-    sum_sq += (p.pose.t - truth->t).squaredNorm();
-    ++poses;
-  }
-  ASSERT_GT(poses, 80u);
-  const double rmse = std::sqrt(sum_sq / static_cast<double>(poses));
+  MapFrameError error;
+  error.add(rl.trajectory, visit_data, built_data);
+  ASSERT_GT(error.poses, 80u);
+  const double rmse = error.rmse();
   std::printf(
       "localisation through the rewrite: %zu poses (%zu replies in the merged map), error in the map's frame "
       "%.4f m RMSE\n",
-      poses, in_merged, rmse);
+      error.poses, in_merged, rmse);
   EXPECT_LT(rmse, 0.013);  // measured 0.0064 m
 }
 
