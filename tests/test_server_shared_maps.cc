@@ -92,6 +92,18 @@ struct MapFrameError {
   double rmse() const { return std::sqrt(sum_sq / static_cast<double>(std::max<std::size_t>(poses, 1))); }
 };
 
+// One device streaming `clip` at the camera rate on a connection of its own.
+StreamReport stream_at_camera_rate(test::TestServer& server, const std::filesystem::path& clip, const std::string& name,
+                                   const std::string& mode = {}, double start_s = 0.0) {
+  ServerClient own(server.url());
+  StreamOptions o = test::stream_options(clip);
+  o.name = name;
+  o.mode = mode;
+  o.rate = 1.0;
+  o.start_s = start_s;
+  return stream_dataset(own, o);
+}
+
 TEST(SharedMaps, EightLocalisationSessionsShareAStoredMapAndChangeNothing) {
   const auto built = test::simulated_clip("MH_01", 40.0, 4.0);
   test::ClipCleanup built_cleanup{built};
@@ -198,16 +210,9 @@ TEST(SharedMaps, TwoMappingSessionsOverOnePlaceBuildOneMap) {
   AtlasServiceOptions options = test::server_options(db.path);
   options.merge_maps = true;  // live merging as the server does it by default; offline merging has nothing left
   test::TestServer server(options);
-  const auto stream = [&server](const std::filesystem::path& clip, const std::string& name) {
-    ServerClient own(server.url());
-    StreamOptions o = test::stream_options(clip);
-    o.name = name;
-    o.rate = 1.0;
-    return stream_dataset(own, o);
-  };
-  auto a = std::async(std::launch::async, stream, first, "device a");
+  auto a = std::async(std::launch::async, [&] { return stream_at_camera_rate(server, first, "device a"); });
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
-  auto b = std::async(std::launch::async, stream, second, "device b");
+  auto b = std::async(std::launch::async, [&] { return stream_at_camera_rate(server, second, "device b"); });
   const StreamReport ra = a.get();
   const StreamReport rb = b.get();
 
@@ -261,17 +266,9 @@ TEST(SharedMaps, ALocalisationKeepsTrackingWhileAMergeAndAGlobalAdjustmentRewrit
   test::TestServer server(options);
   ServerClient client(server.url());
   const std::uint64_t stored_map = client.get_json("/v1/maps")["maps"][0]["id"];
-  const auto stream = [&server](const std::filesystem::path& clip, const std::string& mode, double start_s) {
-    ServerClient own(server.url());
-    StreamOptions o = test::stream_options(clip);
-    o.mode = mode;
-    o.name = mode;
-    o.rate = 1.0;
-    o.start_s = start_s;
-    return stream_dataset(own, o);
-  };
-  auto mapping = std::async(std::launch::async, stream, visit, "map", 0.0);
-  auto localize = std::async(std::launch::async, stream, visit, "localize", 0.5);
+  auto mapping = std::async(std::launch::async, [&] { return stream_at_camera_rate(server, visit, "map", "map"); });
+  auto localize =
+      std::async(std::launch::async, [&] { return stream_at_camera_rate(server, visit, "localize", "localize", 0.5); });
   const StreamReport rm = mapping.get();
   const StreamReport rl = localize.get();
 
