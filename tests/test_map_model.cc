@@ -331,5 +331,32 @@ TEST(MapModel, CullingAKeyframeOfTheInertialChainJoinsItsIncrements) {
   EXPECT_THROW(kfs[3]->set_inertial_link(kfs[3], increments(1)), Error);
 }
 
+// Changing a map's frame (the gravity alignment of a visual-inertial map):
+// every keyframe, point and viewing direction follows, the relative geometry is
+// kept, and the frame epoch moves on (a global BA solved before is dropped).
+TEST(MapModel, ChangingTheFrameMovesEverythingAndKeepsTheGeometry) {
+  Atlas atlas;
+  auto map = atlas.create_map();
+  auto a = map->new_keyframe(keyframe_data(1));
+  auto b = map->new_keyframe(keyframe_data(1));
+  a->set_T_w_b(Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ())), Eigen::Vector3d(1, 2, 3)));
+  b->set_T_w_b(Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(-0.2, Eigen::Vector3d::UnitX())), Eigen::Vector3d(0, 1, 0)));
+  MapPointData d;
+  d.p_w = Eigen::Vector3d(4, 5, 6);
+  auto p = map->new_map_point(d);
+  p->set_normal(Eigen::Vector3d(0, 0, 1));
+  const Pose3 relative = a->T_w_b().inverse() * b->T_w_b();
+  const Pose3 T(Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 1, 0).normalized())),
+                Eigen::Vector3d::Zero());
+  const auto epoch = map->frame_epoch();
+  map->change_frame(T);
+  EXPECT_EQ(map->frame_epoch(), epoch + 1);
+  EXPECT_LT((p->p_w() - T * Eigen::Vector3d(4, 5, 6)).norm(), 1e-12);
+  EXPECT_LT((p->normal() - T.q * Eigen::Vector3d(0, 0, 1)).norm(), 1e-12);
+  const Pose3 after = a->T_w_b().inverse() * b->T_w_b();
+  EXPECT_LT((after.t - relative.t).norm(), 1e-12);
+  EXPECT_LT(after.q.angularDistance(relative.q), 1e-12);
+}
+
 }  // namespace
 }  // namespace orbatlas

@@ -10,6 +10,10 @@ namespace orbatlas {
 GlobalAdjustmentApplyStats apply_global_adjustment(Map& map, const GlobalBundleAdjustmentResult& result,
                                                    const ScalePyramid& pyramid) {
   GlobalAdjustmentApplyStats stats;
+  if (result.frame_epoch != map.frame_epoch()) {  // solved in the map's former frame
+    stats.stale = true;
+    return stats;
+  }
   const auto keyframes = map.keyframes();
   std::unordered_map<KeyframeId, Pose3> now, next;  // body poses before / after the merge
   for (const auto& kf : keyframes) now[kf->id()] = kf->T_w_b();

@@ -162,6 +162,22 @@ Map::AbsorbCounts Map::absorb(Map& source, const Pose3& T_this_source) {
   return counts;
 }
 
+void Map::change_frame(const Pose3& T_new_old) {
+  std::lock_guard structure(structure_mutex_);
+  const Eigen::Quaterniond R = T_new_old.q;
+  for (const auto& kf : keyframes()) kf->set_T_w_b(T_new_old * kf->T_w_b());
+  for (const auto& mp : map_points()) {
+    mp->set_p_w(T_new_old * mp->p_w());
+    mp->set_normal(R * mp->normal());
+  }
+  {
+    std::lock_guard lock(objects_mutex_);
+    for (auto& [id, anchor] : culled_anchors_)
+      if (!anchor.parent) anchor.T_parent_b = T_new_old * anchor.T_parent_b;  // a root: its world pose
+  }
+  frame_epoch_.fetch_add(1);
+}
+
 std::optional<Map::InertialState> Map::inertial_state() const {
   std::lock_guard lock(objects_mutex_);
   return inertial_;

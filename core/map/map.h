@@ -3,6 +3,7 @@
 // removes an object at once, detaches every relation, and leaves reclamation to
 // reference counting: the memory is freed when the last thread holding the
 // object lets go. See docs/map_model.md for ownership and lock order.
+#include <atomic>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -93,6 +94,14 @@ class Map {
   std::optional<InertialState> inertial_state() const;
   void set_inertial_state(const InertialState& state);
 
+  // Expresses the whole map in a new world frame: every keyframe pose, point,
+  // viewing direction and root anchor becomes T_new_old * it, and frame_epoch()
+  // moves on (a global BA solved before then is dropped, not applied). For the
+  // gravity alignment of a visual-inertial map; the caller holds the atlas's
+  // maps exclusive and keeps the map's local mapping from running meanwhile.
+  void change_frame(const Pose3& T_new_old);
+  std::uint64_t frame_epoch() const { return frame_epoch_.load(); }
+
  private:
   struct CulledAnchor {
     std::optional<KeyframeId> parent;  // none: T is the world pose
@@ -115,6 +124,7 @@ class Map {
   std::unordered_map<KeyframeId, std::shared_ptr<KeyFrame>> keyframes_;
   std::unordered_map<KeyframeId, CulledAnchor> culled_anchors_;
   std::optional<InertialState> inertial_;  // guarded by objects_mutex_
+  std::atomic<std::uint64_t> frame_epoch_{0};
 };
 
 }  // namespace orbatlas

@@ -32,7 +32,7 @@ std::vector<std::shared_ptr<KeyFrame>> inertial_chain(const std::shared_ptr<KeyF
 }
 
 std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
-                                                          const InertialInitializationOptions& options) {
+                                                          const InertialInitializationOptions& options, Atlas* atlas) {
   if (!options.enabled || map.inertial_state() || !newest || newest->is_bad()) return std::nullopt;
   const auto chain = inertial_chain(newest);
   if (chain.size() < options.min_keyframes) return std::nullopt;
@@ -56,16 +56,24 @@ std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::s
   }
   Map::InertialState state;
   state.initialized_at_ns = newest->timestamp_ns();
-  state.gravity_w = result.gravity_w;
+  state.gravity_w = Eigen::Vector3d(0.0, 0.0, -options.solver.gravity);  // after the alignment below
   state.bias = result.bias;
   state.keyframes = chain.size();
   state.span_s = span_s;
-  map.set_inertial_state(state);
+  {
+    // The map's frame becomes the gravity frame (its yaw kept): sessions tracking
+    // in it see it before or after, never half-turned.
+    std::unique_lock<WriterPriorityMutex> whole;
+    if (atlas) whole = atlas->lock_maps_exclusive();
+    map.change_frame(Pose3(Eigen::Quaterniond(result.R_w_g.transpose()), Eigen::Vector3d::Zero()));
+    map.set_inertial_state(state);
+  }
   std::ostringstream line;
   line << "inertial initialisation of map " << map.id() << ": " << chain.size() << " keyframes over " << span_s
-       << " s; gravity (" << result.gravity_w.transpose() << ") m/s^2 in the map; gyro bias ("
-       << result.bias.gyro.transpose() << ") rad/s, accelerometer bias (" << result.bias.accel.transpose()
-       << ") m/s^2; " << result.iterations << " iterations";
+       << " s; gravity was (" << result.gravity_w.transpose()
+       << ") m/s^2 in the map, which now points it along -z; gyro bias (" << result.bias.gyro.transpose()
+       << ") rad/s, accelerometer bias (" << result.bias.accel.transpose() << ") m/s^2; " << result.iterations
+       << " iterations";
   log_info(line.str());
   return state;
 }

@@ -4,13 +4,15 @@
 // the newest one spans about 2 s, the inertial-only MAP estimate
 // (core/imu/inertial_initialization.h) gives the map its gravity and IMU biases.
 // Run by local mapping after a keyframe; what it finds is the map's
-// InertialState (stats: imu_initialized_at_s, imu_bias). Not yet: aligning the
-// map with gravity, the refinements at 5 and 15 s, and visual-inertial BA.
+// InertialState (stats: imu_initialized_at_s, imu_bias), and the map is turned
+// so that gravity points along -z of its frame (its yaw is kept). Not yet: the
+// refinements at 5 and 15 s, and visual-inertial BA.
 #include <memory>
 #include <optional>
 
 #include "core/geometry/pose.h"
 #include "core/imu/inertial_initialization.h"
+#include "core/map/atlas.h"
 #include "core/map/map.h"
 
 namespace orbatlas {
@@ -33,8 +35,11 @@ struct InertialInitializationOptions {
 std::vector<std::shared_ptr<KeyFrame>> inertial_chain(const std::shared_ptr<KeyFrame>& newest);
 
 // Initialises `map` when it is not yet and the chain ending at `newest` is long
-// enough; returns the state it set.
+// enough, and aligns it with gravity (Map::change_frame, under `atlas`'s maps
+// held exclusive when `atlas` is given; the caller is the map's local mapping,
+// so nothing else maps it meanwhile); returns the state it set.
 std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
-                                                          const InertialInitializationOptions& options);
+                                                          const InertialInitializationOptions& options,
+                                                          Atlas* atlas = nullptr);
 
 }  // namespace orbatlas

@@ -118,7 +118,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   ++sequence_;
   if (options_.inertial.enabled && !map->inertial_state()) {
     try {
-      initialize_map_inertial(*map, keyframe, options_.inertial);
+      initialize_map_inertial(*map, keyframe, options_.inertial, &atlas_);
     } catch (const Error& e) {
       log_warn("inertial initialisation of map " + std::to_string(map->id()) + " failed: " + e.what() + " (retried)");
     }

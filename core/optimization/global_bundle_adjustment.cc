@@ -23,6 +23,7 @@ GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Came
   options.check();
   const auto start = std::chrono::steady_clock::now();
   GlobalBundleAdjustmentResult result;
+  result.frame_epoch = map.frame_epoch();  // before the snapshot: a change after it drops the result
   const auto keyframes = map.keyframes();
   if (keyframes.size() < 2) return result;
 

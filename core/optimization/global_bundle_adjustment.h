@@ -38,7 +38,8 @@ struct GlobalBundleAdjustmentResult {
   std::unordered_map<MapPointId, Eigen::Vector3d> p_w;  // optimised positions
   std::size_t keyframes = 0, points = 0, observations = 0;
   int iterations = 0;
-  bool stopped = false;  // interrupted by the stop flag: the result should be dropped
+  bool stopped = false;           // interrupted by the stop flag: the result should be dropped
+  std::uint64_t frame_epoch = 0;  // the map's frame when solved (Map::frame_epoch)
   double time_ms = 0.0;
 };
 
