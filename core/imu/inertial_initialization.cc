@@ -143,7 +143,7 @@ InertialInitResult initialize_inertial(const std::vector<Pose3>& T_w_b,
   for (std::size_t k = 0; k + 1 < n; ++k) {
     const Preintegration& pre = preintegrated[k];
     ORBATLAS_CHECK(pre.bias() == bias0, "inertial init: the preintegrations must share one bias");
-    auto* edge = new InertialEdge;
+    auto edge = std::make_unique<InertialEdge>();
     edge->Ri = R[k];
     edge->Ri_T_Rj = R[k].transpose() * R[k + 1];
     edge->pi_body = T_w_b[k].t;
@@ -166,7 +166,8 @@ InertialInitResult initialize_inertial(const std::vector<Pose3>& T_w_b,
     edge->sqrt_information = Eigen::LLT<Eigen::Matrix<double, 9, 9>>(information).matrixU();
     edge->R_wg0 = R_wg0;
     edge->gravity = options.gravity;
-    costs.emplace_back(new ceres::AutoDiffCostFunction<InertialEdge, 9, 3, 3, 3, 3, 2, 1>(edge));
+    costs.push_back(std::make_unique<ceres::AutoDiffCostFunction<InertialEdge, 9, 3, 3, 3, 3, 2, 1>>(
+        edge.release()));  // the cost owns its functor
     problem.AddResidualBlock(costs.back().get(), nullptr, result.velocities[k].data(), result.velocities[k + 1].data(),
                              bg.data(), ba.data(), gdir.data(), log_s.data());
   }

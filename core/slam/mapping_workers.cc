@@ -17,6 +17,12 @@ FrameCamera with_camera(FrameCamera cam, const Camera* camera) {
   return cam;
 }
 
+void add_errors(WorkerErrorCounts& into, const WorkerErrorCounts& more) {
+  into.errors += more.errors;
+  if (!more.last.empty()) into.last = more.last;
+  into.fatal = into.fatal || more.fatal;
+}
+
 }  // namespace
 
 void MappingWorkersOptions::check() const {
@@ -175,22 +181,29 @@ void MappingWorkers::merged(MapId source, MapId target) {
   // is in `target` now): it is processed here, while `target`'s mapper is still
   // paused, so the two never edit the joined map at once.
   mapper->resume();
-  finish_mapper(mapper);
+  finish_mapper_logged(mapper);
 }
 
-void MappingWorkers::finish_mapper(const std::shared_ptr<LocalMapper>& mapper) {
-  std::string fatal;
+std::exception_ptr MappingWorkers::finish_mapper(const std::shared_ptr<LocalMapper>& mapper) {
+  std::exception_ptr fatal;
   try {
     mapper->finish();
-  } catch (const std::exception& e) {
-    fatal = e.what();
+  } catch (...) {
+    fatal = std::current_exception();
   }
-  const WorkerErrorCounts counts = mapper->errors();
   std::lock_guard lock(mutex_);
-  retired_errors_.errors += counts.errors;
-  if (!counts.last.empty()) retired_errors_.last = counts.last;
-  retired_errors_.fatal = retired_errors_.fatal || counts.fatal;
-  if (!fatal.empty()) log_warn("local mapping stopped with an error: " + fatal);
+  add_errors(retired_errors_, mapper->errors());
+  return fatal;
+}
+
+void MappingWorkers::finish_mapper_logged(const std::shared_ptr<LocalMapper>& mapper) {
+  if (const auto fatal = finish_mapper(mapper)) {
+    try {
+      std::rethrow_exception(fatal);
+    } catch (const std::exception& e) {
+      log_warn(std::string("local mapping stopped with an error: ") + e.what());
+    }
+  }
 }
 
 void MappingWorkers::wait_for_map(MapId map) {
@@ -217,7 +230,7 @@ void MappingWorkers::retire(MapId map) {
     mappers_.erase(it);
   }
   log_info("local mapping of map " + std::to_string(map) + " ends: no session maps it now");
-  finish_mapper(mapper);
+  finish_mapper_logged(mapper);
 }
 
 std::vector<MapId> MappingWorkers::mapped_maps() const {
@@ -237,18 +250,8 @@ void MappingWorkers::finish() {
   }
   // Mapping first: no keyframe reaches the loop closer afterwards.
   std::exception_ptr fatal;
-  for (const auto& [id, mapper] : mappers) {
-    try {
-      mapper->finish();
-    } catch (...) {
-      if (!fatal) fatal = std::current_exception();
-    }
-    const WorkerErrorCounts counts = mapper->errors();
-    std::lock_guard lock(mutex_);
-    retired_errors_.errors += counts.errors;
-    if (!counts.last.empty()) retired_errors_.last = counts.last;
-    retired_errors_.fatal = retired_errors_.fatal || counts.fatal;
-  }
+  for (const auto& [id, mapper] : mappers)
+    if (auto error = finish_mapper(mapper); error && !fatal) fatal = std::move(error);
   if (loop_closer_) {
     try {
       loop_closer_->finish();
@@ -259,29 +262,30 @@ void MappingWorkers::finish() {
   if (fatal) std::rethrow_exception(fatal);
 }
 
+WorkerErrorCounts MappingWorkers::mapping_errors() const {
+  std::lock_guard lock(mutex_);
+  WorkerErrorCounts out = retired_errors_;
+  for (const auto& [id, mapper] : mappers_) add_errors(out, mapper->errors());
+  return out;
+}
+
 LocalMapperStats MappingWorkers::mapping_stats() const {
   LocalMapperStats out;
   {
     std::lock_guard lock(board_->mutex);
     out = board_->stats;
   }
-  std::lock_guard lock(mutex_);
-  out.errors = retired_errors_;
-  for (const auto& [id, mapper] : mappers_) {
-    const WorkerErrorCounts counts = mapper->errors();
-    out.errors.errors += counts.errors;
-    if (!counts.last.empty()) out.errors.last = counts.last;
-    out.errors.fatal = out.errors.fatal || counts.fatal;
-  }
+  out.errors = mapping_errors();
   return out;
 }
 
 LoopClosingStats MappingWorkers::loop_stats() const {
-  return loop_closer_ ? loop_closer_->stats() : LoopClosingStats{};
+  if (loop_closer_) return loop_closer_->stats();
+  return LoopClosingStats();
 }
 
 std::size_t MappingWorkers::errors() const {
-  return mapping_stats().errors.errors + (loop_closer_ ? loop_closer_->errors().errors : 0);
+  return mapping_errors().errors + (loop_closer_ ? loop_closer_->errors().errors : 0);  // cheap: no figures copied
 }
 
 }  // namespace orbatlas

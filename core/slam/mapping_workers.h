@@ -14,6 +14,7 @@
 // held only to look up or change the table of mappers, never while waiting on
 // a mapper. Pausing a map (MappingControl) waits for its mapper outside it.
 #include <cstdint>
+#include <exception>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -86,7 +87,11 @@ class MappingWorkers final : public MappingControl {
   std::shared_ptr<LocalMapper> mapper_for(MapId map, bool create);  // null when none (and !create)
   bool insert(std::shared_ptr<KeyFrame> keyframe, std::uint64_t stream);
   void processed(const std::shared_ptr<KeyFrame>& keyframe);  // on a mapper thread
-  void finish_mapper(const std::shared_ptr<LocalMapper>& mapper);
+  // Stops a mapper that left the table (what it has queued is processed first)
+  // and keeps its error counts; returns its fatal error, or logs it.
+  std::exception_ptr finish_mapper(const std::shared_ptr<LocalMapper>& mapper);
+  void finish_mapper_logged(const std::shared_ptr<LocalMapper>& mapper);
+  WorkerErrorCounts mapping_errors() const;  // every mapper's, the retired ones' too
   void stream_ended(std::uint64_t stream);
 
   Atlas& atlas_;

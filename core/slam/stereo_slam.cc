@@ -199,9 +199,8 @@ SlamStats StereoSlam::stats() const {
     s.imu_linked_keyframes = imu_linked_.load();
     s.imu_uncovered_keyframes = imu_.uncovered();
     // The map the session tracked in last (after merges: the one it is in now).
-    const auto anchors = frames_.anchors();
-    if (!anchors.empty())
-      if (const auto located = atlas_.locate_frame(anchors.back()))
+    if (const auto last = frames_.last_anchor())
+      if (const auto located = atlas_.locate_frame(*last))
         if (const auto map = atlas_.map(located->first))
           if (const auto state = map->inertial_state()) {
             s.imu_initialized_at_s = ns_to_s(state->initialized_at_ns - first_t_ns_.load());

@@ -40,4 +40,10 @@ std::vector<FrameAnchor> TrackedFrames::anchors() const {
   return anchors_;
 }
 
+std::optional<FrameAnchor> TrackedFrames::last_anchor() const {
+  std::lock_guard lock(anchors_mutex_);
+  if (anchors_.empty()) return std::nullopt;
+  return anchors_.back();
+}
+
 }  // namespace orbatlas

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstddef>
 #include <mutex>
+#include <optional>
 #include <vector>
 
 #include "core/common/sample_summary.h"
@@ -32,7 +33,8 @@ class TrackedFrames {
   // makes tracking fail too many times in a row.
   TrackResult track(Tracker& tracker, Frame frame, const Atlas& atlas, std::chrono::steady_clock::time_point started);
 
-  std::vector<FrameAnchor> anchors() const;  // any thread
+  std::vector<FrameAnchor> anchors() const;        // any thread
+  std::optional<FrameAnchor> last_anchor() const;  // any thread; none before a tracked frame
   std::size_t frames() const { return frames_; }
   std::size_t tracked() const { return tracked_; }
   const SampleSummary& tracking_ms() const { return tracking_ms_; }
