@@ -25,6 +25,7 @@ class ImuBuffer {
   std::optional<Preintegration> between(TimestampNs t0, TimestampNs t1, const ImuBias& bias, const ImuNoise& noise,
                                         double max_gap_s = 0.05);
 
+  const std::vector<ImuSample>& samples() const { return samples_; }
   std::size_t size() const { return samples_.size(); }
   std::size_t total() const { return total_.load(); }          // samples added (any thread)
   std::size_t uncovered() const { return uncovered_.load(); }  // between() calls not covered (any thread)

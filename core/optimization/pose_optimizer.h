@@ -13,7 +13,9 @@
 
 #include "core/camera/camera.h"
 #include "core/geometry/pose.h"
+#include "core/imu/imu_noise.h"
 #include "core/optimization/chi2.h"
+#include "core/optimization/inertial_cost.h"
 
 namespace orbatlas {
 
@@ -24,10 +26,37 @@ struct PoseCorrespondence {
   double level_sigma2 = 1.0;                      // sigma^2 of the keypoint's pyramid level
 };
 
+// A visual-inertial frame (ORB-SLAM3's PoseInertialOptimizationLastFrame): the
+// IMU increments from the previous frame tie this frame's pose and IMU velocity
+// to the previous frame's state, which is optimised too under a Gaussian prior
+// (what the previous frame's own optimisation left: its marginal covariance),
+// and the biases, under a prior at the map's estimate.
+struct InertialPoseTerm {
+  std::shared_ptr<const Preintegration> increments;  // previous frame -> this frame
+  Pose3 T_c_i;                                       // the IMU in the camera
+  Eigen::Vector3d gravity_w = Eigen::Vector3d::Zero();
+  Pose3 previous_T_c_w;
+  Eigen::Vector3d previous_v_w = Eigen::Vector3d::Zero();
+  StateCovariance previous_covariance = StateCovariance::Identity();  // tangent coordinates (inertial_cost.h)
+  Eigen::Vector3d v_w = Eigen::Vector3d::Zero();                      // this frame's velocity: the start
+  ImuBias bias;                                                       // the prior's mean
+  Eigen::Matrix<double, 6, 1> bias_sigma = Eigen::Matrix<double, 6, 1>::Ones();  // gyro, accel
+};
+
+struct InertialPoseEstimate {
+  Eigen::Vector3d v_w = Eigen::Vector3d::Zero();  // this frame's IMU velocity
+  ImuBias bias;
+  // Of this frame's pose and velocity (the next frame's prior); none when
+  // Ceres could not compute it (a degenerate problem).
+  std::optional<StateCovariance> covariance;
+  double chi2 = 0.0;  // of the inertial residual at the end
+};
+
 struct PoseOptimizerInput {
   Pose3 T_c_w;  // initial camera pose (world -> camera)
   std::vector<PoseCorrespondence> correspondences;
   double bf = 0.0;  // stereo baseline * fx; needed when a correspondence has u_right
+  std::optional<InertialPoseTerm> inertial;
 };
 
 struct PoseOptimizerOptions {
@@ -49,8 +78,9 @@ struct PoseOptimizerResult {
   Pose3 T_c_w;
   std::vector<std::uint8_t> inliers;  // per correspondence: 1 inlier, 0 outlier
   int inlier_count = 0;
-  int rounds = 0;      // rounds run
-  int iterations = 0;  // Levenberg-Marquardt iterations, all rounds
+  int rounds = 0;                                // rounds run
+  int iterations = 0;                            // Levenberg-Marquardt iterations, all rounds
+  std::optional<InertialPoseEstimate> inertial;  // with an inertial term
 };
 
 // Throws Error when a stereo correspondence comes without bf > 0 or a sigma2 is

@@ -87,7 +87,7 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
   worker_errors_.store(slam_->worker_errors());
   last_frame_t_ = t_ns;
   ++frames_;
-  if (out.result.tracked) ++tracked_;
+  if (out.result.tracked && !out.result.by_imu) ++tracked_;  // the slam stats count the IMU's frames
   if (out.result.keyframe) ++keyframes_;
   tracking_ms_.add(out.tracking_ms);
   last_ = out.result;

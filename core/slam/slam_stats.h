@@ -48,6 +48,10 @@ struct SlamStats {
   // of the map the session is in (when it happened: seconds since the session's
   // first frame; the gravity in the map's frame; the biases it found).
   bool inertial = false;
+  // Frames tracked by the IMU alone (their pose predicted while the images
+  // could not be tracked; not in `tracked`, not in `lost`), and frames whose
+  // pose was optimised with the IMU.
+  std::size_t frames_tracked_by_imu = 0, frames_optimized_with_imu = 0;
   std::size_t imu_samples = 0, imu_linked_keyframes = 0, imu_uncovered_keyframes = 0;
   std::optional<double> imu_initialized_at_s;
   Eigen::Vector3d imu_gravity_w = Eigen::Vector3d::Zero();
@@ -67,10 +71,9 @@ std::size_t worker_error_total(const SlamStats& stats);
 // live_merges (count), final_global_ba{keyframes, seconds} (when it ran),
 // worker_errors (total), worker_errors_by{tracking, local_mapping, loop_closing},
 // last_worker_error (when any), slot_races; with an IMU: imu{samples, linked_keyframes,
-// uncovered_keyframes}, imu_initialized_at_s, imu_gravity_w, imu_bias{gyro, acc}
-// (once initialised).
-// Fills maps, keyframes, mappoints (maps holding keyframes) and the object
-// counters from the atlas as it is now.
+// uncovered_keyframes, frames_optimized}, frames_tracked_by_imu, imu_initialized_at_s, imu_gravity_w, imu_bias{gyro,
+// acc} (once initialised). Fills maps, keyframes, mappoints (maps holding keyframes) and the object counters from the
+// atlas as it is now.
 void add_atlas_counts(const Atlas& atlas, SlamStats& stats);
 
 inline constexpr double kFalseLoopM = 0.2, kFalseLoopDeg = 5.0;

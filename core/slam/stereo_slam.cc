@@ -19,6 +19,7 @@ void StereoSlamOptions::check() const {
   ORBATLAS_CHECK(relocalization || !tracker.localization_only,
                  "slam: relocalization must be on when tracker.localization_only is set");
   tracker.check();
+  inertial_tracking.check();
   mapper.check();
   loop.check();
   final_ba.check();
@@ -80,6 +81,9 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
   }
   tracker_ = std::make_unique<Tracker>(atlas_, vocabulary, *sink_, cam_, T_b_c, options_.tracker, relocalizer_.get());
   if (imu_noise_) {
+    inertial_tracking_ =
+        std::make_unique<InertialTracking>(imu_, *imu_noise_, settings.imu->T_b_i, T_b_c, options_.inertial_tracking);
+    tracker_->set_inertial(inertial_tracking_.get());
     // Each keyframe is linked to the previous one of this session in its map
     // by the IMU between them, preintegrated at the map's bias estimate.
     tracker_->set_keyframe_listener(
@@ -179,7 +183,8 @@ SlamStats StereoSlam::stats() const {
   s.final_ba_keyframes = final_ba_keyframes_;
   s.final_ba_s = final_ba_s_;
   s.tracked = frames_.tracked();
-  s.lost = s.frames - s.tracked;
+  s.frames_tracked_by_imu = frames_.tracked_by_imu();
+  s.lost = s.frames - s.tracked - s.frames_tracked_by_imu;
   s.tracking_errors = frames_.errors();
   s.slot_races = tracker_->slot_races();
   s.keyframes_made = keyframes_made_;
@@ -198,6 +203,7 @@ SlamStats StereoSlam::stats() const {
     s.imu_samples = imu_.total();
     s.imu_linked_keyframes = imu_linked_.load();
     s.imu_uncovered_keyframes = imu_.uncovered();
+    s.frames_optimized_with_imu = inertial_tracking_ ? inertial_tracking_->optimized_frames() : 0;
     // The map the session tracked in last (after merges: the one it is in now).
     if (const auto last = frames_.last_anchor())
       if (const auto located = atlas_.locate_frame(*last))

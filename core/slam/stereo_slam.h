@@ -45,6 +45,7 @@ struct StereoSlamOptions {
   // IMU preintegrated between them and each map gets its inertial initialisation
   // (gravity, biases; issue 19, first stage). Off: the IMU is ignored.
   bool inertial = true;
+  InertialTrackingOptions inertial_tracking;
   // Wait for local mapping to finish each keyframe before the next frame: slower,
   // but the run is deterministic (tests, comparing culling schemes).
   bool synchronous_mapping = false;
@@ -108,6 +109,7 @@ class StereoSlam final : public SessionSlam {
   // noise, and the keyframes linked so far (tracking thread).
   std::optional<ImuNoise> imu_noise_;
   ImuBuffer imu_;
+  std::unique_ptr<InertialTracking> inertial_tracking_;  // the tracker's (~StereoSlam drops the tracker first)
   std::atomic<std::size_t> imu_linked_{0};
   std::atomic<TimestampNs> first_t_ns_{-1};  // the session's first frame
   bool finished_ = false;

@@ -28,7 +28,7 @@ TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, const Atlas& atl
   tracking_ms_.add(ms_since(started));
   ++frames_;
   if (result.tracked) {
-    ++tracked_;
+    ++(result.by_imu ? tracked_by_imu_ : tracked_);
     std::lock_guard lock(anchors_mutex_);
     anchors_.push_back(tracker.anchors().back());
   }

@@ -36,14 +36,15 @@ class TrackedFrames {
   std::vector<FrameAnchor> anchors() const;        // any thread
   std::optional<FrameAnchor> last_anchor() const;  // any thread; none before a tracked frame
   std::size_t frames() const { return frames_; }
-  std::size_t tracked() const { return tracked_; }
+  std::size_t tracked() const { return tracked_; }                // visually
+  std::size_t tracked_by_imu() const { return tracked_by_imu_; }  // by the IMU alone (they have anchors too)
   const SampleSummary& tracking_ms() const { return tracking_ms_; }
   WorkerErrorCounts errors() const { return errors_.counts(); }
 
  private:
   WorkerErrors errors_{"tracking"};
   SampleSummary tracking_ms_;
-  std::size_t frames_ = 0, tracked_ = 0;
+  std::size_t frames_ = 0, tracked_ = 0, tracked_by_imu_ = 0;
   mutable std::mutex anchors_mutex_;
   std::vector<FrameAnchor> anchors_;  // copy of the tracker's, for other threads
 };

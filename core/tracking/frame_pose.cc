@@ -4,8 +4,12 @@
 
 namespace orbatlas {
 
-int optimize_frame_pose(Frame& frame, const FrameCamera& cam, const Pose3& T_b_c, const PoseOptimizerOptions& options) {
+namespace {
+
+int optimize(Frame& frame, const FrameCamera& cam, const Pose3& T_b_c, const PoseOptimizerOptions& options,
+             const InertialPoseTerm* inertial, std::optional<InertialPoseEstimate>* estimate) {
   PoseOptimizerInput input;
+  if (inertial) input.inertial = *inertial;
   input.T_c_w = (frame.T_w_b * T_b_c).inverse();
   input.bf = cam.bf;
   std::vector<std::size_t> keypoint_of;
@@ -29,7 +33,19 @@ int optimize_frame_pose(Frame& frame, const FrameCamera& cam, const Pose3& T_b_c
   for (std::size_t c = 0; c < keypoint_of.size(); ++c) frame.outlier[keypoint_of[c]] = result.inliers[c] == 0;
   frame.T_w_b = result.T_c_w.inverse() * T_b_c.inverse();
   frame.has_pose = true;
+  if (estimate) *estimate = result.inertial;
   return result.inlier_count;
+}
+
+}  // namespace
+
+int optimize_frame_pose(Frame& frame, const FrameCamera& cam, const Pose3& T_b_c, const PoseOptimizerOptions& options) {
+  return optimize(frame, cam, T_b_c, options, nullptr, nullptr);
+}
+
+int optimize_frame_pose(Frame& frame, const FrameCamera& cam, const Pose3& T_b_c, const PoseOptimizerOptions& options,
+                        const InertialPoseTerm& inertial, std::optional<InertialPoseEstimate>& estimate) {
+  return optimize(frame, cam, T_b_c, options, &inertial, &estimate);
 }
 
 int discard_outliers(Frame& frame) {

@@ -81,6 +81,7 @@ Tracker::Tracker(Atlas& atlas, const Vocabulary& vocabulary, KeyframeSink& sink,
 
 TrackResult Tracker::track(Frame frame) {
   accept_frame(frame);
+  imu_prediction_.reset();
   TrackResult result;
   result.t_ns = frame.t_ns;
 
@@ -102,13 +103,27 @@ TrackResult Tracker::track(Frame frame) {
     }
   } else {
     ok = track_from_last_frame(frame);
+    const bool by_imu = !ok && inertial_ && imu_prediction_ && inertial_->may_bridge(frame.t_ns);
+    if (by_imu) failed_relocalizations_ = 0;  // the IMU carries the frame: not a failed relocalisation
     update_state(frame, ok);
-    if (ok)
+    if (ok) {
       after_tracked(frame, result);
-    else
+    } else {
       velocity_.reset();
+    }
+    if (by_imu) {
+      frame.T_w_b = *imu_prediction_;
+      frame.has_pose = true;
+      std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+      result.by_imu = true;
+    }
   }
-  finish_frame(std::move(frame), ok, result);
+  if (inertial_) {
+    using Outcome = InertialTracking::Outcome;
+    const Outcome outcome = ok ? Outcome::kVisual : result.by_imu ? Outcome::kImuOnly : Outcome::kLost;
+    inertial_->frame_done(frame, last_ ? &*last_ : nullptr, outcome);
+  }
+  finish_frame(std::move(frame), ok || result.by_imu, result);
   return result;
 }
 
@@ -156,11 +171,20 @@ bool Tracker::localize_in_stored_maps(Frame& frame, TrackResult& result) {
 
 bool Tracker::track_from_last_frame(Frame& frame) {
   refresh_last_frame_pose();
+  if (inertial_ && last_) imu_prediction_ = inertial_->predict(*map_, *last_, frame.t_ns);
   bool ok = false;
   if (state_ == TrackingState::kOk) {
-    ok = velocity_ && track_motion_model(frame);
+    ok = (imu_prediction_ || velocity_) && track_motion_model(frame);
     if (!ok) ok = reference_ && track_reference_keyframe(frame, reference_);
+    // The IMU knows where the frame is even when the last frame's points are
+    // not found again (ORB-SLAM3 goes on to the local map the same way).
+    if (!ok && imu_prediction_) return track_from_imu_prediction(frame);
   } else {  // kRecentlyLost
+    if (imu_prediction_ && track_from_imu_prediction(frame)) {
+      last_recovery_index_ = frame_index_;
+      failed_relocalizations_ = 0;
+      return true;
+    }
     ok = recover(frame);
     if (ok) last_recovery_index_ = frame_index_;
     failed_relocalizations_ = ok ? 0 : failed_relocalizations_ + 1;
@@ -225,6 +249,7 @@ void Tracker::release_frames() {
 }
 
 void Tracker::start_new_map() {
+  if (inertial_) inertial_->reset();
   if (!map_ || map_->keyframe_count() > 0) {
     map_ = atlas_.create_map();
     ++maps_started_;
@@ -289,7 +314,7 @@ bool Tracker::initialize(Frame& frame) {
 
 bool Tracker::track_motion_model(Frame& frame) {
   if (!last_ || !last_->has_pose) return false;
-  frame.T_w_b = last_->T_w_b * *velocity_;
+  frame.T_w_b = imu_prediction_ ? *imu_prediction_ : last_->T_w_b * *velocity_;
   std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
   const Pose3 T_c_w = (frame.T_w_b * T_b_c_).inverse();
   int matches = search_from_last_frame(frame, *last_, T_c_w, cam_, kMotionModelRadius);
@@ -307,9 +332,15 @@ bool Tracker::track_reference_keyframe(Frame& frame, const std::shared_ptr<KeyFr
   ensure_bow(frame);
   std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
   if (search_by_bow(*keyframe, frame) < kMinBowMatches) return false;
-  frame.T_w_b = (last_ && last_->has_pose) ? last_->T_w_b : keyframe->T_w_b();
+  frame.T_w_b = imu_prediction_ ? *imu_prediction_ : (last_ && last_->has_pose) ? last_->T_w_b : keyframe->T_w_b();
   optimize_frame_pose(frame, cam_, T_b_c_);
   return discard_outliers(frame) >= kMinPoseInliers;
+}
+
+bool Tracker::track_from_imu_prediction(Frame& frame) {
+  frame.T_w_b = *imu_prediction_;
+  std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+  return track_local_map(frame);
 }
 
 bool Tracker::recover(Frame& frame) {
@@ -356,6 +387,9 @@ void Tracker::update_local_map(const Frame& frame) {
       ++entry.second;
     }
   }
+  // No association (a frame placed by the IMU's prediction alone): the last
+  // local map is where to look.
+  if (counts.empty()) return;
   local_keyframes_.clear();
   std::unordered_set<KeyframeId> in_local;
   std::shared_ptr<KeyFrame> best;
@@ -420,7 +454,9 @@ bool Tracker::track_local_map(Frame& frame) {
   if (state_ == TrackingState::kRecentlyLost) th = 15.0f;
   search_projected_points(frame, candidates, cam_, th);
 
-  optimize_frame_pose(frame, cam_, T_b_c_);
+  // With the IMU (a prediction for this frame): the visual-inertial optimisation.
+  const std::optional<int> inertial = inertial_ && imu_prediction_ ? inertial_->optimize(frame, cam_) : std::nullopt;
+  if (!inertial) optimize_frame_pose(frame, cam_, T_b_c_);
   int inliers = 0;
   for (std::size_t i = 0; i < frame.size(); ++i) {
     const auto& mp = frame.map_points[i];

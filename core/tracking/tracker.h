@@ -14,6 +14,7 @@
 #include "core/map/frame_anchor.h"
 #include "core/tracking/frame.h"
 #include "core/tracking/frame_relocalizer.h"
+#include "core/tracking/inertial_tracking.h"
 #include "core/tracking/keyframe_sink.h"
 #include "core/tracking/projection_search.h"
 #include "core/vocabulary/vocabulary.h"
@@ -60,7 +61,10 @@ struct TrackResult {
   TimestampNs t_ns = 0;
   TrackingState state = TrackingState::kNotInitialized;
   bool tracked = false;  // has a pose
-  Pose3 T_w_b;           // valid when tracked, in map `map`
+  // Tracked by the IMU alone (visual-inertial sessions): the pose is the IMU's
+  // prediction from the last frame; the images were not tracked.
+  bool by_imu = false;
+  Pose3 T_w_b;  // valid when tracked, in map `map`
   MapId map = 0;
   bool keyframe = false;       // a keyframe was made from this frame
   KeyframeId keyframe_id = 0;  // its id, when `keyframe`
@@ -87,6 +91,11 @@ class Tracker {
   // Slots of new keyframes that local mapping filled while tracking was
   // filling them (handled: the point local mapping put there is used).
   std::size_t slot_races() const { return slot_races_; }
+  // Visual-inertial tracking (not owned; it must outlive the tracker; may be
+  // null): once a map is inertially initialised, frames are predicted and
+  // optimised with the IMU, and frames that cannot be tracked visually are
+  // bridged by it for a while. Set before the first frame.
+  void set_inertial(InertialTracking* inertial) { inertial_ = inertial; }
   // Drops the last frame and the keyframes tracking holds (end of a session), so
   // that nothing keeps culled objects alive; the anchors stay.
   void release_frames();
@@ -113,6 +122,7 @@ class Tracker {
   void finish_frame(Frame frame, bool ok, TrackResult& result);  // result, anchor, last frame
   bool initialize(Frame& frame);
   bool track_motion_model(Frame& frame);
+  bool track_from_imu_prediction(Frame& frame);  // the local map from the predicted pose
   bool track_reference_keyframe(Frame& frame, const std::shared_ptr<KeyFrame>& keyframe);
   bool recover(Frame& frame);
   bool track_local_map(Frame& frame);
@@ -137,7 +147,9 @@ class Tracker {
   std::shared_ptr<Map> map_;
   std::function<void(const std::shared_ptr<KeyFrame>&, const std::shared_ptr<KeyFrame>&)> keyframe_listener_;
   std::optional<Frame> last_;
-  std::optional<Pose3> velocity_;  // T_last_current of the body, when the last two frames were tracked
+  std::optional<Pose3> velocity_;         // T_last_current of the body, when the last two frames were tracked
+  InertialTracking* inertial_ = nullptr;  // not owned, may be null
+  std::optional<Pose3> imu_prediction_;   // of this frame's T_w_b, by the IMU
   std::shared_ptr<KeyFrame> reference_;
   std::shared_ptr<KeyFrame> last_keyframe_;
   std::optional<KeyframeId> last_reference_;  // of the last frame, for its pose refresh
