@@ -114,6 +114,38 @@ void expect_culled_eq(const Map& a, const Map& b) {
   }
 }
 
+void expect_inertial_eq(const Map& a, const Map& b) {
+  const auto sa = a.inertial_state(), sb = b.inertial_state();
+  ASSERT_EQ(sa.has_value(), sb.has_value()) << "map " << a.id() << " inertial state";
+  if (sa) {
+    EXPECT_EQ(sa->initialized_at_ns, sb->initialized_at_ns);
+    EXPECT_EQ(sa->gravity_w, sb->gravity_w);
+    EXPECT_EQ(sa->bias, sb->bias);
+    EXPECT_EQ(sa->keyframes, sb->keyframes);
+    EXPECT_EQ(sa->span_s, sb->span_s);
+  }
+  const auto ka = a.keyframes(), kb = b.keyframes();
+  ASSERT_EQ(ka.size(), kb.size());
+  for (std::size_t i = 0; i < ka.size(); ++i) {
+    const std::string what = "keyframe " + std::to_string(ka[i]->id()) + " inertial link";
+    const auto la = ka[i]->inertial_link(), lb = kb[i]->inertial_link();
+    ASSERT_EQ(la.has_value(), lb.has_value()) << what;
+    if (!la) continue;
+    EXPECT_EQ(la->previous_id, lb->previous_id) << what;
+    const Preintegration &pa = *la->from_previous, &pb = *lb->from_previous;
+    // Integrated again from the stored measurements: bit for bit.
+    EXPECT_EQ(pa.measurements().size(), pb.measurements().size()) << what;
+    EXPECT_EQ(pa.dt(), pb.dt()) << what;
+    EXPECT_EQ(pa.bias(), pb.bias()) << what;
+    EXPECT_EQ(pa.delta_R(), pb.delta_R()) << what;
+    EXPECT_EQ(pa.delta_v(), pb.delta_v()) << what;
+    EXPECT_EQ(pa.delta_p(), pb.delta_p()) << what;
+    EXPECT_EQ(pa.covariance(), pb.covariance()) << what;
+    EXPECT_EQ(pa.dp_dba(), pb.dp_dba()) << what;
+    EXPECT_EQ(pa.dR_dbg(), pb.dR_dbg()) << what;
+  }
+}
+
 void expect_atlas_eq(const Atlas& a, const Atlas& b, bool same_bow) {
   const auto ma = a.maps(), mb = b.maps();
   ASSERT_EQ(ma.size(), mb.size());
@@ -130,6 +162,7 @@ void expect_atlas_eq(const Atlas& a, const Atlas& b, bool same_bow) {
     ASSERT_EQ(pa.size(), pb.size()) << "map " << ma[m]->id();
     for (std::size_t i = 0; i < pa.size(); ++i) expect_point_eq(*pa[i], *pb[i]);
     expect_culled_eq(*ma[m], *mb[m]);
+    expect_inertial_eq(*ma[m], *mb[m]);
   }
   for (const IdKind kind : {IdKind::keyframe, IdKind::map_point, IdKind::map})
     EXPECT_EQ(a.ids().peek(kind), b.ids().peek(kind)) << "id kind " << static_cast<int>(kind);

@@ -15,6 +15,8 @@ void expect_point_eq(const MapPoint& a, const MapPoint& b);
 // The culled keyframes' anchors, and keyframe_pose of each culled id, bit for bit.
 void expect_culled_eq(const Map& a, const Map& b);
 // Maps, keyframes, points, culled anchors, active map and id allocator.
+// Inertial state and every keyframe's inertial link (maps with the same keyframes).
+void expect_inertial_eq(const Map& a, const Map& b);
 void expect_atlas_eq(const Atlas& a, const Atlas& b, bool same_bow);
 
 std::size_t count_keyframes(const Atlas& atlas);

@@ -56,6 +56,7 @@ class Preintegration {
   void append(const Preintegration& next);
 
   double dt() const { return dt_; }
+  const ImuNoise& noise() const { return noise_; }
   const ImuBias& bias() const { return bias_; }  // the linearisation point
   const std::vector<Measurement>& measurements() const { return measurements_; }
 

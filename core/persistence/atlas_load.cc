@@ -11,6 +11,7 @@
 #include "core/common/error.h"
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/blob_codec.h"
+#include "core/persistence/inertial_blob.h"
 #include "core/persistence/sql_columns.h"
 
 namespace orbatlas {
@@ -42,7 +43,12 @@ class AtlasReader {
                                "JOIN keyframes k ON k.id = l.keyframe_id WHERE k.map_id = ?1 "
                                "ORDER BY l.keyframe_id, l.other_id")),
         culled_(db.prepare("SELECT id, parent_id, qw, qx, qy, qz, tx, ty, tz FROM culled_keyframes "
-                           "WHERE map_id = ?1 ORDER BY id")) {}
+                           "WHERE map_id = ?1 ORDER BY id")),
+        inertial_links_(db.prepare("SELECT l.keyframe_id, l.previous_id, l.increments FROM keyframe_inertial_links l "
+                                   "JOIN keyframes k ON k.id = l.keyframe_id WHERE k.map_id = ?1 "
+                                   "ORDER BY l.keyframe_id")),
+        inertial_state_(db.prepare("SELECT initialized_at_ns, gx, gy, gz, bgx, bgy, bgz, bax, bay, baz, keyframes, "
+                                   "span_s FROM map_inertial_states WHERE map_id = ?1")) {}
 
   // The largest keyframe and map point ids read so far.
   std::optional<KeyframeId> max_keyframe_id;
@@ -57,6 +63,7 @@ class AtlasReader {
     read_points(map, map_id);
     read_observations(map_id);
     read_graph(map_id);
+    read_inertial(map, map_id);
     ++report_.maps;
   }
 
@@ -222,10 +229,38 @@ class AtlasReader {
     loop_edges_.reset();
   }
 
+  void read_inertial(Map& map, std::int64_t map_id) {
+    inertial_links_.bind_int64(1, map_id);
+    while (inertial_links_.step()) {
+      const KeyframeId id = id_column(inertial_links_, 0), previous = id_column(inertial_links_, 1);
+      const std::string who = "inertial link " + std::to_string(previous) + " -> " + std::to_string(id);
+      auto increments =
+          std::make_shared<const Preintegration>(decode_increments(inertial_links_.blob(2), file_ + ": " + who));
+      keyframe_in_map(id, who)->set_inertial_link(keyframe_in_map(previous, who), std::move(increments));
+      ++report_.inertial_links;
+    }
+    inertial_links_.reset();
+    inertial_state_.bind_int64(1, map_id);
+    if (inertial_state_.step()) {
+      Map::InertialState state;
+      state.initialized_at_ns = inertial_state_.int64(0);
+      state.gravity_w = {inertial_state_.real(1), inertial_state_.real(2), inertial_state_.real(3)};
+      state.bias.gyro = {inertial_state_.real(4), inertial_state_.real(5), inertial_state_.real(6)};
+      state.bias.accel = {inertial_state_.real(7), inertial_state_.real(8), inertial_state_.real(9)};
+      state.keyframes = static_cast<std::size_t>(inertial_state_.int64(10));
+      state.span_s = inertial_state_.real(11);
+      if (!state.gravity_w.allFinite() || !state.bias.gyro.allFinite() || !state.bias.accel.allFinite())
+        fail("map " + std::to_string(map.id()) + ": its inertial state is not finite");
+      map.set_inertial_state(state);
+    }
+    inertial_state_.reset();
+  }
+
   const std::string file_;
   const Vocabulary* const vocabulary_;  // not owned, may be null
   AtlasLoadReport& report_;
-  SqliteStatement keyframes_, points_, observations_, covisibility_, loop_edges_, culled_;
+  SqliteStatement keyframes_, points_, observations_, covisibility_, loop_edges_, culled_, inertial_links_,
+      inertial_state_;
   std::unordered_map<KeyframeId, LoadedKeyframe> keyframes_by_id_;  // of the current map
   std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> points_by_id_;
   std::unordered_map<MapPointId, std::optional<KeyframeId>> references_;

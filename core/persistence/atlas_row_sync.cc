@@ -138,10 +138,31 @@ class RowSync {
         [&](const KeyframeRow& added) {
           w_.insert_keyframe(added);
           ++counts_.inserted;
+          if (added.inertial_previous) w_.write_inertial_link(added);  // its previous keyframe is deferred
         },
         [&](const KeyframeRow& old_row, const KeyframeRow& new_row) {
+          if (old_row.inertial_previous != new_row.inertial_previous ||
+              old_row.inertial_hash != new_row.inertial_hash) {
+            w_.write_inertial_link(new_row);
+            ++counts_.updated;
+          }
           if (old_row.hash == new_row.hash) return;
           w_.update_keyframe(new_row);
+          ++counts_.updated;
+        });
+    walk_sorted_pair(
+        before_.inertial, now_.inertial, [](const MapInertialRow& r) { return r.map; },
+        [&](const MapInertialRow& gone) {
+          w_.delete_map_inertial(gone.map);
+          ++counts_.deleted;
+        },
+        [&](const MapInertialRow& added) {
+          w_.upsert_map_inertial(added);
+          ++counts_.inserted;
+        },
+        [&](const MapInertialRow& old_row, const MapInertialRow& new_row) {
+          if (old_row.hash == new_row.hash) return;
+          w_.upsert_map_inertial(new_row);
           ++counts_.updated;
         });
     walk_sorted_pair(

@@ -2,6 +2,7 @@
 
 #include "core/common/error.h"
 #include "core/persistence/blob_codec.h"
+#include "core/persistence/inertial_blob.h"
 #include "core/persistence/sql_columns.h"
 
 namespace orbatlas {
@@ -69,6 +70,18 @@ AtlasRowWriter::AtlasRowWriter(SqliteDb& db)
                      "ON CONFLICT(id) DO UPDATE SET map_id = excluded.map_id, parent_id = excluded.parent_id, "
                      "qw = excluded.qw, qx = excluded.qx, qy = excluded.qy, qz = excluded.qz, "
                      "tx = excluded.tx, ty = excluded.ty, tz = excluded.tz")),
+      upsert_inertial_link_(db.prepare("INSERT INTO keyframe_inertial_links(keyframe_id, previous_id, increments) "
+                                       "VALUES (?1, ?2, ?3) ON CONFLICT(keyframe_id) DO UPDATE SET "
+                                       "previous_id = excluded.previous_id, increments = excluded.increments")),
+      delete_inertial_link_(db.prepare("DELETE FROM keyframe_inertial_links WHERE keyframe_id = ?1")),
+      upsert_map_inertial_(db.prepare(
+          "INSERT INTO map_inertial_states(map_id, initialized_at_ns, gx, gy, gz, bgx, bgy, bgz, bax, bay, baz, "
+          "keyframes, span_s) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13) "
+          "ON CONFLICT(map_id) DO UPDATE SET initialized_at_ns = excluded.initialized_at_ns, gx = excluded.gx, "
+          "gy = excluded.gy, gz = excluded.gz, bgx = excluded.bgx, bgy = excluded.bgy, bgz = excluded.bgz, "
+          "bax = excluded.bax, bay = excluded.bay, baz = excluded.baz, keyframes = excluded.keyframes, "
+          "span_s = excluded.span_s")),
+      delete_map_inertial_(db.prepare("DELETE FROM map_inertial_states WHERE map_id = ?1")),
       delete_culled_(db.prepare("DELETE FROM culled_keyframes WHERE id = ?1")),
       insert_observation_(db.prepare("INSERT INTO observations(keyframe_id, slot, map_point_id) VALUES (?1, ?2, ?3)")),
       delete_observation_(db.prepare("DELETE FROM observations WHERE keyframe_id = ?1 AND slot = ?2")),
@@ -142,6 +155,37 @@ void AtlasRowWriter::update_keyframe(const KeyframeRow& row) {
 void AtlasRowWriter::delete_keyframe(KeyframeId id) {
   delete_keyframe_.bind_int64(1, sql_id(id));
   run_once(delete_keyframe_);
+}
+
+void AtlasRowWriter::write_inertial_link(const KeyframeRow& row) {
+  if (!row.inertial_previous || !row.inertial_increments) {
+    delete_inertial_link_.bind_int64(1, sql_id(row.id));
+    run_once(delete_inertial_link_);
+    return;
+  }
+  SqliteStatement& s = upsert_inertial_link_;
+  s.bind_int64(1, sql_id(row.id));
+  s.bind_int64(2, sql_id(*row.inertial_previous));
+  s.bind_blob(3, encode_increments(*row.inertial_increments));
+  run_once(s);
+}
+
+void AtlasRowWriter::upsert_map_inertial(const MapInertialRow& row) {
+  SqliteStatement& s = upsert_map_inertial_;
+  const Map::InertialState& st = row.state;
+  s.bind_int64(1, sql_id(row.map));
+  s.bind_int64(2, st.initialized_at_ns);
+  int i = 3;
+  for (const Eigen::Vector3d* v : {&st.gravity_w, &st.bias.gyro, &st.bias.accel})
+    for (int k = 0; k < 3; ++k) s.bind_real(i++, (*v)[k]);
+  s.bind_int64(12, static_cast<std::int64_t>(st.keyframes));
+  s.bind_real(13, st.span_s);
+  run_once(s);
+}
+
+void AtlasRowWriter::delete_map_inertial(MapId map) {
+  delete_map_inertial_.bind_int64(1, sql_id(map));
+  run_once(delete_map_inertial_);
 }
 
 void AtlasRowWriter::upsert_map_point(const MapPointRow& row) {

@@ -32,6 +32,10 @@ class AtlasRowWriter {
   void insert_keyframe(const KeyframeRow& row);  // every column; row.keyframe must be set
   void update_keyframe(const KeyframeRow& row);  // map, pose and parent (and the session, if the row has one)
   void delete_keyframe(KeyframeId id);
+  // The keyframe's inertial link as the row has it (written, or deleted when none).
+  void write_inertial_link(const KeyframeRow& row);
+  void upsert_map_inertial(const MapInertialRow& row);
+  void delete_map_inertial(MapId map);
   void upsert_map_point(const MapPointRow& row);
   void delete_map_point(MapPointId id);
   void upsert_culled_keyframe(const CulledKeyframeRow& row);
@@ -56,9 +60,10 @@ class AtlasRowWriter {
   const std::string file_;
   SqliteStatement stored_sessions_, delete_culled_of_map_, delete_points_of_map_, delete_keyframes_of_map_, delete_map_,
       upsert_map_, insert_keyframe_, update_keyframe_, delete_keyframe_, upsert_point_, delete_point_, upsert_culled_,
-      delete_culled_, insert_observation_, delete_observation_, upsert_covisibility_, delete_covisibility_,
-      insert_loop_edge_, delete_loop_edge_, upsert_trajectory_, delete_trajectory_, delete_session_trajectory_,
-      write_meta_, read_sequence_;
+      upsert_inertial_link_, delete_inertial_link_, upsert_map_inertial_, delete_map_inertial_, delete_culled_,
+      insert_observation_, delete_observation_, upsert_covisibility_, delete_covisibility_, insert_loop_edge_,
+      delete_loop_edge_, upsert_trajectory_, delete_trajectory_, delete_session_trajectory_, write_meta_,
+      read_sequence_;
 };
 
 }  // namespace orbatlas

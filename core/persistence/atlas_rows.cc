@@ -30,6 +30,18 @@ class MapRowCollector {
 
     for (const auto& kf : keyframes) add_keyframe(map.id(), kf);
     for (const auto& mp : points) add_point(map.id(), *mp);
+    if (const auto state = map.inertial_state()) {
+      MapInertialRow row{map.id(), *state, 0};
+      row.hash = RowHash()
+                     .add(state->initialized_at_ns)
+                     .add(state->gravity_w)
+                     .add(state->bias.gyro)
+                     .add(state->bias.accel)
+                     .add(state->keyframes)
+                     .add(state->span_s)
+                     .value();
+      rows_.inertial.push_back(row);
+    }
     for (const Map::CulledKeyframe& c : culled) {
       if (has_keyframe(c.id)) continue;
       CulledKeyframeRow row{map.id(), c, 0};
@@ -61,6 +73,20 @@ class MapRowCollector {
     for (const CovisibilityEdge& edge : kf->connections())
       if (has_keyframe(edge.keyframe)) row.covisibility.push_back(edge);
     sort_rows(row.covisibility, [](const CovisibilityEdge& e) { return e.keyframe; });
+    if (const auto link = kf->inertial_link(); link && link->from_previous && has_keyframe(link->previous_id)) {
+      row.inertial_previous = link->previous_id;
+      row.inertial_increments = link->from_previous;
+      const Preintegration& d = *link->from_previous;
+      row.inertial_hash = RowHash()
+                              .add(link->previous_id)
+                              .add(d.dt())
+                              .add(d.measurements().size())
+                              .add(d.delta_p())
+                              .add(d.delta_v())
+                              .add(d.bias().gyro)
+                              .add(d.bias().accel)
+                              .value();
+    }
     for (const KeyframeId other : kf->loop_edge_ids())
       if (has_keyframe(other)) rows_.loop_edges.emplace_back(std::min(row.id, other), std::max(row.id, other));
     rows_.keyframes.push_back(std::move(row));
@@ -100,7 +126,10 @@ std::uint64_t AtlasMetaRow::hash() const {
 }
 
 void AtlasRows::drop_objects() {
-  for (KeyframeRow& row : keyframes) row.keyframe.reset();
+  for (KeyframeRow& row : keyframes) {
+    row.keyframe.reset();
+    row.inertial_increments.reset();
+  }
 }
 
 AtlasRows collect_atlas_rows(const Atlas& atlas, const KeyframeSessionOf& session_of) {
@@ -117,6 +146,7 @@ AtlasRows collect_atlas_rows(const Atlas& atlas, const KeyframeSessionOf& sessio
   sort_rows(rows.keyframes, [](const KeyframeRow& r) { return r.id; });
   sort_rows(rows.points, [](const MapPointRow& r) { return r.id; });
   sort_rows(rows.culled, [](const CulledKeyframeRow& r) { return r.anchor.id; });
+  sort_rows(rows.inertial, [](const MapInertialRow& r) { return r.map; });
   std::sort(rows.loop_edges.begin(), rows.loop_edges.end());
   rows.loop_edges.erase(std::unique(rows.loop_edges.begin(), rows.loop_edges.end()), rows.loop_edges.end());
 

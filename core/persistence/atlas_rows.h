@@ -32,6 +32,19 @@ struct KeyframeRow {
   std::uint64_t hash = 0;
   std::vector<MapPointId> slots;               // observations by slot; kNoMapPoint when empty
   std::vector<CovisibilityEdge> covisibility;  // as this keyframe holds them, by neighbour id
+  // The inertial link (keyframe_inertial_links), when its previous keyframe is
+  // in the snapshot; the increments are dropped with the keyframe after a
+  // commit, and inertial_hash (previous id and increments) says when to rewrite.
+  std::optional<KeyframeId> inertial_previous;
+  std::shared_ptr<const Preintegration> inertial_increments;
+  std::uint64_t inertial_hash = 0;
+};
+
+// A map's inertial initialisation (map_inertial_states).
+struct MapInertialRow {
+  MapId map = 0;
+  Map::InertialState state;
+  std::uint64_t hash = 0;  // of every column
 };
 
 struct MapPointRow {
@@ -65,6 +78,7 @@ struct AtlasRows {
   std::vector<MapPointRow> points;        // by id
   std::vector<CulledKeyframeRow> culled;  // by id
   std::vector<LoopEdge> loop_edges;       // ascending, unique
+  std::vector<MapInertialRow> inertial;   // by map
   std::optional<AtlasMetaRow> meta;       // none: nothing written yet
 
   // Releases the keyframes (after a commit: the rows are then only compared).

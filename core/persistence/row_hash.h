@@ -32,6 +32,7 @@ class RowHash {
     add(std::uint64_t{value.has_value()});
     return value ? add(*value) : *this;
   }
+  RowHash& add(const Eigen::Vector3d& v) { return add(v.x()).add(v.y()).add(v.z()); }
   RowHash& add(const Pose3& pose) {
     for (const double v : {pose.q.w(), pose.q.x(), pose.q.y(), pose.q.z(), pose.t.x(), pose.t.y(), pose.t.z()}) add(v);
     return *this;

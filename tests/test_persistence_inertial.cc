@@ -1,0 +1,103 @@
+// A visual-inertial map in the atlas database (issue 19): the keyframes'
+// inertial links (the IMU increments between them) and the map's inertial
+// state are stored and loaded equal; a checkpoint after culling stores the
+// joined increments; a corrupt increments blob is a DataError.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "core/common/error.h"
+#include "core/persistence/atlas_store.h"
+#include "core/persistence/sqlite_db.h"
+#include "tests/test_persistence_expect.h"
+#include "tests/test_persistence_random_atlas.h"
+
+namespace orbatlas {
+namespace {
+
+using namespace orbatlas::test;
+
+std::shared_ptr<const Preintegration> random_increments(std::mt19937_64& rng, int steps) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  ImuBias bias;
+  bias.gyro = Eigen::Vector3d(0.001, -0.002, 0.003);
+  bias.accel = Eigen::Vector3d(0.02, 0.01, -0.03);
+  auto pre = std::make_shared<Preintegration>(bias, ImuNoise{});
+  for (int i = 0; i < steps; ++i)
+    pre->integrate(Eigen::Vector3d(n(rng), n(rng), n(rng)) * 0.3, Eigen::Vector3d(n(rng), n(rng), 9.81 + n(rng)),
+                   0.005);
+  return pre;
+}
+
+std::shared_ptr<Map> inertial_map(Atlas& atlas, std::mt19937_64& rng, const Vocabulary& vocabulary,
+                                  std::vector<std::shared_ptr<KeyFrame>>& kfs) {
+  auto map = atlas.create_map();
+  for (int k = 0; k < 5; ++k) kfs.push_back(add_random_keyframe(*map, rng, &vocabulary, 40, true));
+  for (std::size_t k = 1; k < kfs.size(); ++k) kfs[k]->set_inertial_link(kfs[k - 1], random_increments(rng, 60));
+  Map::InertialState state;
+  state.initialized_at_ns = 2'000'000'000;
+  state.gravity_w = Eigen::Vector3d(0.0, 0.0, -9.81);
+  state.bias.gyro = Eigen::Vector3d(0.0012, -0.0021, 0.0031);
+  state.bias.accel = Eigen::Vector3d(0.021, 0.011, -0.029);
+  state.keyframes = 5;
+  state.span_s = 1.2;
+  map->set_inertial_state(state);
+  return map;
+}
+
+TEST(Persistence, InertialLinksAndStatesRoundTripAndFollowCulling) {
+  TempDb db("inertial");
+  const Vocabulary& vocabulary = test_vocabulary();
+  std::mt19937_64 rng(23);
+  Atlas original;
+  std::vector<std::shared_ptr<KeyFrame>> kfs;
+  auto map = inertial_map(original, rng, vocabulary, kfs);
+  original.create_map();  // a visual map next to it: no state, no links
+  {
+    AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+    store.save_atlas(original);
+  }
+  {
+    AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+    Atlas loaded;
+    const AtlasLoadReport report = store.load_atlas(loaded, &vocabulary);
+    EXPECT_EQ(report.inertial_links, 4u);
+    expect_atlas_eq(original, loaded, true);
+    ASSERT_TRUE(loaded.map(map->id())->inertial_state().has_value());
+  }
+
+  // Culling a keyframe of the chain joins its increments: the next write stores
+  // the joined link (and the link of the culled one goes with its row).
+  ASSERT_TRUE(map->cull_keyframe(kfs[2]->id()));
+  ASSERT_EQ(kfs[3]->inertial_link()->previous_id, kfs[1]->id());
+  Map::InertialState refined = *map->inertial_state();
+  refined.bias.accel.x() = 0.05;
+  map->set_inertial_state(refined);
+  {
+    AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+    store.save_atlas(original);
+    Atlas loaded;
+    EXPECT_EQ(store.load_atlas(loaded, &vocabulary).inertial_links, 3u);
+    expect_atlas_eq(original, loaded, true);
+    EXPECT_EQ(loaded.map(map->id())->keyframe(kfs[3]->id())->inertial_link()->from_previous->dt(),
+              kfs[3]->inertial_link()->from_previous->dt());
+  }
+
+  // A corrupt increments blob: the load fails with a DataError naming the link.
+  {
+    SqliteDb raw(db.path());
+    raw.exec("UPDATE keyframe_inertial_links SET increments = x'0000803f' WHERE keyframe_id = " +
+             std::to_string(kfs[4]->id()));
+  }
+  AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+  Atlas broken;
+  try {
+    store.load_atlas(broken, &vocabulary);
+    FAIL() << "a corrupt increments blob was loaded";
+  } catch (const DataError& e) {
+    EXPECT_NE(std::string(e.what()).find("inertial link"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace orbatlas
