@@ -160,6 +160,18 @@ TEST(Preintegration, JoinsAndRefusesWhatItCannotIntegrate) {
   std::vector<ImuSample> gap = imu.samples;
   gap.erase(gap.begin() + 30, gap.begin() + 60);  // 150 ms missing
   EXPECT_THROW(Preintegration::between(gap, t0, t2, ImuBias{}, ImuNoise{}), DataError);
+  // A frame just after the newest sample (a live stream's next batch is on its
+  // way): the newest sample holds until it, up to max_gap (50 ms); later, an error.
+  std::vector<ImuSample> early;
+  for (const ImuSample& s : imu.samples)
+    if (s.t_ns <= t1 - 20'000'000) early.push_back(s);
+  ASSERT_GT(early.back().t_ns, t1 - 25'000'000);
+  const Preintegration held = Preintegration::between(early, t0, t1, ImuBias{}, ImuNoise{});
+  EXPECT_NEAR(held.dt(), 0.4, 1e-12);
+  const Preintegration exact = Preintegration::between(imu.samples, t0, t1, ImuBias{}, ImuNoise{});
+  EXPECT_LT((held.delta_v() - exact.delta_v()).norm(), 0.05);  // 20 ms of one held sample
+  EXPECT_GT((held.delta_v() - exact.delta_v()).norm(), 0.0);
+  EXPECT_THROW(Preintegration::between(early, t0, t1 + 40'000'000, ImuBias{}, ImuNoise{}), DataError);
   Preintegration p(ImuBias{}, ImuNoise{});
   EXPECT_THROW(p.integrate(Eigen::Vector3d::Constant(std::nan("")), Eigen::Vector3d::Zero(), 0.005), DataError);
   EXPECT_THROW(p.integrate(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 0.0), Error);

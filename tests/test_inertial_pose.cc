@@ -123,7 +123,7 @@ TEST(InertialPoseOptimizer, RecoversThePoseAndTheVelocityFromAPerturbedStart) {
   const auto camera = make_camera(test::euroc_cam0());
   const Pose3 T_b_c = camera_in_body();
   std::mt19937 rng(7);
-  for (const double at_s : {25.0, 70.0, 120.0}) {
+  for (const double at_s : {45.0, 70.0, 120.0}) {
     const TwoFrames f = two_frames(at_s);
     const Pose3 T_c_w1 = (f.T_w_b1 * T_b_c).inverse();
     PoseOptimizerInput input = stereo_view(*camera, T_c_w1, rng);
@@ -137,17 +137,22 @@ TEST(InertialPoseOptimizer, RecoversThePoseAndTheVelocityFromAPerturbedStart) {
     const Pose3 T_w_b = result.T_c_w.inverse() * T_b_c.inverse();
     const double position_error = (T_w_b.t - f.T_w_b1.t).norm();
     const double velocity_error = (result.inertial->v_w - f.v1).norm();
-    std::printf("at %.0f s: position off by %.2e m, rotation by %.2e rad, velocity by %.2e m/s (true %.2f m/s)\n", at_s,
-                position_error, rotation_angle(T_w_b.q.conjugate() * f.T_w_b1.q), velocity_error, f.v1.norm());
+    const double velocity_sigma =
+        result.inertial->covariance ? std::sqrt(result.inertial->covariance->diagonal().tail<3>().maxCoeff()) : -1.0;
+    std::printf(
+        "at %.0f s: position off by %.2e m, rotation by %.2e rad, velocity by %.2e m/s (true %.2f m/s); inertial "
+        "chi2 %.2e, velocity sigma %.2e m/s\n",
+        at_s, position_error, rotation_angle(T_w_b.q.conjugate() * f.T_w_b1.q), velocity_error, f.v1.norm(),
+        result.inertial->chi2, velocity_sigma);
     EXPECT_EQ(result.inlier_count, 300);
-    EXPECT_LT(position_error, 1e-5);
-    EXPECT_LT(rotation_angle(T_w_b.q.conjugate() * f.T_w_b1.q), 1e-5);
-    EXPECT_LT(velocity_error, 1e-3);
-    EXPECT_LT(result.inertial->chi2, 1e-3);
+    EXPECT_LT(position_error, 8e-6);                                    // measured at most 3.8e-6 m
+    EXPECT_LT(rotation_angle(T_w_b.q.conjugate() * f.T_w_b1.q), 3e-6);  // 1.4e-6 rad
+    EXPECT_LT(velocity_error, 2.5e-5);                                  // 1.2e-5 m/s
+    EXPECT_LT(result.inertial->chi2, 3e-6);                             // measured at most 1.1e-6
     ASSERT_TRUE(result.inertial->covariance.has_value());
     // The velocity is known to about what the IMU over 50 ms and the last
-    // frame's (tight) prior allow: centimetres per second at most.
-    EXPECT_LT(std::sqrt(result.inertial->covariance->diagonal().tail<3>().maxCoeff()), 0.01);
+    // frame's prior (1 mm/s) allow: 1.1 mm/s measured.
+    EXPECT_LT(velocity_sigma, 2.5e-3);
   }
 }
 
@@ -170,7 +175,7 @@ TEST(InertialPoseOptimizer, TakesTheVelocityThePositionsImplyOverAWrongPrior) {
   ASSERT_TRUE(result.inertial.has_value());
   const double error = (result.inertial->v_w - f.v1).norm();
   std::printf("velocity off by %.2e m/s after a prior 0.1 m/s off\n", error);
-  EXPECT_LT(error, 2e-3);
+  EXPECT_LT(error, 3.5e-3);  // measured 1.8e-3 m/s (the 0.1 m/s prior pulls a little)
 }
 
 }  // namespace

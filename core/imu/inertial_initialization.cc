@@ -8,63 +8,35 @@
 
 #include "core/common/error.h"
 #include "core/geometry/so3.h"
+#include "core/imu/inertial_residual.h"
 
 namespace orbatlas {
 namespace {
-
-template <typename T>
-using Mat3 = Eigen::Matrix<T, 3, 3>;
-template <typename T>
-using Vec3 = Eigen::Matrix<T, 3, 1>;
-
-template <typename T>
-Mat3<T> exp_so3(const Vec3<T>& w) {
-  Mat3<T> R;
-  ceres::AngleAxisToRotationMatrix(w.data(), R.data());  // column-major, as Eigen's default
-  return R;
-}
-
-template <typename T>
-Vec3<T> log_so3(const Mat3<T>& R) {
-  Vec3<T> w;
-  ceres::RotationMatrixToAngleAxis(R.data(), w.data());
-  return w;
-}
 
 // The inertial residual between keyframes i and j (Preintegration::residual),
 // whitened by the preintegration's information, as a function of both
 // velocities, the window's biases, the gravity direction and the log scale.
 struct InertialEdge {
-  Eigen::Matrix3d Ri, Ri_T_Rj;
+  const Preintegration* increments = nullptr;          // not owned
+  Eigen::Matrix3d Ri, Rj;                              // IMU rotations (fixed)
   Eigen::Vector3d pi_body, pj_body, lever_i, lever_j;  // IMU position = s * p_body + lever
-  double dt = 0.0;
-  Eigen::Matrix3d dR, dR_dbg, dv_dbg, dv_dba, dp_dbg, dp_dba;
-  Eigen::Vector3d dv, dp, bg0, ba0;
-  Eigen::Matrix<double, 9, 9> sqrt_information;
+  Eigen::Matrix<double, 9, 9> weight;                  // whitening of the increments
   Eigen::Matrix3d R_wg0;
   double gravity = 9.81;
 
   template <typename T>
   bool operator()(const T* vi_, const T* vj_, const T* bg_, const T* ba_, const T* gdir_, const T* log_s_,
                   T* out) const {
-    const Eigen::Map<const Vec3<T>> vi(vi_), vj(vj_), bg(bg_), ba(ba_);
-    const Vec3<T> dbg = bg - bg0.cast<T>(), dba = ba - ba0.cast<T>();
-    const Vec3<T> tilt(gdir_[0], gdir_[1], T(0));
-    const Vec3<T> g = R_wg0.cast<T>() * exp_so3<T>(tilt) * Vec3<T>(T(0), T(0), T(-gravity));
+    const auto vec = [](const T* x) { return Vec3T<T>(x[0], x[1], x[2]); };
+    const Vec3T<T> vi = vec(vi_), vj = vec(vj_), bg = vec(bg_), ba = vec(ba_);
+    const Vec3T<T> tilt(gdir_[0], gdir_[1], T(0));
+    const Vec3T<T> g = R_wg0.cast<T>() * so3_exp_t<T>(tilt) * Vec3T<T>(T(0), T(0), T(-gravity));
     const T s = ceres::exp(log_s_[0]);
-    const Vec3<T> pi = s * pi_body.cast<T>() + lever_i.cast<T>();
-    const Vec3<T> pj = s * pj_body.cast<T>() + lever_j.cast<T>();
-    const Mat3<T> dR_b = dR.cast<T>() * exp_so3<T>(Vec3<T>(dR_dbg.cast<T>() * dbg));
-    const Vec3<T> dv_b = dv.cast<T>() + dv_dbg.cast<T>() * dbg + dv_dba.cast<T>() * dba;
-    const Vec3<T> dp_b = dp.cast<T>() + dp_dbg.cast<T>() * dbg + dp_dba.cast<T>() * dba;
-    const Mat3<T> Rit = Ri.transpose().cast<T>();
-    const T t = T(dt);
-    Eigen::Matrix<T, 9, 1> r;
-    r.template segment<3>(0) = log_so3<T>(Mat3<T>(dR_b.transpose() * Ri_T_Rj.cast<T>()));
-    r.template segment<3>(3) = Rit * (vj - vi - g * t) - dv_b;
-    r.template segment<3>(6) = Rit * (pj - pi - vi * t - T(0.5) * g * t * t) - dp_b;
+    const Vec3T<T> pi = s * pi_body.cast<T>() + lever_i.cast<T>();
+    const Vec3T<T> pj = s * pj_body.cast<T>() + lever_j.cast<T>();
     Eigen::Map<Eigen::Matrix<T, 9, 1>> whitened(out);
-    whitened = sqrt_information.cast<T>() * r;
+    whitened =
+        weight.cast<T>() * inertial_residual<T>(*increments, Ri.cast<T>(), pi, vi, Rj.cast<T>(), pj, vj, bg, ba, g);
     return true;
   }
 };
@@ -144,26 +116,14 @@ InertialInitResult initialize_inertial(const std::vector<Pose3>& T_w_b,
     const Preintegration& pre = preintegrated[k];
     ORBATLAS_CHECK(pre.bias() == bias0, "inertial init: the preintegrations must share one bias");
     auto edge = std::make_unique<InertialEdge>();
+    edge->increments = &pre;
     edge->Ri = R[k];
-    edge->Ri_T_Rj = R[k].transpose() * R[k + 1];
+    edge->Rj = R[k + 1];
     edge->pi_body = T_w_b[k].t;
     edge->pj_body = T_w_b[k + 1].t;
     edge->lever_i = lever[k];
     edge->lever_j = lever[k + 1];
-    edge->dt = pre.dt();
-    edge->dR = pre.delta_R();
-    edge->dv = pre.delta_v();
-    edge->dp = pre.delta_p();
-    edge->dR_dbg = pre.dR_dbg();
-    edge->dv_dbg = pre.dv_dbg();
-    edge->dv_dba = pre.dv_dba();
-    edge->dp_dbg = pre.dp_dbg();
-    edge->dp_dba = pre.dp_dba();
-    edge->bg0 = bias0.gyro;
-    edge->ba0 = bias0.accel;
-    const Eigen::Matrix<double, 9, 9> information = pre.covariance().inverse();
-    ORBATLAS_CHECK(information.allFinite(), "inertial init: a preintegration's covariance is singular");
-    edge->sqrt_information = Eigen::LLT<Eigen::Matrix<double, 9, 9>>(information).matrixU();
+    edge->weight = whitening<9>(pre.covariance());
     edge->R_wg0 = R_wg0;
     edge->gravity = options.gravity;
     costs.push_back(std::make_unique<ceres::AutoDiffCostFunction<InertialEdge, 9, 3, 3, 3, 3, 2, 1>>(
@@ -171,11 +131,11 @@ InertialInitResult initialize_inertial(const std::vector<Pose3>& T_w_b,
     problem.AddResidualBlock(costs.back().get(), nullptr, result.velocities[k].data(), result.velocities[k + 1].data(),
                              bg.data(), ba.data(), gdir.data(), log_s.data());
   }
-  costs.emplace_back(
-      new ceres::AutoDiffCostFunction<BiasPrior, 3, 3>(new BiasPrior{std::sqrt(options.gyro_bias_prior)}));
+  costs.push_back(std::make_unique<ceres::AutoDiffCostFunction<BiasPrior, 3, 3>>(
+      std::make_unique<BiasPrior>(BiasPrior{std::sqrt(options.gyro_bias_prior)}).release()));
   problem.AddResidualBlock(costs.back().get(), nullptr, bg.data());
-  costs.emplace_back(
-      new ceres::AutoDiffCostFunction<BiasPrior, 3, 3>(new BiasPrior{std::sqrt(options.accel_bias_prior)}));
+  costs.push_back(std::make_unique<ceres::AutoDiffCostFunction<BiasPrior, 3, 3>>(
+      std::make_unique<BiasPrior>(BiasPrior{std::sqrt(options.accel_bias_prior)}).release()));
   problem.AddResidualBlock(costs.back().get(), nullptr, ba.data());
   if (!options.estimate_scale) problem.SetParameterBlockConstant(log_s.data());
 

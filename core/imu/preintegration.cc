@@ -6,6 +6,7 @@
 
 #include "core/common/error.h"
 #include "core/geometry/so3.h"
+#include "core/imu/inertial_residual.h"
 
 namespace orbatlas {
 namespace {
@@ -43,10 +44,11 @@ Preintegration::Preintegration(const ImuBias& bias, const ImuNoise& noise) : noi
 Preintegration Preintegration::between(const std::vector<ImuSample>& samples, TimestampNs t0, TimestampNs t1,
                                        const ImuBias& bias, const ImuNoise& noise, double max_gap_s) {
   ORBATLAS_CHECK(t1 > t0, "imu: preintegration needs t1 > t0 (" << t0 << " ns, " << t1 << " ns)");
-  ORBATLAS_DATA_CHECK(
-      samples.size() >= 2 && samples.front().t_ns <= t0 && samples.back().t_ns >= t1,
-      "imu: the samples do not cover " << format_seconds_exact(t0) << " .. " << format_seconds_exact(t1) << " s");
   const auto max_gap_ns = static_cast<TimestampNs>(max_gap_s * 1e9);
+  // The newest sample may end up to max_gap before t1: it holds until then (below).
+  ORBATLAS_DATA_CHECK(
+      samples.size() >= 2 && samples.front().t_ns <= t0 && samples.back().t_ns >= t1 - max_gap_ns,
+      "imu: the samples do not cover " << format_seconds_exact(t0) << " .. " << format_seconds_exact(t1) << " s");
   Preintegration out(bias, noise);
   // The last sample at or before t0.
   auto it = std::upper_bound(samples.begin(), samples.end(), t0,
@@ -178,12 +180,8 @@ ImuState Preintegration::predict(const ImuState& start, const ImuBias& bias, con
 
 Preintegration::Vector9 Preintegration::residual(const ImuState& start, const ImuState& end, const ImuBias& bias,
                                                  const Eigen::Vector3d& gravity_w) const {
-  Vector9 r;
-  const Eigen::Matrix3d Rt = start.R_w_i.transpose();
-  r.segment<3>(0) = log_matrix(delta_R(bias).transpose() * Rt * end.R_w_i);
-  r.segment<3>(3) = Rt * (end.v_w - start.v_w - gravity_w * dt_) - delta_v(bias);
-  r.segment<3>(6) = Rt * (end.p_w - start.p_w - start.v_w * dt_ - 0.5 * gravity_w * dt_ * dt_) - delta_p(bias);
-  return r;
+  return inertial_residual<double>(*this, start.R_w_i, start.p_w, start.v_w, end.R_w_i, end.p_w, end.v_w, bias.gyro,
+                                   bias.accel, gravity_w);
 }
 
 }  // namespace orbatlas

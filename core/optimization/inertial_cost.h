@@ -35,9 +35,4 @@ std::unique_ptr<ceres::CostFunction> make_state_prior(const Pose3& T_c_w, const 
 // ||A (x - mean)|| for a block of `mean.size()` values with independent sigmas.
 std::unique_ptr<ceres::CostFunction> make_diagonal_prior(const Eigen::VectorXd& mean, const Eigen::VectorXd& sigma);
 
-// The square root of the inverse of a covariance: L^T with L L^T = covariance^-1.
-// Throws Error when it is not positive definite.
-template <int N>
-Eigen::Matrix<double, N, N> sqrt_information(const Eigen::Matrix<double, N, N>& covariance);
-
 }  // namespace orbatlas
