@@ -18,15 +18,21 @@
 namespace orbatlas {
 namespace {
 
-TEST(InertialSlam, AStereoInertialRunInitialisesItsMapsGravityAndBiases) {
-  const auto clip = test::simulated_clip("MH_01", 40.0, 8.0);
-  test::ClipCleanup cleanup{clip};
+// The shipped stereo-inertial config on a clip, deterministic: the
+// initialisation sees every keyframe as it comes.
+DatasetRunReport run_stereo_inertial(const std::filesystem::path& clip) {
   DatasetRunOptions options;
   options.settings = shipped_config_dir() / "euroc" / "stereo_inertial.yaml";
   options.dataset = clip;
   options.show_progress = false;
-  options.slam.synchronous_mapping = true;  // the initialisation sees every keyframe as it comes
-  const DatasetRunReport report = run_stereo_dataset(options);
+  options.slam.synchronous_mapping = true;
+  return run_stereo_dataset(options);
+}
+
+TEST(InertialSlam, AStereoInertialRunInitialisesItsMapsGravityAndBiases) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 8.0);
+  test::ClipCleanup cleanup{clip};
+  const DatasetRunReport report = run_stereo_inertial(clip);
   const SlamStats& s = report.stats;
   ASSERT_TRUE(s.inertial);
   EXPECT_EQ(s.tracked, s.frames);
@@ -104,12 +110,7 @@ TEST(InertialSlam, TheImuCarriesTrackingThroughOneSecondOfBlackFrames) {
   const auto dir = blacked_out_copy(clip, 4.0, 5.0, &blacked);
   test::ClipCleanup cleanup_copy{dir};
   ASSERT_EQ(blacked, 20u);  // 20 Hz
-  DatasetRunOptions options;
-  options.settings = shipped_config_dir() / "euroc" / "stereo_inertial.yaml";
-  options.dataset = dir;
-  options.show_progress = false;
-  options.slam.synchronous_mapping = true;
-  const DatasetRunReport report = run_stereo_dataset(options);
+  const DatasetRunReport report = run_stereo_inertial(dir);
   const SlamStats& s = report.stats;
   ASSERT_TRUE(s.imu_initialized_at_s.has_value());
   EXPECT_EQ(s.frames_tracked_by_imu, blacked);
