@@ -98,7 +98,8 @@ TEST(Persistence, VersionOneAtlasMigratesForward) {
     // Back to what schema 1 held: its tables and rows, user_version 1.
     SqliteDb raw(db.path());
     raw.exec(
-        "PRAGMA foreign_keys = OFF; BEGIN; DROP TABLE keyframe_inertial_links; DROP TABLE map_inertial_states; "
+        "PRAGMA foreign_keys = OFF; BEGIN; DROP TABLE keyframe_imu_states; DROP TABLE keyframe_inertial_links; DROP "
+        "TABLE map_inertial_states; "
         "DROP TABLE upload_jobs; DROP TRIGGER keyframes_not_culled; "
         "DROP TABLE culled_keyframes; ALTER TABLE atlas DROP COLUMN "
         "checkpoint_seq; DELETE FROM schema_migrations WHERE version >= 2; PRAGMA user_version = 1; COMMIT");

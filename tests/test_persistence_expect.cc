@@ -127,6 +127,12 @@ void expect_inertial_eq(const Map& a, const Map& b) {
   const auto ka = a.keyframes(), kb = b.keyframes();
   ASSERT_EQ(ka.size(), kb.size());
   for (std::size_t i = 0; i < ka.size(); ++i) {
+    const auto ia = ka[i]->imu_state(), ib = kb[i]->imu_state();
+    ASSERT_EQ(ia.has_value(), ib.has_value()) << "keyframe " << ka[i]->id() << " IMU state";
+    if (ia) {
+      EXPECT_EQ(ia->v_i, ib->v_i) << "keyframe " << ka[i]->id() << " velocity";
+      EXPECT_EQ(ia->bias, ib->bias) << "keyframe " << ka[i]->id() << " biases";
+    }
     const std::string what = "keyframe " + std::to_string(ka[i]->id()) + " inertial link";
     const auto la = ka[i]->inertial_link(), lb = kb[i]->inertial_link();
     ASSERT_EQ(la.has_value(), lb.has_value()) << what;

@@ -1,12 +1,14 @@
 // A visual-inertial map in the atlas database (issue 19): the keyframes'
-// inertial links (the IMU increments between them) and the map's inertial
-// state are stored and loaded equal; a checkpoint after culling stores the
-// joined increments; a corrupt increments blob is a DataError.
+// inertial links (the IMU increments between them), their IMU states
+// (velocity, biases) and the map's inertial state are stored and loaded equal;
+// a save after culling stores the joined increments, a checkpoint a refined
+// IMU state; a corrupt increments blob is a DataError.
 #include <gtest/gtest.h>
 
 #include <random>
 
 #include "core/common/error.h"
+#include "core/persistence/atlas_checkpointer.h"
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/sqlite_db.h"
 #include "tests/test_persistence_expect.h"
@@ -33,7 +35,15 @@ std::shared_ptr<Map> inertial_map(Atlas& atlas, std::mt19937_64& rng, const Voca
                                   std::vector<std::shared_ptr<KeyFrame>>& kfs) {
   auto map = atlas.create_map();
   for (int k = 0; k < 5; ++k) kfs.push_back(add_random_keyframe(*map, rng, &vocabulary, 40, true));
-  for (std::size_t k = 1; k < kfs.size(); ++k) kfs[k]->set_inertial_link(kfs[k - 1], random_increments(rng, 60));
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (std::size_t k = 1; k < kfs.size(); ++k) {
+    kfs[k]->set_inertial_link(kfs[k - 1], random_increments(rng, 60));
+    KeyFrame::ImuState imu;
+    imu.v_i = Eigen::Vector3d(n(rng), n(rng), n(rng));
+    imu.bias.gyro = Eigen::Vector3d(n(rng), n(rng), n(rng)) * 0.001;
+    imu.bias.accel = Eigen::Vector3d(n(rng), n(rng), n(rng)) * 0.01;
+    kfs[k]->set_imu_state(imu);
+  }
   Map::InertialState state;
   state.initialized_at_ns = 2'000'000'000;
   state.gravity_w = Eigen::Vector3d(0.0, 0.0, -9.81);
@@ -62,6 +72,7 @@ TEST(Persistence, InertialLinksAndStatesRoundTripAndFollowCulling) {
     Atlas loaded;
     const AtlasLoadReport report = store.load_atlas(loaded, &vocabulary);
     EXPECT_EQ(report.inertial_links, 4u);
+    EXPECT_EQ(report.imu_states, 4u);  // the map's first keyframe has none
     expect_atlas_eq(original, loaded, true);
     ASSERT_TRUE(loaded.map(map->id())->inertial_state().has_value());
   }
@@ -73,14 +84,41 @@ TEST(Persistence, InertialLinksAndStatesRoundTripAndFollowCulling) {
   Map::InertialState refined = *map->inertial_state();
   refined.bias.accel.x() = 0.05;
   map->set_inertial_state(refined);
+  KeyFrame::ImuState moved = *kfs[4]->imu_state();  // as visual-inertial BA refines it
+  moved.v_i.x() += 0.01;
+  moved.bias.gyro.z() -= 1e-4;
+  kfs[4]->set_imu_state(moved);
   {
     AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
     store.save_atlas(original);
     Atlas loaded;
-    EXPECT_EQ(store.load_atlas(loaded, &vocabulary).inertial_links, 3u);
+    const AtlasLoadReport report = store.load_atlas(loaded, &vocabulary);
+    EXPECT_EQ(report.inertial_links, 3u);
+    EXPECT_EQ(report.imu_states, 3u);
     expect_atlas_eq(original, loaded, true);
     EXPECT_EQ(loaded.map(map->id())->keyframe(kfs[3]->id())->inertial_link()->from_previous->dt(),
               kfs[3]->inertial_link()->from_previous->dt());
+  }
+
+  // A checkpoint writes a refined IMU state, and only that row.
+  {
+    TempDb checkpoints("inertial_checkpoints");
+    CheckpointOptions manual;
+    manual.every_keyframes = 0;
+    manual.every_seconds = 0;
+    AtlasCheckpointer checkpointer(original, checkpoints.path(), vocabulary.hash(), manual);
+    ASSERT_TRUE(checkpointer.checkpoint_now());
+    KeyFrame::ImuState again = *kfs[1]->imu_state();
+    again.v_i.z() -= 0.02;
+    again.bias.accel.y() += 0.001;
+    kfs[1]->set_imu_state(again);
+    ASSERT_TRUE(checkpointer.checkpoint_now());
+    EXPECT_EQ(checkpointer.stats().last_rows.updated, 1u);
+    EXPECT_EQ(checkpointer.stats().last_rows.total(), 1u);
+    AtlasStore store = AtlasStore::open(checkpoints.path(), vocabulary.hash());
+    Atlas loaded;
+    store.load_atlas(loaded, &vocabulary);
+    expect_atlas_eq(original, loaded, true);
   }
 
   // A corrupt increments blob: the load fails with a DataError naming the link.

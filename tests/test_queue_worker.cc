@@ -103,6 +103,10 @@ TEST(QueueWorker, AFailedItemIsCountedAndARunOfFailuresIsFatal) {
   EXPECT_EQ(worker.errors().errors, 2u);
   EXPECT_NE(worker.errors().last.find("bad item -2"), std::string::npos);
   EXPECT_FALSE(worker.errors().fatal);
+  // A success ends the run of -2, so the run of three failures ends with the
+  // last item pushed: no push can meet the fatal error (the worker may take
+  // each item as soon as it is pushed).
+  ASSERT_TRUE(worker.push(2));
   for (int i = 3; i <= 5; ++i) ASSERT_TRUE(worker.push(-i));
   EXPECT_THROW(worker.wait_until_idle(), WorkerFailed);
   EXPECT_TRUE(worker.errors().fatal);

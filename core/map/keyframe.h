@@ -124,6 +124,17 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   std::shared_ptr<KeyFrame> inertial_next() const;  // the keyframe whose link leads here (null: none)
   void clear_inertial_link();                       // the chain breaks before this keyframe
 
+  // The keyframe's IMU state, once its map is inertially initialised: the
+  // IMU's velocity expressed in the IMU's own frame (so that moving the map or
+  // the keyframe carries it along) and the biases; set by tracking when the
+  // keyframe is made and refined by visual-inertial bundle adjustment.
+  struct ImuState {
+    Eigen::Vector3d v_i = Eigen::Vector3d::Zero();
+    ImuBias bias;
+  };
+  void set_imu_state(const ImuState& state);
+  std::optional<ImuState> imu_state() const;
+
  private:
   friend class Map;  // culling
 
@@ -169,6 +180,7 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   std::map<KeyframeId, std::weak_ptr<KeyFrame>> loop_edges_;
   std::optional<InertialLink> inertial_;
   std::weak_ptr<KeyFrame> inertial_next_;
+  std::optional<ImuState> imu_state_;
 };
 
 }  // namespace orbatlas

@@ -197,4 +197,16 @@ void KeyFrame::clear_inertial_link() {
   inertial_.reset();
 }
 
+void KeyFrame::set_imu_state(const ImuState& state) {
+  ORBATLAS_CHECK(state.v_i.allFinite() && state.bias.gyro.allFinite() && state.bias.accel.allFinite(),
+                 "keyframe " << id_ << ": IMU state is not finite");
+  std::lock_guard lock(mutex_);
+  imu_state_ = state;
+}
+
+std::optional<KeyFrame::ImuState> KeyFrame::imu_state() const {
+  std::lock_guard lock(mutex_);
+  return imu_state_;
+}
+
 }  // namespace orbatlas

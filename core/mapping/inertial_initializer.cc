@@ -16,21 +16,6 @@ void InertialInitializationOptions::check() const {
   solver.check();
 }
 
-std::vector<std::shared_ptr<KeyFrame>> inertial_chain(const std::shared_ptr<KeyFrame>& newest) {
-  std::vector<std::shared_ptr<KeyFrame>> chain;
-  std::shared_ptr<KeyFrame> current = newest;
-  while (current && !current->is_bad()) {
-    chain.push_back(current);
-    const auto link = current->inertial_link();
-    if (!link) break;
-    auto previous = link->previous.lock();
-    if (!previous || previous->map_id() != current->map_id()) break;
-    current = std::move(previous);
-  }
-  std::reverse(chain.begin(), chain.end());
-  return chain;
-}
-
 std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
                                                           const InertialInitializationOptions& options, Atlas* atlas) {
   if (!options.enabled || map.inertial_state() || !newest || newest->is_bad()) return std::nullopt;
@@ -53,6 +38,12 @@ std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::s
   if (!result.gravity_w.allFinite() || result.final_cost > result.initial_cost) {
     log_warn("inertial initialisation of map " + std::to_string(map.id()) + " found no consistent solution (retried)");
     return std::nullopt;
+  }
+  // Each keyframe of the window starts with its velocity (in its IMU frame,
+  // which the alignment below does not change) and the window's biases.
+  for (std::size_t k = 0; k < chain.size() && k < result.velocities.size(); ++k) {
+    const Eigen::Matrix3d R_w_i = (poses[k] * options.T_b_i).q.normalized().toRotationMatrix();
+    chain[k]->set_imu_state(KeyFrame::ImuState{R_w_i.transpose() * result.velocities[k], result.bias});
   }
   Map::InertialState state;
   state.initialized_at_ns = newest->timestamp_ns();

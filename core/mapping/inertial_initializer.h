@@ -13,6 +13,7 @@
 #include "core/geometry/pose.h"
 #include "core/imu/inertial_initialization.h"
 #include "core/map/atlas.h"
+#include "core/map/inertial_chain.h"
 #include "core/map/map.h"
 
 namespace orbatlas {
@@ -29,10 +30,6 @@ struct InertialInitializationOptions {
   // Throws Error naming the first value out of range.
   void check() const;
 };
-
-// The chain of keyframes linked by preintegrated IMU that ends at `newest`
-// (oldest first; culled keyframes were skipped when they were culled).
-std::vector<std::shared_ptr<KeyFrame>> inertial_chain(const std::shared_ptr<KeyFrame>& newest);
 
 // Initialises `map` when it is not yet and the chain ending at `newest` is long
 // enough, and aligns it with gravity (Map::change_frame, under `atlas`'s maps

@@ -35,6 +35,8 @@ void LocalMapperOptions::check() const {
   culling.check();
   bundle_adjustment.check();
   inertial.check();
+  ORBATLAS_CHECK(inertial_window_keyframes >= 2,
+                 "local mapping: inertial_window_keyframes must be >= 2, not " << inertial_window_keyframes);
 }
 
 LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options, KeyframeIndex* index,
@@ -99,14 +101,30 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   KeyframeCullingResult culling;
   bool culling_ran = false;
   bool interrupted = false;
+  std::size_t inertial_bas = 0;
   if (worker_.queued() == 0 && !abort_ba_.load()) {
     if (options_.run_bundle_adjustment && map->keyframe_count() > 2) {
       LocalBundleAdjustmentOptions ba = options_.bundle_adjustment;
       ba.origin = origins_.at(map->id());
       ba.level_sigma2 = cam_.pyramid.level_sigma2();
+      const auto inertial_state = options_.inertial.enabled ? map->inertial_state() : std::nullopt;
+      if (inertial_state && options_.inertial_bundle_adjustment)
+        ba.inertial = InertialWindowOptions{.T_b_i = options_.inertial.T_b_i,
+                                            .gravity_w = inertial_state->gravity_w,
+                                            .map_bias = inertial_state->bias,
+                                            .temporal_keyframes = options_.inertial_window_keyframes};
       const auto stats = local_bundle_adjustment(*map, keyframe, *cam_.camera, cam_.bf, ba, &abort_ba_);
       ba_ms = stats.time_ms;
       interrupted = stats.stopped;
+      if (stats.inertial_edges > 0) {
+        ++inertial_bas;
+        // Tracking predicts with the newest keyframe's biases.
+        if (const auto imu = keyframe->imu_state(); imu && inertial_state) {
+          Map::InertialState refined = *inertial_state;
+          refined.bias = imu->bias;
+          map->set_inertial_state(refined);
+        }
+      }
     }
     if (options_.run_culling) {
       culling = cull_redundant_keyframes(*map, *keyframe, origins_.at(map->id()), options_.culling);
@@ -129,6 +147,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   board_->stats.keyframe_ms.add(ms_since(start));
   if (ba_ms >= 0.0) board_->stats.bundle_adjustment_ms.add(ba_ms);
   if (interrupted) ++board_->stats.bundle_adjustments_interrupted;
+  board_->stats.inertial_bundle_adjustments += inertial_bas;
   if (culling_ran) {
     const bool scan = options_.culling.scheme == CullingScheme::kScan || options_.culling.compare_schemes;
     const bool incremental = options_.culling.scheme == CullingScheme::kIncremental || options_.culling.compare_schemes;

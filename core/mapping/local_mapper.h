@@ -37,6 +37,10 @@ struct LocalMapperOptions {
   bool run_bundle_adjustment = true;
   bool run_culling = true;
   InertialInitializationOptions inertial;  // visual-inertial sessions: initialise each map's IMU state
+  // Visual-inertial sessions, once the map is initialised: local BA with the
+  // last keyframes of the inertial chain, their velocities and biases.
+  bool inertial_bundle_adjustment = true;
+  std::size_t inertial_window_keyframes = 10;
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -58,7 +62,8 @@ struct LocalMapperStats {
   std::uint64_t culled_keyframes_digest = 14695981039346656037ULL;
   std::size_t points_triangulated = 0, points_fused = 0, observations_fused = 0, recent_points_culled = 0;
   std::size_t bundle_adjustments_interrupted = 0;
-  WorkerErrorCounts errors;  // keyframes whose processing failed (given up, the mapper went on)
+  std::size_t inertial_bundle_adjustments = 0;  // local BAs with inertial edges
+  WorkerErrorCounts errors;                     // keyframes whose processing failed (given up, the mapper went on)
 };
 
 // Where mappers write their figures: one board may collect those of several

@@ -71,6 +71,15 @@ BundleProblem collect_bundle_problem(const std::vector<std::shared_ptr<KeyFrame>
   return lp;
 }
 
+std::size_t bundle_keyframe_index(BundleProblem& lp, const std::shared_ptr<KeyFrame>& kf) {
+  for (std::size_t k = 0; k < lp.keyframes.size(); ++k)
+    if (lp.keyframes[k] == kf) return k;
+  lp.keyframes.push_back(kf);
+  lp.fixed.push_back(1);
+  lp.poses.push_back(PoseParameters::from_pose(kf->T_w_c().inverse()));
+  return lp.keyframes.size() - 1;
+}
+
 // Chi2 of an edge at the current estimates, nullopt when the point is behind the
 // camera or cannot be projected.
 std::optional<double> bundle_edge_chi2(const BundleProblem& lp, const BundleEdge& e) {
@@ -100,23 +109,26 @@ ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int it
   auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
   std::vector<std::uint8_t> pose_added(lp.keyframes.size(), 0), point_added(lp.points.size(), 0);
   std::size_t free_keyframes = 0;
+  auto add_pose = [&](std::size_t k) {
+    if (pose_added[k]) return;
+    pose_added[k] = 1;
+    PoseParameters& pose = lp.poses[k];
+    problem.AddParameterBlock(pose.q.data(), 4, &quaternion_manifold);
+    problem.AddParameterBlock(pose.t.data(), 3);
+    ordering->AddElementToGroup(pose.q.data(), 1);
+    ordering->AddElementToGroup(pose.t.data(), 1);
+    if (lp.fixed[k]) {
+      problem.SetParameterBlockConstant(pose.q.data());
+      problem.SetParameterBlockConstant(pose.t.data());
+    } else {
+      ++free_keyframes;
+    }
+  };
   for (BundleEdge& e : lp.edges) {
     if (!e.active) continue;
     PoseParameters& pose = lp.poses[e.keyframe];
     double* p = lp.positions[e.point].data();
-    if (!pose_added[e.keyframe]) {
-      pose_added[e.keyframe] = 1;
-      problem.AddParameterBlock(pose.q.data(), 4, &quaternion_manifold);
-      problem.AddParameterBlock(pose.t.data(), 3);
-      ordering->AddElementToGroup(pose.q.data(), 1);
-      ordering->AddElementToGroup(pose.t.data(), 1);
-      if (lp.fixed[e.keyframe]) {
-        problem.SetParameterBlockConstant(pose.q.data());
-        problem.SetParameterBlockConstant(pose.t.data());
-      } else {
-        ++free_keyframes;
-      }
-    }
+    add_pose(e.keyframe);
     if (!point_added[e.point]) {
       point_added[e.point] = 1;
       problem.AddParameterBlock(p, 3);
@@ -125,6 +137,15 @@ ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int it
     ceres::LossFunction* loss = nullptr;
     if (robust) loss = e.stereo ? &huber_stereo : &huber_mono;
     problem.AddResidualBlock(e.cost.get(), loss, pose.q.data(), pose.t.data(), p);
+  }
+  for (const BundleExtraTerm& term : lp.extra_terms) {
+    for (const std::size_t k : term.keyframes) add_pose(k);
+    problem.AddResidualBlock(term.cost.get(), nullptr, term.blocks);
+  }
+  for (const BundleExtraBlock& block : lp.extra_blocks) {
+    if (!problem.HasParameterBlock(block.values.get())) continue;
+    ordering->AddElementToGroup(block.values.get(), 1);
+    if (block.fixed) problem.SetParameterBlockConstant(block.values.get());
   }
 
   ceres::Solver::Summary summary;
@@ -143,6 +164,7 @@ ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int it
   so.gradient_tolerance = 1e-14;
   so.parameter_tolerance = 1e-12;
   so.callbacks.push_back(&callback);  // not owned
+  if (!lp.extra_terms.empty()) so.initial_trust_region_radius = options.inertial_trust_region_radius;
   ceres::Solve(so, &problem, &summary);
   return summary;
 }

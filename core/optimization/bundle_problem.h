@@ -27,6 +27,11 @@ struct BundleSettings {
   std::vector<double> level_sigma2;             // per pyramid level
   std::size_t dense_schur_max_keyframes = 40;   // DENSE_SCHUR up to this many free keyframes
   int num_threads = 1;
+  // Levenberg-Marquardt's first trust region with inertial terms: Ceres'
+  // default (1e4) lets the first steps throw weakly observed points through a
+  // camera (evaluation failures, a rejected step in every other iteration on
+  // MH_01); 1e2 measured one rejected step in 50 BAs, 1 damped the solve too much.
+  double inertial_trust_region_radius = 1e2;
 };
 
 struct BundleEdge {
@@ -38,6 +43,22 @@ struct BundleEdge {
   std::unique_ptr<ceres::CostFunction> cost;
 };
 
+// A parameter block besides poses and points (visual-inertial BA: a
+// keyframe's IMU velocity or biases), at a stable address.
+struct BundleExtraBlock {
+  std::unique_ptr<double[]> values;
+  int size = 0;
+  bool fixed = false;
+};
+
+// A residual besides the observations, over keyframe poses and extra blocks
+// (an inertial edge, a bias random walk); in every stage, without a kernel.
+struct BundleExtraTerm {
+  std::unique_ptr<ceres::CostFunction> cost;
+  std::vector<double*> blocks;         // in the cost's order
+  std::vector<std::size_t> keyframes;  // whose pose blocks are among `blocks`
+};
+
 struct BundleProblem {
   std::vector<std::shared_ptr<KeyFrame>> keyframes;  // window first, then the border
   std::vector<std::uint8_t> fixed;                   // per keyframe
@@ -46,6 +67,8 @@ struct BundleProblem {
   std::vector<std::shared_ptr<MapPoint>> points;
   std::vector<std::array<double, 3>> positions;
   std::vector<BundleEdge> edges;
+  std::vector<BundleExtraBlock> extra_blocks;
+  std::vector<BundleExtraTerm> extra_terms;
 
   std::array<const double*, 3> parameters(const BundleEdge& e) const {
     return {poses[e.keyframe].q.data(), poses[e.keyframe].t.data(), positions[e.point].data()};
@@ -58,6 +81,10 @@ struct BundleProblem {
 // Throws Error on a keypoint level without a sigma2.
 BundleProblem collect_bundle_problem(const std::vector<std::shared_ptr<KeyFrame>>& window, const Camera& camera,
                                      double bf, const BundleSettings& settings);
+
+// The index of `kf` in the problem; a keyframe not yet in it joins as a fixed
+// border keyframe (before the first stage is solved).
+std::size_t bundle_keyframe_index(BundleProblem& problem, const std::shared_ptr<KeyFrame>& kf);
 
 // Chi2 at the current estimates; nullopt when the point is behind the camera or
 // cannot be projected.

@@ -2,8 +2,10 @@
 
 #include <ceres/autodiff_cost_function.h>
 #include <ceres/normal_prior.h>
+#include <ceres/sized_cost_function.h>
 
 #include <Eigen/Geometry>
+#include <cmath>
 
 #include "core/common/error.h"
 #include "core/imu/inertial_residual.h"
@@ -64,7 +66,35 @@ struct StatePrior {
   }
 };
 
+// Linear: the Jacobians are -W and W.
+class BiasWalkCost final : public ceres::SizedCostFunction<6, 6, 6> {
+ public:
+  explicit BiasWalkCost(const Eigen::Matrix<double, 6, 1>& weight) : weight_(weight) {}
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    for (int i = 0; i < 6; ++i) residuals[i] = weight_[i] * (parameters[1][i] - parameters[0][i]);
+    for (int b = 0; b < 2; ++b) {
+      if (!jacobians || !jacobians[b]) continue;
+      Eigen::Map<Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> J(jacobians[b]);
+      J.setZero();
+      J.diagonal() = b == 0 ? Eigen::Matrix<double, 6, 1>(-weight_) : weight_;
+    }
+    return true;
+  }
+
+ private:
+  Eigen::Matrix<double, 6, 1> weight_;
+};
+
 }  // namespace
+
+std::unique_ptr<ceres::CostFunction> make_bias_walk_cost(const ImuNoise& noise, double dt) {
+  ORBATLAS_CHECK(std::isfinite(dt) && dt > 0.0, "a bias walk cost needs dt > 0, not " << dt);
+  const double gyro = std::sqrt(noise.gyro_walk_variance(dt)), accel = std::sqrt(noise.accel_walk_variance(dt));
+  ORBATLAS_CHECK(gyro > 0.0 && accel > 0.0, "a bias walk cost needs random walk densities > 0");
+  Eigen::Matrix<double, 6, 1> weight;
+  weight << Eigen::Vector3d::Constant(1.0 / gyro), Eigen::Vector3d::Constant(1.0 / accel);
+  return std::make_unique<BiasWalkCost>(weight);
+}
 
 std::unique_ptr<ceres::CostFunction> make_inertial_cost(std::shared_ptr<const Preintegration> increments,
                                                         const Pose3& T_c_i, const Eigen::Vector3d& gravity_w) {

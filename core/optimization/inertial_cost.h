@@ -32,6 +32,12 @@ using StateCovariance = Eigen::Matrix<double, 9, 9>;
 std::unique_ptr<ceres::CostFunction> make_state_prior(const Pose3& T_c_w, const Eigen::Vector3d& v_w,
                                                       const StateCovariance& covariance);
 
+// The biases' random walk between two keyframes dt seconds apart (ORB-SLAM3's
+// EdgeGyroRW and EdgeAccRW): (b2 - b1) over the walk's sigma over dt, per
+// component. Parameter blocks: the biases (gyro, accelerometer: 6) of the
+// first keyframe, then of the second.
+std::unique_ptr<ceres::CostFunction> make_bias_walk_cost(const ImuNoise& noise, double dt);
+
 // ||A (x - mean)|| for a block of `mean.size()` values with independent sigmas.
 std::unique_ptr<ceres::CostFunction> make_diagonal_prior(const Eigen::VectorXd& mean, const Eigen::VectorXd& sigma);
 

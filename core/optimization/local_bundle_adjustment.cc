@@ -55,6 +55,7 @@ void LocalBundleAdjustmentOptions::check() const {
   ORBATLAS_CHECK(huber_mono > 0.0, "local BA: huber_mono must be > 0, not " << huber_mono);
   ORBATLAS_CHECK(huber_stereo > 0.0, "local BA: huber_stereo must be > 0, not " << huber_stereo);
   check_level_sigma2(level_sigma2, "local BA");
+  if (inertial) inertial->check();
   ORBATLAS_CHECK(num_threads >= 1, "local BA: num_threads must be >= 1, not " << num_threads);
 }
 
@@ -69,9 +70,20 @@ LocalBundleAdjustmentStats local_bundle_adjustment(Map& map, const std::shared_p
 
   const BundleSettings settings = settings_of(options);
   std::vector<std::shared_ptr<KeyFrame>> window{current};
-  for (auto& kf : current->best_covisibles(options.max_covisibles)) window.push_back(std::move(kf));
+  InertialChainWindow chain;
+  if (options.inertial) {
+    chain = inertial_chain_window(current, *options.inertial);
+    for (std::size_t i = chain.anchored ? 1 : 0; i < chain.keyframes.size(); ++i)
+      if (chain.keyframes[i] != current) window.push_back(chain.keyframes[i]);
+  }
+  for (auto& kf : current->best_covisibles(options.max_covisibles))
+    if (!chain.anchored || kf != chain.keyframes.front()) window.push_back(std::move(kf));
   BundleProblem lp = collect_bundle_problem(window, camera, bf, settings);
+  InertialWindow inertial;
+  if (options.inertial) inertial = add_inertial_window(lp, chain, *options.inertial);
   fix_gauge(lp, options);
+  stats.inertial_keyframes = inertial.index.size();
+  stats.inertial_edges = inertial.inertial_terms.size();
   for (std::size_t k = 0; k < lp.keyframes.size(); ++k)
     (lp.fixed[k] ? stats.fixed_keyframes : stats.window_keyframes)++;
   stats.points = lp.points.size();
@@ -110,6 +122,11 @@ LocalBundleAdjustmentStats local_bundle_adjustment(Map& map, const std::shared_p
     }
   }
   write_back(lp);
+  if (options.inertial) {
+    write_back_inertial_window(lp, inertial, *options.inertial);
+    for (const double chi2 : inertial_window_chi2(lp, inertial))
+      stats.inertial_chi2_max = std::max(stats.inertial_chi2_max, chi2);
+  }
   stats.time_ms = ms_since(start);
   return stats;
 }

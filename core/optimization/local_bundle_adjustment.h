@@ -2,6 +2,8 @@
 // ORB-SLAM's LocalBundleAdjustment on the map model: the current keyframe and its
 // covisible keyframes (the window) and every map point they observe are
 // optimised; the other keyframes observing those points are fixed (the border).
+// Visual-inertial maps add ORB-SLAM3's LocalInertialBA: the last keyframes of
+// the inertial chain join the window with their velocities and biases.
 // Two stages (5 robust + 10 plain iterations); afterwards, observations with a
 // chi2 above the threshold or a point behind the camera are erased from the map,
 // and the poses and points are written back. See docs/optimization.md.
@@ -16,6 +18,7 @@
 #include "core/camera/camera.h"
 #include "core/map/map.h"
 #include "core/optimization/chi2.h"
+#include "core/optimization/inertial_window.h"
 #include "core/optimization/level_sigma.h"
 
 namespace orbatlas {
@@ -41,6 +44,10 @@ struct LocalBundleAdjustmentOptions {
   // from the map (ORB-SLAM discards them in EraseObservation); 0 never culls.
   std::size_t min_observers = 2;
   int num_threads = 1;
+  // Visual-inertial (an initialised map's keyframes linked by the IMU): the
+  // temporal window along the inertial chain joins the window, with its IMU
+  // velocities and biases (inertial_window.h); none: visual only.
+  std::optional<InertialWindowOptions> inertial;
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -53,8 +60,11 @@ struct LocalBundleAdjustmentStats {
   std::size_t observations = 0;          // residuals built
   std::size_t observations_removed = 0;  // erased from the map
   std::size_t points_culled = 0;
-  int iterations = 0;    // both stages
-  bool stopped = false;  // interrupted by the stop flag
+  std::size_t inertial_keyframes = 0;  // with IMU velocity and biases (the anchor included)
+  std::size_t inertial_edges = 0;
+  double inertial_chi2_max = 0.0;  // of the inertial edges after the solve (infinite: not evaluable)
+  int iterations = 0;              // both stages
+  bool stopped = false;            // interrupted by the stop flag
   double time_ms = 0.0;
 };
 

@@ -47,6 +47,9 @@ class AtlasReader {
         inertial_links_(db.prepare("SELECT l.keyframe_id, l.previous_id, l.increments FROM keyframe_inertial_links l "
                                    "JOIN keyframes k ON k.id = l.keyframe_id WHERE k.map_id = ?1 "
                                    "ORDER BY l.keyframe_id")),
+        imu_states_(db.prepare("SELECT s.keyframe_id, s.vx, s.vy, s.vz, s.bgx, s.bgy, s.bgz, s.bax, s.bay, s.baz "
+                               "FROM keyframe_imu_states s JOIN keyframes k ON k.id = s.keyframe_id "
+                               "WHERE k.map_id = ?1 ORDER BY s.keyframe_id")),
         inertial_state_(db.prepare("SELECT initialized_at_ns, gx, gy, gz, bgx, bgy, bgz, bax, bay, baz, keyframes, "
                                    "span_s FROM map_inertial_states WHERE map_id = ?1")) {}
 
@@ -240,6 +243,20 @@ class AtlasReader {
       ++report_.inertial_links;
     }
     inertial_links_.reset();
+    imu_states_.bind_int64(1, map_id);
+    while (imu_states_.step()) {
+      const KeyframeId id = id_column(imu_states_, 0);
+      const std::string who = "IMU state of keyframe " + std::to_string(id);
+      KeyFrame::ImuState state;
+      state.v_i = {imu_states_.real(1), imu_states_.real(2), imu_states_.real(3)};
+      state.bias.gyro = {imu_states_.real(4), imu_states_.real(5), imu_states_.real(6)};
+      state.bias.accel = {imu_states_.real(7), imu_states_.real(8), imu_states_.real(9)};
+      if (!state.v_i.allFinite() || !state.bias.gyro.allFinite() || !state.bias.accel.allFinite())
+        fail(who + " is not finite");
+      keyframe_in_map(id, who)->set_imu_state(state);
+      ++report_.imu_states;
+    }
+    imu_states_.reset();
     inertial_state_.bind_int64(1, map_id);
     if (inertial_state_.step()) {
       Map::InertialState state;
@@ -259,7 +276,7 @@ class AtlasReader {
   const std::string file_;
   const Vocabulary* const vocabulary_;  // not owned, may be null
   AtlasLoadReport& report_;
-  SqliteStatement keyframes_, points_, observations_, covisibility_, loop_edges_, culled_, inertial_links_,
+  SqliteStatement keyframes_, points_, observations_, covisibility_, loop_edges_, culled_, inertial_links_, imu_states_,
       inertial_state_;
   std::unordered_map<KeyframeId, LoadedKeyframe> keyframes_by_id_;  // of the current map
   std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> points_by_id_;

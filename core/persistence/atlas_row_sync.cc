@@ -139,11 +139,16 @@ class RowSync {
           w_.insert_keyframe(added);
           ++counts_.inserted;
           if (added.inertial_previous) w_.write_inertial_link(added);  // its previous keyframe is deferred
+          if (added.imu) w_.write_imu_state(added);
         },
         [&](const KeyframeRow& old_row, const KeyframeRow& new_row) {
           if (old_row.inertial_previous != new_row.inertial_previous ||
               old_row.inertial_hash != new_row.inertial_hash) {
             w_.write_inertial_link(new_row);
+            ++counts_.updated;
+          }
+          if (old_row.imu.has_value() != new_row.imu.has_value() || old_row.imu_hash != new_row.imu_hash) {
+            w_.write_imu_state(new_row);
             ++counts_.updated;
           }
           if (old_row.hash == new_row.hash) return;

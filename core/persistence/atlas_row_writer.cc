@@ -74,6 +74,12 @@ AtlasRowWriter::AtlasRowWriter(SqliteDb& db)
                                        "VALUES (?1, ?2, ?3) ON CONFLICT(keyframe_id) DO UPDATE SET "
                                        "previous_id = excluded.previous_id, increments = excluded.increments")),
       delete_inertial_link_(db.prepare("DELETE FROM keyframe_inertial_links WHERE keyframe_id = ?1")),
+      upsert_imu_state_(
+          db.prepare("INSERT INTO keyframe_imu_states(keyframe_id, vx, vy, vz, bgx, bgy, bgz, bax, bay, baz) "
+                     "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10) ON CONFLICT(keyframe_id) DO UPDATE SET "
+                     "vx = excluded.vx, vy = excluded.vy, vz = excluded.vz, bgx = excluded.bgx, bgy = excluded.bgy, "
+                     "bgz = excluded.bgz, bax = excluded.bax, bay = excluded.bay, baz = excluded.baz")),
+      delete_imu_state_(db.prepare("DELETE FROM keyframe_imu_states WHERE keyframe_id = ?1")),
       upsert_map_inertial_(db.prepare(
           "INSERT INTO map_inertial_states(map_id, initialized_at_ns, gx, gy, gz, bgx, bgy, bgz, bax, bay, baz, "
           "keyframes, span_s) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13) "
@@ -167,6 +173,20 @@ void AtlasRowWriter::write_inertial_link(const KeyframeRow& row) {
   s.bind_int64(1, sql_id(row.id));
   s.bind_int64(2, sql_id(*row.inertial_previous));
   s.bind_blob(3, encode_increments(*row.inertial_increments));
+  run_once(s);
+}
+
+void AtlasRowWriter::write_imu_state(const KeyframeRow& row) {
+  if (!row.imu) {
+    delete_imu_state_.bind_int64(1, sql_id(row.id));
+    run_once(delete_imu_state_);
+    return;
+  }
+  SqliteStatement& s = upsert_imu_state_;
+  s.bind_int64(1, sql_id(row.id));
+  int i = 2;
+  for (const Eigen::Vector3d* v : {&row.imu->v_i, &row.imu->bias.gyro, &row.imu->bias.accel})
+    for (int k = 0; k < 3; ++k) s.bind_real(i++, (*v)[k]);
   run_once(s);
 }
 

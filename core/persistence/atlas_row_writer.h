@@ -35,6 +35,8 @@ class AtlasRowWriter {
   // The keyframe's inertial link as the row has it (written, or deleted when none).
   void write_inertial_link(const KeyframeRow& row);
   void upsert_map_inertial(const MapInertialRow& row);
+  // The keyframe's IMU state as the row has it (written, or deleted when none).
+  void write_imu_state(const KeyframeRow& row);
   void delete_map_inertial(MapId map);
   void upsert_map_point(const MapPointRow& row);
   void delete_map_point(MapPointId id);
@@ -60,10 +62,10 @@ class AtlasRowWriter {
   const std::string file_;
   SqliteStatement stored_sessions_, delete_culled_of_map_, delete_points_of_map_, delete_keyframes_of_map_, delete_map_,
       upsert_map_, insert_keyframe_, update_keyframe_, delete_keyframe_, upsert_point_, delete_point_, upsert_culled_,
-      upsert_inertial_link_, delete_inertial_link_, upsert_map_inertial_, delete_map_inertial_, delete_culled_,
-      insert_observation_, delete_observation_, upsert_covisibility_, delete_covisibility_, insert_loop_edge_,
-      delete_loop_edge_, upsert_trajectory_, delete_trajectory_, delete_session_trajectory_, write_meta_,
-      read_sequence_;
+      upsert_inertial_link_, delete_inertial_link_, upsert_imu_state_, delete_imu_state_, upsert_map_inertial_,
+      delete_map_inertial_, delete_culled_, insert_observation_, delete_observation_, upsert_covisibility_,
+      delete_covisibility_, insert_loop_edge_, delete_loop_edge_, upsert_trajectory_, delete_trajectory_,
+      delete_session_trajectory_, write_meta_, read_sequence_;
 };
 
 }  // namespace orbatlas

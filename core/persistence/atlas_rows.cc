@@ -87,6 +87,10 @@ class MapRowCollector {
                               .add(d.bias().accel)
                               .value();
     }
+    if (const auto imu = kf->imu_state()) {
+      row.imu = imu;
+      row.imu_hash = RowHash().add(imu->v_i).add(imu->bias.gyro).add(imu->bias.accel).value();
+    }
     for (const KeyframeId other : kf->loop_edge_ids())
       if (has_keyframe(other)) rows_.loop_edges.emplace_back(std::min(row.id, other), std::max(row.id, other));
     rows_.keyframes.push_back(std::move(row));

@@ -38,6 +38,9 @@ struct KeyframeRow {
   std::optional<KeyframeId> inertial_previous;
   std::shared_ptr<const Preintegration> inertial_increments;
   std::uint64_t inertial_hash = 0;
+  // The keyframe's IMU state (keyframe_imu_states), with a hash of it.
+  std::optional<KeyFrame::ImuState> imu;
+  std::uint64_t imu_hash = 0;
 };
 
 // A map's inertial initialisation (map_inertial_states).

@@ -32,7 +32,7 @@ struct AtlasSaveOptions {
 
 struct AtlasLoadReport {
   std::size_t maps = 0, keyframes = 0, map_points = 0, observations = 0;
-  std::size_t covisibility_links = 0, loop_edges = 0, inertial_links = 0;
+  std::size_t covisibility_links = 0, loop_edges = 0, inertial_links = 0, imu_states = 0;
   std::size_t culled_keyframes = 0;                             // anchors restored for Map::keyframe_pose
   std::unordered_map<KeyframeId, SessionId> keyframe_sessions;  // keyframes with a stored session
 };

@@ -88,6 +88,11 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
     // by the IMU between them, preintegrated at the map's bias estimate.
     tracker_->set_keyframe_listener(
         [this](const std::shared_ptr<KeyFrame>& made, const std::shared_ptr<KeyFrame>& previous) {
+          if (const auto state = inertial_tracking_->frame_state(made->timestamp_ns())) {
+            const Eigen::Matrix3d R_w_i =
+                (made->T_w_b() * options_.mapper.inertial.T_b_i).q.normalized().toRotationMatrix();
+            made->set_imu_state(KeyFrame::ImuState{R_w_i.transpose() * state->v_w, state->bias});
+          }
           if (!previous || previous->is_bad() || previous->map_id() != made->map_id()) return;
           ImuBias bias;
           if (const auto map = atlas_.map(made->map_id()))

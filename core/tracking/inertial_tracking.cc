@@ -86,6 +86,12 @@ std::optional<int> InertialTracking::optimize(Frame& frame, const FrameCamera& c
   return inliers;
 }
 
+std::optional<InertialTracking::FrameImuState> InertialTracking::frame_state(TimestampNs t_ns) const {
+  if (!prediction_ || prediction_->t_ns != t_ns) return std::nullopt;
+  if (prediction_->estimate) return FrameImuState{prediction_->estimate->v_w, prediction_->estimate->bias};
+  return FrameImuState{prediction_->predicted.v_w, prediction_->map.bias};
+}
+
 bool InertialTracking::may_bridge(TimestampNs t_ns) const {
   return prediction_ && prediction_->t_ns == t_ns && ns_to_s(t_ns - last_visual_ns_) <= options_.max_imu_only_s;
 }

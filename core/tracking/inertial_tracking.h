@@ -66,6 +66,15 @@ class InertialTracking {
   // A new map, or the session is lost: nothing carries over.
   void reset();
 
+  // The IMU state the frame at `t_ns` was given before frame_done() for it:
+  // its visual-inertial estimate, else the prediction (velocity in the world,
+  // biases); none without a prediction for that frame.
+  struct FrameImuState {
+    Eigen::Vector3d v_w = Eigen::Vector3d::Zero();
+    ImuBias bias;
+  };
+  std::optional<FrameImuState> frame_state(TimestampNs t_ns) const;
+
   bool has_state() const { return last_.has_value(); }
   std::size_t optimized_frames() const { return optimized_frames_; }
   const ImuBias& last_bias() const { return bias_; }

@@ -1,0 +1,65 @@
+#pragma once
+// The inertial part of visual-inertial local bundle adjustment (ORB-SLAM3's
+// LocalInertialBA, internal to orbatlas_optimization): along the inertial
+// chain ending at the current keyframe, the last keyframes (the temporal
+// window) get their IMU velocity and biases as unknowns, tied to their poses
+// by the preintegrated IMU between consecutive keyframes (make_inertial_cost,
+// at the first keyframe's biases) and to each other by the biases' random walk
+// (make_bias_walk_cost). The keyframe before the window, when it has an IMU
+// state, joins fixed (pose, velocity and biases): the window's anchor.
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+#include "core/geometry/pose.h"
+#include "core/imu/imu_noise.h"
+#include "core/map/keyframe.h"
+#include "core/optimization/bundle_problem.h"
+
+namespace orbatlas {
+
+struct InertialWindowOptions {
+  Pose3 T_b_i;                                          // the IMU in the body frame
+  Eigen::Vector3d gravity_w = Eigen::Vector3d::Zero();  // in the map
+  ImuBias map_bias;                                     // for keyframes without an IMU state
+  std::size_t temporal_keyframes = 10;                  // ORB-SLAM3: 10
+
+  // Throws Error naming the first value out of range.
+  void check() const;
+};
+
+struct InertialWindow {
+  std::vector<std::shared_ptr<KeyFrame>> keyframes;  // oldest first; the anchor first when anchored
+  std::vector<std::size_t> index;                    // into BundleProblem::keyframes
+  std::vector<std::size_t> velocity, bias;           // into BundleProblem::extra_blocks
+  std::vector<std::size_t> inertial_terms;           // into BundleProblem::extra_terms: the inertial edges
+  bool anchored = false;
+};
+
+// The chain's keyframes to optimise with their IMU states: the temporal window
+// ending at `current` (its first element the anchor when `anchored`), for the
+// caller to put in the bundle problem's window (all but the anchor).
+struct InertialChainWindow {
+  std::vector<std::shared_ptr<KeyFrame>> keyframes;
+  bool anchored = false;
+};
+InertialChainWindow inertial_chain_window(const std::shared_ptr<KeyFrame>& current,
+                                          const InertialWindowOptions& options);
+
+// Adds the window's velocity and bias blocks and its inertial and bias-walk
+// terms to `problem` (whose window holds every keyframe of `chain` but the
+// anchor; the anchor joins fixed). A keyframe without an IMU state starts from
+// the velocity its neighbours' positions imply and the map's biases.
+InertialWindow add_inertial_window(BundleProblem& problem, const InertialChainWindow& chain,
+                                   const InertialWindowOptions& options);
+
+// The chi2 of the window's inertial edges at the current estimates (9 degrees
+// of freedom each), in order.
+std::vector<double> inertial_window_chi2(const BundleProblem& problem, const InertialWindow& window);
+
+// Writes the free keyframes' IMU states back (velocity in the IMU frame of the
+// optimised pose).
+void write_back_inertial_window(const BundleProblem& problem, const InertialWindow& window,
+                                const InertialWindowOptions& options);
+
+}  // namespace orbatlas

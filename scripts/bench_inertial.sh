@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# Long benchmark (issue 19, not part of the test suite): stereo against
+# stereo-inertial on full-length simulated Machine Hall sequences, on both
+# simulator looks, and the 1-s blackout (every image black for one second in the
+# middle of the sequence) with stereo-inertial. Renders each sequence once (kept
+# in $ORBATLAS_BENCH_DATA, default build/bench_data, as scripts/bench_slam.sh
+# does), runs `orbatlas run`, scores with `orbatlas eval`, prints one table.
+#   scripts/bench_inertial.sh                  # MH_01..MH_05, both looks
+#   scripts/bench_inertial.sh MH_01 MH_03      # some of them
+#   LOOKS=real scripts/bench_inertial.sh       # one look
+#   IMU=real scripts/bench_inertial.sh MH_05   # the real MH_05 IMU (real look)
+#   RUNS=3 scripts/bench_inertial.sh MH_01     # several runs of each (the spread)
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+"$ROOT/scripts/setup.sh"
+BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
+OA="$BUILD_DIR/client/orbatlas"
+DATA="${ORBATLAS_BENCH_DATA:-$BUILD_DIR/bench_data}"
+OUT="$ROOT/out/bench_inertial"
+mkdir -p "$DATA" "$OUT"
+SEQUENCES=("$@")
+[ ${#SEQUENCES[@]} -eq 0 ] && SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)
+read -r -a LOOK_LIST <<< "${LOOKS:-clean real}"
+IMU_SOURCE="${IMU:-synthetic}"
+RUN_COUNT="${RUNS:-1}"
+
+NAMES=()
+for look in "${LOOK_LIST[@]}"; do
+  for s in "${SEQUENCES[@]}"; do
+    src="$DATA/$s"
+    [ "$look" = clean ] || src="$DATA/${s}_$look"
+    sim_extra=()
+    if [ "$IMU_SOURCE" = real ]; then
+      src="${src}_imureal"
+      sim_extra=(--imu real)
+    fi
+    if [ ! -f "$src/mav0/cam1/data.csv" ]; then
+      echo "== simulating $s ($look look, $IMU_SOURCE IMU) into $src"
+      rm -rf "$src"
+      "$OA" sim --sequence "$s" --look "$look" "${sim_extra[@]}" --out "$src"
+    fi
+    # The blackout: one second from the middle of the recording.
+    frames=$(($(wc -l < "$src/mav0/cam0/data.csv") - 1))
+    mid=$(/usr/bin/python3 -c "print(round($frames / 20.0 / 2.0, 1))")
+    for run in $(seq 1 "$RUN_COUNT"); do
+      for mode in stereo stereo_inertial blackout; do
+        name="${s}_${look}_${IMU_SOURCE}_${mode}_$run"
+        config=$mode extra=()
+        if [ "$mode" = blackout ]; then
+          config=stereo_inertial
+          extra=(--black-out "$mid:$(/usr/bin/python3 -c "print($mid + 1.0)")")
+        fi
+        echo "== orbatlas run $config on $s ($look look${extra[*]:+, ${extra[*]}}), run $run"
+        "$OA" run --config "$ROOT/config/euroc/$config.yaml" --dataset "$src" --no-progress \
+            --out-trajectory "$OUT/$name.txt" --stats "$OUT/$name.json" "${extra[@]}" > "$OUT/$name.log" 2>&1
+        "$OA" eval --gt "$src" --est "$OUT/$name.txt" --align se3 --json > "$OUT/$name.eval.json"
+        NAMES+=("$name")
+      done
+    done
+  done
+done
+
+/usr/bin/python3 - "$OUT" "${NAMES[@]}" <<'PY'
+import json, sys
+out, names = sys.argv[1], sys.argv[2:]
+print(f"{'run':34} {'frames':>6} {'visual':>6} {'imu':>4} {'cover':>6} {'maps':>4} {'ATE[m]':>7} {'init[s]':>7} "
+      f"{'track p50/p95[ms]':>17} {'BA p50[ms]':>10} {'VI BAs':>6} {'gap end[m]':>10} {'to visual':>9}")
+for n in names:
+    j = json.load(open(f"{out}/{n}.json")); e = json.load(open(f"{out}/{n}.eval.json"))
+    init = j.get("imu_initialized_at_s")
+    b = j.get("black_out") or {}
+    gap = b.get("error_at_end_m")
+    print(f"{n:34} {j['frames']:>6} {j['tracked']:>6} {j.get('frames_tracked_by_imu', 0):>4} {e['coverage']:>6.3f} "
+          f"{j['maps']:>4} {e['ate_rmse_m']:>7.4f} {'-' if init is None else f'{init:.1f}':>7} "
+          f"{j['tracking_ms']['p50']:>8.1f}/{j['tracking_ms']['p95']:<8.1f} {j['local_ba_ms']['p50']:>10.1f} "
+          f"{j.get('imu', {}).get('local_bas', 0):>6} {'-' if gap is None else f'{gap:.3f}':>10} "
+          f"{b.get('frames_to_visual', '-'):>9}")
+PY
