@@ -26,7 +26,22 @@ struct RunArgs {
   std::vector<std::string> datasets, out_trajectories;
   double start_s = 0.0, duration_s = 0.0;
   bool compare_culling = false;
+  std::string black_out;  // FROM:TO seconds
 };
+
+std::pair<double, double> parse_black_out(const std::string& text) {
+  const auto colon = text.find(':');
+  try {
+    if (colon != std::string::npos) {
+      std::size_t end_from = 0, end_to = 0;
+      const double from = std::stod(text.substr(0, colon), &end_from);
+      const double to = std::stod(text.substr(colon + 1), &end_to);
+      if (end_from == colon && end_to == text.size() - colon - 1) return {from, to};
+    }
+  } catch (const std::exception&) {
+  }
+  throw Error("--black-out takes FROM:TO in seconds (e.g. 40:41), not '" + text + "'");
+}
 
 }  // namespace
 
@@ -90,6 +105,16 @@ void print_run_summary(const DatasetRunReport& r) {
     std::printf("\n");
   }
   if (r.ate_rmse_m) std::printf("ATE RMSE (SE3, against the dataset's ground truth) %.4f m\n", *r.ate_rmse_m);
+  if (r.black_out) {
+    const auto& b = *r.black_out;
+    std::printf("black-out: %zu frames, %zu carried by the IMU", b.frames, b.by_imu);
+    if (b.error_at_end_m) std::printf(", %.3f m off at its end", *b.error_at_end_m);
+    if (b.frames_to_visual) {
+      std::printf(", tracked visually again %zu frames after it\n", *b.frames_to_visual);
+    } else {
+      std::printf(", not tracked visually again\n");
+    }
+  }
 }
 
 void register_run_command(CLI::App& app) {
@@ -134,6 +159,9 @@ void register_run_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--final-ba", args->run.slam.final_global_ba,
                 "After the last frame, one global bundle adjustment over the session's maps (offline refinement)");
+  cmd->add_option("--black-out", args->black_out,
+                  "FROM:TO: every image black from FROM to TO seconds after the first frame (what the IMU carries a "
+                  "stereo-inertial session through; the stats JSON reports black_out)");
   cmd->callback([args, cmd]() {
     log_effective_options(*cmd);
     DatasetRunOptions options = args->run;
@@ -144,6 +172,7 @@ void register_run_command(CLI::App& app) {
     options.slam.mapper.culling.scheme = args->culling == "scan" ? CullingScheme::kScan : CullingScheme::kIncremental;
     options.slam.mapper.culling.compare_schemes = args->compare_culling;
     options.localize_only = args->mode == "localize";  // DatasetRunOptions::check: needs --atlas
+    if (!args->black_out.empty()) options.black_out_s = parse_black_out(args->black_out);
 
     if (args->out_trajectories.size() != args->datasets.size())
       throw Error("give one --out-trajectory per --dataset (" + std::to_string(args->datasets.size()) + " datasets, " +

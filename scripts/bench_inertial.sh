@@ -10,13 +10,18 @@
 #   LOOKS=real scripts/bench_inertial.sh       # one look
 #   IMU=real scripts/bench_inertial.sh MH_05   # the real MH_05 IMU (real look)
 #   RUNS=3 scripts/bench_inertial.sh MH_01     # several runs of each (the spread)
+#   ORBATLAS_BIN=/tmp/orbatlas scripts/bench_inertial.sh   # a frozen binary (no set-up, no build)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-"$ROOT/scripts/setup.sh"
 BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
-OA="$BUILD_DIR/client/orbatlas"
+if [ -n "${ORBATLAS_BIN:-}" ]; then
+  OA="$ORBATLAS_BIN"
+else
+  "$ROOT/scripts/setup.sh"
+  OA="$BUILD_DIR/client/orbatlas"
+fi
 DATA="${ORBATLAS_BENCH_DATA:-$BUILD_DIR/bench_data}"
-OUT="$ROOT/out/bench_inertial"
+OUT="${ORBATLAS_BENCH_OUT:-$ROOT/out/bench_inertial}"
 mkdir -p "$DATA" "$OUT"
 SEQUENCES=("$@")
 [ ${#SEQUENCES[@]} -eq 0 ] && SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)

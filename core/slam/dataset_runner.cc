@@ -13,6 +13,7 @@
 #include "core/common/progress.h"
 #include "core/common/worker_errors.h"
 #include "core/eval/evaluate.h"
+#include "core/eval/gap_error.h"
 #include "core/io/euroc_reader.h"
 #include "core/io/imu_batches.h"
 #include "core/io/stereo_pair_loader.h"
@@ -40,6 +41,14 @@ nlohmann::json DatasetRunReport::to_json() const {
   if (session) j["session"] = *session;
   if (loaded_maps > 0 || session) {
     j["atlas"] = {{"loaded_maps", loaded_maps}, {"loaded_keyframes", loaded_keyframes}, {"load_s", atlas_load_s}};
+  }
+  if (black_out) {
+    nlohmann::json b = {{"frames", black_out->frames}, {"by_imu", black_out->by_imu}};
+    b["frames_to_visual"] =
+        black_out->frames_to_visual ? nlohmann::json(*black_out->frames_to_visual) : nlohmann::json();
+    b["error_at_end_m"] = black_out->error_at_end_m ? nlohmann::json(*black_out->error_at_end_m) : nlohmann::json();
+    b["error_after_m"] = black_out->error_after_m ? nlohmann::json(*black_out->error_after_m) : nlohmann::json();
+    j["black_out"] = b;
   }
   if (checkpoints) {
     nlohmann::json c = {{"checkpoints", checkpoints->checkpoints},
@@ -160,6 +169,22 @@ StereoSlamOptions run_slam_options(const DatasetRunOptions& options) {
   return slam_options;
 }
 
+// A frame's part in the blackout's figures: the IMU carried it through the gap;
+// after the gap, the frames until the first one tracked visually.
+void note_black_out(DatasetRunReport::BlackOut& b, bool blacked, const TrackResult& r,
+                    std::optional<std::size_t>& after) {
+  if (blacked) {
+    if (r.by_imu) ++b.by_imu;
+    return;
+  }
+  if (b.frames == 0 || b.frames_to_visual) return;  // before the gap, or recovered
+  if (r.tracked && !r.by_imu) {
+    b.frames_to_visual = after.value_or(0);
+  } else {
+    after = after.value_or(0) + 1;
+  }
+}
+
 // Every frame through SLAM (decoded ahead on a loader thread), paced at the sensor
 // rate with --realtime; bad frames are skipped and counted; a failure that leaves
 // the map unusable stops the run with what was tracked.
@@ -169,6 +194,8 @@ void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame
   StereoPairLoader loaded(frames);  // decodes images ahead of tracking
   Progress progress(label, static_cast<std::int64_t>(frames.size()), options.show_progress);
   std::size_t index = 0, imu_next = 0;
+  std::optional<std::size_t> after_black_out;  // frames since the gap ended
+  if (options.black_out_s) report.black_out.emplace();
   while (auto pair = loaded.next()) {
     if (slam.inertial()) {
       // The IMU up to this frame and the first sample after it (as a device
@@ -180,12 +207,23 @@ void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame
     if (options.realtime) {
       std::this_thread::sleep_until(wall_start + std::chrono::nanoseconds(pair->t_ns - frames.front().t_ns));
     }
+    bool blacked = false;
+    if (options.black_out_s && pair->error.empty()) {
+      const double t = ns_to_s(pair->t_ns - frames.front().t_ns);
+      blacked = t >= options.black_out_s->first && t < options.black_out_s->second;
+      if (blacked) {
+        pair->left = cv::Mat::zeros(pair->left.size(), pair->left.type());
+        pair->right = cv::Mat::zeros(pair->right.size(), pair->right.type());
+        ++report.black_out->frames;
+      }
+    }
     if (!pair->error.empty()) {
       log_warn(pair->error + " (frame skipped)");
       ++report.skipped_frames;
     } else {
       try {
         const TrackResult r = slam.process(pair->t_ns, pair->left, pair->right);
+        if (report.black_out) note_black_out(*report.black_out, blacked, r, after_black_out);
         if (r.keyframe && checkpointer) {
           if (report.session) {
             checkpointer->notify_keyframe(*report.session, r.keyframe_id);
@@ -233,7 +271,9 @@ void finish_storage(AtlasCheckpointer* checkpointer, DatabaseLock* lock, Dataset
 
 // The trajectory and figures of the run, and with ground truth its ATE and each
 // closed loop's relative pose error (false loops).
-void collect_results(const StereoSlam& slam, const EurocDataset& dataset, DatasetRunReport& report) {
+void collect_results(const StereoSlam& slam, const EurocDataset& dataset, DatasetRunReport& report,
+                     const std::optional<std::pair<double, double>>& black_out_s = std::nullopt,
+                     TimestampNs first_frame_ns = 0) {
   for (const TimedPose& p : slam.trajectory()) {
     report.trajectory.push_back({p.t_ns, p.T_w_b});
     report.trajectory_maps.push_back(p.map);
@@ -246,6 +286,14 @@ void collect_results(const StereoSlam& slam, const EurocDataset& dataset, Datase
     report.ate_rmse_m = evaluate_trajectory(report.trajectory, gt).ate.rmse;
   } catch (const Error& e) {
     log_warn(std::string("no ATE: ") + e.what());
+  }
+  if (report.black_out && black_out_s && !report.trajectory.empty()) {
+    const TimestampNs first = first_frame_ns;
+    if (const auto gap = gap_error(report.trajectory, gt, first + s_to_ns(black_out_s->first),
+                                   first + s_to_ns(black_out_s->second))) {
+      report.black_out->error_at_end_m = gap->at_end_m;
+      report.black_out->error_after_m = gap->after_m;
+    }
   }
   const Pose3 T_b_c = slam.frontend().calibration().T_b_c;
   for (const ClosedLoop& loop : report.stats.loop.loops) {
@@ -265,6 +313,9 @@ void DatasetRunOptions::check() const {
   ORBATLAS_CHECK(!duration_s || (std::isfinite(*duration_s) && *duration_s > 0.0),
                  "run: duration_s (--duration) must be > 0, not " << duration_s.value_or(0.0));
   ORBATLAS_CHECK(!localize_only || !atlas.empty(), "run: localize_only needs a stored atlas (--atlas)");
+  ORBATLAS_CHECK(!black_out_s || (std::isfinite(black_out_s->first) && black_out_s->first >= 0.0 &&
+                                  std::isfinite(black_out_s->second) && black_out_s->second > black_out_s->first),
+                 "run: the black-out must be FROM:TO seconds with 0 <= FROM < TO");
   slam.check();
   checkpoints.check();
 }
@@ -289,7 +340,7 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   finish_session(slam, report);
   finish_storage(checkpointer.get(), stored.lock.get(), report);
   report.wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
-  collect_results(slam, in.dataset, report);
+  collect_results(slam, in.dataset, report, options.black_out_s, in.frames.empty() ? 0 : in.frames.front().t_ns);
   return report;
 }
 
@@ -380,7 +431,8 @@ std::vector<DatasetRunReport> run_stereo_datasets(const DatasetRunOptions& optio
   for (std::size_t i = 0; i < n; ++i) {
     if (i > 0) reports[i].checkpoints = reports[0].checkpoints;
     reports[i].wall_s = wall_s;
-    collect_results(*slams[i], inputs[i].dataset, reports[i]);
+    collect_results(*slams[i], inputs[i].dataset, reports[i], options.black_out_s,
+                    inputs[i].frames.empty() ? 0 : inputs[i].frames.front().t_ns);
   }
   return reports;
 }

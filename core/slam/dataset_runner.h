@@ -32,6 +32,9 @@ struct DatasetRunOptions {
   // nothing written; the trajectory holds the localised frames only.
   bool localize_only = false;
   bool show_progress = true;
+  // Every image black from `first` to `second` seconds after the run's first
+  // frame (`orbatlas run --black-out`: what the IMU carries a session through).
+  std::optional<std::pair<double, double>> black_out_s;
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -55,6 +58,15 @@ struct DatasetRunReport {
   // on the map, WorkerFailed): the frames tracked until then are still reported,
   // stored and written.
   std::string failed;
+  // With black_out_s: the frames blacked out, those the IMU carried, the frames
+  // after the gap until one was tracked visually again (0: the first; none:
+  // never), and with ground truth the error at the gap's end (gap_error.h).
+  struct BlackOut {
+    std::size_t frames = 0, by_imu = 0;
+    std::optional<std::size_t> frames_to_visual;
+    std::optional<double> error_at_end_m, error_after_m;
+  };
+  std::optional<BlackOut> black_out;
   nlohmann::json to_json() const;  // SlamStats' keys + late_frames, peak_rss_mb, failed, ...
 };
 
