@@ -83,6 +83,7 @@ TEST(Persistence, InertialLinksAndStatesRoundTripAndFollowCulling) {
   ASSERT_EQ(kfs[3]->inertial_link()->previous_id, kfs[1]->id());
   Map::InertialState refined = *map->inertial_state();
   refined.bias.accel.x() = 0.05;
+  refined.refinements = 1;
   map->set_inertial_state(refined);
   KeyFrame::ImuState moved = *kfs[4]->imu_state();  // as visual-inertial BA refines it
   moved.v_i.x() += 0.01;

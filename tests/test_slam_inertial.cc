@@ -41,6 +41,8 @@ TEST(InertialSlam, AStereoInertialRunInitialisesItsMapsGravityAndBiases) {
   ASSERT_TRUE(s.imu_initialized_at_s.has_value()) << "no inertial initialisation after 8 s";
   // Every keyframe after the initialisation is placed by visual-inertial BA.
   EXPECT_GT(s.mapping.inertial_bundle_adjustments, 10u);
+  // Refined once, 5 s after the initialisation (the 15-s one is past the clip).
+  EXPECT_EQ(s.mapping.inertial_refinements, 1u);
   EXPECT_GE(*s.imu_initialized_at_s, 2.0);
 
   const EurocDataset data = test::stereo_dataset(clip);

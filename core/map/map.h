@@ -83,13 +83,15 @@ class Map {
   const std::shared_ptr<ObjectCounters>& counters() const { return counters_; }
 
   // The inertial initialisation of a visual-inertial map (issue 19): when, the
-  // gravity in the map's frame and the IMU biases it found. Not yet persisted.
+  // gravity in the map's frame and the IMU biases (those of the newest keyframe
+  // once visual-inertial BA runs).
   struct InertialState {
     TimestampNs initialized_at_ns = 0;  // the newest keyframe of the window
     Eigen::Vector3d gravity_w = Eigen::Vector3d::Zero();
     ImuBias bias;
     std::size_t keyframes = 0;  // in the window
     double span_s = 0.0;
+    std::size_t refinements = 0;  // done since (inertial_initializer.h)
   };
   std::optional<InertialState> inertial_state() const;
   void set_inertial_state(const InertialState& state);

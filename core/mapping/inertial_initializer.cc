@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <string>
 
 #include "core/common/error.h"
 #include "core/common/log.h"
@@ -13,8 +14,73 @@ void InertialInitializationOptions::check() const {
   ORBATLAS_CHECK(std::isfinite(after_s) && after_s > 0.0,
                  "inertial initialisation: after_s must be > 0, not " << after_s);
   ORBATLAS_CHECK(min_keyframes >= 3, "inertial initialisation: min_keyframes must be >= 3, not " << min_keyframes);
+  ORBATLAS_CHECK(
+      refinement_max_keyframes >= min_keyframes,
+      "inertial initialisation: refinement_max_keyframes must be >= min_keyframes, not " << refinement_max_keyframes);
+  double previous_s = 0.0;
+  for (const InertialRefinement& r : refinements) {
+    ORBATLAS_CHECK(std::isfinite(r.after_s) && r.after_s > previous_s,
+                   "inertial initialisation: refinement times must increase from > 0 s, not " << r.after_s);
+    ORBATLAS_CHECK(std::isfinite(r.gyro_bias_prior) && r.gyro_bias_prior >= 0.0 && std::isfinite(r.accel_bias_prior) &&
+                       r.accel_bias_prior >= 0.0,
+                   "inertial initialisation: a refinement's bias priors must be >= 0");
+    previous_s = r.after_s;
+  }
   solver.check();
 }
+
+namespace {
+
+// The inertial-only estimate over `chain` (with `solver`'s bias priors) and,
+// when it is consistent, its application: each keyframe's velocity (in its IMU
+// frame, which the alignment does not change) and biases, then the map turned
+// so that gravity points along -z (its yaw kept) and `state` (biases filled in
+// here) set. `what` names the step in the log.
+std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector<std::shared_ptr<KeyFrame>>& chain,
+                                                     const ImuBias& linearisation, Map::InertialState state,
+                                                     const InertialInitializationOptions& options,
+                                                     const InertialInitOptions& solver, Atlas* atlas,
+                                                     const std::string& what) {
+  std::vector<Pose3> poses;
+  std::vector<Preintegration> increments;
+  for (std::size_t k = 0; k < chain.size(); ++k) {
+    poses.push_back(chain[k]->T_w_b());
+    if (k > 0) increments.push_back(*chain[k]->inertial_link()->from_previous);
+  }
+  // One linearisation point for the window (the session preintegrates at the
+  // map's estimate of the time).
+  for (auto& pre : increments)
+    if (!(pre.bias() == linearisation)) pre.reintegrate(linearisation);
+  const InertialInitResult result = initialize_inertial(poses, increments, options.T_b_i, solver);
+  if (!result.gravity_w.allFinite() || result.final_cost > result.initial_cost) {
+    log_warn(what + " of map " + std::to_string(map.id()) + " found no consistent solution (retried)");
+    return std::nullopt;
+  }
+  for (std::size_t k = 0; k < chain.size() && k < result.velocities.size(); ++k) {
+    const Eigen::Matrix3d R_w_i = (poses[k] * options.T_b_i).q.normalized().toRotationMatrix();
+    chain[k]->set_imu_state(KeyFrame::ImuState{R_w_i.transpose() * result.velocities[k], result.bias});
+  }
+  state.gravity_w = Eigen::Vector3d(0.0, 0.0, -solver.gravity);  // after the alignment below
+  state.bias = result.bias;
+  {
+    // Sessions tracking in the map see it before or after, never half-turned.
+    std::unique_lock<WriterPriorityMutex> whole;
+    if (atlas) whole = atlas->lock_maps_exclusive();
+    map.change_frame(Pose3(Eigen::Quaterniond(result.R_w_g.transpose()), Eigen::Vector3d::Zero()));
+    map.set_inertial_state(state);
+  }
+  const double turn_deg = Eigen::AngleAxisd(result.R_w_g).angle() * 180.0 / M_PI;
+  std::ostringstream line;
+  line << what << " of map " << map.id() << ": " << chain.size() << " keyframes over "
+       << ns_to_s(chain.back()->timestamp_ns() - chain.front()->timestamp_ns()) << " s; gravity was ("
+       << result.gravity_w.transpose() << ") m/s^2 in the map (turned by " << turn_deg
+       << " deg to point it along -z); gyro bias (" << result.bias.gyro.transpose() << ") rad/s, accelerometer bias ("
+       << result.bias.accel.transpose() << ") m/s^2; " << result.iterations << " iterations";
+  log_info(line.str());
+  return state;
+}
+
+}  // namespace
 
 std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
                                                           const InertialInitializationOptions& options, Atlas* atlas) {
@@ -23,50 +89,35 @@ std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::s
   if (chain.size() < options.min_keyframes) return std::nullopt;
   const double span_s = ns_to_s(chain.back()->timestamp_ns() - chain.front()->timestamp_ns());
   if (span_s < options.after_s) return std::nullopt;
-
-  std::vector<Pose3> poses;
-  std::vector<Preintegration> increments;
-  for (std::size_t k = 0; k < chain.size(); ++k) {
-    poses.push_back(chain[k]->T_w_b());
-    if (k > 0) increments.push_back(*chain[k]->inertial_link()->from_previous);
-  }
-  // One linearisation point for the window (the session preintegrates at its
-  // current estimate; before the first initialisation that is zero).
-  for (auto& pre : increments)
-    if (!(pre.bias() == increments.front().bias())) pre.reintegrate(increments.front().bias());
-  const InertialInitResult result = initialize_inertial(poses, increments, options.T_b_i, options.solver);
-  if (!result.gravity_w.allFinite() || result.final_cost > result.initial_cost) {
-    log_warn("inertial initialisation of map " + std::to_string(map.id()) + " found no consistent solution (retried)");
-    return std::nullopt;
-  }
-  // Each keyframe of the window starts with its velocity (in its IMU frame,
-  // which the alignment below does not change) and the window's biases.
-  for (std::size_t k = 0; k < chain.size() && k < result.velocities.size(); ++k) {
-    const Eigen::Matrix3d R_w_i = (poses[k] * options.T_b_i).q.normalized().toRotationMatrix();
-    chain[k]->set_imu_state(KeyFrame::ImuState{R_w_i.transpose() * result.velocities[k], result.bias});
-  }
   Map::InertialState state;
   state.initialized_at_ns = newest->timestamp_ns();
-  state.gravity_w = Eigen::Vector3d(0.0, 0.0, -options.solver.gravity);  // after the alignment below
-  state.bias = result.bias;
   state.keyframes = chain.size();
   state.span_s = span_s;
-  {
-    // The map's frame becomes the gravity frame (its yaw kept): sessions tracking
-    // in it see it before or after, never half-turned.
-    std::unique_lock<WriterPriorityMutex> whole;
-    if (atlas) whole = atlas->lock_maps_exclusive();
-    map.change_frame(Pose3(Eigen::Quaterniond(result.R_w_g.transpose()), Eigen::Vector3d::Zero()));
-    map.set_inertial_state(state);
+  return estimate_and_apply(map, chain, chain[1]->inertial_link()->from_previous->bias(), state, options,
+                            options.solver, atlas, "inertial initialisation");
+}
+
+std::optional<Map::InertialState> refine_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
+                                                      const InertialInitializationOptions& options, Atlas* atlas) {
+  const auto state = map.inertial_state();
+  if (!options.enabled || !state || !newest || newest->is_bad() || state->refinements >= options.refinements.size())
+    return std::nullopt;
+  const InertialRefinement& step = options.refinements[state->refinements];
+  if (ns_to_s(newest->timestamp_ns() - state->initialized_at_ns) < step.after_s) return std::nullopt;
+  const auto chain = inertial_chain(newest, options.refinement_max_keyframes);
+  Map::InertialState refined = *state;
+  ++refined.refinements;  // tried once: a chain too short (a session that joined the map late) is not waited for
+  if (chain.size() < options.min_keyframes) {
+    map.set_inertial_state(refined);
+    return std::nullopt;
   }
-  std::ostringstream line;
-  line << "inertial initialisation of map " << map.id() << ": " << chain.size() << " keyframes over " << span_s
-       << " s; gravity was (" << result.gravity_w.transpose()
-       << ") m/s^2 in the map, which now points it along -z; gyro bias (" << result.bias.gyro.transpose()
-       << ") rad/s, accelerometer bias (" << result.bias.accel.transpose() << ") m/s^2; " << result.iterations
-       << " iterations";
-  log_info(line.str());
-  return state;
+  InertialInitOptions solver = options.solver;
+  solver.gyro_bias_prior = step.gyro_bias_prior;
+  solver.accel_bias_prior = step.accel_bias_prior;
+  auto applied = estimate_and_apply(map, chain, state->bias, refined, options, solver, atlas,
+                                    "inertial refinement " + std::to_string(refined.refinements));
+  if (!applied) map.set_inertial_state(refined);
+  return applied;
 }
 
 }  // namespace orbatlas

@@ -5,8 +5,8 @@
 // (core/imu/inertial_initialization.h) gives the map its gravity and IMU biases.
 // Run by local mapping after a keyframe; what it finds is the map's
 // InertialState (stats: imu_initialized_at_s, imu_bias), and the map is turned
-// so that gravity points along -z of its frame (its yaw is kept). Not yet: the
-// refinements at 5 and 15 s, and visual-inertial BA.
+// so that gravity points along -z of its frame (its yaw is kept); refined at 5
+// and 15 s (refine_map_inertial).
 #include <memory>
 #include <optional>
 
@@ -18,6 +18,14 @@
 
 namespace orbatlas {
 
+// A refinement of an initialised map (ORB-SLAM3's InitializeIMU again, 5 s
+// and 15 s after the first): the inertial-only estimate over the chain with the
+// biases' priors relaxed, the map turned to the gravity it finds.
+struct InertialRefinement {
+  double after_s = 0.0;  // after the initialisation
+  double gyro_bias_prior = 0.0, accel_bias_prior = 0.0;
+};
+
 struct InertialInitializationOptions {
   bool enabled = false;  // the session fuses an IMU (its keyframes carry inertial links)
   Pose3 T_b_i;           // the IMU in the body frame (the settings')
@@ -26,6 +34,9 @@ struct InertialInitializationOptions {
   // keyframes in its first seconds, each seeing its points in depth).
   std::size_t min_keyframes = 5;
   InertialInitOptions solver;
+  // ORB-SLAM3's: at 5 s with priors 1 and 1e5, at 15 s with none.
+  std::vector<InertialRefinement> refinements = {{5.0, 1.0, 1e5}, {15.0, 0.0, 0.0}};
+  std::size_t refinement_max_keyframes = 200;  // the newest ones of the chain
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -38,5 +49,13 @@ struct InertialInitializationOptions {
 std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
                                                           const InertialInitializationOptions& options,
                                                           Atlas* atlas = nullptr);
+
+// The next refinement of an initialised map when its time has come (the chain
+// ending at `newest` estimated again, each of its keyframes given the velocity
+// and biases found, the map turned to the gravity found); returns the state it
+// set. A refinement is tried once (Map::InertialState::refinements counts them).
+std::optional<Map::InertialState> refine_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
+                                                      const InertialInitializationOptions& options,
+                                                      Atlas* atlas = nullptr);
 
 }  // namespace orbatlas

@@ -101,7 +101,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   KeyframeCullingResult culling;
   bool culling_ran = false;
   bool interrupted = false;
-  std::size_t inertial_bas = 0;
+  std::size_t inertial_bas = 0, inertial_refinements = 0;
   if (worker_.queued() == 0 && !abort_ba_.load()) {
     if (options_.run_bundle_adjustment && map->keyframe_count() > 2) {
       LocalBundleAdjustmentOptions ba = options_.bundle_adjustment;
@@ -134,11 +134,17 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
     }
   }
   ++sequence_;
-  if (options_.inertial.enabled && !map->inertial_state()) {
+  if (options_.inertial.enabled) {
+    const bool initialised = map->inertial_state().has_value();
     try {
-      initialize_map_inertial(*map, keyframe, options_.inertial, &atlas_);
+      if (initialised) {
+        if (refine_map_inertial(*map, keyframe, options_.inertial, &atlas_)) ++inertial_refinements;
+      } else {
+        initialize_map_inertial(*map, keyframe, options_.inertial, &atlas_);
+      }
     } catch (const Error& e) {
-      log_warn("inertial initialisation of map " + std::to_string(map->id()) + " failed: " + e.what() + " (retried)");
+      log_warn(std::string("inertial ") + (initialised ? "refinement" : "initialisation") + " of map " +
+               std::to_string(map->id()) + " failed: " + e.what() + (initialised ? "" : " (retried)"));
     }
   }
 
@@ -148,6 +154,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   if (ba_ms >= 0.0) board_->stats.bundle_adjustment_ms.add(ba_ms);
   if (interrupted) ++board_->stats.bundle_adjustments_interrupted;
   board_->stats.inertial_bundle_adjustments += inertial_bas;
+  board_->stats.inertial_refinements += inertial_refinements;
   if (culling_ran) {
     const bool scan = options_.culling.scheme == CullingScheme::kScan || options_.culling.compare_schemes;
     const bool incremental = options_.culling.scheme == CullingScheme::kIncremental || options_.culling.compare_schemes;

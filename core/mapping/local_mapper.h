@@ -63,6 +63,7 @@ struct LocalMapperStats {
   std::size_t points_triangulated = 0, points_fused = 0, observations_fused = 0, recent_points_culled = 0;
   std::size_t bundle_adjustments_interrupted = 0;
   std::size_t inertial_bundle_adjustments = 0;  // local BAs with inertial edges
+  std::size_t inertial_refinements = 0;         // of maps' inertial initialisation
   WorkerErrorCounts errors;                     // keyframes whose processing failed (given up, the mapper went on)
 };
 

@@ -51,7 +51,7 @@ class AtlasReader {
                                "FROM keyframe_imu_states s JOIN keyframes k ON k.id = s.keyframe_id "
                                "WHERE k.map_id = ?1 ORDER BY s.keyframe_id")),
         inertial_state_(db.prepare("SELECT initialized_at_ns, gx, gy, gz, bgx, bgy, bgz, bax, bay, baz, keyframes, "
-                                   "span_s FROM map_inertial_states WHERE map_id = ?1")) {}
+                                   "span_s, refinements FROM map_inertial_states WHERE map_id = ?1")) {}
 
   // The largest keyframe and map point ids read so far.
   std::optional<KeyframeId> max_keyframe_id;
@@ -266,6 +266,7 @@ class AtlasReader {
       state.bias.accel = {inertial_state_.real(7), inertial_state_.real(8), inertial_state_.real(9)};
       state.keyframes = static_cast<std::size_t>(inertial_state_.int64(10));
       state.span_s = inertial_state_.real(11);
+      state.refinements = static_cast<std::size_t>(inertial_state_.int64(12));
       if (!state.gravity_w.allFinite() || !state.bias.gyro.allFinite() || !state.bias.accel.allFinite())
         fail("map " + std::to_string(map.id()) + ": its inertial state is not finite");
       map.set_inertial_state(state);

@@ -82,11 +82,11 @@ AtlasRowWriter::AtlasRowWriter(SqliteDb& db)
       delete_imu_state_(db.prepare("DELETE FROM keyframe_imu_states WHERE keyframe_id = ?1")),
       upsert_map_inertial_(db.prepare(
           "INSERT INTO map_inertial_states(map_id, initialized_at_ns, gx, gy, gz, bgx, bgy, bgz, bax, bay, baz, "
-          "keyframes, span_s) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13) "
+          "keyframes, span_s, refinements) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14) "
           "ON CONFLICT(map_id) DO UPDATE SET initialized_at_ns = excluded.initialized_at_ns, gx = excluded.gx, "
           "gy = excluded.gy, gz = excluded.gz, bgx = excluded.bgx, bgy = excluded.bgy, bgz = excluded.bgz, "
           "bax = excluded.bax, bay = excluded.bay, baz = excluded.baz, keyframes = excluded.keyframes, "
-          "span_s = excluded.span_s")),
+          "span_s = excluded.span_s, refinements = excluded.refinements")),
       delete_map_inertial_(db.prepare("DELETE FROM map_inertial_states WHERE map_id = ?1")),
       delete_culled_(db.prepare("DELETE FROM culled_keyframes WHERE id = ?1")),
       insert_observation_(db.prepare("INSERT INTO observations(keyframe_id, slot, map_point_id) VALUES (?1, ?2, ?3)")),
@@ -200,6 +200,7 @@ void AtlasRowWriter::upsert_map_inertial(const MapInertialRow& row) {
     for (int k = 0; k < 3; ++k) s.bind_real(i++, (*v)[k]);
   s.bind_int64(12, static_cast<std::int64_t>(st.keyframes));
   s.bind_real(13, st.span_s);
+  s.bind_int64(14, static_cast<std::int64_t>(st.refinements));
   run_once(s);
 }
 

@@ -39,6 +39,7 @@ class MapRowCollector {
                      .add(state->bias.accel)
                      .add(state->keyframes)
                      .add(state->span_s)
+                     .add(state->refinements)
                      .value();
       rows_.inertial.push_back(row);
     }
