@@ -165,6 +165,39 @@ TEST(EssentialGraph, SpreadsLoopErrorOverDriftedOdometry) {
   EXPECT_LT(sim3_rotation_distance(loop, loop_true), 0.1 * before.rotation);
 }
 
+// An inertial map (gravity along the world's -z): the drift is a turn about z
+// and a translation, which the 4-DoF graph undoes exactly; every node keeps
+// where it sees gravity (the direction of the world's z in its frame) bit for
+// bit up to rounding.
+TEST(EssentialGraph, YawOnlyRecoversAYawDriftAndKeepsEveryNodesGravity) {
+  std::mt19937 rng(5);
+  const std::vector<Sim3> truth = circle_truth(50, 5.0, 0.0, rng);
+  const Sim3 step(so3_exp(Eigen::Vector3d(0.0, 0.0, 1.0) * 0.4 * kDegree), Eigen::Vector3d(0.02, -0.01, 0.005), 1.0);
+  const std::vector<Sim3> initial = drifted(truth, 10, step);
+  EssentialGraphOptions options;
+  options.fix_scale = true;
+  options.yaw_only = true;
+  const EssentialGraphResult r = optimize_essential_graph(make_nodes(initial, 0), exact_edges(truth, 2, 1), options);
+  const Errors before = errors(to_nodes(initial), truth);
+  const Errors after = errors(r.nodes, truth);
+  double gravity_change = 0.0;
+  for (std::size_t k = 0; k < r.nodes.size(); ++k)
+    gravity_change =
+        std::max(gravity_change,
+                 ((r.nodes[k].S_n_w.q * Eigen::Vector3d::UnitZ()) - (initial[k].q * Eigen::Vector3d::UnitZ())).norm());
+  std::printf(
+      "[ info   ] 4-DoF essential graph: worst error %.3g deg %.3g m -> %.3g deg %.3g m; gravity in the "
+      "nodes moved by %.3g\n",
+      before.rotation / kDegree, before.position, after.rotation / kDegree, after.position, gravity_change);
+  EXPECT_GT(before.position, 0.3);
+  EXPECT_LE(after.rotation, 1e-6);
+  EXPECT_LE(after.position, 1e-6);
+  EXPECT_LE(gravity_change, 1e-12);
+
+  options.fix_scale = false;  // a free scale has no place in a metric inertial map
+  EXPECT_THROW(optimize_essential_graph(make_nodes(initial, 0), exact_edges(truth, 2, 1), options), Error);
+}
+
 TEST(EssentialGraph, NodesWithoutEdgesAreUntouched) {
   std::mt19937 rng(4);
   const std::vector<Sim3> truth = circle_truth(10, 2.0, 0.0, rng);

@@ -6,6 +6,7 @@
 #include "core/geometry/pose.h"
 #include "core/geometry/so3.h"
 #include "core/geometry/trajectory.h"
+#include "core/geometry/yaw_only.h"
 
 namespace orbatlas {
 namespace {
@@ -47,6 +48,24 @@ TEST(Pose3, InterpolationIsGeodesic) {
   const Pose3 m = interpolate(a, b, 0.25);
   EXPECT_NEAR(m.t.x(), 0.5, 1e-12);
   EXPECT_NEAR(rotation_angle(m.q), 0.25, 1e-12);
+}
+
+// Two gravity-aligned worlds: a transform that is a turn about z and a move
+// stays exactly itself; one with roll and pitch keeps its yaw, drops the rest
+// and still takes the anchor point where it took it.
+TEST(YawOnly, KeepsTheTurnAboutZAndTheAnchorPoint) {
+  const Eigen::Vector3d p(1.5, -2.0, 0.7);
+  const Pose3 yaw_and_move(so3_exp(Eigen::Vector3d(0.0, 0.0, 0.8)), Eigen::Vector3d(0.3, 0.1, -0.2));
+  const Pose3 same = yaw_only_transform(yaw_and_move, p);
+  EXPECT_LT((same.matrix() - yaw_and_move.matrix()).norm(), 1e-12);
+
+  const Pose3 tilted(so3_exp(Eigen::Vector3d(0.0, 0.0, 0.8)) * so3_exp(Eigen::Vector3d(0.02, -0.03, 0.0)),
+                     Eigen::Vector3d(0.3, 0.1, -0.2));
+  const Pose3 projected = yaw_only_transform(tilted, p);
+  EXPECT_LT((projected * p - tilted * p).norm(), 1e-12);
+  EXPECT_LT((projected.q * Eigen::Vector3d::UnitZ() - Eigen::Vector3d::UnitZ()).norm(), 1e-12);  // no roll, pitch
+  const Eigen::Vector3d x = projected.q * Eigen::Vector3d::UnitX();
+  EXPECT_NEAR(std::atan2(x.y(), x.x()), 0.8, 1e-3);  // the yaw (to first order in the tilt)
 }
 
 TEST(Trajectory, PoseAtUsesExactSamplesInterpolatesAndRespectsGaps) {

@@ -10,6 +10,7 @@
 #include "core/common/error.h"
 #include "core/common/stopwatch.h"
 #include "core/geometry/sim3_correction.h"
+#include "core/geometry/yaw_only.h"
 #include "core/map/map_point_update.h"
 #include "core/mapping/fusion.h"
 
@@ -27,6 +28,15 @@ struct CorrectedGroup {
   std::unordered_map<MapPointId, KeyframeId> corrected_by;  // each moved point, by the keyframe that moved it
 };
 
+// An inertial map (gravity along the world's -z) knows its roll and pitch: the
+// loop's correction of the world keeps only its turn about z and moves the
+// current keyframe's camera where the full correction puts it (ORB-SLAM3
+// zeroes the correction's roll and pitch the same way).
+Sim3 yaw_only_correction(const Pose3& T_a_w_old, const Sim3& S_a_w_new) {
+  const Pose3 W = rigid_pose_c_w(S_a_w_new).inverse() * T_a_w_old;  // old world -> new world
+  return Sim3(T_a_w_old * yaw_only_transform(W, T_a_w_old.inverse().t).inverse());
+}
+
 // 1. The group and its corrected poses; its points move with the keyframe that
 // sees them first.
 CorrectedGroup correct_group(Map& map, const PlaceMatch& loop, const FrameCamera& cam, LoopCorrectionStats& stats) {
@@ -36,7 +46,8 @@ CorrectedGroup correct_group(Map& map, const PlaceMatch& loop, const FrameCamera
   for (const auto& edge : current->connections())
     if (auto kf = map.keyframe(edge.keyframe); kf && !kf->is_bad()) g.keyframes.push_back(std::move(kf));
   const Pose3 T_a_w_old = current->T_w_c().inverse();
-  const Sim3 S_a_w_new(loop.T_c_w_corrected);
+  const Sim3 S_a_w_new =
+      map.inertial_state() ? yaw_only_correction(T_a_w_old, Sim3(loop.T_c_w_corrected)) : Sim3(loop.T_c_w_corrected);
   for (const auto& kf : g.keyframes) {
     g.old_T_c_w[kf->id()] = kf->T_w_c().inverse();
     g.corrected[kf->id()] = propagate_correction(g.old_T_c_w[kf->id()], T_a_w_old, S_a_w_new);
@@ -139,7 +150,9 @@ GraphSolution optimise_essential_graph(Map& map, const PlaceMatch& loop, Correct
     }
   }
   EssentialGraphOptions graph_options = options.graph;
-  graph_options.fix_scale = true;  // stereo maps have metric scale
+  graph_options.fix_scale = true;                             // stereo maps have metric scale
+  graph_options.yaw_only = map.inertial_state().has_value();  // and inertial ones know their roll and pitch
+  stats.four_dof = graph_options.yaw_only;
   const auto graph_start = std::chrono::steady_clock::now();
   const EssentialGraphResult result = optimize_essential_graph(nodes, edges, graph_options);
   stats.graph_ms = ms_since(graph_start);

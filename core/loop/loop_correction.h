@@ -33,6 +33,7 @@ struct LoopCorrectionStats {
   std::size_t graph_nodes = 0, graph_edges = 0;
   double correction_m = 0.0;    // translation applied to the current keyframe
   double correction_deg = 0.0;  // rotation applied to the current keyframe
+  bool four_dof = false;        // an inertial map: yaw and translation only
   double graph_ms = 0.0, total_ms = 0.0;
 };
 

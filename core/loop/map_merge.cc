@@ -6,6 +6,7 @@
 #include <unordered_set>
 
 #include "core/common/error.h"
+#include "core/geometry/yaw_only.h"
 #include "core/common/stopwatch.h"
 #include "core/mapping/fusion.h"
 
@@ -53,7 +54,13 @@ MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamer
   // 1. Move the source map into the target's world. The match says where the
   // current camera is in the target's world.
   const Pose3 T_ws_c = current->T_w_c();
-  const Pose3 T_wt_ws = match.T_c_w_corrected.inverse() * T_ws_c.inverse();
+  Pose3 T_wt_ws = match.T_c_w_corrected.inverse() * T_ws_c.inverse();
+  if (source->inertial_state() && target->inertial_state()) {
+    // Both worlds have gravity along -z: they differ by a turn about z and a
+    // move (the current camera lands where the match puts it).
+    T_wt_ws = yaw_only_transform(T_wt_ws, T_ws_c.t);
+    stats.four_dof = true;
+  }
   const Map::AbsorbCounts moved = target->absorb(*source, T_wt_ws);
   atlas.remove_map(source->id());
   stats.keyframes_moved = moved.keyframes;

@@ -29,6 +29,7 @@ struct MapMergeStats {
   MapId source = 0, target = 0;
   std::size_t keyframes_moved = 0, points_moved = 0;
   std::size_t observations_fused = 0, points_fused = 0, new_links = 0;
+  bool four_dof = false;  // two inertial maps: the source turned about z and moved only
   double ms = 0.0;
 };
 

@@ -1,6 +1,7 @@
 #include "core/optimization/essential_graph.h"
 
 #include <ceres/autodiff_cost_function.h>
+#include <ceres/autodiff_manifold.h>
 #include <ceres/manifold.h>
 #include <ceres/problem.h>
 #include <ceres/rotation.h>
@@ -55,6 +56,28 @@ struct EdgeResidual {
   }
 };
 
+// A node's rotation that turns only about the world's z axis (gravity, in an
+// inertial map): S_n_w's quaternion (x y z w) times a rotation by delta about
+// z on the right (R_n_w Rz(delta): the node turned about the world's z).
+struct WorldYawPlus {
+  template <typename T>
+  bool Plus(const T* x, const T* delta, T* x_plus_delta) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> q(x);
+    const T half = delta[0] / T(2);
+    const Eigen::Quaternion<T> yaw(cos(half), T(0), T(0), sin(half));
+    Eigen::Map<Eigen::Quaternion<T>> out(x_plus_delta);
+    out = q * yaw;
+    return true;
+  }
+  template <typename T>
+  bool Minus(const T* y, const T* x, T* y_minus_x) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> qy(y), qx(x);
+    const Eigen::Quaternion<T> d = qx.conjugate() * qy;  // about z when y = Plus(x, delta)
+    y_minus_x[0] = T(2) * atan2(d.z(), d.w());
+    return true;
+  }
+};
+
 struct NodeParameters {
   std::array<double, 4> q{0.0, 0.0, 0.0, 1.0};  // Eigen memory order (x, y, z, w)
   std::array<double, 3> t{0.0, 0.0, 0.0};
@@ -72,6 +95,7 @@ std::size_t find_root(std::vector<std::size_t>& parent, std::size_t a) {
 void EssentialGraphOptions::check() const {
   ORBATLAS_CHECK(max_iterations >= 0, "essential graph: max_iterations must be >= 0, not " << max_iterations);
   ORBATLAS_CHECK(num_threads >= 1, "essential graph: num_threads must be >= 1, not " << num_threads);
+  ORBATLAS_CHECK(!yaw_only || fix_scale, "essential graph: yaw_only needs fix_scale (a metric inertial map)");
 }
 
 EssentialGraphResult optimize_essential_graph(const std::vector<PoseGraphNode>& nodes,
@@ -137,11 +161,13 @@ EssentialGraphResult optimize_essential_graph(const std::vector<PoseGraphNode>& 
   problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::EigenQuaternionManifold quaternion_manifold;  // outlives the problem too
+  ceres::AutoDiffManifold<WorldYawPlus, 4, 1> yaw_manifold;
   ceres::Problem problem(problem_options);
   for (std::size_t k = 0; k < nodes.size(); ++k) {
     if (!used[k]) continue;
     NodeParameters& p = params[k];
-    problem.AddParameterBlock(p.q.data(), 4, &quaternion_manifold);
+    problem.AddParameterBlock(p.q.data(), 4,
+                              options.yaw_only ? static_cast<ceres::Manifold*>(&yaw_manifold) : &quaternion_manifold);
     problem.AddParameterBlock(p.t.data(), 3);
     problem.AddParameterBlock(p.log_s.data(), 1);
     if (nodes[k].fixed) {

@@ -53,6 +53,11 @@ struct PoseGraphEdge {
 struct EssentialGraphOptions {
   int max_iterations = 20;  // ORB-SLAM's OptimizeEssentialGraph
   bool fix_scale = false;   // stereo / RGB-D / mature inertial maps
+  // Inertial maps (gravity along the world's -z): each node turns only about
+  // the world's z axis and moves (4 degrees of freedom, ORB-SLAM3's
+  // OptimizeEssentialGraph4DoF); roll and pitch, which gravity makes
+  // observable, stay as the nodes came. Use with fix_scale.
+  bool yaw_only = false;
   int num_threads = 1;
 
   // Throws Error naming the first value out of range.
