@@ -10,6 +10,7 @@
 #   LOOKS=real scripts/bench_inertial.sh       # one look
 #   IMU=real scripts/bench_inertial.sh MH_05   # the real MH_05 IMU (real look)
 #   RUNS=3 scripts/bench_inertial.sh MH_01     # several runs of each (the spread)
+#   MODES="stereo stereo_inertial" scripts/bench_inertial.sh   # without the blackout run
 #   ORBATLAS_BIN=/tmp/orbatlas scripts/bench_inertial.sh   # a frozen binary (no set-up, no build)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -28,6 +29,7 @@ SEQUENCES=("$@")
 read -r -a LOOK_LIST <<< "${LOOKS:-clean real}"
 IMU_SOURCE="${IMU:-synthetic}"
 RUN_COUNT="${RUNS:-1}"
+read -r -a MODE_LIST <<< "${MODES:-stereo stereo_inertial blackout}"
 
 NAMES=()
 for look in "${LOOK_LIST[@]}"; do
@@ -48,7 +50,7 @@ for look in "${LOOK_LIST[@]}"; do
     frames=$(($(wc -l < "$src/mav0/cam0/data.csv") - 1))
     mid=$(/usr/bin/python3 -c "print(round($frames / 20.0 / 2.0, 1))")
     for run in $(seq 1 "$RUN_COUNT"); do
-      for mode in stereo stereo_inertial blackout; do
+      for mode in "${MODE_LIST[@]}"; do
         name="${s}_${look}_${IMU_SOURCE}_${mode}_$run"
         config=$mode extra=()
         if [ "$mode" = blackout ]; then
