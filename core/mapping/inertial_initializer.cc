@@ -52,7 +52,10 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
   for (auto& pre : increments)
     if (!(pre.bias() == linearisation)) pre.reintegrate(linearisation);
   const InertialInitResult result = initialize_inertial(poses, increments, options.T_b_i, solver);
-  if (!result.gravity_w.allFinite() || result.final_cost > result.initial_cost) {
+  const bool finite = std::all_of(result.velocities.begin(), result.velocities.end(),
+                                  [](const Eigen::Vector3d& v) { return v.allFinite(); }) &&
+                      result.bias.gyro.allFinite() && result.bias.accel.allFinite();
+  if (!finite || !result.gravity_w.allFinite() || result.final_cost > result.initial_cost) {
     log_warn(what + " of map " + std::to_string(map.id()) + " found no consistent solution (retried)");
     return std::nullopt;
   }

@@ -91,7 +91,11 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
           if (const auto state = inertial_tracking_->frame_state(made->timestamp_ns())) {
             const Eigen::Matrix3d R_w_i =
                 (made->T_w_b() * options_.mapper.inertial.T_b_i).q.normalized().toRotationMatrix();
-            made->set_imu_state(KeyFrame::ImuState{R_w_i.transpose() * state->v_w, state->bias});
+            const KeyFrame::ImuState imu{R_w_i.transpose() * state->v_w, state->bias};
+            // A diverged estimate is left out (visual-inertial BA starts that
+            // keyframe from its neighbours) rather than refused in tracking.
+            if (imu.v_i.allFinite() && imu.bias.gyro.allFinite() && imu.bias.accel.allFinite())
+              made->set_imu_state(imu);
           }
           if (!previous || previous->is_bad() || previous->map_id() != made->map_id()) return;
           ImuBias bias;
