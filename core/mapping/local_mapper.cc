@@ -113,6 +113,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
                                             .gravity_w = inertial_state->gravity_w,
                                             .map_bias = inertial_state->bias,
                                             .temporal_keyframes = options_.inertial_window_keyframes};
+      if (ba.inertial) ba.max_covisibles = std::min(ba.max_covisibles, options_.inertial_covisible_keyframes);
       const auto stats = local_bundle_adjustment(*map, keyframe, *cam_.camera, cam_.bf, ba, &abort_ba_);
       ba_ms = stats.time_ms;
       interrupted = stats.stopped;

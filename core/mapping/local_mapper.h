@@ -41,6 +41,9 @@ struct LocalMapperOptions {
   // last keyframes of the inertial chain, their velocities and biases.
   bool inertial_bundle_adjustment = true;
   std::size_t inertial_window_keyframes = 10;
+  // Covisible keyframes optimised (pose only) beside the chain's in a
+  // visual-inertial local BA; the others observing its points are fixed.
+  std::size_t inertial_covisible_keyframes = 1000;
 
   // Throws Error naming the first value out of range.
   void check() const;
