@@ -171,17 +171,16 @@ StereoSlamOptions run_slam_options(const DatasetRunOptions& options) {
 
 // A frame's part in the blackout's figures: the IMU carried it through the gap;
 // after the gap, the frames until the first one tracked visually.
-void note_black_out(DatasetRunReport::BlackOut& b, bool blacked, const TrackResult& r,
-                    std::optional<std::size_t>& after) {
+void note_black_out(DatasetRunReport::BlackOut& b, bool blacked, const TrackResult& r, std::size_t& after) {
   if (blacked) {
     if (r.by_imu) ++b.by_imu;
     return;
   }
   if (b.frames == 0 || b.frames_to_visual) return;  // before the gap, or recovered
   if (r.tracked && !r.by_imu) {
-    b.frames_to_visual = after.value_or(0);
+    b.frames_to_visual = after;
   } else {
-    after = after.value_or(0) + 1;
+    ++after;
   }
 }
 
@@ -194,7 +193,7 @@ void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame
   StereoPairLoader loaded(frames);  // decodes images ahead of tracking
   Progress progress(label, static_cast<std::int64_t>(frames.size()), options.show_progress);
   std::size_t index = 0, imu_next = 0;
-  std::optional<std::size_t> after_black_out;  // frames since the gap ended
+  std::size_t after_black_out = 0;  // frames since the gap ended, not tracked visually
   if (options.black_out_s) report.black_out.emplace();
   while (auto pair = loaded.next()) {
     if (slam.inertial()) {
