@@ -5,8 +5,8 @@
 // (core/imu/inertial_initialization.h) gives the map its gravity and IMU biases.
 // Run by local mapping after a keyframe; what it finds is the map's
 // InertialState (stats: imu_initialized_at_s, imu_bias), and the map is turned
-// so that gravity points along -z of its frame (its yaw is kept); refined at 5
-// and 15 s (refine_map_inertial).
+// so that gravity points along -z of its frame (its yaw is kept); refined at 5,
+// 15 s and every 10 s from 25 to 75 s (refine_map_inertial).
 #include <memory>
 #include <optional>
 
@@ -19,8 +19,11 @@
 namespace orbatlas {
 
 // A refinement of an initialised map (ORB-SLAM3's InitializeIMU again, 5 s
-// and 15 s after the first): the inertial-only estimate over the chain with the
-// biases' priors relaxed, the map turned to the gravity it finds.
+// and 15 s after the first; then, as ORB-SLAM3 refines a monocular map's
+// gravity, every 10 s from 25 to 75 s): the inertial-only estimate over the
+// chain with the biases' priors relaxed, the map turned to the gravity it finds.
+// The later ones free a horizontal accelerometer bias from a tilt of gravity,
+// which only a turn about gravity tells apart (docs/inertial.md).
 struct InertialRefinement {
   double after_s = 0.0;  // after the initialisation
   double gyro_bias_prior = 0.0, accel_bias_prior = 0.0;
@@ -34,8 +37,11 @@ struct InertialInitializationOptions {
   // keyframes in its first seconds, each seeing its points in depth).
   std::size_t min_keyframes = 5;
   InertialInitOptions solver;
-  // ORB-SLAM3's: at 5 s with priors 1 and 1e5, at 15 s with none.
-  std::vector<InertialRefinement> refinements = {{5.0, 1.0, 1e5}, {15.0, 0.0, 0.0}};
+  // ORB-SLAM3's: at 5 s with priors 1 and 1e5, at 15 s with none; then every
+  // 10 s to 75 s with none.
+  std::vector<InertialRefinement> refinements = {{5.0, 1.0, 1e5},  {15.0, 0.0, 0.0}, {25.0, 0.0, 0.0},
+                                                 {35.0, 0.0, 0.0}, {45.0, 0.0, 0.0}, {55.0, 0.0, 0.0},
+                                                 {65.0, 0.0, 0.0}, {75.0, 0.0, 0.0}};
   std::size_t refinement_max_keyframes = 200;  // the newest ones of the chain
 
   // Throws Error naming the first value out of range.

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <sstream>
 #include <unordered_set>
 
 #include "core/common/error.h"
@@ -102,6 +103,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   bool culling_ran = false;
   bool interrupted = false;
   std::size_t inertial_bas = 0, inertial_refinements = 0;
+  std::optional<FullInertialBundleAdjustmentStats> full_ba;
   if (worker_.queued() == 0 && !abort_ba_.load()) {
     if (options_.run_bundle_adjustment && map->keyframe_count() > 2) {
       LocalBundleAdjustmentOptions ba = options_.bundle_adjustment;
@@ -138,11 +140,14 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   if (options_.inertial.enabled) {
     const bool initialised = map->inertial_state().has_value();
     try {
+      std::optional<Map::InertialState> set;
       if (initialised) {
-        if (refine_map_inertial(*map, keyframe, options_.inertial, &atlas_)) ++inertial_refinements;
+        set = refine_map_inertial(*map, keyframe, options_.inertial, &atlas_);
+        if (set) ++inertial_refinements;
       } else {
-        initialize_map_inertial(*map, keyframe, options_.inertial, &atlas_);
+        set = initialize_map_inertial(*map, keyframe, options_.inertial, &atlas_);
       }
+      if (set && options_.full_inertial_ba_iterations > 0) full_ba = full_inertial_ba(*map, keyframe, *set);
     } catch (const Error& e) {
       log_warn(std::string("inertial ") + (initialised ? "refinement" : "initialisation") + " of map " +
                std::to_string(map->id()) + " failed: " + e.what() + (initialised ? "" : " (retried)"));
@@ -156,6 +161,10 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   if (interrupted) ++board_->stats.bundle_adjustments_interrupted;
   board_->stats.inertial_bundle_adjustments += inertial_bas;
   board_->stats.inertial_refinements += inertial_refinements;
+  if (full_ba && !full_ba->stopped) {
+    ++board_->stats.full_inertial_bundle_adjustments;
+    board_->stats.full_inertial_ba_ms.add(full_ba->time_ms);
+  }
   if (culling_ran) {
     const bool scan = options_.culling.scheme == CullingScheme::kScan || options_.culling.compare_schemes;
     const bool incremental = options_.culling.scheme == CullingScheme::kIncremental || options_.culling.compare_schemes;
@@ -167,6 +176,32 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
     for (const KeyframeId id : culling.culled)
       board_->stats.culled_keyframes_digest = (board_->stats.culled_keyframes_digest ^ id) * 1099511628211ULL;
   }
+}
+
+FullInertialBundleAdjustmentStats LocalMapper::full_inertial_ba(Map& map, const std::shared_ptr<KeyFrame>& keyframe,
+                                                                const Map::InertialState& state) {
+  FullInertialBundleAdjustmentOptions ba;
+  ba.iterations = options_.full_inertial_ba_iterations;
+  ba.level_sigma2 = cam_.pyramid.level_sigma2();
+  ba.inertial.T_b_i = options_.inertial.T_b_i;
+  ba.inertial.gravity_w = state.gravity_w;
+  ba.inertial.map_bias = state.bias;
+  ba.max_chain_keyframes = options_.inertial.refinement_max_keyframes;
+  // Not interrupted by new keyframes (they wait, as in ORB-SLAM3): the map's
+  // states were just replaced and local BA would start from them half-solved.
+  const auto stats = full_inertial_bundle_adjustment(map, keyframe, *cam_.camera, cam_.bf, ba);
+  std::ostringstream line;
+  line << "full visual-inertial BA of map " << map.id() << ": " << stats.keyframes << " keyframes ("
+       << stats.inertial_keyframes << " with IMU states), " << stats.points << " points, " << stats.iterations
+       << " iterations, " << stats.time_ms << " ms; inertial chi2 max " << stats.inertial_chi2_max;
+  log_info(line.str());
+  // Tracking predicts with the newest keyframe's biases.
+  if (const auto imu = keyframe->imu_state()) {
+    Map::InertialState next = state;
+    next.bias = imu->bias;
+    map.set_inertial_state(next);
+  }
+  return stats;
 }
 
 KeyframeId LocalMapper::spanning_tree_root(const Map& map, const KeyFrame& keyframe) {

@@ -21,6 +21,7 @@
 #include "core/map/keyframe_index.h"
 #include "core/mapping/inertial_initializer.h"
 #include "core/mapping/keyframe_culling.h"
+#include "core/optimization/full_inertial_bundle_adjustment.h"
 #include "core/optimization/local_bundle_adjustment.h"
 #include "core/tracking/frame_camera.h"
 
@@ -44,6 +45,10 @@ struct LocalMapperOptions {
   // Covisible keyframes optimised (pose only) beside the chain's in a
   // visual-inertial local BA; the others observing its points are fixed.
   std::size_t inertial_covisible_keyframes = 1000;
+  // After a map's inertial initialisation and each refinement: a full
+  // visual-inertial BA (every keyframe and point, the chain's IMU states;
+  // ORB-SLAM3's FullInertialBA); iterations 0: none.
+  int full_inertial_ba_iterations = 20;
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -67,7 +72,9 @@ struct LocalMapperStats {
   std::size_t bundle_adjustments_interrupted = 0;
   std::size_t inertial_bundle_adjustments = 0;  // local BAs with inertial edges
   std::size_t inertial_refinements = 0;         // of maps' inertial initialisation
-  WorkerErrorCounts errors;                     // keyframes whose processing failed (given up, the mapper went on)
+  std::size_t full_inertial_bundle_adjustments = 0;
+  SampleSummary full_inertial_ba_ms;
+  WorkerErrorCounts errors;  // keyframes whose processing failed (given up, the mapper went on)
 };
 
 // Where mappers write their figures: one board may collect those of several
@@ -128,6 +135,9 @@ class LocalMapper final {
   void cull_recent_points(Map& map);
   void triangulate(Map& map, const std::shared_ptr<KeyFrame>& keyframe);
   void fuse_with_neighbours(Map& map, const std::shared_ptr<KeyFrame>& keyframe);
+  // After the map's inertial state was set (initialised or refined) at `keyframe`.
+  FullInertialBundleAdjustmentStats full_inertial_ba(Map& map, const std::shared_ptr<KeyFrame>& keyframe,
+                                                     const Map::InertialState& state);
 
   Atlas& atlas_;
   KeyframeIndex* const index_;  // not owned, may be null

@@ -71,7 +71,9 @@ nlohmann::json to_json(const SlamStats& s) {
                 {"uncovered_keyframes", s.imu_uncovered_keyframes},
                 {"frames_optimized", s.frames_optimized_with_imu},
                 {"local_bas", s.mapping.inertial_bundle_adjustments},
-                {"refinements", s.mapping.inertial_refinements}};
+                {"refinements", s.mapping.inertial_refinements},
+                {"full_bas", s.mapping.full_inertial_bundle_adjustments},
+                {"full_ba_ms", summary(s.mapping.full_inertial_ba_ms)}};
     j["frames_tracked_by_imu"] = s.frames_tracked_by_imu;
     if (s.imu_initialized_at_s) {
       const auto v = [](const Eigen::Vector3d& x) { return nlohmann::json::array({x.x(), x.y(), x.z()}); };
