@@ -198,10 +198,13 @@ TEST(InertialBundleAdjustment, TheFullBundleAdjustmentReturnsEveryStateToTheTrut
   auto w = make_world(45.0);
   perturb(*w);
   const Errors before = window_errors(*w);
-  FullInertialBundleAdjustmentOptions options;
-  options.inertial = InertialWindowOptions{.T_b_i = Pose3(), .gravity_w = kGravity, .map_bias = ImuBias{}};
-  const FullInertialBundleAdjustmentStats stats =
-      full_inertial_bundle_adjustment(*w->map, w->keyframes.back(), *w->camera, w->bf, options);
+  Map::InertialState state;
+  state.gravity_w = kGravity;
+  w->map->set_inertial_state(state);
+  GlobalBundleAdjustmentOptions options;
+  options.iterations = 20;
+  options.inertial = GlobalBundleAdjustmentOptions::Inertial{Pose3(), 200};
+  const GlobalBundleAdjustmentResult stats = full_inertial_bundle_adjustment(*w->map, *w->camera, w->bf, options);
   const Errors after = window_errors(*w);
   std::printf(
       "full BA: %zu keyframes, %zu points, %zu inertial edges, chi2 max %.2e, %d iterations, %.1f ms; position "
@@ -212,6 +215,7 @@ TEST(InertialBundleAdjustment, TheFullBundleAdjustmentReturnsEveryStateToTheTrut
       after.accel_bias, before.accel_bias);
   EXPECT_FALSE(stats.stopped);
   EXPECT_EQ(stats.keyframes, static_cast<std::size_t>(kKeyframes));
+  EXPECT_EQ(stats.imu_states.size(), static_cast<std::size_t>(kKeyframes));
   EXPECT_EQ(stats.inertial_keyframes, static_cast<std::size_t>(kKeyframes));
   EXPECT_EQ(stats.inertial_edges, static_cast<std::size_t>(kKeyframes - 1));
   EXPECT_EQ(stats.points, w->true_p_w.size());

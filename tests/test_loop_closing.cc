@@ -115,8 +115,12 @@ void injected_drift_case(const std::string& config, double max_ate) {
   EXPECT_EQ(stats.maps, 1u);
   EXPECT_EQ(stats.tracked, stats.frames);
 
-  // An inertial map is corrected in yaw and translation only.
+  // An inertial map is corrected in yaw and translation only, and its global
+  // BA keeps the IMU terms of its chain.
   EXPECT_EQ(loop.correction.four_dof, slam.inertial());
+  ASSERT_GE(stats.loop.global_adjustments.size(), 1u);
+  const GlobalAdjustmentRun& global = stats.loop.global_adjustments.front();
+  if (!global.interrupted) EXPECT_EQ(global.inertial_edges > 0, slam.inertial());
 
   const EvalResult eval = evaluate_trajectory(as_trajectory(slam.trajectory()), gt);
   std::printf("ATE after loop closing %.4f m over %zu poses\n", eval.ate.rmse, eval.ate.count);

@@ -4,7 +4,8 @@
 // inertial initialisation: it is turned so that gravity is -z of its frame, and
 // gets the IMU biases, compared with the simulator's truth (the direction of
 // gravity in the first frame's body; the synthetic IMU has noise and drifting
-// biases).
+// biases). A full visual-inertial BA follows the initialisation and the
+// refinement, and the final global BA (--final-ba) keeps the IMU terms.
 #include <gtest/gtest.h>
 
 #include "core/common/data_paths.h"
@@ -18,8 +19,10 @@ namespace {
 // The shipped stereo-inertial config on a clip, deterministic: the
 // initialisation sees every keyframe as it comes.
 DatasetRunReport run_stereo_inertial(const std::filesystem::path& clip,
-                                     std::optional<std::pair<double, double>> black_out_s = std::nullopt) {
+                                     std::optional<std::pair<double, double>> black_out_s = std::nullopt,
+                                     bool final_ba = false) {
   DatasetRunOptions options;
+  options.slam.final_global_ba = final_ba;
   options.black_out_s = black_out_s;
   options.settings = shipped_config_dir() / "euroc" / "stereo_inertial.yaml";
   options.dataset = clip;
@@ -31,7 +34,7 @@ DatasetRunReport run_stereo_inertial(const std::filesystem::path& clip,
 TEST(InertialSlam, AStereoInertialRunInitialisesItsMapsGravityAndBiases) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 8.0);
   test::ClipCleanup cleanup{clip};
-  const DatasetRunReport report = run_stereo_inertial(clip);
+  const DatasetRunReport report = run_stereo_inertial(clip, std::nullopt, /*final_ba=*/true);
   const SlamStats& s = report.stats;
   ASSERT_TRUE(s.inertial);
   EXPECT_EQ(s.tracked, s.frames);
@@ -43,6 +46,11 @@ TEST(InertialSlam, AStereoInertialRunInitialisesItsMapsGravityAndBiases) {
   EXPECT_GT(s.mapping.inertial_bundle_adjustments, 10u);
   // Refined once, 5 s after the initialisation (the 15-s one is past the clip).
   EXPECT_EQ(s.mapping.inertial_refinements, 1u);
+  // A full visual-inertial BA after each (ORB-SLAM3's FullInertialBA), and the
+  // final global BA (--final-ba) keeps the IMU terms of the chain.
+  EXPECT_EQ(s.mapping.full_inertial_bundle_adjustments, 2u);
+  EXPECT_GT(s.final_ba_keyframes, 0u);
+  EXPECT_GT(s.final_ba_inertial_edges, 5u);
   EXPECT_GE(*s.imu_initialized_at_s, 2.0);
 
   const EurocDataset data = test::stereo_dataset(clip);
@@ -75,6 +83,10 @@ TEST(InertialSlam, AStereoInertialRunInitialisesItsMapsGravityAndBiases) {
       s.imu_bias.accel.norm(), truth->accel_bias.norm());
   EXPECT_LT(gravity_deg, 0.7);    // measured 0.32 deg
   EXPECT_LT(gyro_error, 0.0005);  // measured 0.0002 rad/s (true bias 0.016)
+  ASSERT_TRUE(report.ate_rmse_m.has_value());
+  std::printf("ATE after the final visual-inertial BA %.4f m, %zu inertial edges\n", *report.ate_rmse_m,
+              s.final_ba_inertial_edges);
+  EXPECT_LT(*report.ate_rmse_m, 0.002);  // measured 0.0009 m
   const nlohmann::json j = report.to_json();
   EXPECT_TRUE(j.contains("imu_initialized_at_s"));
   EXPECT_EQ(j["imu_bias"]["gyro"].size(), 3u);

@@ -44,8 +44,14 @@ GlobalAdjustmentApplyStats apply_global_adjustment(Map& map, const GlobalBundleA
     for (auto& child : kf->children())
       if (!child->is_bad() && now.count(child->id())) queue.push_back(std::move(child));
   }
-  for (const auto& kf : keyframes)
+  for (const auto& kf : keyframes) {
     if (const auto it = next.find(kf->id()); it != next.end()) kf->set_T_w_b(it->second);
+    // The velocity is in the keyframe's IMU frame: its new pose carries it.
+    if (const auto it = result.imu_states.find(kf->id()); it != result.imu_states.end()) {
+      kf->set_imu_state(it->second);
+      ++stats.imu_states_set;
+    }
+  }
 
   for (const auto& mp : map.map_points()) {
     if (mp->is_bad()) continue;

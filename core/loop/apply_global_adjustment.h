@@ -13,7 +13,8 @@ namespace orbatlas {
 struct GlobalAdjustmentApplyStats {
   std::size_t keyframes_set = 0, keyframes_propagated = 0;
   std::size_t points_set = 0, points_propagated = 0;
-  bool stale = false;  // the map changed its frame since the solve (Map::change_frame): nothing applied
+  std::size_t imu_states_set = 0;  // keyframes of the inertial chain given their optimised velocity and biases
+  bool stale = false;              // the map changed its frame since the solve (Map::change_frame): nothing applied
 };
 
 GlobalAdjustmentApplyStats apply_global_adjustment(Map& map, const GlobalBundleAdjustmentResult& result,

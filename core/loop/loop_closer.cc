@@ -245,9 +245,11 @@ void LoopCloser::start_global_adjustment(MapId map_id) {
           const auto whole = atlas_.lock_maps_exclusive();  // tracking sees the map before or after
           apply_global_adjustment(*map, result, cam_.pyramid);
         }
-        GlobalAdjustmentRun run{result.keyframes, result.points, ms_since(start) * 1e-3, result.stopped};
+        GlobalAdjustmentRun run{result.keyframes, result.points, result.inertial_edges, ms_since(start) * 1e-3,
+                                result.stopped};
         log_info("global bundle adjustment: " + std::to_string(run.keyframes) + " keyframes, " +
-                 std::to_string(run.seconds) + " s" + (run.interrupted ? " (interrupted)" : ""));
+                 std::to_string(run.inertial_edges) + " inertial edges, " + std::to_string(run.seconds) + " s" +
+                 (run.interrupted ? " (interrupted)" : ""));
         std::lock_guard lock(stats_mutex_);
         stats_.global_adjustments.push_back(run);
       }

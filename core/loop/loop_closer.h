@@ -83,6 +83,7 @@ struct ClosedLoop {
 
 struct GlobalAdjustmentRun {
   std::size_t keyframes = 0, points = 0;
+  std::size_t inertial_edges = 0;  // IMU terms of an inertial map's chain (0: visual only)
   double seconds = 0.0;
   bool interrupted = false;  // a new loop stopped it; its result was dropped
 };

@@ -103,7 +103,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   bool culling_ran = false;
   bool interrupted = false;
   std::size_t inertial_bas = 0, inertial_refinements = 0;
-  std::optional<FullInertialBundleAdjustmentStats> full_ba;
+  std::optional<GlobalBundleAdjustmentResult> full_ba;
   if (worker_.queued() == 0 && !abort_ba_.load()) {
     if (options_.run_bundle_adjustment && map->keyframe_count() > 2) {
       LocalBundleAdjustmentOptions ba = options_.bundle_adjustment;
@@ -178,22 +178,21 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   }
 }
 
-FullInertialBundleAdjustmentStats LocalMapper::full_inertial_ba(Map& map, const std::shared_ptr<KeyFrame>& keyframe,
-                                                                const Map::InertialState& state) {
-  FullInertialBundleAdjustmentOptions ba;
+GlobalBundleAdjustmentResult LocalMapper::full_inertial_ba(Map& map, const std::shared_ptr<KeyFrame>& keyframe,
+                                                           const Map::InertialState& state) {
+  GlobalBundleAdjustmentOptions ba;
   ba.iterations = options_.full_inertial_ba_iterations;
   ba.level_sigma2 = cam_.pyramid.level_sigma2();
-  ba.inertial.T_b_i = options_.inertial.T_b_i;
-  ba.inertial.gravity_w = state.gravity_w;
-  ba.inertial.map_bias = state.bias;
-  ba.max_chain_keyframes = options_.inertial.refinement_max_keyframes;
+  ba.origin = origins_.count(map.id()) ? std::optional<KeyframeId>(origins_.at(map.id())) : std::nullopt;
+  ba.inertial =
+      GlobalBundleAdjustmentOptions::Inertial{options_.inertial.T_b_i, options_.inertial.refinement_max_keyframes};
   // Not interrupted by new keyframes (they wait, as in ORB-SLAM3): the map's
   // states were just replaced and local BA would start from them half-solved.
-  const auto stats = full_inertial_bundle_adjustment(map, keyframe, *cam_.camera, cam_.bf, ba);
+  const auto result = full_inertial_bundle_adjustment(map, *cam_.camera, cam_.bf, ba);
   std::ostringstream line;
-  line << "full visual-inertial BA of map " << map.id() << ": " << stats.keyframes << " keyframes ("
-       << stats.inertial_keyframes << " with IMU states), " << stats.points << " points, " << stats.iterations
-       << " iterations, " << stats.time_ms << " ms; inertial chi2 max " << stats.inertial_chi2_max;
+  line << "full visual-inertial BA of map " << map.id() << ": " << result.keyframes << " keyframes ("
+       << result.inertial_keyframes << " with IMU states), " << result.points << " points, " << result.iterations
+       << " iterations, " << result.time_ms << " ms; inertial chi2 max " << result.inertial_chi2_max;
   log_info(line.str());
   // Tracking predicts with the newest keyframe's biases.
   if (const auto imu = keyframe->imu_state()) {
@@ -201,7 +200,7 @@ FullInertialBundleAdjustmentStats LocalMapper::full_inertial_ba(Map& map, const 
     next.bias = imu->bias;
     map.set_inertial_state(next);
   }
-  return stats;
+  return result;
 }
 
 KeyframeId LocalMapper::spanning_tree_root(const Map& map, const KeyFrame& keyframe) {

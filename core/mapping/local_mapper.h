@@ -136,8 +136,8 @@ class LocalMapper final {
   void triangulate(Map& map, const std::shared_ptr<KeyFrame>& keyframe);
   void fuse_with_neighbours(Map& map, const std::shared_ptr<KeyFrame>& keyframe);
   // After the map's inertial state was set (initialised or refined) at `keyframe`.
-  FullInertialBundleAdjustmentStats full_inertial_ba(Map& map, const std::shared_ptr<KeyFrame>& keyframe,
-                                                     const Map::InertialState& state);
+  GlobalBundleAdjustmentResult full_inertial_ba(Map& map, const std::shared_ptr<KeyFrame>& keyframe,
+                                                const Map::InertialState& state);
 
   Atlas& atlas_;
   KeyframeIndex* const index_;  // not owned, may be null

@@ -5,7 +5,9 @@
 #include <chrono>
 
 #include "core/common/error.h"
+#include "core/map/inertial_chain.h"
 #include "core/optimization/bundle_problem.h"
+#include "core/optimization/inertial_window.h"
 
 namespace orbatlas {
 
@@ -15,7 +17,25 @@ void GlobalBundleAdjustmentOptions::check() const {
   ORBATLAS_CHECK(huber_stereo > 0.0, "global BA: huber_stereo must be > 0, not " << huber_stereo);
   check_level_sigma2(level_sigma2, "global BA");
   ORBATLAS_CHECK(num_threads >= 1, "global BA: num_threads must be >= 1, not " << num_threads);
+  if (inertial)
+    ORBATLAS_CHECK(inertial->max_chain_keyframes >= 2,
+                   "global BA: max_chain_keyframes must be >= 2, not " << inertial->max_chain_keyframes);
 }
+
+namespace {
+
+// The inertial chain ending at the map's newest keyframe linked by the IMU.
+InertialChainWindow newest_chain(const std::vector<std::shared_ptr<KeyFrame>>& keyframes, std::size_t max_keyframes) {
+  InertialChainWindow chain;
+  for (auto it = keyframes.rbegin(); it != keyframes.rend(); ++it) {
+    if ((*it)->is_bad() || !(*it)->inertial_link()) continue;
+    chain.keyframes = inertial_chain(*it, max_keyframes);
+    break;
+  }
+  return chain;
+}
+
+}  // namespace
 
 GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Camera& camera, double bf,
                                                       const GlobalBundleAdjustmentOptions& options,
@@ -36,6 +56,17 @@ GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Came
   settings.num_threads = options.num_threads;
   settings.dense_schur_max_keyframes = 40;
   BundleProblem problem = collect_bundle_problem(keyframes, camera, bf, settings);
+  const auto inertial_state = options.inertial ? map.inertial_state() : std::nullopt;
+  InertialWindow window;
+  InertialWindowOptions window_options;
+  if (inertial_state) {
+    const InertialChainWindow chain = newest_chain(keyframes, options.inertial->max_chain_keyframes);
+    window_options.T_b_i = options.inertial->T_b_i;
+    window_options.gravity_w = inertial_state->gravity_w;
+    window_options.map_bias = inertial_state->bias;
+    window_options.temporal_keyframes = std::max<std::size_t>(2, chain.keyframes.size());
+    if (chain.keyframes.size() >= 2) window = add_inertial_window(problem, chain, window_options);
+  }
 
   // Gauge: the origin, else the oldest keyframe (keyframes() is sorted by id).
   std::size_t gauge = 0;
@@ -61,6 +92,12 @@ GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Came
   for (std::size_t j = 0; j < problem.points.size(); ++j)
     result.p_w[problem.points[j]->id()] =
         Eigen::Vector3d(problem.positions[j][0], problem.positions[j][1], problem.positions[j][2]);
+  for (const auto& [kf, state] : inertial_window_states(problem, window, window_options))
+    result.imu_states[kf->id()] = state;
+  result.inertial_keyframes = window.index.size();
+  result.inertial_edges = window.inertial_terms.size();
+  for (const double chi2 : inertial_window_chi2(problem, window))
+    result.inertial_chi2_max = std::max(result.inertial_chi2_max, chi2);
   result.keyframes = problem.window;
   result.points = problem.points.size();
   result.observations = problem.edges.size();

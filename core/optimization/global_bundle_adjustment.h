@@ -27,6 +27,16 @@ struct GlobalBundleAdjustmentOptions {
   // Fixed for the gauge; by default the map's oldest live keyframe.
   std::optional<KeyframeId> origin;
   int num_threads = 1;
+  // Visual-inertial sessions (the IMU at T_b_i in the body): when the map is
+  // inertially initialised, the inertial chain ending at its newest linked
+  // keyframe (at most max_chain_keyframes of it) joins with its IMU velocities
+  // and biases, tied by the preintegrated IMU and the biases' random walk, in
+  // the map's gravity (ORB-SLAM3's FullInertialBA). None: visual only.
+  struct Inertial {
+    Pose3 T_b_i;
+    std::size_t max_chain_keyframes = 200;
+  };
+  std::optional<Inertial> inertial;
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -36,6 +46,11 @@ struct GlobalBundleAdjustmentResult {
   std::unordered_map<KeyframeId, Pose3> T_w_b_before;   // body poses the solve started from
   std::unordered_map<KeyframeId, Pose3> T_w_b;          // optimised body poses
   std::unordered_map<MapPointId, Eigen::Vector3d> p_w;  // optimised positions
+  // Optimised IMU states of the inertial chain (velocity in the IMU frame of the
+  // optimised pose), when inertial terms joined.
+  std::unordered_map<KeyframeId, KeyFrame::ImuState> imu_states;
+  std::size_t inertial_keyframes = 0, inertial_edges = 0;
+  double inertial_chi2_max = 0.0;  // after the solve
   std::size_t keyframes = 0, points = 0, observations = 0;
   int iterations = 0;
   bool stopped = false;           // interrupted by the stop flag: the result should be dropped

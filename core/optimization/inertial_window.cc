@@ -120,21 +120,28 @@ std::vector<double> inertial_window_chi2(const BundleProblem& lp, const Inertial
   return chi2;
 }
 
-void write_back_inertial_window(const BundleProblem& lp, const InertialWindow& window,
-                                const InertialWindowOptions& options) {
-  if (window.keyframes.size() < 2) return;
+std::vector<std::pair<std::shared_ptr<KeyFrame>, KeyFrame::ImuState>> inertial_window_states(
+    const BundleProblem& lp, const InertialWindow& window, const InertialWindowOptions& options) {
+  std::vector<std::pair<std::shared_ptr<KeyFrame>, KeyFrame::ImuState>> states;
+  if (window.keyframes.size() < 2) return states;
   const Pose3 T_c_i = window.keyframes.back()->T_b_c().inverse() * options.T_b_i;
   for (std::size_t i = window.anchored ? 1 : 0; i < window.keyframes.size(); ++i) {
-    KeyFrame& kf = *window.keyframes[i];
-    if (kf.is_bad()) continue;
     const Eigen::Map<const Eigen::Vector3d> v_w(lp.extra_blocks[window.velocity[i]].values.get());
     const double* b = lp.extra_blocks[window.bias[i]].values.get();
     KeyFrame::ImuState state;
     state.v_i = imu_pose(lp, window.index[i], T_c_i).q.normalized().conjugate() * v_w;
     state.bias.gyro = Eigen::Vector3d(b[0], b[1], b[2]);
     state.bias.accel = Eigen::Vector3d(b[3], b[4], b[5]);
-    if (state.v_i.allFinite() && state.bias.gyro.allFinite() && state.bias.accel.allFinite()) kf.set_imu_state(state);
+    if (state.v_i.allFinite() && state.bias.gyro.allFinite() && state.bias.accel.allFinite())
+      states.emplace_back(window.keyframes[i], state);
   }
+  return states;
+}
+
+void write_back_inertial_window(const BundleProblem& lp, const InertialWindow& window,
+                                const InertialWindowOptions& options) {
+  for (const auto& [kf, state] : inertial_window_states(lp, window, options))
+    if (!kf->is_bad()) kf->set_imu_state(state);
 }
 
 }  // namespace orbatlas

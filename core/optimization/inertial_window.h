@@ -9,6 +9,7 @@
 // state, joins fixed (pose, velocity and biases): the window's anchor.
 #include <cstddef>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "core/geometry/pose.h"
@@ -57,8 +58,12 @@ InertialWindow add_inertial_window(BundleProblem& problem, const InertialChainWi
 // of freedom each), in order.
 std::vector<double> inertial_window_chi2(const BundleProblem& problem, const InertialWindow& window);
 
-// Writes the free keyframes' IMU states back (velocity in the IMU frame of the
-// optimised pose).
+// The free keyframes' optimised IMU states (velocity in the IMU frame of the
+// optimised pose); non-finite ones are left out.
+std::vector<std::pair<std::shared_ptr<KeyFrame>, KeyFrame::ImuState>> inertial_window_states(
+    const BundleProblem& problem, const InertialWindow& window, const InertialWindowOptions& options);
+
+// Writes the free keyframes' IMU states back (inertial_window_states).
 void write_back_inertial_window(const BundleProblem& problem, const InertialWindow& window,
                                 const InertialWindowOptions& options);
 

@@ -100,7 +100,9 @@ nlohmann::json to_json(const SlamStats& s) {
   j["points_fused"] = s.mapping.points_fused;
   j["recent_points_culled"] = s.mapping.recent_points_culled;
   j["loops"] = s.loop.loops.size();
-  if (s.final_ba_keyframes > 0) j["final_global_ba"] = {{"keyframes", s.final_ba_keyframes}, {"seconds", s.final_ba_s}};
+  if (s.final_ba_keyframes > 0)
+    j["final_global_ba"] = {
+        {"keyframes", s.final_ba_keyframes}, {"inertial_edges", s.final_ba_inertial_edges}, {"seconds", s.final_ba_s}};
   if (s.loop_closing) {
     nlohmann::json lc;
     lc["keyframes"] = s.loop.keyframes;
@@ -134,8 +136,11 @@ nlohmann::json to_json(const SlamStats& s) {
     lc["loops"] = loops;
     nlohmann::json gba = nlohmann::json::array();
     for (const auto& g : s.loop.global_adjustments)
-      gba.push_back(
-          {{"keyframes", g.keyframes}, {"points", g.points}, {"seconds", g.seconds}, {"interrupted", g.interrupted}});
+      gba.push_back({{"keyframes", g.keyframes},
+                     {"points", g.points},
+                     {"inertial_edges", g.inertial_edges},
+                     {"seconds", g.seconds},
+                     {"interrupted", g.interrupted}});
     lc["global_ba"] = gba;
     nlohmann::json merges = nlohmann::json::array();
     for (const auto& m : s.loop.merges) merges.push_back(to_json(m));

@@ -37,6 +37,7 @@ struct SlamStats {
   CounterSnapshot keyframe_objects, mappoint_objects;
   // The final global BA (StereoSlamOptions::final_global_ba), when it ran.
   std::size_t final_ba_keyframes = 0;
+  std::size_t final_ba_inertial_edges = 0;  // IMU terms (inertial maps)
   double final_ba_s = 0.0;
   // Errors contained inside the engine (frames / keyframes given up, the
   // session went on); mapping.errors and loop.errors hold the other workers'.

@@ -46,6 +46,11 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
     imu_noise_ = ImuNoise::from(*settings.imu);
     options_.mapper.inertial.enabled = true;
     options_.mapper.inertial.T_b_i = settings.imu->T_b_i;
+    // The global BAs (after a loop, --final-ba) of an initialised map keep its IMU terms.
+    const GlobalBundleAdjustmentOptions::Inertial global_inertial{settings.imu->T_b_i,
+                                                                  options_.mapper.inertial.refinement_max_keyframes};
+    options_.loop.global.inertial = global_inertial;
+    options_.final_ba.inertial = global_inertial;
     // ORB-SLAM3's inertial keyframe rules: one at least every 0.5 s, and
     // culling keeps the joined increments short (0.5 s before the map's
     // initialisation, 3 s after).
@@ -166,6 +171,7 @@ void StereoSlam::finish() {
         apply_global_adjustment(*map, result, cam_.pyramid);
       }
       final_ba_keyframes_ += result.keyframes;
+      final_ba_inertial_edges_ += result.inertial_edges;
     }
     final_ba_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
@@ -190,6 +196,7 @@ SlamStats StereoSlam::stats() const {
   s.relocalizations = tracker_->relocalizations();
   s.maps_started = tracker_->maps_started();
   s.final_ba_keyframes = final_ba_keyframes_;
+  s.final_ba_inertial_edges = final_ba_inertial_edges_;
   s.final_ba_s = final_ba_s_;
   s.tracked = frames_.tracked();
   s.frames_tracked_by_imu = frames_.tracked_by_imu();

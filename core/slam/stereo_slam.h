@@ -113,7 +113,7 @@ class StereoSlam final : public SessionSlam {
   std::atomic<std::size_t> imu_linked_{0};
   std::atomic<TimestampNs> first_t_ns_{-1};  // the session's first frame
   bool finished_ = false;
-  std::size_t final_ba_keyframes_ = 0;
+  std::size_t final_ba_keyframes_ = 0, final_ba_inertial_edges_ = 0;
   double final_ba_s_ = 0.0;
   TrackedFrames frames_;
   std::size_t keyframes_made_ = 0;
