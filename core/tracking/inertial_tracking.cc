@@ -32,10 +32,12 @@ ImuState InertialTracking::imu_state(const Pose3& T_w_b, const Eigen::Vector3d& 
   return s;
 }
 
-StateCovariance InertialTracking::loose_covariance() const {
+StateCovariance InertialTracking::loose_covariance(double bridged_s) const {
   StateCovariance c = StateCovariance::Zero();
+  // The position also drifts by the velocity's error over the time the IMU alone carried it.
+  const double position_sigma = std::hypot(options_.loose_position_sigma, options_.loose_velocity_sigma * bridged_s);
   c.diagonal().segment<3>(0).setConstant(options_.loose_rotation_sigma * options_.loose_rotation_sigma);
-  c.diagonal().segment<3>(3).setConstant(options_.loose_position_sigma * options_.loose_position_sigma);
+  c.diagonal().segment<3>(3).setConstant(position_sigma * position_sigma);
   c.diagonal().segment<3>(6).setConstant(options_.loose_velocity_sigma * options_.loose_velocity_sigma);
   return c;
 }
@@ -75,7 +77,9 @@ std::optional<int> InertialTracking::optimize(Frame& frame, const FrameCamera& c
   term.gravity_w = p.map.gravity_w;
   term.previous_T_c_w = (p.last_T_w_b * T_b_c_).inverse();
   term.previous_v_w = p.last_v_w;
-  term.previous_covariance = last_->covariance.value_or(loose_covariance());
+  const double bridged_s =
+      last_visual_ns_ > 0 && last_->t_ns > last_visual_ns_ ? ns_to_s(last_->t_ns - last_visual_ns_) : 0.0;
+  term.previous_covariance = last_->covariance.value_or(loose_covariance(bridged_s));
   term.v_w = p.predicted.v_w;
   term.bias = p.map.bias;
   const double window = options_.bias_prior_window_s;

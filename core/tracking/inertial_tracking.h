@@ -27,7 +27,9 @@ struct InertialTrackingOptions {
   double max_imu_only_s = 1.5;
   // The prior of a last state that no visual-inertial optimisation produced
   // (the map's first inertial frame, the first after frames tracked by the
-  // IMU): sigmas of rotation (rad), camera position (m) and velocity (m/s).
+  // IMU): sigmas of rotation (rad), camera position (m) and velocity (m/s);
+  // after frames tracked by the IMU the position's grows by the velocity's
+  // times the time bridged.
   double loose_rotation_sigma = 0.01;
   double loose_position_sigma = 0.02;
   double loose_velocity_sigma = 0.2;
@@ -94,7 +96,9 @@ class InertialTracking {
     ImuState predicted;
     std::optional<InertialPoseEstimate> estimate;  // filled by optimize()
   };
-  StateCovariance loose_covariance() const;
+  // The loose prior, its position sigma grown by the velocity sigma over the
+  // `bridged_s` seconds the last state was carried by the IMU alone.
+  StateCovariance loose_covariance(double bridged_s) const;
   ImuState imu_state(const Pose3& T_w_b, const Eigen::Vector3d& v_w) const;
 
   const ImuBuffer& imu_;
