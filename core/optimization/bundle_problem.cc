@@ -98,6 +98,7 @@ bool is_bundle_outlier(const BundleProblem& lp, const BundleEdge& e, const Bundl
 // One stage: a problem over the active edges, solved for `iterations`.
 ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int iterations, const BundleSettings& options,
                                           StopFlagCallback& callback) {
+  std::vector<std::unique_ptr<ceres::HuberLoss>> extra_losses;  // the problem does not own its losses
   ceres::Problem::Options po;
   po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -140,7 +141,9 @@ ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int it
   }
   for (const BundleExtraTerm& term : lp.extra_terms) {
     for (const std::size_t k : term.keyframes) add_pose(k);
-    problem.AddResidualBlock(term.cost.get(), nullptr, term.blocks);
+    ceres::LossFunction* loss = nullptr;
+    if (term.huber > 0.0) loss = extra_losses.emplace_back(std::make_unique<ceres::HuberLoss>(term.huber)).get();
+    problem.AddResidualBlock(term.cost.get(), loss, term.blocks);
   }
   for (const BundleExtraBlock& block : lp.extra_blocks) {
     if (!problem.HasParameterBlock(block.values.get())) continue;

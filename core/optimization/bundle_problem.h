@@ -57,6 +57,7 @@ struct BundleExtraTerm {
   std::unique_ptr<ceres::CostFunction> cost;
   std::vector<double*> blocks;         // in the cost's order
   std::vector<std::size_t> keyframes;  // whose pose blocks are among `blocks`
+  double huber = 0.0;                  // > 0: a Huber kernel of this width on the whitened residual
 };
 
 struct BundleProblem {

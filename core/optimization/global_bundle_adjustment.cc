@@ -17,9 +17,11 @@ void GlobalBundleAdjustmentOptions::check() const {
   ORBATLAS_CHECK(huber_stereo > 0.0, "global BA: huber_stereo must be > 0, not " << huber_stereo);
   check_level_sigma2(level_sigma2, "global BA");
   ORBATLAS_CHECK(num_threads >= 1, "global BA: num_threads must be >= 1, not " << num_threads);
-  if (inertial)
+  if (inertial) {
     ORBATLAS_CHECK(inertial->max_chain_keyframes >= 2,
                    "global BA: max_chain_keyframes must be >= 2, not " << inertial->max_chain_keyframes);
+    ORBATLAS_CHECK(inertial->huber >= 0.0, "global BA: the inertial Huber width must be >= 0, not " << inertial->huber);
+  }
 }
 
 namespace {
@@ -66,6 +68,7 @@ GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Came
     window_options.map_bias = inertial_state->bias;
     window_options.temporal_keyframes = std::max<std::size_t>(2, chain.keyframes.size());
     if (chain.keyframes.size() >= 2) window = add_inertial_window(problem, chain, window_options);
+    for (const std::size_t t : window.inertial_terms) problem.extra_terms[t].huber = options.inertial->huber;
   }
 
   // Gauge: the origin, else the oldest keyframe (keyframes() is sorted by id).

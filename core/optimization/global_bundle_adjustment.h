@@ -32,9 +32,14 @@ struct GlobalBundleAdjustmentOptions {
   // keyframe (at most max_chain_keyframes of it) joins with its IMU velocities
   // and biases, tied by the preintegrated IMU and the biases' random walk, in
   // the map's gravity (ORB-SLAM3's FullInertialBA). None: visual only.
+  // The inertial terms get a Huber kernel at the 95 % quantile of their chi2:
+  // over a whole map, links the IMU and the images disagree on (a real IMU
+  // beside the rendered motion: chi2 up to 330) would otherwise bend every
+  // keyframe towards them; a consistent map's (chi2 under 13) are untouched.
   struct Inertial {
     Pose3 T_b_i;
     std::size_t max_chain_keyframes = 200;
+    double huber = std::sqrt(kChi2Inertial95);  // 0: none
   };
   std::optional<Inertial> inertial;
 

@@ -47,8 +47,8 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
     options_.mapper.inertial.enabled = true;
     options_.mapper.inertial.T_b_i = settings.imu->T_b_i;
     // The global BAs (after a loop, --final-ba) of an initialised map keep its IMU terms.
-    const GlobalBundleAdjustmentOptions::Inertial global_inertial{settings.imu->T_b_i,
-                                                                  options_.mapper.inertial.refinement_max_keyframes};
+    const GlobalBundleAdjustmentOptions::Inertial global_inertial{
+        .T_b_i = settings.imu->T_b_i, .max_chain_keyframes = options_.mapper.inertial.refinement_max_keyframes};
     options_.loop.global.inertial = global_inertial;
     options_.final_ba.inertial = global_inertial;
     // ORB-SLAM3's inertial keyframe rules: one at least every 0.5 s, and
