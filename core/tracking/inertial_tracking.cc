@@ -42,6 +42,18 @@ StateCovariance InertialTracking::loose_covariance(double bridged_s) const {
   return c;
 }
 
+namespace {
+
+// The state covariance (inertial_cost.h's coordinates: rotation and
+// translation of T_c_w, then v_w) with its velocity block turned by R: v' = R v.
+StateCovariance turn_velocity_block(const StateCovariance& c, const Eigen::Matrix3d& R) {
+  StateCovariance J = StateCovariance::Identity();
+  J.block<3, 3>(6, 6) = R;
+  return J * c * J.transpose();
+}
+
+}  // namespace
+
 std::optional<Pose3> InertialTracking::predict(const Map& map, const Frame& last, TimestampNs t_ns) {
   prediction_.reset();
   if (!last_ || !last.has_pose || last.t_ns != last_->t_ns || t_ns <= last.t_ns) return std::nullopt;
@@ -79,7 +91,11 @@ std::optional<int> InertialTracking::optimize(Frame& frame, const FrameCamera& c
   term.previous_v_w = p.last_v_w;
   const double bridged_s =
       last_visual_ns_ > 0 && last_->t_ns > last_visual_ns_ ? ns_to_s(last_->t_ns - last_visual_ns_) : 0.0;
-  term.previous_covariance = last_->covariance.value_or(loose_covariance(bridged_s));
+  // Kept with the velocity in the last frame's IMU frame: back to the world it is in now.
+  term.previous_covariance =
+      last_->covariance
+          ? turn_velocity_block(*last_->covariance, imu_state(p.last_T_w_b, Eigen::Vector3d::Zero()).R_w_i)
+          : loose_covariance(bridged_s);
   term.v_w = p.predicted.v_w;
   term.bias = p.map.bias;
   const double window = options_.bias_prior_window_s;
@@ -119,7 +135,10 @@ void InertialTracking::frame_done(const Frame& frame, const Frame* previous, Out
     s.v_i = now.R_w_i.transpose() * prediction->predicted.v_w;  // the covariance: the loose prior
   } else if (prediction && prediction->estimate) {
     s.v_i = now.R_w_i.transpose() * prediction->estimate->v_w;
-    s.covariance = prediction->estimate->covariance;
+    // Velocity block in the frame's IMU frame, as v_i: a move of the frame (a
+    // loop's yaw, the map turned to gravity) carries it along.
+    if (prediction->estimate->covariance)
+      s.covariance = turn_velocity_block(*prediction->estimate->covariance, now.R_w_i.transpose());
     bias_ = prediction->estimate->bias;
     last_visual_ns_ = frame.t_ns;
   } else {

@@ -85,7 +85,8 @@ class InertialTracking {
   struct LastState {
     TimestampNs t_ns = 0;
     Eigen::Vector3d v_i = Eigen::Vector3d::Zero();  // the IMU's velocity, in its own frame
-    std::optional<StateCovariance> covariance;      // from the optimisation, else the loose prior
+    // From the optimisation (its velocity block in the frame's IMU frame), else the loose prior.
+    std::optional<StateCovariance> covariance;
   };
   struct Prediction {
     TimestampNs t_ns = 0;
