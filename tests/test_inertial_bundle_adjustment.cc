@@ -12,7 +12,7 @@
 #include "core/camera/camera_factory.h"
 #include "core/geometry/so3.h"
 #include "core/map/atlas.h"
-#include "core/optimization/full_inertial_bundle_adjustment.h"
+#include "core/optimization/apply_global_adjustment.h"
 #include "core/optimization/inertial_cost.h"
 #include "core/optimization/local_bundle_adjustment.h"
 #include "core/sim/euroc_sequences.h"
@@ -193,20 +193,30 @@ TEST(InertialBundleAdjustment, TheWindowReturnsToTheTrueStatesAndBiases) {
   }
 }
 
-// ORB-SLAM3's FullInertialBA after an initialisation or refinement: every
-// keyframe and point of the map and the whole chain's IMU states; the chain's
-// oldest keyframe fixes the gauge.
+// ORB-SLAM3's FullInertialBA as local mapping runs it after an initialisation
+// or refinement: the global BA with the inertial chain, applied to the map (in
+// gravity -z; the map's oldest keyframe fixes the gauge).
+GlobalBundleAdjustmentResult full_inertial_ba(InertialWorld& w, double huber = std::sqrt(kChi2Inertial95)) {
+  Map::InertialState state;
+  state.gravity_w = kGravity;
+  w.map->set_inertial_state(state);
+  GlobalBundleAdjustmentOptions options;
+  options.iterations = 20;
+  options.inertial =
+      GlobalBundleAdjustmentOptions::Inertial{.T_b_i = Pose3(), .max_chain_keyframes = 200, .huber = huber};
+  GlobalBundleAdjustmentResult result = global_bundle_adjustment(*w.map, *w.camera, w.bf, options);
+  const GlobalAdjustmentApplyStats applied = apply_global_adjustment(*w.map, result, ScalePyramid{});
+  EXPECT_FALSE(applied.stale);
+  EXPECT_EQ(applied.imu_states_set, result.imu_states.size());
+  return result;
+}
+
+// Every keyframe and point of the map and the whole chain's IMU states.
 TEST(InertialBundleAdjustment, TheFullBundleAdjustmentReturnsEveryStateToTheTruth) {
   auto w = make_world(45.0);
   perturb(*w);
   const Errors before = window_errors(*w);
-  Map::InertialState state;
-  state.gravity_w = kGravity;
-  w->map->set_inertial_state(state);
-  GlobalBundleAdjustmentOptions options;
-  options.iterations = 20;
-  options.inertial = GlobalBundleAdjustmentOptions::Inertial{.T_b_i = Pose3(), .max_chain_keyframes = 200};
-  const GlobalBundleAdjustmentResult stats = full_inertial_bundle_adjustment(*w->map, *w->camera, w->bf, options);
+  const GlobalBundleAdjustmentResult stats = full_inertial_ba(*w);
   const Errors after = window_errors(*w);
   std::printf(
       "full BA: %zu keyframes, %zu points, %zu inertial edges, chi2 max %.2e, %d iterations, %.1f ms; position "
@@ -246,14 +256,7 @@ TEST(InertialBundleAdjustment, TheFullBundleAdjustmentResistsALinkTheImagesContr
     w->keyframes[bad]->set_inertial_link(
         w->keyframes[bad - 1],
         std::make_shared<const Preintegration>(Preintegration::between(samples, t0, t1, true_bias(), ImuNoise{})));
-    Map::InertialState state;
-    state.gravity_w = kGravity;
-    w->map->set_inertial_state(state);
-    GlobalBundleAdjustmentOptions options;
-    options.iterations = 20;
-    options.inertial =
-        GlobalBundleAdjustmentOptions::Inertial{.T_b_i = Pose3(), .max_chain_keyframes = 200, .huber = huber};
-    const GlobalBundleAdjustmentResult result = full_inertial_bundle_adjustment(*w->map, *w->camera, w->bf, options);
+    const GlobalBundleAdjustmentResult result = full_inertial_ba(*w, huber);
     double error = 0.0;
     for (std::size_t i = 0; i < w->keyframes.size(); ++i)
       error = std::max(error, (w->keyframes[i]->T_w_b().t - w->true_T_w_b[i].t).norm());

@@ -15,7 +15,7 @@
 #include "core/common/data_paths.h"
 #include "core/eval/evaluate.h"
 #include "core/io/tum_trajectory.h"
-#include "core/loop/apply_global_adjustment.h"
+#include "core/optimization/apply_global_adjustment.h"
 #include "core/loop/map_merge.h"
 #include "core/loop/place_recognizer.h"
 #include "core/slam/stereo_slam.h"

@@ -5,7 +5,7 @@
 #include "core/common/error.h"
 #include "core/common/stopwatch.h"
 #include "core/common/log.h"
-#include "core/loop/apply_global_adjustment.h"
+#include "core/optimization/apply_global_adjustment.h"
 
 namespace orbatlas {
 namespace {

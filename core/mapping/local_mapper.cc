@@ -10,6 +10,7 @@
 #include "core/common/stopwatch.h"
 #include "core/common/log.h"
 #include "core/map/map_point_update.h"
+#include "core/optimization/apply_global_adjustment.h"
 #include "core/mapping/fusion.h"
 #include "core/mapping/triangulation.h"
 
@@ -38,6 +39,8 @@ void LocalMapperOptions::check() const {
   inertial.check();
   ORBATLAS_CHECK(inertial_window_keyframes >= 2,
                  "local mapping: inertial_window_keyframes must be >= 2, not " << inertial_window_keyframes);
+  ORBATLAS_CHECK(full_inertial_ba_iterations >= 0,
+                 "local mapping: full_inertial_ba_iterations must be >= 0, not " << full_inertial_ba_iterations);
 }
 
 LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions options, KeyframeIndex* index,
@@ -186,9 +189,15 @@ GlobalBundleAdjustmentResult LocalMapper::full_inertial_ba(Map& map, const std::
   ba.origin = origins_.count(map.id()) ? std::optional<KeyframeId>(origins_.at(map.id())) : std::nullopt;
   ba.inertial =
       GlobalBundleAdjustmentOptions::Inertial{options_.inertial.T_b_i, options_.inertial.refinement_max_keyframes};
-  // Not interrupted by new keyframes (they wait, as in ORB-SLAM3): the map's
-  // states were just replaced and local BA would start from them half-solved.
-  const auto result = full_inertial_bundle_adjustment(map, *cam_.camera, cam_.bf, ba);
+  // ORB-SLAM3's FullInertialBA. Not interrupted by new keyframes (they wait):
+  // the map's states were just replaced and local BA would start from them
+  // half-solved. Keyframes and points tracking made meanwhile follow their
+  // parents' correction; sessions tracking in the map see it before or after.
+  const auto result = global_bundle_adjustment(map, *cam_.camera, cam_.bf, ba);
+  {
+    const auto whole = atlas_.lock_maps_exclusive();
+    apply_global_adjustment(map, result, cam_.pyramid);
+  }
   std::ostringstream line;
   line << "full visual-inertial BA of map " << map.id() << ": " << result.keyframes << " keyframes ("
        << result.inertial_keyframes << " with IMU states), " << result.points << " points, " << result.iterations

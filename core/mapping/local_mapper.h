@@ -21,7 +21,7 @@
 #include "core/map/keyframe_index.h"
 #include "core/mapping/inertial_initializer.h"
 #include "core/mapping/keyframe_culling.h"
-#include "core/optimization/full_inertial_bundle_adjustment.h"
+#include "core/optimization/global_bundle_adjustment.h"
 #include "core/optimization/local_bundle_adjustment.h"
 #include "core/tracking/frame_camera.h"
 

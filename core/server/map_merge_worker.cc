@@ -4,7 +4,7 @@
 
 #include "core/common/log.h"
 #include "core/common/stopwatch.h"
-#include "core/loop/apply_global_adjustment.h"
+#include "core/optimization/apply_global_adjustment.h"
 
 namespace orbatlas {
 

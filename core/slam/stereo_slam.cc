@@ -6,7 +6,7 @@
 
 #include "core/common/error.h"
 #include "core/common/log.h"
-#include "core/loop/apply_global_adjustment.h"
+#include "core/optimization/apply_global_adjustment.h"
 #include "core/place/index_relocalizer.h"
 #include "core/slam/slam_tuning.h"
 

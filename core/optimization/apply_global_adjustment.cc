@@ -1,4 +1,4 @@
-#include "core/loop/apply_global_adjustment.h"
+#include "core/optimization/apply_global_adjustment.h"
 
 #include <deque>
 #include <unordered_map>

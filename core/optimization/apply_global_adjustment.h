@@ -1,6 +1,7 @@
 #pragma once
-// Bringing a finished background global bundle adjustment into the map (ORB-SLAM's
-// RunGlobalBundleAdjustment tail), with local mapping paused: keyframes and
+// Bringing a finished global bundle adjustment into the map (ORB-SLAM's
+// RunGlobalBundleAdjustment tail; also local mapping's full visual-inertial BA),
+// with local mapping paused or by local mapping itself: keyframes and
 // points the solve covered take its result; keyframes made meanwhile follow their
 // spanning-tree parent's correction, points made meanwhile their reference
 // keyframe's.
