@@ -474,6 +474,50 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
   EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
 }
 
+// The same two places flown by two stereo-inertial sessions (issue 19): both
+// maps are gravity aligned, so the merge turns the second about the vertical
+// only, and the merging worker's global BAs keep the IMU terms: the first map's
+// refinement its session's chain, the merged map's both sessions' chains.
+TEST(ServerMerging, TwoStereoInertialSessionsMergeKeepingBothImuChains) {
+  const std::vector<std::filesystem::path> clips = {test::simulated_clip("MH_01", 46.0, 8.0),
+                                                    test::simulated_clip("MH_02", 38.0, 8.0)};
+  const test::ClipCleanup cleanups[] = {{clips[0]}, {clips[1]}};
+  test::TempDbPath db("merge_inertial");
+  AtlasServiceOptions options = test::server_options(db.path);
+  options.start_in_stored_maps = false;
+  options.live_merging = false;
+  test::TestServer server(options);
+  ServerClient client(server.url());
+  std::vector<std::uint64_t> sessions, stream_maps;
+  for (const auto& clip : clips) {
+    StreamOptions o = test::stream_options(clip);
+    o.config = "euroc/stereo_inertial";
+    const StreamReport report = stream_dataset(client, o);
+    EXPECT_EQ(report.tracked, report.frames);
+    ASSERT_TRUE(report.finish_status.at("slam").contains("imu_initialized_at_s")) << report.finish_status.dump();
+    sessions.push_back(report.session);
+    ASSERT_FALSE(report.trajectory_maps.empty());
+    stream_maps.push_back(report.trajectory_maps.front());
+  }
+  const auto merges = wait_for_merges(client);
+  ASSERT_EQ(merges["refinements"].size(), 1u) << merges.dump(2);
+  ASSERT_EQ(merges["merges"].size(), 1u) << merges.dump(2);
+  const auto& merge = merges["merges"][0];
+  std::printf("refinement: %s\nmerge: %s\n", merges["refinements"][0].dump().c_str(), merge.dump().c_str());
+  EXPECT_EQ(merge["source_map"], stream_maps[1]);
+  EXPECT_EQ(merge["target_map"], stream_maps[0]);
+  EXPECT_TRUE(merge["four_dof"].get<bool>()) << merge.dump();
+  const std::size_t first_chain = merges["refinements"][0]["inertial_edges"].get<std::size_t>();
+  EXPECT_GE(first_chain, 10u);  // 8 s, a keyframe at least every 0.5 s
+  // Both chains: more than the first session's alone.
+  EXPECT_GE(merge["global_ba"]["inertial_edges"].get<std::size_t>(), first_chain + 10) << merge.dump();
+  std::set<std::uint64_t> in_maps;
+  const double ate = joint_ate(client, sessions, clips, &in_maps);
+  std::printf("two stereo-inertial sessions, one map: ATE %.4f m\n", ate);
+  EXPECT_EQ(in_maps, std::set<std::uint64_t>{stream_maps[0]});
+  EXPECT_LT(ate, 0.004);  // measured 0.0019 m
+}
+
 // The same two sessions with live merging: the second session's map is merged
 // into the first one's WHILE it streams; the replies switch to the first map
 // and stay there, the merge is listed, the worker has nothing left to merge

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <unordered_set>
 
 #include "core/common/error.h"
 #include "core/map/inertial_chain.h"
@@ -26,15 +27,23 @@ void GlobalBundleAdjustmentOptions::check() const {
 
 namespace {
 
-// The inertial chain ending at the map's newest keyframe linked by the IMU.
-InertialChainWindow newest_chain(const std::vector<std::shared_ptr<KeyFrame>>& keyframes, std::size_t max_keyframes) {
-  InertialChainWindow chain;
+// Every inertial chain of the map (one per visual-inertial session that mapped
+// in it: a merge joins the sessions' maps, not their chains), newest first, each
+// the newest `max_keyframes` of its chain. Keyframe ids grow with time, so the
+// newest keyframe of a chain is met before the others.
+std::vector<InertialChainWindow> inertial_chains(const std::vector<std::shared_ptr<KeyFrame>>& keyframes,
+                                                 std::size_t max_keyframes) {
+  std::vector<InertialChainWindow> chains;
+  std::unordered_set<const KeyFrame*> covered;
   for (auto it = keyframes.rbegin(); it != keyframes.rend(); ++it) {
-    if ((*it)->is_bad() || !(*it)->inertial_link()) continue;
-    chain.keyframes = inertial_chain(*it, max_keyframes);
-    break;
+    if ((*it)->is_bad() || !(*it)->inertial_link() || covered.count(it->get())) continue;
+    std::vector<std::shared_ptr<KeyFrame>> chain = inertial_chain(*it);
+    for (const auto& kf : chain) covered.insert(kf.get());
+    if (chain.size() > max_keyframes)
+      chain.erase(chain.begin(), chain.begin() + static_cast<std::ptrdiff_t>(chain.size() - max_keyframes));
+    if (chain.size() >= 2) chains.push_back(InertialChainWindow{std::move(chain), false});
   }
-  return chain;
+  return chains;
 }
 
 }  // namespace
@@ -59,16 +68,21 @@ GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Came
   settings.dense_schur_max_keyframes = 40;
   BundleProblem problem = collect_bundle_problem(keyframes, camera, bf, settings);
   const auto inertial_state = options.inertial ? map.inertial_state() : std::nullopt;
-  InertialWindow window;
+  std::vector<InertialWindow> windows;
   InertialWindowOptions window_options;
   if (inertial_state) {
-    const InertialChainWindow chain = newest_chain(keyframes, options.inertial->max_chain_keyframes);
+    const std::vector<InertialChainWindow> chains = inertial_chains(keyframes, options.inertial->max_chain_keyframes);
     window_options.T_b_i = options.inertial->T_b_i;
     window_options.gravity_w = inertial_state->gravity_w;
     window_options.map_bias = inertial_state->bias;
-    window_options.temporal_keyframes = std::max<std::size_t>(2, chain.keyframes.size());
-    if (chain.keyframes.size() >= 2) window = add_inertial_window(problem, chain, window_options);
-    for (const std::size_t t : window.inertial_terms) problem.extra_terms[t].huber = options.inertial->huber;
+    // Every chain keyframe indexed before any term points into the poses.
+    for (const auto& chain : chains)
+      for (const auto& kf : chain.keyframes) bundle_keyframe_index(problem, kf);
+    for (const auto& chain : chains) {
+      window_options.temporal_keyframes = chain.keyframes.size();
+      windows.push_back(add_inertial_window(problem, chain, window_options));
+      for (const std::size_t t : windows.back().inertial_terms) problem.extra_terms[t].huber = options.inertial->huber;
+    }
   }
 
   // Gauge: the origin, else the oldest keyframe (keyframes() is sorted by id).
@@ -95,12 +109,15 @@ GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Came
   for (std::size_t j = 0; j < problem.points.size(); ++j)
     result.p_w[problem.points[j]->id()] =
         Eigen::Vector3d(problem.positions[j][0], problem.positions[j][1], problem.positions[j][2]);
-  for (const auto& [kf, state] : inertial_window_states(problem, window, window_options))
-    result.imu_states[kf->id()] = state;
-  result.inertial_keyframes = window.index.size();
-  result.inertial_edges = window.inertial_terms.size();
-  for (const double chi2 : inertial_window_chi2(problem, window))
-    result.inertial_chi2_max = std::max(result.inertial_chi2_max, chi2);
+  for (const InertialWindow& window : windows) {
+    for (const auto& [kf, state] : inertial_window_states(problem, window, window_options))
+      result.imu_states[kf->id()] = state;
+    result.inertial_keyframes += window.index.size();
+    result.inertial_edges += window.inertial_terms.size();
+    for (const double chi2 : inertial_window_chi2(problem, window))
+      result.inertial_chi2_max = std::max(result.inertial_chi2_max, chi2);
+  }
+  result.inertial_chains = windows.size();
   result.keyframes = problem.window;
   result.points = problem.points.size();
   result.observations = problem.edges.size();

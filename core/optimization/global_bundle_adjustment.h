@@ -28,9 +28,9 @@ struct GlobalBundleAdjustmentOptions {
   std::optional<KeyframeId> origin;
   int num_threads = 1;
   // Visual-inertial sessions (the IMU at T_b_i in the body): when the map is
-  // inertially initialised, the inertial chain ending at its newest linked
-  // keyframe (at most max_chain_keyframes of it) joins with its IMU velocities
-  // and biases, tied by the preintegrated IMU and the biases' random walk, in
+  // inertially initialised, each of its inertial chains (one per session that
+  // mapped in it; the newest max_chain_keyframes of each) joins with its IMU
+  // velocities and biases, tied by the preintegrated IMU and the biases' random walk, in
   // the map's gravity (ORB-SLAM3's FullInertialBA). None: visual only.
   // The inertial terms get a Huber kernel at the 95 % quantile of their chi2:
   // over a whole map, links the IMU and the images disagree on (a real IMU
@@ -54,7 +54,7 @@ struct GlobalBundleAdjustmentResult {
   // Optimised IMU states of the inertial chain (velocity in the IMU frame of the
   // optimised pose), when inertial terms joined.
   std::unordered_map<KeyframeId, KeyFrame::ImuState> imu_states;
-  std::size_t inertial_keyframes = 0, inertial_edges = 0;
+  std::size_t inertial_chains = 0, inertial_keyframes = 0, inertial_edges = 0;
   double inertial_chi2_max = 0.0;  // after the solve
   std::size_t keyframes = 0, points = 0, observations = 0;
   int iterations = 0;

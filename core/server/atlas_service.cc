@@ -371,10 +371,16 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
                        std::string("cannot store the new session: ") + e.what());
   }
   auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam), mode);
+  // As StereoSlam decides whether it fuses the IMU.
+  std::optional<GlobalBundleAdjustmentOptions::Inertial> inertial;
+  if (!single_camera && mode == SessionMode::kMap && options_.slam.inertial && loaded.settings.imu)
+    inertial = GlobalBundleAdjustmentOptions::Inertial{
+        .T_b_i = loaded.settings.imu->T_b_i,
+        .max_chain_keyframes = options_.slam.mapper.inertial.refinement_max_keyframes};
   {
     std::lock_guard lock(mutex_);
     sessions_[id] = live;
-    session_starts_[id] = {request.settings, atlas_.ids().peek(IdKind::keyframe)};
+    session_starts_[id] = {request.settings, atlas_.ids().peek(IdKind::keyframe), inertial};
   }
   idle_wake_.notify_all();
   // The checkpoint thread reads the frames through its own reference.
@@ -471,7 +477,7 @@ void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
   }
   // The camera shares the context's ownership: it lives while a request holds it.
   const std::shared_ptr<const FrameCamera> cam(context, &context->cam);
-  for (const MapId map : maps) merger_->submit(MergeRequest{map, cam, start.first_keyframe});
+  for (const MapId map : maps) merger_->submit(MergeRequest{map, cam, start.first_keyframe, start.inertial});
 }
 
 bool AtlasService::rigs_match(MapId source, MapId target) const {

@@ -225,6 +225,8 @@ class AtlasService {
   struct SessionStart {
     SettingsSource settings;
     KeyframeId first_keyframe = 0;  // keyframe ids from here on are this session's or later ones
+    // A mapping session that fuses its IMU: the merging worker's global BAs keep the IMU terms.
+    std::optional<GlobalBundleAdjustmentOptions::Inertial> inertial;
   };
   std::map<SessionId, SessionStart> session_starts_;  // of this run's sessions
   mutable std::mutex live_merges_mutex_;              // a leaf lock (taken on the loop-closing thread)

@@ -110,8 +110,9 @@ void MapMergeWorker::process(const MergeRequest& request) {
              " keyframes searched) shares no verified place with another map");
     if (options_.global_bundle_adjustment && options_.refine_unmerged && searched > 0 && !stopping_.load()) {
       MapRefinement refinement{source_id};
-      const GlobalBundleAdjustmentResult result = refine(*source, *request.cam, &refinement.seconds);
+      const GlobalBundleAdjustmentResult result = refine(*source, request, &refinement.seconds);
       refinement.keyframes = result.keyframes;
+      refinement.inertial_edges = result.inertial_edges;
       refinement.interrupted = result.stopped;
       std::lock_guard lock(mutex_);
       push_recent(stats_.refinements, refinement);
@@ -138,8 +139,9 @@ void MapMergeWorker::process(const MergeRequest& request) {
 
   if (options_.global_bundle_adjustment) {
     if (const auto map = atlas_.map(target_id)) {
-      const GlobalBundleAdjustmentResult result = refine(*map, *request.cam, &record.ba_seconds);
+      const GlobalBundleAdjustmentResult result = refine(*map, request, &record.ba_seconds);
       record.ba_keyframes = result.keyframes;
+      record.ba_inertial_edges = result.inertial_edges;
       record.ba_interrupted = result.stopped;
     }
   }
@@ -151,10 +153,12 @@ void MapMergeWorker::process(const MergeRequest& request) {
   if (on_merged_) on_merged_(record);
 }
 
-GlobalBundleAdjustmentResult MapMergeWorker::refine(Map& map, const FrameCamera& cam, double* seconds) {
+GlobalBundleAdjustmentResult MapMergeWorker::refine(Map& map, const MergeRequest& request, double* seconds) {
   const auto start = std::chrono::steady_clock::now();
-  const GlobalBundleAdjustmentResult result = global_bundle_adjustment(
-      map, *cam.camera, cam.bf, with_level_sigma2(options_.global, cam.pyramid.level_sigma2()), &stopping_);
+  const FrameCamera& cam = *request.cam;
+  GlobalBundleAdjustmentOptions global = with_level_sigma2(options_.global, cam.pyramid.level_sigma2());
+  if (request.inertial) global.inertial = request.inertial;
+  const GlobalBundleAdjustmentResult result = global_bundle_adjustment(map, *cam.camera, cam.bf, global, &stopping_);
   if (!result.stopped) {
     const auto whole = atlas_.lock_maps_exclusive();  // localisations see the map before or after
     apply_global_adjustment(map, result, cam.pyramid);

@@ -13,6 +13,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <vector>
 
 #include "core/common/queue_worker.h"
@@ -49,6 +50,10 @@ struct MergeRequest {
   // keyframes the finished session made), so that a session that worked in a
   // large stored map does not make the worker search all of it again.
   KeyframeId first_keyframe = 0;
+  // A visual-inertial session's (its IMU in the body): the global BA of an
+  // inertially initialised map keeps the IMU terms of every session's chain
+  // (the maps merged are of the same rig). None: visual only.
+  std::optional<GlobalBundleAdjustmentOptions::Inertial> inertial;
 };
 
 struct MergeRecord {
@@ -57,14 +62,14 @@ struct MergeRecord {
   int matches = 0, verified_keyframes = 0;
   double search_ms = 0.0;              // place recognition until the match
   std::size_t keyframes_searched = 0;  // of the source map
-  std::size_t ba_keyframes = 0;
+  std::size_t ba_keyframes = 0, ba_inertial_edges = 0;
   double ba_seconds = 0.0;
   bool ba_interrupted = false;
 };
 
 struct MapRefinement {
   MapId map = 0;
-  std::size_t keyframes = 0;
+  std::size_t keyframes = 0, inertial_edges = 0;
   double seconds = 0.0;
   bool interrupted = false;
 };
@@ -120,8 +125,8 @@ class MapMergeWorker {
  private:
   void run_one(const MergeRequest& request);  // on the worker thread; leases released after
   void process(const MergeRequest& request);
-  // One global BA of `map` with the request's camera (stop() interrupts it).
-  GlobalBundleAdjustmentResult refine(Map& map, const FrameCamera& cam, double* seconds);
+  // One global BA of `map` with the request's camera and IMU (stop() interrupts it).
+  GlobalBundleAdjustmentResult refine(Map& map, const MergeRequest& request, double* seconds);
 
   Atlas& atlas_;
   MapLeases& leases_;

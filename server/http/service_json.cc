@@ -69,24 +69,31 @@ nlohmann::json to_json(const MergesReport& m) {
   if (!stats.last_error.empty()) out["last_error"] = stats.last_error;
   out["refinements"] = nlohmann::json::array();
   for (const MapRefinement& r : stats.refinements)
-    out["refinements"].push_back(
-        {{"map", r.map}, {"keyframes", r.keyframes}, {"seconds", r.seconds}, {"interrupted", r.interrupted}});
+    out["refinements"].push_back({{"map", r.map},
+                                  {"keyframes", r.keyframes},
+                                  {"inertial_edges", r.inertial_edges},
+                                  {"seconds", r.seconds},
+                                  {"interrupted", r.interrupted}});
   for (const MergeRecord& r : stats.merges)
-    out["merges"].push_back(
-        {{"source_map", r.merge.source},
-         {"target_map", r.merge.target},
-         {"keyframe", r.current},
-         {"matched_keyframe", r.matched},
-         {"matches", r.matches},
-         {"verified_keyframes", r.verified_keyframes},
-         {"keyframes_searched", r.keyframes_searched},
-         {"search_ms", r.search_ms},
-         {"keyframes_moved", r.merge.keyframes_moved},
-         {"map_points_moved", r.merge.points_moved},
-         {"points_fused", r.merge.points_fused},
-         {"observations_added", r.merge.observations_fused},
-         {"merge_ms", r.merge.ms},
-         {"global_ba", {{"keyframes", r.ba_keyframes}, {"seconds", r.ba_seconds}, {"interrupted", r.ba_interrupted}}}});
+    out["merges"].push_back({{"source_map", r.merge.source},
+                             {"target_map", r.merge.target},
+                             {"keyframe", r.current},
+                             {"matched_keyframe", r.matched},
+                             {"matches", r.matches},
+                             {"verified_keyframes", r.verified_keyframes},
+                             {"keyframes_searched", r.keyframes_searched},
+                             {"search_ms", r.search_ms},
+                             {"keyframes_moved", r.merge.keyframes_moved},
+                             {"map_points_moved", r.merge.points_moved},
+                             {"points_fused", r.merge.points_fused},
+                             {"observations_added", r.merge.observations_fused},
+                             {"four_dof", r.merge.four_dof},
+                             {"merge_ms", r.merge.ms},
+                             {"global_ba",
+                              {{"keyframes", r.ba_keyframes},
+                               {"inertial_edges", r.ba_inertial_edges},
+                               {"seconds", r.ba_seconds},
+                               {"interrupted", r.ba_interrupted}}}});
   return out;
 }
 
