@@ -26,10 +26,31 @@ void InertialInitializationOptions::check() const {
                    "inertial initialisation: a refinement's bias priors must be >= 0");
     previous_s = r.after_s;
   }
+  ORBATLAS_CHECK(
+      std::isfinite(reintegrate_gyro_bias_change) && reintegrate_gyro_bias_change >= 0.0,
+      "inertial initialisation: reintegrate_gyro_bias_change must be >= 0, not " << reintegrate_gyro_bias_change);
   solver.check();
 }
 
 namespace {
+
+// Integrates again, at `bias`, every link of `chain` linearised at a gyro bias
+// more than `max_change` from it; returns how many.
+std::size_t reintegrate_far_links(const std::vector<std::shared_ptr<KeyFrame>>& chain, const ImuBias& bias,
+                                  double max_change) {
+  std::size_t count = 0;
+  for (std::size_t k = 1; k < chain.size(); ++k) {
+    const auto link = chain[k]->inertial_link();
+    const auto previous = link ? link->previous.lock() : nullptr;
+    if (!previous || !link->from_previous || (link->from_previous->bias().gyro - bias.gyro).norm() <= max_change)
+      continue;
+    auto again = std::make_shared<Preintegration>(*link->from_previous);
+    again->reintegrate(bias);
+    chain[k]->set_inertial_link(previous, std::move(again));
+    ++count;
+  }
+  return count;
+}
 
 // The inertial-only estimate over `chain` (with `solver`'s bias priors) and,
 // when it is consistent, its application: each keyframe's velocity (in its IMU
@@ -63,6 +84,7 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
     const Eigen::Matrix3d R_w_i = (poses[k] * options.T_b_i).q.normalized().toRotationMatrix();
     chain[k]->set_imu_state(KeyFrame::ImuState{R_w_i.transpose() * result.velocities[k], result.bias});
   }
+  const std::size_t reintegrated = reintegrate_far_links(chain, result.bias, options.reintegrate_gyro_bias_change);
   state.gravity_w = Eigen::Vector3d(0.0, 0.0, -solver.gravity);  // after the alignment below
   state.bias = result.bias;
   {
@@ -78,7 +100,8 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
        << ns_to_s(chain.back()->timestamp_ns() - chain.front()->timestamp_ns()) << " s; gravity was ("
        << result.gravity_w.transpose() << ") m/s^2 in the map (turned by " << turn_deg
        << " deg to point it along -z); gyro bias (" << result.bias.gyro.transpose() << ") rad/s, accelerometer bias ("
-       << result.bias.accel.transpose() << ") m/s^2; " << result.iterations << " iterations";
+       << result.bias.accel.transpose() << ") m/s^2; " << result.iterations << " iterations; " << reintegrated
+       << " links integrated again at the gyro bias found";
   log_info(line.str());
   return state;
 }

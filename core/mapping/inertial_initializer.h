@@ -43,6 +43,10 @@ struct InertialInitializationOptions {
                                                  {35.0, 0.0, 0.0}, {45.0, 0.0, 0.0}, {55.0, 0.0, 0.0},
                                                  {65.0, 0.0, 0.0}, {75.0, 0.0, 0.0}};
   std::size_t refinement_max_keyframes = 200;  // the newest ones of the chain
+  // A link whose linearisation gyro bias is this far from the bias found is
+  // integrated again at it (ORB-SLAM3's 0.01 rad/s): the rotation increment
+  // is corrected to first order only, which a larger change leaves off.
+  double reintegrate_gyro_bias_change = 0.01;
 
   // Throws Error naming the first value out of range.
   void check() const;
