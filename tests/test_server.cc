@@ -140,19 +140,30 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   EXPECT_TRUE(none.contains("reason"));
 }
 
-// A stereo-inertial session over HTTP (issue 19, first stage): orbatlas stream
-// sends the recording's IMU before each frame, the session links its keyframes
-// by it, and the finished session reports its map's inertial initialisation.
+// A stereo-inertial session over HTTP (issue 19): orbatlas stream sends the
+// recording's IMU before each frame, the session links its keyframes by it,
+// and the finished session reports its map's inertial initialisation. A plain
+// stereo session of the same cameras streamed first: the server's mapping of
+// that rig then had visual options; the inertial session maps apart (its own
+// mapping, which initialises the IMU, and its own map).
 TEST(ServerEndToEnd, AStereoInertialStreamInitialisesItsMap) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 6.0);
   test::ClipCleanup cleanup{clip};
   test::TempDbPath db("inertial");
   test::TestServer server(test::server_options(db.path));
   ServerClient client(server.url());
+  StreamOptions plain = test::stream_options(clip);
+  plain.duration_s = 2.0;
+  const StreamReport visual = stream_dataset(client, plain);
+  ASSERT_EQ(visual.tracked, visual.frames);
+  ASSERT_FALSE(visual.trajectory_maps.empty());
   StreamOptions o = test::stream_options(clip);
   o.config = "euroc/stereo_inertial";
   const StreamReport report = stream_dataset(client, o);
   EXPECT_EQ(report.tracked, report.frames);
+  ASSERT_FALSE(report.trajectory_maps.empty());
+  EXPECT_NE(report.trajectory_maps.front(), visual.trajectory_maps.front())
+      << "the inertial session entered the visual map";
   EXPECT_GT(report.imu_samples, 1000u);  // 200 Hz over 6 s
   const nlohmann::json& slam = report.finish_status.at("slam");
   ASSERT_TRUE(slam.contains("imu_initialized_at_s")) << report.finish_status.dump();

@@ -14,15 +14,20 @@ bool same_rig(const CameraRig& a, const CameraRig& b) {
   return true;
 }
 
+bool same_mapping_rig(const MapRig& a, const MapRig& b) {
+  return a.inertial == b.inertial && same_rig(a.cameras, b.cameras);
+}
+
 bool is_single_camera(SensorType sensor) {
   return sensor == SensorType::kMonocular || sensor == SensorType::kMonocularInertial;
 }
 
 void record_map_rigs(const Atlas& atlas, const SessionInfo& session, const std::vector<FrameAnchor>& anchors,
-                     std::map<MapId, CameraRig>& rigs) {
+                     std::map<MapId, MapRig>& rigs) {
   if (is_single_camera(session.sensor)) return;
+  const MapRig rig{session.cameras, session.sensor == SensorType::kStereoInertial};
   for (const FrameAnchor& a : anchors)
-    if (const auto map = atlas.map_holding(a.reference)) rigs.try_emplace(*map, session.cameras);
+    if (const auto map = atlas.map_holding(a.reference)) rigs.try_emplace(*map, rig);
 }
 
 }  // namespace orbatlas

@@ -2,7 +2,10 @@
 // The camera rig each stored map was made with. Local mapping adjusts every
 // keyframe of the map it works in with its own session's camera, so a session
 // may map in (start in, relocalise into, merge into) only maps of its own rig;
-// a single camera that only localises may read any map.
+// a single camera that only localises may read any map. Whether the sessions
+// that mapped it fused an IMU is recorded too: a server's mapping of a rig is
+// made with one session's options, so sessions that fuse an IMU and sessions
+// that do not map apart (docs/server.md).
 #include <map>
 #include <vector>
 
@@ -15,15 +18,24 @@ namespace orbatlas {
 
 using CameraRig = std::vector<CameraCalibration>;
 
+struct MapRig {
+  CameraRig cameras;
+  bool inertial = false;  // mapped by sessions that fuse their IMU
+};
+
 // Same cameras in the same order: model, size, intrinsics, distortion, pose in the body.
 bool same_rig(const CameraRig& a, const CameraRig& b);
 
 // A single camera (mono, mono_inertial): it only localises, it makes no map.
 bool is_single_camera(SensorType sensor);
 
+// Same cameras, and both with or both without the IMU fused.
+bool same_mapping_rig(const MapRig& a, const MapRig& b);
+
 // Records `session`'s rig for the maps of `atlas` holding its frames (a map
-// keeps the first rig recorded); a single camera's session records nothing.
+// keeps the first rig recorded; a stereo_inertial session's counts as fusing
+// its IMU); a single camera's session records nothing.
 void record_map_rigs(const Atlas& atlas, const SessionInfo& session, const std::vector<FrameAnchor>& anchors,
-                     std::map<MapId, CameraRig>& rigs);
+                     std::map<MapId, MapRig>& rigs);
 
 }  // namespace orbatlas

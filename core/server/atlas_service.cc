@@ -275,7 +275,7 @@ void AtlasService::check_upload(const SessionRequest& request) const {
                        "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
 }
 
-std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const SessionInfo& info,
+std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const MapRig& rig,
                                                             const SlamSettings& settings, SessionMode mode) {
   StereoSlamOptions slam_options = options_.slam;
   SessionWiring wiring;
@@ -286,7 +286,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
     slam_options.relocalization = true;
     slam_options.loop_closing = false;
     slam_options.live_merging = false;
-    wiring.may_enter_map = [this, rig = info.cameras](MapId map) { return rig_matches(rig, map); };
+    wiring.may_enter_map = [this, cameras = rig.cameras](MapId map) { return cameras_match(cameras, map); };
     try {
       return std::make_unique<StereoSlam>(atlas_, settings, vocabulary_, slam_options, std::move(wiring));
     } catch (const std::exception& e) {
@@ -296,13 +296,13 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
   }
   // Stored maps of its own rig only (local mapping would adjust another rig's
   // keyframes with this session's camera), also maps other sessions are
-  // mapping right now: it then maps with them (one mapper per map).
-  wiring.may_enter_map = [this, id, rig = info.cameras](MapId map) {
-    return rig_matches(rig, map) && leases_.claim(id, map);
-  };
+  // mapping right now: it then maps with them (one mapper per map). A session
+  // that fuses its IMU maps only where sessions that fuse theirs mapped, and
+  // one that does not only where theirs did not (one mapping, one set of options).
+  wiring.may_enter_map = [this, id, rig](MapId map) { return mapping_rig_matches(rig, map) && leases_.claim(id, map); };
   slam_options.tracker.start_in_stored_map = options_.start_in_stored_maps;
   slam_options.live_merging = options_.merge_maps && options_.live_merging;
-  wiring.mapping = [this, rig = info.cameras](const FrameCamera& cam, const MappingWorkersOptions& mapping) {
+  wiring.mapping = [this, rig](const FrameCamera& cam, const MappingWorkersOptions& mapping) {
     return mapping_for(rig, cam, mapping);
   };
   try {
@@ -347,6 +347,14 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   info.cameras.push_back(loaded.settings.camera0);
   if (loaded.settings.camera1) info.cameras.push_back(*loaded.settings.camera1);
 
+  // As StereoSlam decides whether it fuses the IMU.
+  std::optional<GlobalBundleAdjustmentOptions::Inertial> inertial;
+  if (!single_camera && mode == SessionMode::kMap && options_.slam.inertial && loaded.settings.imu)
+    inertial = GlobalBundleAdjustmentOptions::Inertial{
+        .T_b_i = loaded.settings.imu->T_b_i,
+        .max_chain_keyframes = options_.slam.mapper.inertial.refinement_max_keyframes};
+  const MapRig rig{info.cameras, inertial.has_value()};
+
   std::unique_ptr<SessionSlam> slam;
   if (single_camera) {
     MonoLocalizerOptions mono;
@@ -359,7 +367,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
                          std::string("cannot start a single-camera session with these settings: ") + e.what());
     }
   } else {
-    slam = make_stereo_slam(id, info, loaded.settings, mode);
+    slam = make_stereo_slam(id, rig, loaded.settings, mode);
   }
   // Stored before its id is handed out: an id is never given twice, even when
   // the server dies before the session's first checkpoint.
@@ -371,16 +379,10 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
                        std::string("cannot store the new session: ") + e.what());
   }
   auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam), mode);
-  // As StereoSlam decides whether it fuses the IMU.
-  std::optional<GlobalBundleAdjustmentOptions::Inertial> inertial;
-  if (!single_camera && mode == SessionMode::kMap && options_.slam.inertial && loaded.settings.imu)
-    inertial = GlobalBundleAdjustmentOptions::Inertial{
-        .T_b_i = loaded.settings.imu->T_b_i,
-        .max_chain_keyframes = options_.slam.mapper.inertial.refinement_max_keyframes};
   {
     std::lock_guard lock(mutex_);
     sessions_[id] = live;
-    session_starts_[id] = {request.settings, atlas_.ids().peek(IdKind::keyframe), inertial};
+    session_starts_[id] = {request.settings, atlas_.ids().peek(IdKind::keyframe), inertial, rig};
   }
   idle_wake_.notify_all();
   // The checkpoint thread reads the frames through its own reference.
@@ -414,12 +416,11 @@ SessionStatus AtlasService::session_status(SessionId id) const {
   return status;
 }
 
-std::shared_ptr<MappingWorkers> AtlasService::mapping_for(const std::vector<CameraCalibration>& rig,
-                                                          const FrameCamera& cam,
+std::shared_ptr<MappingWorkers> AtlasService::mapping_for(const MapRig& rig, const FrameCamera& cam,
                                                           const MappingWorkersOptions& options) {
   std::lock_guard lock(mappings_mutex_);
   for (const RigMapping& m : mappings_)
-    if (same_rig(m.rig, rig)) return m.workers;
+    if (same_mapping_rig(m.rig, rig)) return m.workers;
   LoopCloserWiring wiring;
   wiring.shared_worker = loop_worker_;
   // Live merging into maps of the same rig, also those other sessions are
@@ -427,7 +428,7 @@ std::shared_ptr<MappingWorkers> AtlasService::mapping_for(const std::vector<Came
   // map), never one the merging worker holds.
   wiring.may_merge_into = [this, rig](MapId map) {
     const auto holders = leases_.holders(map);
-    return holders != std::vector<SessionId>{kMergeWorkerLease} && rig_matches(rig, map);
+    return holders != std::vector<SessionId>{kMergeWorkerLease} && mapping_rig_matches(rig, map);
   };
   wiring.hold_map = [this](MapId source, MapId target) { return leases_.share(source, target); };
   wiring.on_merged = [this](const LiveMerge& merge) { merged_live(merge); };
@@ -439,9 +440,10 @@ std::shared_ptr<MappingWorkers> AtlasService::mapping_for(const std::vector<Came
 std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
   const std::vector<MapId> held = leases_.held_by(id);
   const auto live = session(id);
+  const MapRig rig = mapping_rig(id);
   if (!is_single_camera(live->info().sensor)) {
     std::lock_guard lock(rigs_mutex_);
-    for (const MapId map : held) map_rigs_.try_emplace(map, live->info().cameras);
+    for (const MapId map : held) map_rigs_.try_emplace(map, rig);
   }
   leases_.release_all(id);
   // The local mapping of maps nobody maps now ends (its thread goes); the
@@ -450,7 +452,7 @@ std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
   {
     std::lock_guard lock(mappings_mutex_);
     for (const RigMapping& m : mappings_)
-      if (same_rig(m.rig, live->info().cameras)) mapping = m.workers;
+      if (same_mapping_rig(m.rig, rig)) mapping = m.workers;
   }
   if (mapping)
     for (const MapId map : held)
@@ -481,20 +483,35 @@ void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
 }
 
 bool AtlasService::rigs_match(MapId source, MapId target) const {
-  std::vector<CameraCalibration> rig;
+  CameraRig cameras;
   {
     std::lock_guard lock(rigs_mutex_);
     const auto a = map_rigs_.find(source);
     if (a == map_rigs_.end()) return false;
-    rig = a->second;
+    cameras = a->second.cameras;
   }
-  return rig_matches(rig, target);
+  return cameras_match(cameras, target);
 }
 
-bool AtlasService::rig_matches(const std::vector<CameraCalibration>& rig, MapId target) const {
+bool AtlasService::cameras_match(const CameraRig& cameras, MapId target) const {
   std::lock_guard lock(rigs_mutex_);
   const auto b = map_rigs_.find(target);
-  return b != map_rigs_.end() && same_rig(rig, b->second);
+  return b != map_rigs_.end() && same_rig(cameras, b->second.cameras);
+}
+
+bool AtlasService::mapping_rig_matches(const MapRig& rig, MapId target) const {
+  std::lock_guard lock(rigs_mutex_);
+  const auto b = map_rigs_.find(target);
+  return b != map_rigs_.end() && same_mapping_rig(rig, b->second);
+}
+
+MapRig AtlasService::mapping_rig(SessionId id) const {
+  std::lock_guard lock(mutex_);
+  const auto it = session_starts_.find(id);
+  if (it != session_starts_.end()) return it->second.rig;
+  const auto s = sessions_.find(id);  // a stored session (this run did not start it)
+  if (s == sessions_.end()) return {};
+  return MapRig{s->second->info().cameras, s->second->info().sensor == SensorType::kStereoInertial};
 }
 
 void AtlasService::merged_live(const LiveMerge& merge) {
@@ -566,8 +583,9 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     leases_.settle(id, reply.result.tracked ? std::optional<MapId>(reply.result.map) : std::nullopt);
     if (reply.result.tracked) {
       // Known to be of this rig from its first frame: other sessions may enter it.
+      const MapRig rig = mapping_rig(id);
       std::lock_guard lock(rigs_mutex_);
-      map_rigs_.try_emplace(reply.result.map, live->info().cameras);
+      map_rigs_.try_emplace(reply.result.map, rig);
     }
   }
   if (reply.result.keyframe) checkpointer_->notify_keyframe(id, reply.result.keyframe_id);

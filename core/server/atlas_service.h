@@ -21,6 +21,7 @@
 #include "core/persistence/atlas_checkpointer.h"
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/database_lock.h"
+#include "core/persistence/map_rigs.h"
 #include "core/server/metrics_registry.h"
 #include "core/server/live_session.h"
 #include "core/server/map_leases.h"
@@ -175,11 +176,11 @@ class AtlasService {
   LoadedSettings load_settings(const SettingsSource& source) const;
   std::shared_ptr<LocalizerContext> localizer_for(const SettingsSource& source);
   // A stereo session's SLAM with the server's policies (leases, live merging).
-  std::unique_ptr<SessionSlam> make_stereo_slam(SessionId id, const SessionInfo& info, const SlamSettings& settings,
+  std::unique_ptr<SessionSlam> make_stereo_slam(SessionId id, const MapRig& rig, const SlamSettings& settings,
                                                 SessionMode mode);
   // The mapping (local mapping per map, loop closing) every mapping session of
   // this camera rig shares; made with the first session's options.
-  std::shared_ptr<MappingWorkers> mapping_for(const std::vector<CameraCalibration>& rig, const FrameCamera& cam,
+  std::shared_ptr<MappingWorkers> mapping_for(const MapRig& rig, const FrameCamera& cam,
                                               const MappingWorkersOptions& options);
   // Leases and checkpoints after a session ended; returns the maps it held.
   std::vector<MapId> end_session_storage(SessionId id);
@@ -188,8 +189,14 @@ class AtlasService {
   // Hands a finished session's maps to the merging worker.
   void submit_merges(SessionId id, const std::vector<MapId>& maps);
   // May two maps be merged (made with one camera rig)?
+  // Same cameras (merging by the worker: no session maps either map).
   bool rigs_match(MapId source, MapId target) const;
-  bool rig_matches(const std::vector<CameraCalibration>& rig, MapId target) const;
+  // `target` was made with these cameras (localisation reads any such map).
+  bool cameras_match(const CameraRig& cameras, MapId target) const;
+  // ... and by sessions that fuse their IMU exactly when `rig`'s do (mapping in it).
+  bool mapping_rig_matches(const MapRig& rig, MapId target) const;
+  // The rig a session maps with (its cameras; whether it fuses its IMU).
+  MapRig mapping_rig(SessionId id) const;
   void merged(const MergeRecord& record);  // on the worker thread
   // The idle-session thread: waits for the earliest idle deadline, finishes
   // the sessions past it.
@@ -211,10 +218,12 @@ class AtlasService {
 
   // The server-wide loop-closing thread (before sessions_: destroyed after them).
   const std::shared_ptr<SerialWorker> loop_worker_;
-  // One mapping per camera rig, shared by its mapping sessions (after
-  // loop_worker_: destroyed before it). mappings_mutex_ is a leaf.
+  // One mapping per camera rig and IMU use (its options are the first
+  // session's: sessions that fuse an IMU need local mapping that initialises
+  // it), shared by its mapping sessions (after loop_worker_: destroyed before
+  // it). mappings_mutex_ is a leaf.
   struct RigMapping {
-    std::vector<CameraCalibration> rig;
+    MapRig rig;
     std::shared_ptr<MappingWorkers> workers;
   };
   mutable std::mutex mappings_mutex_;
@@ -227,6 +236,7 @@ class AtlasService {
     KeyframeId first_keyframe = 0;  // keyframe ids from here on are this session's or later ones
     // A mapping session that fuses its IMU: the merging worker's global BAs keep the IMU terms.
     std::optional<GlobalBundleAdjustmentOptions::Inertial> inertial;
+    MapRig rig;  // what it maps with
   };
   std::map<SessionId, SessionStart> session_starts_;  // of this run's sessions
   mutable std::mutex live_merges_mutex_;              // a leaf lock (taken on the loop-closing thread)
@@ -242,8 +252,8 @@ class AtlasService {
   static constexpr std::size_t kMaxLocalizers = 8;
   std::map<std::string, std::shared_ptr<LocalizerContext>> localizers_;
 
-  mutable std::mutex rigs_mutex_;  // a leaf lock (the merging worker asks under the index's lock)
-  std::map<MapId, std::vector<CameraCalibration>> map_rigs_;  // the camera rig each map was made with
+  mutable std::mutex rigs_mutex_;     // a leaf lock (the merging worker asks under the index's lock)
+  std::map<MapId, MapRig> map_rigs_;  // the camera rig each map was made with
 
   std::unique_ptr<MapMergeWorker> merger_;  // null when merging is off
   std::thread idle_thread_;                 // started last in the constructor, joined by shutdown()

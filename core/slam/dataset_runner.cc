@@ -89,12 +89,12 @@ RunInputs read_inputs(const DatasetRunOptions& options) {
 // the stored maps.
 struct StoredAtlas {
   std::optional<SessionInfo> session;  // this run's, when it maps into the atlas
-  std::map<MapId, CameraRig> rigs;     // of the stored maps, by their sessions
+  std::map<MapId, MapRig> rigs;        // of the stored maps, by their sessions
   std::unique_ptr<DatabaseLock> lock;  // while this run may write the atlas
 };
 
 SessionInfo new_session(const DatasetRunOptions& options, const SlamSettings& settings, AtlasStore& store,
-                        const Atlas& atlas, std::map<MapId, CameraRig>& rigs) {
+                        const Atlas& atlas, std::map<MapId, MapRig>& rigs) {
   SessionInfo info;
   for (const auto& stored : store.load_sessions()) {
     info.id = std::max(info.id, stored.id);
@@ -150,7 +150,7 @@ SessionWiring run_wiring(const StoredAtlas& stored) {
   if (stored.session) {
     const auto own_rig = [rigs = stored.rigs, rig = stored.session->cameras](MapId map) {
       const auto it = rigs.find(map);
-      return it == rigs.end() || same_rig(it->second, rig);
+      return it == rigs.end() || same_rig(it->second.cameras, rig);
     };
     wiring.may_enter_map = own_rig;
     wiring.may_merge_into = own_rig;
