@@ -8,6 +8,7 @@
 #include <memory>
 #include <vector>
 
+#include "core/geometry/triangulate.h"
 #include "core/map/map.h"
 #include "core/tracking/frame_camera.h"
 
@@ -23,10 +24,5 @@ struct TriangulationStats {
 TriangulationStats triangulate_pair(Map& map, const std::shared_ptr<KeyFrame>& kf1,
                                     const std::shared_ptr<KeyFrame>& kf2, const FrameCamera& cam,
                                     std::vector<std::shared_ptr<MapPoint>>* created);
-
-// Linear triangulation (DLT) of normalised image coordinates x1, x2 (z = 1) seen
-// by cameras T_c1_w, T_c2_w. False when degenerate.
-bool triangulate_dlt(const Eigen::Vector2d& x1, const Eigen::Vector2d& x2, const Pose3& T_c1_w, const Pose3& T_c2_w,
-                     Eigen::Vector3d* p_w);
 
 }  // namespace orbatlas
