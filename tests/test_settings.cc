@@ -103,14 +103,15 @@ void expect_euroc_cam0(const CameraCalibration& c) {
 }
 
 TEST(Settings, SensorTypeNamesRoundTrip) {
-  for (SensorType t :
-       {SensorType::kMonocular, SensorType::kStereo, SensorType::kMonocularInertial, SensorType::kStereoInertial}) {
+  for (SensorType t : {SensorType::kMonocular, SensorType::kStereo, SensorType::kMonocularInertial,
+                       SensorType::kStereoInertial, SensorType::kRgbd}) {
     EXPECT_EQ(parse_sensor_type(sensor_type_name(t)), t);
   }
   EXPECT_EQ(parse_sensor_type("Stereo-Inertial"), SensorType::kStereoInertial);
   EXPECT_EQ(parse_sensor_type("monocular"), SensorType::kMonocular);
   EXPECT_EQ(parse_sensor_type("IMU_MONOCULAR"), SensorType::kMonocularInertial);
-  EXPECT_FALSE(parse_sensor_type("rgbd").has_value());
+  EXPECT_EQ(parse_sensor_type("RGB-D"), SensorType::kRgbd);
+  EXPECT_FALSE(parse_sensor_type("lidar").has_value());
   EXPECT_FALSE(parse_sensor_type("").has_value());
 }
 
@@ -158,6 +159,22 @@ TEST(Settings, ShippedStereo) {
   EXPECT_DOUBLE_EQ(s.stereo_th_depth, 60.0);
   EXPECT_EQ(s.orb.n_features, 1200);
   EXPECT_FALSE(s.imu.has_value());
+}
+
+TEST(Settings, ShippedRgbd) {
+  const SlamSettings s = read_settings(shipped("rgbd.yaml"));
+  EXPECT_EQ(s.sensor, SensorType::kRgbd);
+  EXPECT_TRUE(s.is_rgbd());
+  EXPECT_FALSE(s.is_stereo());
+  expect_euroc_cam0(s.camera0);
+  EXPECT_FALSE(s.camera1.has_value());
+  ASSERT_TRUE(s.rgbd.has_value());
+  EXPECT_DOUBLE_EQ(s.rgbd->depth_map_factor, 5000.0);
+  EXPECT_DOUBLE_EQ(s.rgbd->baseline_m, 0.08);
+  EXPECT_DOUBLE_EQ(s.stereo_th_depth, 40.0);
+  SlamSettings no_depth = s;
+  no_depth.rgbd.reset();
+  EXPECT_THROW(no_depth.check(), Error);
 }
 
 TEST(Settings, ShippedInertial) {
@@ -215,6 +232,10 @@ TEST_F(SettingsFiles, SensorTypeFromHintAndFromKeys) {
   EXPECT_EQ(read_settings(mono).sensor, SensorType::kMonocular);
   EXPECT_THROW(read_settings(mono, SensorType::kStereo), Error);             // no Camera2.*
   EXPECT_THROW(read_settings(mono, SensorType::kMonocularInertial), Error);  // no IMU.*
+  EXPECT_THROW(read_settings(mono, SensorType::kRgbd), Error);               // no RGBD.DepthMapFactor
+  const fs::path rgbd = write("rgbd.yaml", std::string(kMono) + "RGBD.DepthMapFactor: 1000.0\nStereo.b: 0.05\n");
+  EXPECT_EQ(read_settings(rgbd).sensor, SensorType::kRgbd);  // from the key
+  EXPECT_DOUBLE_EQ(read_settings(rgbd).rgbd->depth_map_factor, 1000.0);
 
   const std::string stereo = std::string(kMono) + R"(Camera2.fx: 457.587
 Camera2.fy: 456.134
@@ -327,7 +348,9 @@ TEST_F(SettingsFiles, InvalidValues) {
   expect_error(with("type.yaml", "\"PinHole\"", "\"Rational\""), {"Camera.type", "Rational"});
   expect_error(with("version.yaml", "\"1.0\"", "\"2.0\""), {"File.version"});
   expect_error(with("p2.yaml", "Camera1.p2: 1.76187114e-05", ""), {"Camera1.p2", "missing"});
-  expect_error(with("sensor.yaml", "Camera.RGB: 1", "Camera.RGB: 1\nSensor.type: \"rgbd\""), {"Sensor.type", "rgbd"});
+  expect_error(with("sensor.yaml", "Camera.RGB: 1", "Camera.RGB: 1\nSensor.type: \"lidar\""), {"Sensor.type", "lidar"});
+  expect_error(with("depth.yaml", "Camera.RGB: 1", "Camera.RGB: 1\nSensor.type: \"rgbd\""),
+               {"RGBD.DepthMapFactor", "missing"});
   expect_error(with("rgb.yaml", "Camera.RGB: 1", "Camera.RGB: 3"), {"Camera.RGB"});
   expect_error(with("orb.yaml", "Camera.RGB: 1", "Camera.RGB: 1\nORBextractor.scaleFactor: 1.0"),
                {"ORBextractor.scaleFactor"});

@@ -221,10 +221,12 @@ struct Reader {
     if (file.has("Sensor.type")) {
       const std::string name = file.text("Sensor.type");
       const auto type = parse_sensor_type(name);
-      if (!type) file.fail("Sensor.type", "'" + name + "' is not one of mono, stereo, mono_inertial, stereo_inertial");
+      if (!type)
+        file.fail("Sensor.type", "'" + name + "' is not one of mono, stereo, mono_inertial, stereo_inertial, rgbd");
       return *type;
     }
     if (hint) return *hint;
+    if (file.has("RGBD.DepthMapFactor") || (!v1 && file.has("DepthMapFactor"))) return SensorType::kRgbd;
     const bool stereo = file.has_prefix("Camera2.") || file.has_prefix("Stereo.") || (!v1 && file.has("Camera.bf"));
     const bool inertial = file.has_prefix("IMU.") || (!v1 && file.has("Tbc"));
     if (stereo) return inertial ? SensorType::kStereoInertial : SensorType::kStereo;
@@ -284,6 +286,15 @@ SlamSettings read(const SettingsFile& file, std::optional<SensorType> hint) {
     s.camera1 = c1;
   }
 
+  if (s.is_rgbd()) {
+    RgbdCalibration rgbd;
+    rgbd.depth_map_factor =
+        file.positive(in.v1 || !file.has("DepthMapFactor") ? "RGBD.DepthMapFactor" : "DepthMapFactor");
+    rgbd.baseline_m =
+        file.has("Stereo.b") || in.v1 ? file.positive("Stereo.b") : file.positive("Camera.bf") / s.camera0.fx;
+    s.rgbd = rgbd;
+  }
+
   if (s.is_inertial()) {
     ImuCalibration imu;
     imu.rate_hz = file.positive("IMU.Frequency");
@@ -323,6 +334,12 @@ void SlamSettings::check() const {
     ORBATLAS_CHECK(camera1.has_value(), "settings: a " << sensor_type_name(sensor) << " sensor needs camera1");
     check_camera("camera1", *camera1);
     ORBATLAS_CHECK(T_c0_c1.t.norm() > 0, "settings: the stereo baseline (T_c0_c1 translation) is zero");
+  }
+  if (is_rgbd()) {
+    ORBATLAS_CHECK(rgbd.has_value(), "settings: an rgbd sensor needs RGBD.DepthMapFactor and Stereo.b");
+    ORBATLAS_CHECK(std::isfinite(rgbd->depth_map_factor) && rgbd->depth_map_factor > 0 &&
+                       std::isfinite(rgbd->baseline_m) && rgbd->baseline_m > 0,
+                   "settings: the depth map factor and the virtual baseline must be positive");
   }
   if (is_inertial()) {
     ORBATLAS_CHECK(imu.has_value(), "settings: a " << sensor_type_name(sensor) << " sensor needs the IMU calibration");
@@ -384,6 +401,8 @@ const char* sensor_type_name(SensorType type) {
       return "mono_inertial";
     case SensorType::kStereoInertial:
       return "stereo_inertial";
+    case SensorType::kRgbd:
+      return "rgbd";
   }
   return "unknown";
 }
@@ -396,6 +415,7 @@ std::optional<SensorType> parse_sensor_type(const std::string& name) {
   if (n == "stereo") return SensorType::kStereo;
   if (n == "mono_inertial" || n == "monocular_inertial" || n == "imu_monocular") return SensorType::kMonocularInertial;
   if (n == "stereo_inertial" || n == "imu_stereo") return SensorType::kStereoInertial;
+  if (n == "rgbd" || n == "rgb_d") return SensorType::kRgbd;
   return std::nullopt;
 }
 

@@ -11,7 +11,16 @@
 
 namespace orbatlas {
 
-enum class SensorType { kMonocular, kStereo, kMonocularInertial, kStereoInertial };
+enum class SensorType { kMonocular, kStereo, kMonocularInertial, kStereoInertial, kRgbd };
+
+// A depth camera registered to camera0 (ORB-SLAM3's RGB-D keys): each image
+// pixel's depth is its 16-bit value / depth_map_factor metres (0: none), and a
+// keypoint with depth gets a virtual right image coordinate u - bf / depth
+// with bf = baseline_m * fx, so the stereo machinery serves.
+struct RgbdCalibration {
+  double depth_map_factor = 5000.0;  // RGBD.DepthMapFactor (TUM: 5000 per metre)
+  double baseline_m = 0.08;          // Stereo.b: the virtual baseline (ORB-SLAM3: the projector's)
+};
 
 struct OrbSettings {
   int n_features = 1200;
@@ -35,6 +44,7 @@ struct SlamSettings {
   bool rgb = true;
   double stereo_th_depth = 60.0;  // close/far threshold in baselines
   std::optional<ImuCalibration> imu;
+  std::optional<RgbdCalibration> rgbd;  // for the rgbd sensor
   OrbSettings orb;
   // The optional `Orbatlas.*` keys (the engine's own tuning, docs/settings.md),
   // without the prefix: "Tracker.MinInliers" -> 40. Numbers only; which keys exist
@@ -43,15 +53,17 @@ struct SlamSettings {
 
   bool is_stereo() const { return sensor == SensorType::kStereo || sensor == SensorType::kStereoInertial; }
   bool is_inertial() const { return sensor == SensorType::kMonocularInertial || sensor == SensorType::kStereoInertial; }
+  bool is_rgbd() const { return sensor == SensorType::kRgbd; }
   // Throws Error when something needed for the sensor type is missing or invalid.
   void check() const;
 };
 
 // The sensor type is not in ORB-SLAM3 files (it is chosen by the example
 // program): it comes from the key "Sensor.type" ("mono", "stereo",
-// "mono_inertial", "stereo_inertial") when present, else from `sensor_hint`,
-// else stereo when Camera2 / Stereo.* keys are present and mono otherwise,
-// inertial when IMU.* keys are present.
+// "mono_inertial", "stereo_inertial", "rgbd") when present, else from
+// `sensor_hint`, else rgbd when RGBD.DepthMapFactor is present, stereo when
+// Camera2 / Stereo.* keys are present and mono otherwise, inertial when IMU.*
+// keys are present.
 SlamSettings read_settings(const std::filesystem::path& yaml, std::optional<SensorType> sensor_hint = {});
 // The same from YAML text in memory (a request's settings); errors name `label`.
 SlamSettings read_settings_text(const std::string& yaml_text, const std::string& label,
