@@ -13,6 +13,8 @@ void register_sim_command(CLI::App& app) {
   auto look = std::make_shared<std::string>("clean");
   auto calib_error = std::make_shared<double>(-1.0);
   auto illumination = std::make_shared<double>(-1.0);
+  auto depth = std::make_shared<bool>(false);
+  auto depth_options = std::make_shared<sim::DepthSensorOptions>();
   auto* cmd = app.add_subcommand(
       "sim", "Render an EuRoC ASL dataset (stereo, IMU, ground truth) along a real EuRoC trajectory");
   cmd->add_option("--sequence", opts->sequence, "MH_01..MH_05 (one shared Machine Hall) or V1_01")
@@ -42,9 +44,21 @@ void register_sim_command(CLI::App& app) {
   cmd->add_option("--sensor-seed", opts->sensor_seed, "Seed of IMU and image noise (default: from the sequence name)");
   cmd->add_option("--config", opts->settings,
                   "Rig calibration, ORB-SLAM3-style YAML (default: config/euroc/stereo_inertial.yaml)");
+  cmd->add_flag("--depth", *depth,
+                "Also a depth camera registered to cam0, in the TUM RGB-D layout beside the ASL one (rgb.txt, "
+                "depth.txt, depth/, groundtruth.txt; read with config/euroc/rgbd.yaml): noise growing with the "
+                "square of the depth, holes at depth edges and out of range (docs/simulator.md)");
+  cmd->add_option("--depth-range", depth_options->max_range_m, "With --depth: farthest depth measured [m]")
+      ->check(CLI::Range(0.5, 13.0))
+      ->capture_default_str();
+  cmd->add_option("--depth-noise", depth_options->noise_per_m2,
+                  "With --depth: depth noise sigma per squared metre (0: exact)")
+      ->check(CLI::Range(0.0, 0.1))
+      ->capture_default_str();
   cmd->add_option("--threads", opts->threads, "Render threads (default: all cores)");
   cmd->add_flag("!--no-progress", opts->show_progress, "Do not print progress");
-  cmd->callback([opts, imu, look, calib_error, illumination]() {
+  cmd->callback([opts, imu, look, calib_error, illumination, depth, depth_options]() {
+    if (*depth) opts->depth = *depth_options;
     opts->imu = *imu == "real" ? sim::ImuSource::kReal : sim::ImuSource::kSynthetic;
     opts->look = sim::parse_look(*look);
     if ((*calib_error >= 0.0 || *illumination > 0.0) && opts->look != sim::Look::kReal)
@@ -62,6 +76,8 @@ void register_sim_command(CLI::App& app) {
     if (opts->look == sim::Look::kReal)
       std::printf("real look: %.2f renders per image (motion blur), mean exposure %.1f ms\n", r.subframes_per_image,
                   r.mean_exposure_ms);
+    if (r.depth_images > 0)
+      std::printf("and %zu depth images (TUM RGB-D layout: rgb.txt, depth.txt)\n", r.depth_images);
     if (r.frames_outside_gt > 0)
       std::printf("skipped %zu camera timestamps outside the ground truth\n", r.frames_outside_gt);
   });

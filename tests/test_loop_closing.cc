@@ -120,7 +120,9 @@ void injected_drift_case(const std::string& config, double max_ate) {
   EXPECT_EQ(loop.correction.four_dof, slam.inertial());
   ASSERT_GE(stats.loop.global_adjustments.size(), 1u);
   const GlobalAdjustmentRun& global = stats.loop.global_adjustments.front();
-  if (!global.interrupted) EXPECT_EQ(global.inertial_edges > 0, slam.inertial());
+  if (!global.interrupted) {
+    EXPECT_EQ(global.inertial_edges > 0, slam.inertial());
+  }
 
   const EvalResult eval = evaluate_trajectory(as_trajectory(slam.trajectory()), gt);
   std::printf("ATE after loop closing %.4f m over %zu poses\n", eval.ate.rmse, eval.ate.count);

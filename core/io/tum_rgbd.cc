@@ -110,15 +110,18 @@ void TumRgbdWriter::add(TimestampNs t_ns, const cv::Mat& image, TimestampNs dept
   frames_.push_back(std::move(f));
 }
 
-void TumRgbdWriter::finish(const Trajectory& ground_truth) {
+void write_tum_rgbd_lists(const std::filesystem::path& dir, const std::vector<RgbdFrame>& frames,
+                          const Trajectory& ground_truth) {
   std::vector<std::pair<TimestampNs, std::string>> rgb, depth;
-  for (const RgbdFrame& f : frames_) {
+  for (const RgbdFrame& f : frames) {
     rgb.emplace_back(f.t_ns, f.rgb.generic_string());
     depth.emplace_back(f.depth_t_ns, f.depth.generic_string());
   }
-  write_list(dir_ / "rgb.txt", "color", rgb);
-  write_list(dir_ / "depth.txt", "depth", depth);
-  if (!ground_truth.empty()) write_tum_trajectory(dir_ / "groundtruth.txt", ground_truth);
+  write_list(dir / "rgb.txt", "color", rgb);
+  write_list(dir / "depth.txt", "depth", depth);
+  if (!ground_truth.empty()) write_tum_trajectory(dir / "groundtruth.txt", ground_truth);
 }
+
+void TumRgbdWriter::finish(const Trajectory& ground_truth) { write_tum_rgbd_lists(dir_, frames_, ground_truth); }
 
 }  // namespace orbatlas

@@ -43,7 +43,13 @@ void keep_time_window(std::vector<RgbdFrame>& frames, double start_s, std::optio
 // Reads a depth image: CV_16UC1 of `width` x `height`. DataError otherwise.
 cv::Mat read_depth_image(const std::filesystem::path& path, int width, int height);
 
-// Writes a dataset in the layout above (timestamps with 9 decimals: exact).
+// Writes rgb.txt, depth.txt (the frames' paths relative to `dir`; timestamps
+// with 9 decimals: exact) and, when not empty, groundtruth.txt. The images are
+// the caller's (the simulator lists its cam0 images and writes the depth).
+void write_tum_rgbd_lists(const std::filesystem::path& dir, const std::vector<RgbdFrame>& frames,
+                          const Trajectory& ground_truth);
+
+// Writes a dataset in the layout above, images included.
 class TumRgbdWriter {
  public:
   // `dir` must not hold rgb.txt yet (an existing dataset is never overwritten).

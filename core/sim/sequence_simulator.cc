@@ -17,6 +17,7 @@
 #include "core/common/progress.h"
 #include "core/common/text_file.h"
 #include "core/io/euroc_writer.h"
+#include "core/io/tum_rgbd.h"
 #include "core/io/settings.h"
 #include "core/sim/euroc_sequences.h"
 #include "core/sim/imu_synthesizer.h"
@@ -81,6 +82,7 @@ std::uint64_t hash_name(const std::string& s) {
 
 void SimulationOptions::check() const {
   ORBATLAS_CHECK(!out_dir.empty(), "sim: no output folder given (out_dir, --out)");
+  if (depth) depth->check();
   ORBATLAS_CHECK(std::isfinite(start_s) && start_s >= 0.0, "sim: start_s (--start) must be >= 0, not " << start_s);
   ORBATLAS_CHECK(!std::isnan(duration_s),
                  "sim: duration_s (--duration) must be a number (negative: to the end), not " << duration_s);
@@ -94,6 +96,15 @@ void SimulationOptions::check() const {
   if (real) real->check();
   ORBATLAS_CHECK(threads >= 0, "sim: threads (--threads) must be >= 0 (0: all cores), not " << threads);
 }
+
+namespace {
+
+// The depth image of the frame at t (TUM RGB-D layout, relative to the dataset).
+std::filesystem::path depth_image_path(TimestampNs t) {
+  return std::filesystem::path("depth") / (format_seconds_exact(t) + ".png");
+}
+
+}  // namespace
 
 SimulationReport simulate_sequence(const SimulationOptions& options) {
   options.check();
@@ -136,6 +147,7 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   // Created before the slow work so that an occupied output folder fails at once.
   const std::vector<CameraCalibration> cams = {settings.camera0, *settings.camera1};
   EurocWriter writer(options.out_dir, cams, imu_cal);
+  if (options.depth) std::filesystem::create_directories(options.out_dir / "depth");
   // What the images are rendered with: the written calibration, or (real
   // look) one slightly off it, as a real rig's calibration is.
   std::vector<CameraCalibration> render_cams = cams;
@@ -211,6 +223,8 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
           real_cameras.emplace_back(look.camera, cameras[c]->width(), cameras[c]->height(), static_cast<int>(c),
                                     sensor_seed);
       }
+      std::optional<DepthSensor> depth_sensor;
+      if (options.depth) depth_sensor.emplace(*cameras[0], *options.depth);
       cv::Mat image, radiance, sum;
       const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
       for (std::size_t i = next++; i < stamps.size(); i = next++) {
@@ -250,6 +264,13 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
           render_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0).count();
           const auto path = writer.image_path(static_cast<int>(c), t);
           if (!cv::imwrite(path.string(), image, png_params)) throw Error("cannot write " + path.string());
+          if (c == 0 && depth_sensor) {
+            // Of the last render (the real look's last subframe: within the exposure).
+            const auto depth_path = options.out_dir / depth_image_path(t);
+            if (!cv::imwrite(depth_path.string(), depth_sensor->measure(*renderers[0], noise_seed ^ 0xD397ULL),
+                             png_params))
+              throw Error("cannot write " + depth_path.string());
+          }
         }
         progress.advance();
         std::lock_guard lock(error_mutex);
@@ -269,6 +290,16 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   for (const TimestampNs t : stamps)
     for (int c = 0; c < static_cast<int>(cams.size()); ++c) writer.add_frame_row(c, t);
   writer.close();
+  if (options.depth) {
+    std::vector<RgbdFrame> frames;
+    for (const TimestampNs t : stamps)
+      frames.push_back(
+          {t, t, std::filesystem::relative(writer.image_path(0, t), options.out_dir), depth_image_path(t)});
+    Trajectory body;
+    for (const GroundTruthState& s : imu.states) body.push_back({s.t_ns, s.T_w_b});
+    write_tum_rgbd_lists(options.out_dir, frames, body);
+    report.depth_images = frames.size();
+  }
 
   report.frames = stamps.size();
   report.render_s = std::chrono::duration<double>(Clock::now() - render_start).count();

@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 
+#include "core/sim/depth_sensor.h"
 #include "core/sim/look.h"
 
 namespace orbatlas::sim {
@@ -28,6 +29,10 @@ struct SimulationOptions {
   Look look = Look::kClean;
   // The real look's settings; empty: real_look_for(sequence) (darker MH_04/MH_05).
   std::optional<RealLookOptions> real;
+  // Also a depth camera registered to cam0, written in the TUM RGB-D layout
+  // beside the ASL one (rgb.txt listing mav0/cam0's images, depth/, depth.txt,
+  // groundtruth.txt of the body): what an rgbd config (config/euroc/rgbd.yaml) reads.
+  std::optional<DepthSensorOptions> depth;
   int threads = 0;  // 0: all cores
   bool show_progress = true;
 
@@ -45,6 +50,7 @@ struct SimulationReport {
   // Real look: renders averaged per image (motion blur), and the mean exposure.
   double subframes_per_image = 1.0;
   double mean_exposure_ms = 0.0;
+  std::size_t depth_images = 0;  // with `depth`
 };
 
 // Throws Error on bad options (unknown sequence, --imu real for a sequence other
