@@ -23,6 +23,7 @@
 #include "core/io/tum_trajectory.h"
 #include "core/place/relocalizer.h"
 #include "core/slam/stereo_slam.h"
+#include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
 
 namespace orbatlas::cli {

@@ -11,12 +11,16 @@
 
 namespace orbatlas::test {
 
-inline std::filesystem::path simulated_clip(const std::string& sequence, double start_s, double duration_s) {
-  const auto dir =
-      std::filesystem::temp_directory_path() /
-      ("orbatlas_test_slam_" + std::to_string(::getpid()) + "_" + sequence + "_" +
-       std::to_string(static_cast<int>(start_s * 10)) + "_" + std::to_string(static_cast<int>(duration_s * 10)));
-  if (std::filesystem::exists(dir / "mav0" / "cam1" / "data.csv")) return dir;
+// With `depth`, also the depth camera's TUM RGB-D layout (sim --depth).
+inline std::filesystem::path simulated_clip(const std::string& sequence, double start_s, double duration_s,
+                                            bool depth = false) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("orbatlas_test_slam_" + std::to_string(::getpid()) + "_" + sequence + "_" +
+                    std::to_string(static_cast<int>(start_s * 10)) + "_" +
+                    std::to_string(static_cast<int>(duration_s * 10)) + (depth ? "_depth" : ""));
+  if (std::filesystem::exists(dir / "mav0" / "cam1" / "data.csv") &&
+      (!depth || std::filesystem::exists(dir / "depth.txt")))
+    return dir;
   std::filesystem::remove_all(dir);
   sim::SimulationOptions o;
   o.sequence = sequence;
@@ -24,6 +28,7 @@ inline std::filesystem::path simulated_clip(const std::string& sequence, double 
   o.start_s = start_s;
   o.duration_s = duration_s;
   o.show_progress = false;
+  if (depth) o.depth = sim::DepthSensorOptions{};
   sim::simulate_sequence(o);
   return dir;
 }

@@ -19,6 +19,7 @@
 #include "core/loop/map_merge.h"
 #include "core/loop/place_recognizer.h"
 #include "core/slam/stereo_slam.h"
+#include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
 #include "tests/slam_test_clip.h"
 

@@ -16,6 +16,7 @@
 #include "core/features/orb_extractor.h"
 #include "core/place/relocalizer.h"
 #include "core/slam/stereo_slam.h"
+#include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
 #include "core/vocabulary/keyframe_database.h"
 

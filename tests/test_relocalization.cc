@@ -14,6 +14,7 @@
 #include "core/place/relocalizer.h"
 #include "core/slam/mono_localizer.h"
 #include "core/slam/stereo_slam.h"
+#include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
 #include "tests/slam_test_clip.h"
 

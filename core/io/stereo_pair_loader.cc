@@ -4,15 +4,16 @@
 
 namespace orbatlas {
 
-StereoPairLoader::StereoPairLoader(std::vector<StereoFrame> frames, std::size_t capacity)
+StereoPairLoader::StereoPairLoader(std::vector<StereoFrame> frames, std::size_t capacity, Second second)
     : frames_(std::move(frames)), queue_(capacity) {
-  thread_ = std::thread([this] {
+  const int second_flags = second == Second::kDepth ? cv::IMREAD_UNCHANGED : cv::IMREAD_GRAYSCALE;
+  thread_ = std::thread([this, second_flags] {
     for (const StereoFrame& f : frames_) {
       LoadedStereoPair pair;
       pair.t_ns = f.t_ns;
       pair.left = cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE);
       const bool single = f.right.empty();  // a single camera's frame
-      if (!single) pair.right = cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE);
+      if (!single) pair.right = cv::imread(f.right.string(), second_flags);
       if (pair.left.empty())
         pair.error = "cannot read image " + f.left.string();
       else if (!single && pair.right.empty())

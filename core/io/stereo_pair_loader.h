@@ -2,7 +2,8 @@
 // Decodes the stereo pairs of a recording ahead of their consumer, on a thread
 // of its own, into a bounded queue (a few pairs: memory stays flat). Used by
 // `orbatlas run` (dataset_runner) and `orbatlas stream` (dataset_streamer). A
-// frame with an empty right path is a single camera's: only `left` is read.
+// frame with an empty right path is a single camera's: only `left` is read. An
+// RGB-D recording's second image is its depth image, read as it is (16-bit).
 #include <opencv2/core/mat.hpp>
 #include <optional>
 #include <string>
@@ -16,13 +17,14 @@ namespace orbatlas {
 
 struct LoadedStereoPair {
   TimestampNs t_ns = 0;
-  cv::Mat left, right;  // 8-bit grey
+  cv::Mat left, right;  // 8-bit grey; `right` the 16-bit depth for an RGB-D recording
   std::string error;    // non-empty when an image could not be read (the pair is then empty)
 };
 
 class StereoPairLoader {
  public:
-  explicit StereoPairLoader(std::vector<StereoFrame> frames, std::size_t capacity = 4);
+  enum class Second { kImage, kDepth };
+  explicit StereoPairLoader(std::vector<StereoFrame> frames, std::size_t capacity = 4, Second second = Second::kImage);
   ~StereoPairLoader();  // stops the thread (pairs not taken are dropped)
   StereoPairLoader(const StereoPairLoader&) = delete;
   StereoPairLoader& operator=(const StereoPairLoader&) = delete;

@@ -17,6 +17,7 @@
 #include "core/io/euroc_reader.h"
 #include "core/io/imu_batches.h"
 #include "core/io/stereo_pair_loader.h"
+#include "core/io/tum_rgbd.h"
 #include "core/io/tum_trajectory.h"
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/database_lock.h"
@@ -71,10 +72,34 @@ struct RunInputs {
   std::vector<StereoFrame> frames;
 };
 
-RunInputs read_inputs(const DatasetRunOptions& options) {
+// An RGB-D recording in the TUM layout: each colour image with its depth image
+// as the frame's two images, and the ground truth when there is one.
+RunInputs read_rgbd_inputs(const DatasetRunOptions& options, SlamSettings settings) {
   RunInputs in;
-  in.settings = read_settings(options.settings, SensorType::kStereo);
-  ORBATLAS_CHECK(in.settings.is_stereo(), options.settings << " is not a stereo configuration");
+  in.settings = std::move(settings);
+  const TumRgbdDataset d = read_tum_rgbd(options.dataset);
+  if (d.unpaired > 0)
+    log_warn(options.dataset.string() + ": " + std::to_string(d.unpaired) +
+             " colour images without a depth image within 0.02 s (skipped)");
+  for (const RgbdFrame& f : d.frames) in.frames.push_back({f.t_ns, f.rgb, f.depth});
+  ORBATLAS_CHECK(!in.frames.empty(), options.dataset << " holds no colour image with a depth image");
+  for (const StampedPose& p : d.ground_truth) {
+    GroundTruthState g;
+    g.t_ns = p.t_ns;
+    g.T_w_b = p.pose;
+    in.dataset.ground_truth.push_back(g);
+  }
+  keep_time_window(in.frames, options.start_s, options.duration_s, options.dataset);
+  return in;
+}
+
+RunInputs read_inputs(const DatasetRunOptions& options) {
+  SlamSettings settings = read_settings(options.settings, SensorType::kStereo);
+  if (settings.is_rgbd()) return read_rgbd_inputs(options, std::move(settings));
+  RunInputs in;
+  in.settings = std::move(settings);
+  ORBATLAS_CHECK(in.settings.is_stereo(),
+                 options.settings << " is neither a stereo nor an rgbd configuration (a single camera does not map)");
   EurocReadOptions read_options;
   read_options.require_cam1 = true;
   in.dataset = read_euroc_dataset(options.dataset, read_options);
@@ -190,7 +215,8 @@ void note_black_out(DatasetRunReport::BlackOut& b, bool blacked, const TrackResu
 void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame>& frames,
                  const std::vector<ImuSample>& imu, StereoSlam& slam, AtlasCheckpointer* checkpointer,
                  Clock::time_point wall_start, DatasetRunReport& report, const std::string& label = "run") {
-  StereoPairLoader loaded(frames);  // decodes images ahead of tracking
+  // Decodes images ahead of tracking (an RGB-D frame's second image is its depth).
+  StereoPairLoader loaded(frames, 4, slam.rgbd() ? StereoPairLoader::Second::kDepth : StereoPairLoader::Second::kImage);
   Progress progress(label, static_cast<std::int64_t>(frames.size()), options.show_progress);
   std::size_t index = 0, imu_next = 0;
   std::size_t after_black_out = 0;  // frames since the gap ended, not tracked visually

@@ -27,9 +27,9 @@ void StereoSlamOptions::check() const {
 
 StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
                        StereoSlamOptions options, SessionWiring wiring)
-    : atlas_(atlas), options_(std::move(options)), frontend_(settings) {
-  cam_ = frontend_.frame_camera();
-  options_.tracker.th_depth_m = settings.stereo_th_depth * frontend_.baseline();
+    : atlas_(atlas), options_(std::move(options)), frontend_(make_frame_frontend(settings)), rgbd_(settings.is_rgbd()) {
+  cam_ = frontend_->frame_camera();
+  options_.tracker.th_depth_m = settings.stereo_th_depth * frontend_->baseline();
   options_.tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));
   if (!settings.orbatlas.empty()) {  // the settings' Orbatlas.* keys win over what is derived above
     apply_slam_tuning(settings.orbatlas, options_);
@@ -60,7 +60,7 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
       options_.mapper.culling.max_inertial_span_initialized_s = 3.0;
   }
   options_.check();
-  const Pose3 T_b_c = frontend_.calibration().T_b_c;
+  const Pose3 T_b_c = frontend_->calibration().T_b_c;
   if (options_.relocalization)
     relocalizer_ =
         std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c, wiring.may_enter_map);
@@ -136,7 +136,7 @@ TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv:
   ORBATLAS_CHECK(!finished_, "this SLAM session has finished; it takes no more frames");
   ORBATLAS_DATA_CHECK(!right.empty(), "a stereo session takes a stereo pair: the right image is missing");
   const auto start = std::chrono::steady_clock::now();
-  Frame frame = frontend_.make_frame(t_ns, left, right);
+  Frame frame = frontend_->make_frame(t_ns, left, right);
   if (first_t_ns_.load() < 0) first_t_ns_.store(t_ns);
   const TrackResult result = frames_.track(*tracker_, std::move(frame), atlas_, start);
   if (result.keyframe) {

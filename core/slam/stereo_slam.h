@@ -1,5 +1,6 @@
 #pragma once
-// One stereo SLAM session: the front end and tracking on the caller's thread,
+// One SLAM session with depth (a stereo rig, or an RGB-D camera: FrameFrontend):
+// the front end and tracking on the caller's thread,
 // attached to the mapping of the maps it is in (MappingWorkers: local mapping
 // per map, loop closing; its own, or the owner's shared with other sessions),
 // working in an atlas the caller owns (so several sessions and several atlases
@@ -19,7 +20,7 @@
 #include "core/slam/session_wiring.h"
 #include "core/slam/slam_stats.h"
 #include "core/slam/tracked_frames.h"
-#include "core/tracking/stereo_frontend.h"
+#include "core/tracking/frame_frontend.h"
 #include "core/tracking/tracker.h"
 #include "core/vocabulary/vocabulary.h"
 
@@ -80,6 +81,7 @@ class StereoSlam final : public SessionSlam {
   TrackResult process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) override;
   void add_imu(const std::vector<ImuSample>& samples) override;
   bool inertial() const { return imu_noise_.has_value(); }
+  bool rgbd() const { return rgbd_; }  // frames are an image and its depth image
 
   // Lets local mapping finish what is queued (its own mapping stops; a shared
   // one goes on for the others) and releases the last frame (so every culled
@@ -93,12 +95,13 @@ class StereoSlam final : public SessionSlam {
   std::vector<FrameAnchor> anchors() const override;
   SlamStats stats() const override;
   std::size_t worker_errors() const override;  // tracking's, and its mapping's when its own
-  const StereoFrontend& frontend() const { return frontend_; }
+  const FrameFrontend& frontend() const { return *frontend_; }
 
  private:
   Atlas& atlas_;
   StereoSlamOptions options_;
-  StereoFrontend frontend_;
+  std::unique_ptr<FrameFrontend> frontend_;  // stereo pairs, or images with their depth (rgbd)
+  bool rgbd_ = false;
   FrameCamera cam_;
   std::unique_ptr<FrameRelocalizer> relocalizer_;
   std::shared_ptr<MappingWorkers> mapping_;  // null when localising

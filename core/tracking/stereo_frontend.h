@@ -12,10 +12,11 @@
 #include "core/io/settings.h"
 #include "core/tracking/frame.h"
 #include "core/tracking/frame_camera.h"
+#include "core/tracking/frame_frontend.h"
 
 namespace orbatlas {
 
-class StereoFrontend {
+class StereoFrontend final : public FrameFrontend {
  public:
   // Needs a stereo pinhole calibration (camera0 and camera1). Throws Error otherwise.
   // parallel: extract the right image's features on a second thread (one
@@ -26,7 +27,7 @@ class StereoFrontend {
 
   // left/right: CV_8UC1 (or 3-channel, converted) of the calibrated size; throws
   // Error on empty images or a size that does not match the calibration.
-  Frame make_frame(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
+  Frame make_frame(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) override;
   // The left image alone (relocalising a single image): no stereo depth, every
   // keypoint a bearing only. Same checks as make_frame.
   Frame make_left_frame(TimestampNs t_ns, const cv::Mat& left);
@@ -34,13 +35,13 @@ class StereoFrontend {
   // The rectified left camera tracking works with (pinhole, no distortion), its
   // pose in the body, and stereo constants.
   const Camera& camera() const { return *camera_; }
-  const CameraCalibration& calibration() const { return rectifier_.rectified_left(); }
+  const CameraCalibration& calibration() const override { return rectifier_.rectified_left(); }
   double bf() const { return rectifier_.bf(); }
-  double baseline() const { return rectifier_.baseline(); }
+  double baseline() const override { return rectifier_.baseline(); }
   const OrbExtractor& extractor() const { return left_extractor_; }
   // What tracking and mapping work with: the rectified camera, bf and the ORB
   // scale pyramid (the camera is this front end's: it must outlive the result).
-  FrameCamera frame_camera() const;
+  FrameCamera frame_camera() const override;
 
  private:
   StereoRectifier rectifier_;
