@@ -87,9 +87,11 @@ void print_stream_summary(const nlohmann::json& j) {
 
 void register_stream(CLI::App& app) {
   auto args = std::make_shared<StreamArgs>();
-  auto* cmd = app.add_subcommand("stream", "Stream a recorded stereo sequence to a map server as a live session");
+  auto* cmd = app.add_subcommand("stream", "Stream a recorded sequence to a map server as a live session");
   add_server_options(cmd, args->server);
-  cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)")
+  cmd->add_option("--dataset", args->dataset,
+                  "Folder holding mav0/ (cam0, cam1), or an RGB-D recording in the TUM layout (rgb.txt, depth.txt) "
+                  "for an rgbd config")
       ->required()
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--config", args->stream.config,

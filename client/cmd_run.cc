@@ -119,10 +119,12 @@ void print_run_summary(const DatasetRunReport& r) {
 
 void register_run_command(CLI::App& app) {
   auto args = std::make_shared<RunArgs>();
-  auto* cmd = app.add_subcommand("run", "Stereo SLAM over an EuRoC ASL dataset (real or simulated)");
+  auto* cmd = app.add_subcommand(
+      "run", "SLAM over an EuRoC ASL dataset (stereo, stereo-inertial) or a TUM RGB-D one (rgbd), real or simulated");
   cmd->add_option("--config", args->config, "ORB-SLAM3-style settings, e.g. config/euroc/stereo.yaml")->required();
   cmd->add_option("--dataset", args->datasets,
-                  "Folder holding mav0/ (cam0, cam1); repeat it to run several recordings at once into one atlas "
+                  "Folder holding mav0/ (cam0, cam1), or rgb.txt and depth.txt for an rgbd config; repeat it to run "
+                  "several recordings at once into one atlas "
                   "(one session each, mapping shared maps together)")
       ->required();
   cmd->add_option("--out-trajectory", args->out_trajectories,

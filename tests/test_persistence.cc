@@ -315,6 +315,51 @@ void expect_session_eq(const SessionInfo& a, const SessionInfo& b) {
   }
 }
 
+// Schema 6 rebuilt `sessions` to admit the rgbd sensor: an atlas of schema 5
+// keeps every session with its cameras and trajectory (the rebuild must not
+// cascade into them), and takes an RGB-D session afterwards.
+TEST(Persistence, VersionFiveSessionsSurviveTheRebuildForRgbd) {
+  TempDb db("v5");
+  SessionInfo stereo;
+  stereo.id = 3;
+  stereo.name = "stereo";
+  stereo.sensor = SensorType::kStereo;
+  stereo.created_ns = 17;
+  stereo.cameras = {camera(CameraModel::kPinholeRadTan, {-0.28, 0.07, 0.0002, 1.7e-05}, 0),
+                    camera(CameraModel::kPinholeRadTan, {-0.28, 0.07, -0.0001, -3.5e-05}, 1)};
+  {
+    AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+    store.save_session(stereo);
+    store.save_trajectory(3, {FrameAnchor{100, 0, 1, Pose3()}, FrameAnchor{200, 0, 1, Pose3()}});
+  }
+  {
+    // Back to schema 5's sessions table (its CHECK without rgbd), user_version 5.
+    SqliteDb raw(db.path());
+    raw.exec(
+        "PRAGMA foreign_keys = OFF; BEGIN; CREATE TABLE s5 (id INTEGER PRIMARY KEY CHECK (id >= 0), name TEXT NOT "
+        "NULL, sensor TEXT NOT NULL CHECK (sensor IN ('mono', 'stereo', 'mono_inertial', 'stereo_inertial')), "
+        "created_ns INTEGER NOT NULL) STRICT; INSERT INTO s5 SELECT * FROM sessions; DROP TABLE sessions; ALTER "
+        "TABLE s5 RENAME TO sessions; DELETE FROM schema_migrations WHERE version >= 6; PRAGMA user_version = 5; "
+        "COMMIT");
+    EXPECT_THROW(raw.exec("INSERT INTO sessions VALUES (4, 'x', 'rgbd', 0)"), Error);
+  }
+  AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+  EXPECT_EQ(store.schema_version(), latest_schema_version());
+  const auto kept = store.load_session(3);
+  ASSERT_TRUE(kept.has_value());
+  expect_session_eq(*kept, stereo);  // its cameras too
+  EXPECT_EQ(store.load_trajectory(3).size(), 2u);
+  SessionInfo rgbd;
+  rgbd.id = 4;
+  rgbd.name = "rgbd";
+  rgbd.sensor = SensorType::kRgbd;
+  rgbd.cameras = {camera(CameraModel::kPinholeRadTan, {0.1, -0.2, 0.0, 0.0}, 0)};
+  store.save_session(rgbd);
+  expect_session_eq(*store.load_session(4), rgbd);
+  // Foreign keys are on again for the connection: a trajectory of no session is refused.
+  EXPECT_THROW(store.save_trajectory(99, {FrameAnchor{1, 0, 1, Pose3()}}), Error);
+}
+
 TEST(Persistence, SessionsRoundTrip) {
   TempDb db("sessions");
   AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());

@@ -15,11 +15,13 @@
 #include "client/api/dataset_streamer.h"
 #include "core/common/data_paths.h"
 #include "core/eval/evaluate.h"
+#include "core/io/tum_rgbd.h"
 #include "core/io/tum_trajectory.h"
 #include "wire/pose_json.h"
 #include "core/slam/dataset_runner.h"
 #include "core/slam/slam_stats.h"
 #include "tests/server_test_fixture.h"
+#include "tests/server_test_reply.h"
 #include "tests/slam_test_clip.h"
 
 namespace orbatlas {
@@ -43,6 +45,15 @@ Pose3 truth_in_map(const std::filesystem::path& dataset, TimestampNs t_ns, const
     return pose.value_or(Pose3());
   };
   return at(origin_dataset, origin_t_ns).inverse() * at(dataset, t_ns);
+}
+
+nlohmann::json wait_for_merges(ServerClient& client) {
+  for (int i = 0; i < 1200; ++i) {
+    const auto merges = client.get_json("/v1/merges");
+    if (merges["pending"].get<std::size_t>() == 0) return merges;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return client.get_json("/v1/merges");
 }
 
 std::optional<Pose3> pose_at_time(const Trajectory& t, TimestampNs t_ns) {
@@ -175,6 +186,78 @@ TEST(ServerEndToEnd, AStereoInertialStreamInitialisesItsMap) {
   const std::uint64_t id = other.create_session("euroc/stereo");
   EXPECT_EQ(other.post_imu(id, {ImuSample{1, Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 9.81)}})["accepted"], 1);
   other.finish_session(id);
+}
+
+// An RGB-D session over HTTP (issue 20): orbatlas stream sends each colour
+// image with its 16-bit depth image (the TUM RGB-D layout of sim --depth), the
+// server maps with them, and the merging worker refines the map with the
+// camera its keyframes were made with. An RGB-D frame's depth errors are
+// refused with a clear error; uploads of RGB-D recordings are not supported yet.
+TEST(ServerEndToEnd, AnRgbdStreamMapsAndItsDepthIsChecked) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 4.0, /*depth=*/true);
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath db("rgbd");
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  StreamOptions o = test::stream_options(clip);
+  o.config = "euroc/rgbd";
+  const StreamReport report = stream_dataset(client, o);
+  EXPECT_EQ(report.finish_status.value("sensor", ""), "rgbd");
+  EXPECT_EQ(report.tracked, report.frames);
+  EXPECT_EQ(report.frames, 81u);
+  ASSERT_TRUE(report.ate_rmse_m.has_value());
+  std::printf("RGB-D over HTTP: %zu frames, ATE %.4f m\n", report.frames, *report.ate_rmse_m);
+  EXPECT_LT(*report.ate_rmse_m, 0.002);  // measured 0.0009 m
+  const auto merges = wait_for_merges(client);
+  ASSERT_EQ(merges["refinements"].size(), 1u) << merges.dump();
+  EXPECT_FALSE(merges["refinements"][0]["interrupted"].get<bool>());
+
+  // Error paths of an RGB-D session's frames.
+  const std::uint64_t id = client.create_session("euroc/rgbd");
+  const std::string path = "/v1/sessions/" + std::to_string(id) + "/frames";
+  const auto frames = read_tum_rgbd(clip).frames;
+  const std::string image = test::png_of(cv::imread(frames[0].rgb.string(), cv::IMREAD_GRAYSCALE));
+  const std::string depth = test::png_of(cv::imread(frames[0].depth.string(), cv::IMREAD_UNCHANGED));
+  const std::string t = std::to_string(frames[0].t_ns);
+  const auto status = [&](httplib::MultipartFormDataItems items) {
+    const auto r = client.http().Post(path, items);
+    return r ? r->status : -1;
+  };
+  EXPECT_EQ(status({{"t_ns", t, "", ""}, {"left", image, "l.png", "image/png"}}), 400);  // no depth
+  EXPECT_EQ(
+      status({{"t_ns", t, "", ""}, {"left", image, "l.png", "image/png"}, {"right", image, "r.png", "image/png"}}),
+      400);  // a pair
+  EXPECT_EQ(
+      status({{"t_ns", t, "", ""}, {"left", image, "l.png", "image/png"}, {"depth", image, "d.png", "image/png"}}),
+      422);  // 8-bit depth
+  EXPECT_EQ(status({{"t_ns", t, "", ""}, {"left", image, "l.png", "image/png"}, {"depth", "raw", "d.raw", ""}}),
+            422);  // not a PNG
+  const std::string small = test::png_of(cv::Mat(240, 376, CV_16UC1, cv::Scalar(5000)));
+  EXPECT_EQ(
+      status({{"t_ns", t, "", ""}, {"left", image, "l.png", "image/png"}, {"depth", small, "d.png", "image/png"}}),
+      422);  // another size
+  EXPECT_EQ(
+      status({{"t_ns", t, "", ""}, {"left", image, "l.png", "image/png"}, {"depth", depth, "d.png", "image/png"}}),
+      200);
+  // A stereo session is not sent depth; an rgbd sensor needs an rgbd config and the reverse.
+  const std::uint64_t stereo = client.create_session("euroc/stereo");
+  const auto r = client.http().Post(
+      "/v1/sessions/" + std::to_string(stereo) + "/frames",
+      httplib::MultipartFormDataItems{
+          {"t_ns", t, "", ""}, {"left", image, "l.png", "image/png"}, {"depth", depth, "d.png", "image/png"}});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400) << r->body;
+  EXPECT_NE(r->body.find("RGB-D"), std::string::npos) << r->body;
+  const auto mismatch =
+      client.http().Post("/v1/sessions", R"({"config": "euroc/stereo", "sensor": "rgbd"})", "application/json");
+  ASSERT_TRUE(mismatch);
+  EXPECT_EQ(mismatch->status, 400) << mismatch->body;
+  const auto upload = client.http().Post("/v1/uploads?config=euroc/rgbd", std::string(10, 'x'), "application/x-tar");
+  ASSERT_TRUE(upload);
+  EXPECT_EQ(upload->status, 422) << upload->body;
+  EXPECT_NE(upload->body.find("RGB-D"), std::string::npos) << upload->body;
+  client.finish_session(id);
+  client.finish_session(stereo);
 }
 
 TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
@@ -382,15 +465,6 @@ double joint_ate(ServerClient& client, const std::vector<std::uint64_t>& session
   return evaluate_trajectory(join_trajectories(estimates, "estimates"),
                              join_trajectories(ground_truths, "ground truth"))
       .ate.rmse;
-}
-
-nlohmann::json wait_for_merges(ServerClient& client) {
-  for (int i = 0; i < 1200; ++i) {
-    const auto merges = client.get_json("/v1/merges");
-    if (merges["pending"].get<std::size_t>() == 0) return merges;
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  return client.get_json("/v1/merges");
 }
 
 // Two sessions over one part of the hall (MH_01 from 46 s, MH_02 from 38 s):

@@ -14,6 +14,7 @@
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
 #include "core/io/stereo_pair_loader.h"
+#include "core/io/tum_rgbd.h"
 #include "core/io/tum_trajectory.h"
 
 namespace orbatlas {
@@ -39,10 +40,15 @@ void StreamOptions::check() const {
 
 StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) {
   options.check();
-  EurocReadOptions read_options;
-  read_options.require_cam1 = false;  // a single camera needs cam0 only
-  const EurocDataset dataset = read_euroc_dataset(options.dataset, read_options);
-  ORBATLAS_CHECK(!dataset.cameras.empty(), options.dataset << " has no camera");
+  // An ASL recording; an RGB-D one (the TUM layout: rgb.txt) may have no mav0/.
+  const bool tum_layout = std::filesystem::exists(options.dataset / "rgb.txt");
+  EurocDataset dataset;
+  if (!tum_layout || std::filesystem::exists(options.dataset / "mav0")) {
+    EurocReadOptions read_options;
+    read_options.require_cam1 = false;  // a single camera needs cam0 only
+    dataset = read_euroc_dataset(options.dataset, read_options);
+    ORBATLAS_CHECK(!dataset.cameras.empty(), options.dataset << " has no camera");
+  }
 
   StreamReport report;
   std::string name = options.name;
@@ -51,13 +57,28 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   report.session = started.at("id").get<std::uint64_t>();
   const std::string sensor = started.at("session").value("sensor", "stereo");
   const bool single_camera = sensor == "mono" || sensor == "mono_inertial";
+  const bool rgbd = sensor == "rgbd";  // each colour image with its depth image (TUM RGB-D layout)
   // An inertial session gets the recording's imu0: before each frame, the
   // samples up to it and the first one past it.
   const bool send_imu = (sensor == "stereo_inertial" || sensor == "mono_inertial") && !dataset.imu.empty();
   std::size_t imu_next = 0;
   std::vector<StereoFrame> frames;
   try {
-    if (single_camera) {
+    if (rgbd) {
+      ORBATLAS_CHECK(tum_layout, options.dataset << " is not in the TUM RGB-D layout (rgb.txt, depth.txt) an rgbd "
+                                                    "session streams");
+      const TumRgbdDataset tum = read_tum_rgbd(options.dataset);
+      for (const RgbdFrame& f : tum.frames) frames.push_back(StereoFrame{f.t_ns, f.rgb, f.depth});
+      if (dataset.ground_truth.empty())
+        for (const StampedPose& p : tum.ground_truth) {
+          GroundTruthState g;
+          g.t_ns = p.t_ns;
+          g.T_w_b = p.pose;
+          dataset.ground_truth.push_back(g);
+        }
+    } else if (dataset.cameras.empty()) {
+      throw Error(options.dataset.string() + " holds no ASL recording (mav0/) for a " + sensor + " session");
+    } else if (single_camera) {
       for (const auto& f : dataset.cameras[0].frames) frames.push_back(StereoFrame{f.t_ns, f.path, {}});
     } else {
       frames = pair_stereo_frames(dataset);
@@ -70,7 +91,8 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   const TimestampNs first_t = frames.front().t_ns;
 
   Progress progress("stream", static_cast<std::int64_t>(frames.size()), options.show_progress);
-  StereoPairLoader loaded(std::move(frames));
+  StereoPairLoader loaded(std::move(frames), 4,
+                          rgbd ? StereoPairLoader::Second::kDepth : StereoPairLoader::Second::kImage);
   const auto start = Clock::now();
   std::optional<Clock::time_point> last_reply;  // of the frame before this one
   while (auto pair = loaded.next()) {

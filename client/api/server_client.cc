@@ -16,7 +16,9 @@ namespace {
 using json = nlohmann::json;
 
 std::string image_bytes(const cv::Mat& image, ImageEncoding encoding) {
-  ORBATLAS_CHECK(!image.empty() && image.type() == CV_8UC1, "the client sends 8-bit grey images");
+  ORBATLAS_CHECK(
+      !image.empty() && (image.type() == CV_8UC1 || (image.type() == CV_16UC1 && encoding == ImageEncoding::kPng)),
+      "the client sends 8-bit grey images (and 16-bit depth images as PNG)");
   if (encoding == ImageEncoding::kPng) {
     std::vector<unsigned char> png;
     ORBATLAS_CHECK(cv::imencode(".png", image, png, {cv::IMWRITE_PNG_COMPRESSION, 1}), "cannot encode a PNG");
@@ -146,7 +148,11 @@ json ServerClient::post_frame(std::uint64_t session, std::int64_t t_ns, const cv
   httplib::MultipartFormDataItems items;
   items.push_back({"t_ns", std::to_string(t_ns), "", ""});
   add_image(items, "left", left, encoding);
-  if (!right.empty()) add_image(items, "right", right, encoding);
+  if (right.depth() == CV_16U) {
+    add_image(items, "depth", right, ImageEncoding::kPng);  // an RGB-D frame's depth: always a 16-bit PNG
+  } else if (!right.empty()) {
+    add_image(items, "right", right, encoding);
+  }
   add_raw_size(items, left, encoding);
   const std::string path = "/v1/sessions/" + std::to_string(session) + "/frames";
   return json::parse(checked(send([&] { return client_->Post(path, items); }, true), url_, path).body);

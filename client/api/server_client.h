@@ -71,7 +71,8 @@ class ServerClient {
     return start_session(config, name).at("id").get<std::uint64_t>();
   }
   // POST /v1/sessions/{id}/frames (one image for a single-camera session:
-  // `right` empty); the reply (pose, state, map, timings).
+  // `right` empty; an RGB-D session's `right` is its 16-bit depth image, sent
+  // as the PNG 'depth'); the reply (pose, state, map, timings).
   nlohmann::json post_frame(std::uint64_t session, std::int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
                             ImageEncoding encoding = ImageEncoding::kRaw);
   // POST /v1/sessions/{id}/imu: samples in time order (send those up to a

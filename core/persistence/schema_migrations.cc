@@ -29,8 +29,21 @@ void check_schema_version_supported(SqliteDb& db) {
 }
 
 void migrate_schema(SqliteDb& db, TimestampNs now_ns) {
+  // Foreign keys are off while a migration runs (SQLite's procedure for
+  // rebuilding a table: dropping the old one must not cascade into the rows
+  // that refer to it); they are checked before it commits, and the
+  // connection's setting comes back afterwards, also when it fails.
+  const bool foreign_keys = db.query_int64("PRAGMA foreign_keys") != 0;
+  struct RestoreForeignKeys {
+    SqliteDb& db;
+    bool on;
+    ~RestoreForeignKeys() {
+      if (on) db.exec("PRAGMA foreign_keys = ON");
+    }
+  } restore{db, foreign_keys};
   for (const SchemaMigration& migration : schema_migrations()) {
     if (read_schema_version(db) >= migration.version) continue;
+    db.exec("PRAGMA foreign_keys = OFF");  // outside a transaction: inside one it does nothing
     SqliteTransaction transaction(db);
     // Re-read under the write lock: another connection may have migrated meanwhile.
     if (read_schema_version(db) >= migration.version) continue;
@@ -38,6 +51,9 @@ void migrate_schema(SqliteDb& db, TimestampNs now_ns) {
     const int reached = read_schema_version(db);
     ORBATLAS_CHECK(reached == migration.version,
                    db.path().string() << ": migration " << migration.name << " left user_version at " << reached);
+    const std::int64_t dangling = db.query_int64("SELECT count(*) FROM pragma_foreign_key_check");
+    ORBATLAS_CHECK(dangling == 0, db.path().string() << ": migration " << migration.name << " left " << dangling
+                                                     << " rows referring to rows that do not exist");
     db.prepare("INSERT INTO schema_migrations(version, name, applied_ns) VALUES (?1, ?2, ?3)")
         .bind_int64(1, migration.version)
         .bind_text(2, migration.name)

@@ -15,6 +15,7 @@
 #include "core/persistence/map_rigs.h"
 #include "core/slam/mono_localizer.h"
 #include "core/tracking/mono_frontend.h"
+#include "core/tracking/rgbd_frontend.h"
 #include "core/slam/slam_stats.h"
 #include "core/slam/stereo_slam.h"
 #include "core/server/service_error.h"
@@ -95,6 +96,9 @@ SensorType session_sensor(const SessionRequest& request, const SlamSettings& set
 
 struct AtlasService::LocalizerContext {
   // A stereo rig localises a pair or its left image; a single camera one image.
+  // An RGB-D camera localises one image; its maps' keyframes are of the
+  // undistorted camera its depth front end tracks with (map_cam: what merging
+  // the maps works with).
   explicit LocalizerContext(const SlamSettings& settings) {
     if (settings.is_stereo()) {
       stereo.emplace(settings, false);
@@ -104,6 +108,11 @@ struct AtlasService::LocalizerContext {
       mono.emplace(settings);
       cam = mono->frame_camera();
       T_b_c = mono->calibration().T_b_c;
+    }
+    map_cam = cam;
+    if (settings.is_rgbd()) {
+      rgbd.emplace(settings);
+      map_cam = rgbd->frame_camera();
     }
   }
   Frame make_frame(const cv::Mat& left, const cv::Mat& right) {
@@ -116,7 +125,8 @@ struct AtlasService::LocalizerContext {
   std::mutex mutex;  // a frontend has scratch buffers: one request at a time per configuration
   std::optional<StereoFrontend> stereo;
   std::optional<MonoFrontend> mono;
-  FrameCamera cam;
+  std::optional<RgbdFrontend> rgbd;
+  FrameCamera cam, map_cam;
   Pose3 T_b_c;
 };
 
@@ -266,6 +276,10 @@ void AtlasService::check_upload(const SessionRequest& request) const {
   check_session_name(request.name);
   const LoadedSettings loaded = load_settings(request.settings);
   const SensorType sensor = session_sensor(request, loaded.settings);
+  if (sensor == SensorType::kRgbd || loaded.settings.is_rgbd())
+    throw ServiceError(ServiceErrorKind::kUnprocessable, "unsupported_sensor",
+                       "uploads of RGB-D recordings are not supported yet: stream them as an rgbd session "
+                       "(orbatlas stream)");
   if (is_single_camera(sensor))
     throw ServiceError(ServiceErrorKind::kUnprocessable, "unsupported_sensor",
                        "uploads are mapped as stereo sequences; a single camera only localises in stored maps (stream "
@@ -323,9 +337,14 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   // first camera of a stereo config.
   const bool single_camera = is_single_camera(sensor);
   const SessionMode mode = session_mode(request, single_camera);
-  if (!single_camera && !loaded.settings.is_stereo())
+  if (!single_camera && !loaded.settings.is_stereo() && !loaded.settings.is_rgbd())
     throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
-                       "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
+                       "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing) nor an RGB-D camera");
+  if (!single_camera && (sensor == SensorType::kRgbd) != loaded.settings.is_rgbd())
+    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
+                       "sensor '" + std::string(sensor_type_name(sensor)) + "' with config '" + loaded.label + "' (a " +
+                           sensor_type_name(loaded.settings.sensor) +
+                           " config): an RGB-D session needs an rgbd config and the reverse");
 
   SessionId id = 0;
   {
@@ -478,7 +497,7 @@ void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
     return;
   }
   // The camera shares the context's ownership: it lives while a request holds it.
-  const std::shared_ptr<const FrameCamera> cam(context, &context->cam);
+  const std::shared_ptr<const FrameCamera> cam(context, &context->map_cam);
   for (const MapId map : maps) merger_->submit(MergeRequest{map, cam, start.first_keyframe, start.inertial});
 }
 

@@ -151,4 +151,26 @@ cv::Mat decode_request_image(std::string_view bytes, const std::optional<RawImag
   return image;
 }
 
+cv::Mat decode_request_depth(std::string_view bytes, const std::string& what, const cv::Size& expected) {
+  ORBATLAS_DATA_CHECK(!bytes.empty(), what << " is empty");
+  ORBATLAS_DATA_CHECK(starts_with(bytes, "\x89PNG\r\n\x1a\n"), what << " must be a 16-bit PNG (TUM RGB-D's format)");
+  const std::optional<cv::Size> declared = encoded_image_size(bytes);
+  ORBATLAS_DATA_CHECK(declared.has_value(), what << " is a corrupt or truncated PNG (" << bytes.size() << " bytes)");
+  ORBATLAS_DATA_CHECK(*declared == expected, what << " is " << declared->width << "x" << declared->height
+                                                  << "; the camera takes " << expected.width << "x" << expected.height
+                                                  << " (refused before decoding)");
+  const cv::Mat buffer(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
+  cv::Mat depth;
+  try {
+    depth = cv::imdecode(buffer, cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception&) {
+    depth.release();
+  }
+  ORBATLAS_DATA_CHECK(!depth.empty() && depth.size() == expected,
+                      what << " is a corrupt or truncated PNG (" << bytes.size() << " bytes)");
+  ORBATLAS_DATA_CHECK(depth.type() == CV_16UC1, what << " must be 16-bit single-channel (it has " << depth.channels()
+                                                     << " channel(s) of " << (depth.elemSize1() * 8) << " bits)");
+  return depth;
+}
+
 }  // namespace orbatlas

@@ -27,4 +27,8 @@ std::optional<cv::Size> encoded_image_size(std::string_view bytes);
 cv::Mat decode_request_image(std::string_view bytes, const std::optional<RawImageSize>& raw, const std::string& what,
                              const std::optional<cv::Size>& expected = std::nullopt);
 
+// An RGB-D frame's depth image: a 16-bit single-channel PNG (TUM RGB-D's
+// format) of the `expected` size, checked from its header before decoding.
+cv::Mat decode_request_depth(std::string_view bytes, const std::string& what, const cv::Size& expected);
+
 }  // namespace orbatlas
