@@ -60,6 +60,10 @@ const std::vector<Binding>& bindings() {
       ORBATLAS_TUNING("LocalMapping.InertialCovisibleKeyframes", 0, 1000, true,
                       "visual-inertial local BA: best covisible keyframes optimised beside the chain's",
                       mapper.inertial_covisible_keyframes),
+      ORBATLAS_TUNING("LocalMapping.InertialReintegrateGyroBiasChange", 0, 10, false,
+                      "links linearised at a gyro bias this far [rad/s] from the one an initialisation or refinement "
+                      "finds are integrated again (10: never)",
+                      mapper.inertial.reintegrate_gyro_bias_change),
       ORBATLAS_TUNING("LoopClosing.Enabled", 0, 1, true, "1: place recognition, loop correction, global BA",
                       loop_closing),
       ORBATLAS_TUNING("LoopClosing.QueueCapacity", 1, 10000, true,
