@@ -140,10 +140,13 @@ struct UploadArgs {
 
 void register_upload(CLI::App& app) {
   auto args = std::make_shared<UploadArgs>();
-  auto* cmd =
-      app.add_subcommand("upload", "Upload a recorded EuRoC ASL sequence; the server runs it as a stored session");
+  auto* cmd = app.add_subcommand("upload",
+                                 "Upload a recorded sequence (EuRoC ASL, or TUM RGB-D with an rgbd config); the "
+                                 "server runs it as a stored session");
   add_server_options(cmd, args->server);
-  cmd->add_option("--dataset", args->dataset, "Folder holding mav0/")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (or rgb.txt and depth.txt)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
   cmd->add_option("--config", args->config, "Config name the server knows (an upload cannot carry a settings file)")
       ->capture_default_str();
   cmd->add_option("--name", args->name, "Session name");

@@ -47,6 +47,16 @@ Pose3 truth_in_map(const std::filesystem::path& dataset, TimestampNs t_ns, const
   return at(origin_dataset, origin_t_ns).inverse() * at(dataset, t_ns);
 }
 
+nlohmann::json wait_for_job(ServerClient& client, std::uint64_t job) {
+  for (int i = 0; i < 1200; ++i) {
+    const auto status = client.get_json("/v1/jobs/" + std::to_string(job));
+    const std::string state = status["state"];
+    if (state == "done" || state == "failed" || state == "cancelled") return status;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return client.get_json("/v1/jobs/" + std::to_string(job));
+}
+
 nlohmann::json wait_for_merges(ServerClient& client) {
   for (int i = 0; i < 1200; ++i) {
     const auto merges = client.get_json("/v1/merges");
@@ -253,12 +263,27 @@ TEST(ServerEndToEnd, AnRgbdStreamMapsAndItsDepthIsChecked) {
       client.http().Post("/v1/sessions", R"({"config": "euroc/stereo", "sensor": "rgbd"})", "application/json");
   ASSERT_TRUE(mismatch);
   EXPECT_EQ(mismatch->status, 400) << mismatch->body;
-  const auto upload = client.http().Post("/v1/uploads?config=euroc/rgbd", std::string(10, 'x'), "application/x-tar");
+  const auto upload =
+      client.http().Post("/v1/uploads?config=euroc/rgbd&sensor=stereo", std::string(10, 'x'), "application/x-tar");
   ASSERT_TRUE(upload);
-  EXPECT_EQ(upload->status, 422) << upload->body;
+  EXPECT_EQ(upload->status, 400) << upload->body;
   EXPECT_NE(upload->body.find("RGB-D"), std::string::npos) << upload->body;
   client.finish_session(id);
   client.finish_session(stereo);
+
+  // The same recording uploaded: an RGB-D session mapped by the server. Its
+  // archive holds both layouts (the simulator writes mav0/ beside rgb.txt);
+  // the rgbd config reads the TUM one.
+  const std::uint64_t job = client.upload(clip, "euroc/rgbd", "recorded RGB-D");
+  const auto done = wait_for_job(client, job);
+  ASSERT_EQ(done["state"], "done") << done.dump();
+  EXPECT_EQ(done["tracked"], done["frames_total"]);
+  EXPECT_EQ(done["frames_total"], 81);
+  ASSERT_TRUE(done.contains("ate_rmse_m"));
+  std::printf("uploaded RGB-D recording: ATE %.4f m\n", done["ate_rmse_m"].get<double>());
+  EXPECT_LT(done["ate_rmse_m"].get<double>(), 0.002);
+  const auto uploaded = client.get_json("/v1/sessions/" + std::to_string(done["session"].get<std::uint64_t>()));
+  EXPECT_EQ(uploaded["sensor"], "rgbd");
 }
 
 TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
@@ -378,16 +403,6 @@ TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
   ASSERT_EQ(maps_after["maps"].size(), 1u);
   EXPECT_EQ(maps_after["maps"][0]["keyframes"], maps_before["maps"][0]["keyframes"]);
   EXPECT_EQ(maps_after["maps"][0]["map_points"], maps_before["maps"][0]["map_points"]);
-}
-
-nlohmann::json wait_for_job(ServerClient& client, std::uint64_t job) {
-  for (int i = 0; i < 1200; ++i) {
-    const auto status = client.get_json("/v1/jobs/" + std::to_string(job));
-    const std::string state = status["state"];
-    if (state == "done" || state == "failed" || state == "cancelled") return status;
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  return client.get_json("/v1/jobs/" + std::to_string(job));
 }
 
 TEST(ServerUploads, RecordingBecomesAStoredSessionAndBadArchivesAreRefused) {

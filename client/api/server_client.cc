@@ -191,7 +191,9 @@ json ServerClient::localize(const std::string& config, const cv::Mat& left, cons
 std::uint64_t ServerClient::upload(const std::filesystem::path& dataset, const std::string& config,
                                    const std::string& name,
                                    const std::function<void(std::uint64_t, std::uint64_t)>& progress) {
-  ORBATLAS_CHECK(std::filesystem::is_directory(dataset / "mav0"), dataset << " holds no mav0/ folder (EuRoC ASL)");
+  ORBATLAS_CHECK(
+      std::filesystem::is_directory(dataset / "mav0") || std::filesystem::is_regular_file(dataset / "rgb.txt"),
+      dataset << " holds no mav0/ folder (EuRoC ASL) nor rgb.txt (TUM RGB-D)");
   ORBATLAS_CHECK(choose_settings(config).settings_yaml.empty(),
                  "an upload takes a config name the server knows (such as euroc/stereo), not the settings file "
                      << config << ": the body of an upload is the recording");

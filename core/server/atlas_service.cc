@@ -272,14 +272,22 @@ AtlasService::LoadedSettings AtlasService::load_settings(const SettingsSource& s
   }
 }
 
+bool AtlasService::is_rgbd_request(const SessionRequest& request) const {
+  const LoadedSettings loaded = load_settings(request.settings);
+  return session_sensor(request, loaded.settings) == SensorType::kRgbd;
+}
+
 void AtlasService::check_upload(const SessionRequest& request) const {
   check_session_name(request.name);
   const LoadedSettings loaded = load_settings(request.settings);
   const SensorType sensor = session_sensor(request, loaded.settings);
-  if (sensor == SensorType::kRgbd || loaded.settings.is_rgbd())
-    throw ServiceError(ServiceErrorKind::kUnprocessable, "unsupported_sensor",
-                       "uploads of RGB-D recordings are not supported yet: stream them as an rgbd session "
-                       "(orbatlas stream)");
+  if (sensor == SensorType::kRgbd || loaded.settings.is_rgbd()) {
+    if (sensor != SensorType::kRgbd || !loaded.settings.is_rgbd())
+      throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
+                         "sensor '" + std::string(sensor_type_name(sensor)) + "' with config '" + loaded.label +
+                             "': an RGB-D recording needs an rgbd config and the reverse");
+    return;  // a TUM RGB-D recording, mapped as an rgbd session
+  }
   if (is_single_camera(sensor))
     throw ServiceError(ServiceErrorKind::kUnprocessable, "unsupported_sensor",
                        "uploads are mapped as stereo sequences; a single camera only localises in stored maps (stream "

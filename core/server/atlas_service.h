@@ -124,9 +124,11 @@ class AtlasService {
 
   SessionId create_session(const SessionRequest& request);
   // ServiceError when the settings cannot be used (uploads check before receiving).
-  // Uploads run stereo sessions: ServiceError 400/404 for settings that cannot be
-  // used, 422 for a single camera (it only localises; stream it instead).
+  // Uploads run stereo (or RGB-D) sessions: ServiceError 400/404 for settings that
+  // cannot be used, 422 for a single camera (it only localises; stream it instead).
   void check_upload(const SessionRequest& request) const;
+  // Does the request start an RGB-D session (its recording: the TUM RGB-D layout)?
+  bool is_rgbd_request(const SessionRequest& request) const;
   std::shared_ptr<LiveSession> session(SessionId id) const;    // ServiceError 404
   std::vector<std::shared_ptr<LiveSession>> sessions() const;  // by id
   // GET /v1/sessions/{id}: LiveSession::status with `map` the map the session's

@@ -7,6 +7,7 @@
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
 #include "core/io/imu_batches.h"
+#include "core/io/tum_rgbd.h"
 #include "core/io/tum_trajectory.h"
 #include "core/server/service_error.h"
 
@@ -16,13 +17,57 @@ namespace {
 namespace fs = std::filesystem;
 
 // The folder holding mav0/: the archive's root or its only top-level folder.
+// A recording: an EuRoC ASL folder (mav0/) or a TUM RGB-D one (rgb.txt).
+bool is_recording(const fs::path& dir) {
+  return fs::is_directory(dir / "mav0") || fs::is_regular_file(dir / "rgb.txt");
+}
+
 fs::path dataset_root(const fs::path& extracted) {
-  if (fs::is_directory(extracted / "mav0")) return extracted;
+  if (is_recording(extracted)) return extracted;
   std::vector<fs::path> dirs;
   for (const auto& e : fs::directory_iterator(extracted))
     if (e.is_directory()) dirs.push_back(e.path());
-  if (dirs.size() == 1 && fs::is_directory(dirs[0] / "mav0")) return dirs[0];
-  throw DataError("the archive holds no EuRoC ASL folder (mav0/ at its root or in its only folder)");
+  if (dirs.size() == 1 && is_recording(dirs[0])) return dirs[0];
+  throw DataError(
+      "the archive holds no EuRoC ASL folder (mav0/) nor TUM RGB-D one (rgb.txt) at its root or in its only folder");
+}
+
+// The frames of the recording at `root` for a session of `sensor`: stereo pairs
+// of an ASL folder, or each colour image with its depth image of a TUM RGB-D
+// one (`rgbd`); the ground truth and the IMU it holds.
+struct UploadedRecording {
+  std::vector<StereoFrame> frames;
+  std::vector<GroundTruthState> ground_truth;
+  std::vector<ImuSample> imu;
+};
+
+UploadedRecording read_recording(const fs::path& root, bool rgbd) {
+  UploadedRecording r;
+  if (rgbd) {
+    ORBATLAS_DATA_CHECK(fs::is_regular_file(root / "rgb.txt"),
+                        "an RGB-D session's upload is a TUM RGB-D recording (rgb.txt, depth.txt, rgb/, depth/)");
+    const TumRgbdDataset d = read_tum_rgbd(root);
+    for (const RgbdFrame& f : d.frames) r.frames.push_back({f.t_ns, f.rgb, f.depth});
+    for (const StampedPose& p : d.ground_truth) {
+      GroundTruthState g;
+      g.t_ns = p.t_ns;
+      g.T_w_b = p.pose;
+      r.ground_truth.push_back(g);
+    }
+    ORBATLAS_DATA_CHECK(!r.frames.empty(), "the recording has no colour image with a depth image");
+    return r;
+  }
+  ORBATLAS_DATA_CHECK(fs::is_directory(root / "mav0"),
+                      "a stereo session's upload is an EuRoC ASL recording (mav0/); a TUM RGB-D one needs an rgbd "
+                      "config");
+  EurocReadOptions read_options;
+  read_options.require_cam1 = true;
+  EurocDataset dataset = read_euroc_dataset(root, read_options);
+  r.frames = pair_stereo_frames(dataset);
+  ORBATLAS_DATA_CHECK(!r.frames.empty(), "the recording has no stereo frames");
+  r.ground_truth = std::move(dataset.ground_truth);
+  r.imu = std::move(dataset.imu);
+  return r;
 }
 
 struct RemoveOnExit {
@@ -200,11 +245,9 @@ void UploadJobs::run(JobId id) {
   });
   const RemoveOnExit remove_folder{folder};
   const fs::path root = dataset_root(folder);
-  EurocReadOptions read_options;
-  read_options.require_cam1 = true;
-  const EurocDataset dataset = read_euroc_dataset(root, read_options);
-  const std::vector<StereoFrame> frames = pair_stereo_frames(dataset);
-  ORBATLAS_DATA_CHECK(!frames.empty(), "the recording has no stereo frames");
+  const bool rgbd = service_.is_rgbd_request(request);
+  const UploadedRecording recording = read_recording(root, rgbd);
+  const std::vector<StereoFrame>& frames = recording.frames;
   if (request.name.empty()) request.name = "upload " + std::to_string(id);
   const SessionId session = service_.create_session(request);
   update(id, [&](Job& j) {
@@ -215,16 +258,17 @@ void UploadJobs::run(JobId id) {
   std::size_t tracked = 0, rejected = 0, imu_next = 0;
   for (std::size_t i = 0; i < frames.size(); ++i) {
     if (stopping_) break;  // the service's shutdown finishes and stores the session
-    if (!dataset.imu.empty()) {
+    if (!recording.imu.empty()) {
       // As a device sends it (a session without an inertial config only counts it).
       try {
-        service_.add_imu(session, take_imu_batch(dataset.imu, imu_next, frames[i].t_ns));
+        service_.add_imu(session, take_imu_batch(recording.imu, imu_next, frames[i].t_ns));
       } catch (const DataError& e) {
         log_warn("upload job " + std::to_string(id) + ": IMU skipped: " + e.what());
       }
     }
     const cv::Mat left = cv::imread(frames[i].left.string(), cv::IMREAD_GRAYSCALE);
-    const cv::Mat right = cv::imread(frames[i].right.string(), cv::IMREAD_GRAYSCALE);
+    // An RGB-D frame's second image is its 16-bit depth image, read as it is.
+    const cv::Mat right = cv::imread(frames[i].right.string(), rgbd ? cv::IMREAD_UNCHANGED : cv::IMREAD_GRAYSCALE);
     try {
       ORBATLAS_DATA_CHECK(!left.empty() && !right.empty(), "cannot read the images at " << frames[i].t_ns);
       if (service_.process_frame(session, frames[i].t_ns, left, right).result.tracked) ++tracked;
@@ -243,11 +287,11 @@ void UploadJobs::run(JobId id) {
   }
   service_.finish_session(session);
   std::optional<double> ate;
-  if (!dataset.ground_truth.empty()) {
+  if (!recording.ground_truth.empty()) {
     const Trajectory trajectory = service_.trajectory(session).poses;
     try {
       if (trajectory.size() >= 3)
-        ate = evaluate_trajectory(trajectory, from_ground_truth_states(dataset.ground_truth)).ate.rmse;
+        ate = evaluate_trajectory(trajectory, from_ground_truth_states(recording.ground_truth)).ate.rmse;
     } catch (const Error& e) {
       log_warn("upload job " + std::to_string(id) + ": no ATE: " + e.what());
     }
