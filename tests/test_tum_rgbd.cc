@@ -71,6 +71,14 @@ TEST(TumRgbd, AWrittenDatasetReadsBackIdentically) {
     EXPECT_EQ(d.ground_truth[i].t_ns, gt[i].t_ns);
     EXPECT_LT((d.ground_truth[i].pose.t - gt[i].pose.t).norm(), 1e-9);
   }
+  const auto pairs = rgbd_image_pairs(d);
+  ASSERT_EQ(pairs.size(), 4u);
+  EXPECT_EQ(pairs[2].left, d.frames[2].rgb);
+  EXPECT_EQ(pairs[2].right, d.frames[2].depth);
+  const auto states = ground_truth_states(d);
+  ASSERT_EQ(states.size(), gt.size());
+  EXPECT_EQ(states[3].t_ns, gt[3].t_ns);
+  EXPECT_LT((states[3].T_w_b.t - gt[3].pose.t).norm(), 1e-9);
   EXPECT_THROW(read_depth_image(d.frames[0].depth, 32, 48), DataError);  // another camera's size
   EXPECT_THROW(read_depth_image(d.frames[0].rgb, 64, 48), DataError);    // 8-bit: not a depth image
 }

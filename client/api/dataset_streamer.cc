@@ -68,14 +68,8 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
       ORBATLAS_CHECK(tum_layout, options.dataset << " is not in the TUM RGB-D layout (rgb.txt, depth.txt) an rgbd "
                                                     "session streams");
       const TumRgbdDataset tum = read_tum_rgbd(options.dataset);
-      for (const RgbdFrame& f : tum.frames) frames.push_back(StereoFrame{f.t_ns, f.rgb, f.depth});
-      if (dataset.ground_truth.empty())
-        for (const StampedPose& p : tum.ground_truth) {
-          GroundTruthState g;
-          g.t_ns = p.t_ns;
-          g.T_w_b = p.pose;
-          dataset.ground_truth.push_back(g);
-        }
+      frames = rgbd_image_pairs(tum);
+      if (dataset.ground_truth.empty()) dataset.ground_truth = ground_truth_states(tum);
     } else if (dataset.cameras.empty()) {
       throw Error(options.dataset.string() + " holds no ASL recording (mav0/) for a " + sensor + " session");
     } else if (single_camera) {

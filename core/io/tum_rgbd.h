@@ -13,6 +13,7 @@
 
 #include "core/common/timestamp.h"
 #include "core/geometry/trajectory.h"
+#include "core/io/euroc_reader.h"
 
 namespace orbatlas {
 
@@ -34,6 +35,11 @@ struct TumRgbdDataset {
 // that does not exist; a colour image without depth within max_dt_s is skipped
 // (counted in `unpaired`).
 TumRgbdDataset read_tum_rgbd(const std::filesystem::path& dir, double max_dt_s = 0.02);
+
+// The frames as image pairs (the colour image, its depth image: what the
+// stereo pair loader and the runners take) and the ground truth as body states.
+std::vector<StereoFrame> rgbd_image_pairs(const TumRgbdDataset& dataset);
+std::vector<GroundTruthState> ground_truth_states(const TumRgbdDataset& dataset);
 
 // Keeps the frames from `start_s` after the first one, for `duration_s` (all
 // when absent). Throws Error when none is left.

@@ -47,13 +47,8 @@ UploadedRecording read_recording(const fs::path& root, bool rgbd) {
     ORBATLAS_DATA_CHECK(fs::is_regular_file(root / "rgb.txt"),
                         "an RGB-D session's upload is a TUM RGB-D recording (rgb.txt, depth.txt, rgb/, depth/)");
     const TumRgbdDataset d = read_tum_rgbd(root);
-    for (const RgbdFrame& f : d.frames) r.frames.push_back({f.t_ns, f.rgb, f.depth});
-    for (const StampedPose& p : d.ground_truth) {
-      GroundTruthState g;
-      g.t_ns = p.t_ns;
-      g.T_w_b = p.pose;
-      r.ground_truth.push_back(g);
-    }
+    r.frames = rgbd_image_pairs(d);
+    r.ground_truth = ground_truth_states(d);
     ORBATLAS_DATA_CHECK(!r.frames.empty(), "the recording has no colour image with a depth image");
     return r;
   }

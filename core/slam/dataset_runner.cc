@@ -81,14 +81,9 @@ RunInputs read_rgbd_inputs(const DatasetRunOptions& options, SlamSettings settin
   if (d.unpaired > 0)
     log_warn(options.dataset.string() + ": " + std::to_string(d.unpaired) +
              " colour images without a depth image within 0.02 s (skipped)");
-  for (const RgbdFrame& f : d.frames) in.frames.push_back({f.t_ns, f.rgb, f.depth});
+  in.frames = rgbd_image_pairs(d);
   ORBATLAS_CHECK(!in.frames.empty(), options.dataset << " holds no colour image with a depth image");
-  for (const StampedPose& p : d.ground_truth) {
-    GroundTruthState g;
-    g.t_ns = p.t_ns;
-    g.T_w_b = p.pose;
-    in.dataset.ground_truth.push_back(g);
-  }
+  in.dataset.ground_truth = ground_truth_states(d);
   keep_time_window(in.frames, options.start_s, options.duration_s, options.dataset);
   return in;
 }
