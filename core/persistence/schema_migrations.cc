@@ -1,6 +1,7 @@
 #include "core/persistence/schema_migrations.h"
 
 #include "core/common/error.h"
+#include "core/common/log.h"
 #include "persistence_generated/embedded_schema.h"
 
 namespace orbatlas {
@@ -38,7 +39,12 @@ void migrate_schema(SqliteDb& db, TimestampNs now_ns) {
     SqliteDb& db;
     bool on;
     ~RestoreForeignKeys() {
-      if (on) db.exec("PRAGMA foreign_keys = ON");
+      if (!on) return;
+      try {
+        db.exec("PRAGMA foreign_keys = ON");
+      } catch (const std::exception& e) {
+        log_warn(db.path().string() + ": foreign keys not turned on again after migrating: " + e.what());
+      }
     }
   } restore{db, foreign_keys};
   for (const SchemaMigration& migration : schema_migrations()) {
