@@ -610,9 +610,17 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     leases_.settle(id, reply.result.tracked ? std::optional<MapId>(reply.result.map) : std::nullopt);
     if (reply.result.tracked) {
       // Known to be of this rig from its first frame: other sessions may enter it.
-      const MapRig rig = mapping_rig(id);
-      std::lock_guard lock(rigs_mutex_);
-      map_rigs_.try_emplace(reply.result.map, rig);
+      // (Its rig is looked up only for a map not recorded yet: not on every frame.)
+      bool known = false;
+      {
+        std::lock_guard lock(rigs_mutex_);
+        known = map_rigs_.count(reply.result.map) > 0;
+      }
+      if (!known) {
+        const MapRig rig = mapping_rig(id);
+        std::lock_guard lock(rigs_mutex_);
+        map_rigs_.try_emplace(reply.result.map, rig);
+      }
     }
   }
   if (reply.result.keyframe) checkpointer_->notify_keyframe(id, reply.result.keyframe_id);

@@ -24,13 +24,6 @@ Frame MonoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& image) {
   return f;
 }
 
-FrameCamera MonoFrontend::frame_camera() const {
-  FrameCamera cam;
-  cam.camera = camera_.get();
-  cam.bf = 0.0;
-  cam.pyramid.scale_factor = extractor_.options().scale_factor;
-  cam.pyramid.n_levels = extractor_.options().n_levels;
-  return cam;
-}
+FrameCamera MonoFrontend::frame_camera() const { return make_frame_camera(*camera_, 0.0, extractor_); }
 
 }  // namespace orbatlas

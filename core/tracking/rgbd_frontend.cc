@@ -77,14 +77,7 @@ Frame RgbdFrontend::make_frame(TimestampNs t_ns, const cv::Mat& image, const cv:
   return f;
 }
 
-FrameCamera RgbdFrontend::frame_camera() const {
-  FrameCamera cam;
-  cam.camera = camera_.get();
-  cam.bf = bf();
-  cam.pyramid.scale_factor = extractor_.options().scale_factor;
-  cam.pyramid.n_levels = extractor_.options().n_levels;
-  return cam;
-}
+FrameCamera RgbdFrontend::frame_camera() const { return make_frame_camera(*camera_, bf(), extractor_); }
 
 std::unique_ptr<FrameFrontend> make_frame_frontend(const SlamSettings& settings) {
   if (settings.is_rgbd()) return std::make_unique<RgbdFrontend>(settings);

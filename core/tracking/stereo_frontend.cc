@@ -102,13 +102,15 @@ void finish_frame(const Camera& camera, Frame& f) {
   f.outlier.assign(f.size(), false);
 }
 
-FrameCamera StereoFrontend::frame_camera() const {
+FrameCamera make_frame_camera(const Camera& camera, double bf, const OrbExtractor& extractor) {
   FrameCamera cam;
-  cam.camera = camera_.get();
-  cam.bf = bf();
-  cam.pyramid.scale_factor = left_extractor_.options().scale_factor;
-  cam.pyramid.n_levels = left_extractor_.options().n_levels;
+  cam.camera = &camera;
+  cam.bf = bf;
+  cam.pyramid.scale_factor = extractor.options().scale_factor;
+  cam.pyramid.n_levels = extractor.options().n_levels;
   return cam;
 }
+
+FrameCamera StereoFrontend::frame_camera() const { return make_frame_camera(*camera_, bf(), left_extractor_); }
 
 }  // namespace orbatlas

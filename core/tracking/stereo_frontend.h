@@ -53,6 +53,10 @@ class StereoFrontend final : public FrameFrontend {
 
 OrbExtractorOptions orb_options_from(const SlamSettings& settings);
 
+// What tracking and mapping work with, for a front end's camera, bf (0: no
+// depth) and extractor (its ORB scale pyramid).
+FrameCamera make_frame_camera(const Camera& camera, double bf, const OrbExtractor& extractor);
+
 // The last step of every front end, once features (and depths) are in:
 // keypoint bearings through `camera`, the search grid, empty associations.
 void finish_frame(const Camera& camera, Frame& frame);
