@@ -22,6 +22,7 @@ struct EvalArgs {
   std::vector<std::string> gt;  // several: sessions in one world frame, joined
   std::vector<std::string> est;
   std::string align = "se3";
+  std::string est_frame = "body";  // or cam0: the estimate is the camera's (monocular sessions)
   double max_gap_s = 0.1;
   bool json = false;
   std::string plot;
@@ -101,8 +102,24 @@ Trajectory read_joined(const std::vector<std::string>& paths) {
   return join_trajectories(parts, what.c_str());
 }
 
+// The ground truth of the camera (cam0) instead of the body: each --gt must be
+// a dataset folder, whose cam0 calibration gives the camera in the body.
+Trajectory read_camera_ground_truth(const std::vector<std::string>& gts) {
+  std::vector<Trajectory> parts;
+  for (const auto& g : gts) {
+    std::error_code ec;
+    ORBATLAS_CHECK(std::filesystem::is_directory(g, ec),
+                   "--est-frame cam0 needs --gt dataset folders (their cam0 calibration), not " << g);
+    const EurocDataset dataset = read_euroc_dataset(g);
+    ORBATLAS_CHECK(!dataset.cameras.empty(), g << " has no cam0");
+    parts.push_back(attached_frame(read_any_ground_truth(g), dataset.cameras.front().calibration.T_b_c));
+  }
+  const std::string what = joined(gts) + " (only recordings made at different times can be joined)";
+  return join_trajectories(parts, what.c_str());
+}
+
 void run_eval(const EvalArgs& args) {
-  const Trajectory gt = read_joined(args.gt);
+  const Trajectory gt = args.est_frame == "cam0" ? read_camera_ground_truth(args.gt) : read_joined(args.gt);
   const Trajectory est = read_joined(args.est);  // TUM usually; an ASL csv or dataset also works
   ORBATLAS_CHECK(!est.empty(), joined(args.est) << ": no poses");
   ORBATLAS_CHECK(!gt.empty(), joined(args.gt) << ": no poses");
@@ -143,6 +160,12 @@ void register_eval_command(CLI::App& app) {
       ->check(CLI::ExistingPath);
   cmd->add_option("--align", args->align, "Alignment before ATE: se3 (rigid), sim3 (with scale) or none")
       ->check(CLI::IsMember({"se3", "sim3", "none"}))
+      ->capture_default_str();
+  cmd->add_option("--est-frame", args->est_frame,
+                  "What the estimate's poses are of: body (the IMU frame, as stereo sessions report), or cam0 (the "
+                  "camera, as monocular sessions report; the ground truth is moved to cam0 with each --gt dataset's "
+                  "calibration)")
+      ->check(CLI::IsMember({"body", "cam0"}))
       ->capture_default_str();
   cmd->add_option("--max-gap", args->max_gap_s, "Largest ground-truth gap [s] to interpolate across when associating")
       ->check(CLI::PositiveNumber)

@@ -60,7 +60,10 @@ nlohmann::json stream_json(const StreamReport& r) {
     j["imu_initialized_at_s"] = r.finish_status["slam"]["imu_initialized_at_s"];
     j["imu_bias"] = r.finish_status["slam"]["imu_bias"];
   }
-  if (r.ate_rmse_m) j["ate_rmse_m"] = *r.ate_rmse_m;
+  if (r.ate_rmse_m) {
+    j["ate_rmse_m"] = *r.ate_rmse_m;
+    j["ate_align"] = r.ate_sim3 ? "sim3" : "se3";
+  }
   return j;
 }
 
@@ -82,7 +85,8 @@ void print_stream_summary(const nlohmann::json& j) {
   for (const auto& m : j["maps"]) maps += (maps.empty() ? "" : ", ") + std::to_string(m.get<std::uint64_t>());
   std::printf("  maps: %s\n", maps.empty() ? "none" : maps.c_str());
   if (j.contains("ate_rmse_m"))
-    std::printf("  ATE %.4f m (RMSE, SE3-aligned to the ground truth)\n", j["ate_rmse_m"].get<double>());
+    std::printf("  ATE %.4f m (RMSE, %s to the ground truth)\n", j["ate_rmse_m"].get<double>(),
+                j.value("ate_align", "se3") == "sim3" ? "the camera's, Sim3-aligned" : "SE3-aligned");
 }
 
 void register_stream(CLI::App& app) {

@@ -104,7 +104,9 @@ void print_run_summary(const DatasetRunReport& r) {
     }
     std::printf("\n");
   }
-  if (r.ate_rmse_m) std::printf("ATE RMSE (SE3, against the dataset's ground truth) %.4f m\n", *r.ate_rmse_m);
+  if (r.ate_rmse_m)
+    std::printf("ATE RMSE (%s, against the dataset's ground truth) %.4f m\n",
+                r.ate_sim3 ? "Sim3, of the camera" : "SE3", *r.ate_rmse_m);
   if (r.black_out) {
     const auto& b = *r.black_out;
     std::printf("black-out: %zu frames, %zu carried by the IMU", b.frames, b.by_imu);

@@ -67,7 +67,11 @@ TEST(RgbdFrontend, KeypointsGetTheRenderedDepthAndAVirtualRightCoordinate) {
   EXPECT_THROW(frontend->make_frame(78, image, cv::Mat()), DataError);  // no depth
   EXPECT_THROW(frontend->make_frame(78, image, image), DataError);      // 8-bit: not a depth image
   EXPECT_THROW(frontend->make_frame(78, image, depth(cv::Rect(0, 0, 100, 100))), DataError);  // another size
-  EXPECT_THROW(make_frame_frontend(read_settings(shipped_config_dir() / "euroc" / "mono.yaml")), Error);
+  // A single camera's front end: no depth, one image per frame.
+  const auto mono = make_frame_frontend(read_settings(shipped_config_dir() / "euroc" / "mono.yaml"));
+  EXPECT_EQ(mono->baseline(), 0.0);
+  EXPECT_EQ(mono->frame_camera().bf, 0.0);
+  EXPECT_THROW(mono->make_frame(78, image, image), DataError);
 }
 
 }  // namespace

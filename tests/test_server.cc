@@ -286,6 +286,53 @@ TEST(ServerEndToEnd, AnRgbdStreamMapsAndItsDepthIsChecked) {
   EXPECT_EQ(uploaded["sensor"], "rgbd");
 }
 
+TEST(ServerEndToEnd, ASingleCameraSessionMapsAtItsOwnScale) {
+  const auto clip = test::simulated_clip("MH_01", 50.0, 8.0);  // moving from the start
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath db("mono_map");
+  std::size_t keyframes = 0;
+  {
+    test::TestServer server(test::server_options(db.path));
+    ServerClient client(server.url());
+    StreamOptions o = test::stream_options(clip);
+    o.config = "euroc/mono";  // maps by default
+    const StreamReport report = stream_dataset(client, o);
+    EXPECT_EQ(report.finish_status.value("sensor", ""), "mono");
+    EXPECT_EQ(report.finish_status.value("mode", ""), "map");
+    EXPECT_EQ(report.frames, 161u);
+    EXPECT_GE(report.tracked + 8, report.frames);  // the map starts from two views a few frames apart
+    EXPECT_GT(report.keyframes, 5u);
+    ASSERT_TRUE(report.ate_rmse_m.has_value());
+    EXPECT_TRUE(report.ate_sim3);
+    std::printf("single camera mapping over HTTP: %zu of %zu frames tracked, %zu keyframes, ATE %.4f m (Sim3)\n",
+                report.tracked, report.frames, report.keyframes, *report.ate_rmse_m);
+    EXPECT_LT(*report.ate_rmse_m, 0.013);  // measured 0.0061 m
+    const nlohmann::json maps = client.get_json("/v1/maps");
+    ASSERT_EQ(maps["maps"].size(), 1u) << maps.dump();
+    keyframes = maps["maps"][0]["keyframes"].get<std::size_t>();
+    EXPECT_GT(keyframes, 5u);
+  }
+  // Stored: a restarted server holds the map.
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  const nlohmann::json maps = client.get_json("/v1/maps");
+  ASSERT_EQ(maps["maps"].size(), 1u) << maps.dump();
+  EXPECT_EQ(maps["maps"][0]["keyframes"].get<std::size_t>(), keyframes);
+
+  // The recording uploaded with the mono config: cam0 mapped by the server.
+  const std::uint64_t job = client.upload(clip, "euroc/mono", "recorded single camera");
+  const auto done = wait_for_job(client, job);
+  ASSERT_EQ(done["state"], "done") << done.dump();
+  EXPECT_EQ(done["frames_total"], 161);
+  EXPECT_GE(done["tracked"].get<std::size_t>() + 8, 161u);
+  ASSERT_TRUE(done.contains("ate_rmse_m"));
+  std::printf("uploaded single-camera recording: ATE %.4f m (Sim3)\n", done["ate_rmse_m"].get<double>());
+  EXPECT_LT(done["ate_rmse_m"].get<double>(), 0.018);  // measured 0.0089 m
+  const auto uploaded = client.get_json("/v1/sessions/" + std::to_string(done["session"].get<std::uint64_t>()));
+  EXPECT_EQ(uploaded["sensor"], "mono");
+  EXPECT_EQ(uploaded["mode"], "map");
+}
+
 TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
   const std::array<std::filesystem::path, 3> clips = {test::simulated_clip("MH_01", 40.0, 4.0),
                                                       test::simulated_clip("MH_02", 30.0, 4.0),
@@ -353,7 +400,7 @@ TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
 
   // Frame by frame: one image is a frame; a pair is refused (422), the session goes on.
   const auto frames = test::stereo_frames(visit);
-  const nlohmann::json started = client.start_session("euroc/mono", "handheld");
+  const nlohmann::json started = client.start_session("euroc/mono", "handheld", "", "localize");
   const std::uint64_t id = started["id"];
   EXPECT_EQ(started["session"]["sensor"], "mono");
   const cv::Mat left = cv::imread(frames[10].left.string(), cv::IMREAD_GRAYSCALE);
@@ -386,6 +433,7 @@ TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
   std::filesystem::remove_all(visit / "mav0" / "cam1");
   StreamOptions mono = test::stream_options(visit);
   mono.config = "euroc/mono";
+  mono.mode = "localize";
   const StreamReport report = stream_dataset(client, mono);
   EXPECT_EQ(report.rejected, 0u);
   EXPECT_GE(report.tracked + 2, report.frames);
@@ -447,8 +495,9 @@ TEST(ServerUploads, RecordingBecomesAStoredSessionAndBadArchivesAreRefused) {
   const auto bad_config = client.http().Post("/v1/uploads?config=no/such", std::string(10, 'x'), "application/x-tar");
   ASSERT_TRUE(bad_config);
   EXPECT_EQ(bad_config->status, 404);
-  // A single camera only localises: uploads (mapped as stereo) refuse it up front.
-  const auto mono = client.http().Post("/v1/uploads?config=euroc/mono", std::string(10, 'x'), "application/x-tar");
+  // A single camera that would only localise: uploads (mapped) refuse it up front.
+  const auto mono =
+      client.http().Post("/v1/uploads?config=euroc/mono&mode=localize", std::string(10, 'x'), "application/x-tar");
   ASSERT_TRUE(mono);
   EXPECT_EQ(mono->status, 422);
   EXPECT_NE(mono->body.find("unsupported_sensor"), std::string::npos) << mono->body;

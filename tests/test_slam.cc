@@ -285,12 +285,17 @@ TEST(DatasetRunner, UnreadableImageIsSkippedAndReported) {
   EXPECT_EQ(r.stats.tracked, r.stats.frames);
 }
 
-TEST(DatasetRunner, RejectsMonocularSettingsAndMissingDatasets) {
+TEST(DatasetRunner, RejectsMonoInertialSettingsAndMissingDatasets) {
   EXPECT_THROW(run_stereo_dataset(options_for("/nonexistent/orbatlas/dataset")), Error);
-  const SlamSettings mono = read_settings(shipped_config_dir() / "euroc" / "mono.yaml");
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
   Atlas atlas;
-  EXPECT_THROW(StereoSlam(atlas, mono, vocabulary), Error);
+  // A single camera maps (monocular SLAM); with its IMU it cannot yet.
+  const SlamSettings mono = read_settings(shipped_config_dir() / "euroc" / "mono.yaml");
+  const StereoSlam slam(atlas, mono, vocabulary);
+  EXPECT_TRUE(slam.monocular());
+  EXPECT_EQ(slam.frontend().baseline(), 0.0);
+  const SlamSettings mono_inertial = read_settings(shipped_config_dir() / "euroc" / "mono_inertial.yaml");
+  EXPECT_THROW(StereoSlam(atlas, mono_inertial, vocabulary), Error);
 }
 
 }  // namespace

@@ -58,6 +58,8 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   const std::string sensor = started.at("session").value("sensor", "stereo");
   const bool single_camera = sensor == "mono" || sensor == "mono_inertial";
   const bool rgbd = sensor == "rgbd";  // each colour image with its depth image (TUM RGB-D layout)
+  // A single camera that maps reports its camera's poses at its map's scale.
+  const bool monocular_map = single_camera && started.at("session").value("mode", "localize") == "map";
   // An inertial session gets the recording's imu0: before each frame, the
   // samples up to it and the first one past it.
   const bool send_imu = (sensor == "stereo_inertial" || sensor == "mono_inertial") && !dataset.imu.empty();
@@ -136,8 +138,14 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
                                            &report.trajectory_maps);
   if (!dataset.ground_truth.empty() && report.trajectory.size() >= 3) {
     try {
+      const Trajectory truth = from_ground_truth_states(dataset.ground_truth);
+      EvalOptions eval;
+      if (monocular_map) eval.align = AlignMode::kSim3;
       report.ate_rmse_m =
-          evaluate_trajectory(report.trajectory, from_ground_truth_states(dataset.ground_truth)).ate.rmse;
+          evaluate_trajectory(report.trajectory,
+                              monocular_map ? attached_frame(truth, dataset.cameras[0].calibration.T_b_c) : truth, eval)
+              .ate.rmse;
+      report.ate_sim3 = monocular_map;
     } catch (const Error& e) {
       log_warn(std::string("no ATE: ") + e.what());
     }

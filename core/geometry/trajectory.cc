@@ -32,6 +32,12 @@ void check_strictly_increasing(const Trajectory& trajectory, const char* what) {
   }
 }
 
+Trajectory attached_frame(const Trajectory& trajectory, const Pose3& T_b_x) {
+  Trajectory out = trajectory;
+  for (auto& s : out) s.pose = s.pose * T_b_x;
+  return out;
+}
+
 Trajectory join_trajectories(const std::vector<Trajectory>& parts, const char* what) {
   Trajectory all;
   for (const Trajectory& part : parts) all.insert(all.end(), part.begin(), part.end());

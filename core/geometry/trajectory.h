@@ -29,4 +29,8 @@ void check_strictly_increasing(const Trajectory& trajectory, const char* what);
 // (recordings that overlap in time cannot be joined).
 Trajectory join_trajectories(const std::vector<Trajectory>& parts, const char* what);
 
+// The trajectory of a frame rigidly attached to the body: each T_w_b * T_b_x
+// (e.g. the camera's, x = c, to compare with what a monocular session reports).
+Trajectory attached_frame(const Trajectory& trajectory, const Pose3& T_b_x);
+
 }  // namespace orbatlas

@@ -257,7 +257,9 @@ void LocalMapper::cull_recent_points(Map& map) {
     const auto mp = entry.point.lock();
     if (!mp || mp->is_bad()) continue;
     const std::size_t age = sequence_ - entry.created_at;
-    if (mp->found_ratio() < 0.25 || (age >= 2 && weighted_observations(*mp) <= 3)) {
+    // ORB-SLAM: seen from at most 3 (stereo counting twice), or 2 for a single camera.
+    const int min_observations = cam_.bf > 0.0 ? 3 : 2;
+    if (mp->found_ratio() < 0.25 || (age >= 2 && weighted_observations(*mp) <= min_observations)) {
       if (map.cull_map_point(mp->id())) ++culled;
     } else if (age < 3) {
       kept.push_back(std::move(entry));

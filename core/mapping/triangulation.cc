@@ -1,7 +1,9 @@
 #include "core/mapping/triangulation.h"
 
 #include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "core/features/matching.h"
 #include "core/map/map_point_update.h"
@@ -45,6 +47,18 @@ bool reprojects(const KeyFrame& kf, std::size_t slot, const Eigen::Vector3d& p_c
   return e2 / sigma2 <= kChi2Mono95;
 }
 
+// Median depth of the points a keyframe observes, in its camera (ORB-SLAM's
+// ComputeSceneMedianDepth); -1 without points.
+double median_scene_depth(const KeyFrame& kf) {
+  const Pose3 T_c_w = kf.T_w_c().inverse();
+  std::vector<double> depths;
+  for (const auto& mp : kf.map_points())
+    if (!mp->is_bad()) depths.push_back((T_c_w * mp->p_w()).z());
+  if (depths.empty()) return -1.0;
+  std::nth_element(depths.begin(), depths.begin() + static_cast<std::ptrdiff_t>(depths.size() / 2), depths.end());
+  return depths[depths.size() / 2];
+}
+
 }  // namespace
 
 TriangulationStats triangulate_pair(Map& map, const std::shared_ptr<KeyFrame>& kf1,
@@ -56,6 +70,12 @@ TriangulationStats triangulate_pair(Map& map, const std::shared_ptr<KeyFrame>& k
   const double baseline = (T_w_c2.t - T_w_c1.t).norm();
   const double stereo_baseline = cam.baseline();
   if (stereo_baseline > 0.0 && baseline < stereo_baseline) return stats;  // the stereo pair already does better
+  if (stereo_baseline <= 0.0) {
+    // A single camera: too short a baseline for the scene's depth gives no
+    // parallax (a keyframe without points yet cannot say: tried).
+    const double median = median_scene_depth(*kf2);
+    if (median > 0.0 && baseline / median < 0.01) return stats;
+  }
 
   const CameraCalibration calib = cam.camera->calibration();
   Eigen::Matrix3d K;

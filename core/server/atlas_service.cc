@@ -72,16 +72,31 @@ namespace {
 
 // The request's sensor, else the settings' Sensor.type; 400 for an unknown name.
 // The session's mode: as asked, else map for a stereo rig and localize for a
-// single camera (which cannot map yet).
-SessionMode session_mode(const SessionRequest& request, bool single_camera) {
-  if (request.mode.empty()) return single_camera ? SessionMode::kLocalize : SessionMode::kMap;
+// single camera of a monocular config (session_mode).
+SessionMode session_mode(const SessionRequest& request, SensorType sensor, const SlamSettings& settings) {
+  // A single camera maps by default when its config is a monocular one; the
+  // first camera of a stereo config localises in that rig's maps by default.
+  // Monocular-inertial mapping does not exist yet.
+  const bool single_camera = is_single_camera(sensor);
+  const bool mono_config = settings.sensor == SensorType::kMonocular;
+  if (request.mode.empty())
+    return single_camera && (sensor == SensorType::kMonocularInertial || !mono_config) ? SessionMode::kLocalize
+                                                                                       : SessionMode::kMap;
   if (request.mode == "localize") return SessionMode::kLocalize;
   if (request.mode != "map") throw_bad_request("unknown mode '" + request.mode + "' (map or localize)");
-  if (single_camera)
+  if (sensor == SensorType::kMonocularInertial)
     throw ServiceError(ServiceErrorKind::kUnprocessable, "cannot_map",
-                       "a single camera cannot map yet (monocular mapping does not exist); start it with mode "
-                       "\"localize\" to track in the stored maps");
+                       "a single camera with its IMU cannot map yet (monocular-inertial mapping does not exist); "
+                       "start it as sensor \"mono\" to map without the IMU, or with mode \"localize\"");
   return SessionMode::kMap;
+}
+
+// The settings a single camera maps with: the config's first camera alone.
+SlamSettings monocular_settings(SlamSettings settings) {
+  settings.sensor = SensorType::kMonocular;
+  settings.camera1.reset();
+  settings.imu.reset();
+  return settings;
 }
 
 SensorType session_sensor(const SessionRequest& request, const SlamSettings& settings) {
@@ -272,9 +287,9 @@ AtlasService::LoadedSettings AtlasService::load_settings(const SettingsSource& s
   }
 }
 
-bool AtlasService::is_rgbd_request(const SessionRequest& request) const {
+SensorType AtlasService::request_sensor(const SessionRequest& request) const {
   const LoadedSettings loaded = load_settings(request.settings);
-  return session_sensor(request, loaded.settings) == SensorType::kRgbd;
+  return session_sensor(request, loaded.settings);
 }
 
 void AtlasService::check_upload(const SessionRequest& request) const {
@@ -288,10 +303,13 @@ void AtlasService::check_upload(const SessionRequest& request) const {
                              "': an RGB-D recording needs an rgbd config and the reverse");
     return;  // a TUM RGB-D recording, mapped as an rgbd session
   }
-  if (is_single_camera(sensor))
-    throw ServiceError(ServiceErrorKind::kUnprocessable, "unsupported_sensor",
-                       "uploads are mapped as stereo sequences; a single camera only localises in stored maps (stream "
-                       "it as a session)");
+  if (is_single_camera(sensor)) {
+    if (session_mode(request, sensor, loaded.settings) != SessionMode::kMap)
+      throw ServiceError(ServiceErrorKind::kUnprocessable, "unsupported_sensor",
+                         "uploads are mapped; this single camera only localises in stored maps (stream it as a "
+                         "session, or upload it with a mono config to map it)");
+    return;  // cam0 of an ASL recording, mapped as a monocular session
+  }
   if (!loaded.settings.is_stereo())
     throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
                        "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
@@ -313,7 +331,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
       return std::make_unique<StereoSlam>(atlas_, settings, vocabulary_, slam_options, std::move(wiring));
     } catch (const std::exception& e) {
       throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
-                         std::string("cannot start a stereo session with these settings: ") + e.what());
+                         std::string("cannot start a session with these settings: ") + e.what());
     }
   }
   // Stored maps of its own rig only (local mapping would adjust another rig's
@@ -331,7 +349,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
     return std::make_unique<StereoSlam>(atlas_, settings, vocabulary_, slam_options, std::move(wiring));
   } catch (const std::exception& e) {
     throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
-                       std::string("cannot start a stereo session with these settings: ") + e.what());
+                       std::string("cannot start a session with these settings: ") + e.what());
   }
 }
 
@@ -339,12 +357,13 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   check_session_name(request.name);
   const LoadedSettings loaded = load_settings(request.settings);
   const SensorType sensor = session_sensor(request, loaded.settings);
-  // A single camera localises in the stored maps (no map of its own: mapping
-  // needs the stereo rig's metric depth); the inertial variants are tracked
-  // visually, their IMU checked and counted. A single camera may also be the
-  // first camera of a stereo config.
+  // A single camera maps (monocular SLAM, its own maps at their own scale) or
+  // localises in the stored maps; the inertial variant only localises,
+  // tracked visually, its IMU checked and counted. A single camera may also
+  // be the first camera of a stereo config.
   const bool single_camera = is_single_camera(sensor);
-  const SessionMode mode = session_mode(request, single_camera);
+  const SessionMode mode = session_mode(request, sensor, loaded.settings);
+  const bool monocular_mapping = single_camera && mode == SessionMode::kMap;
   if (!single_camera && !loaded.settings.is_stereo() && !loaded.settings.is_rgbd())
     throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
                        "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing) nor an RGB-D camera");
@@ -372,7 +391,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   info.sensor = sensor;
   info.created_ns = unix_now_ns();
   info.cameras.push_back(loaded.settings.camera0);
-  if (loaded.settings.camera1) info.cameras.push_back(*loaded.settings.camera1);
+  if (loaded.settings.camera1 && !monocular_mapping) info.cameras.push_back(*loaded.settings.camera1);
 
   // As StereoSlam decides whether it fuses the IMU.
   std::optional<GlobalBundleAdjustmentOptions::Inertial> inertial;
@@ -383,7 +402,9 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   const MapRig rig{info.cameras, inertial.has_value()};
 
   std::unique_ptr<SessionSlam> slam;
-  if (single_camera) {
+  if (monocular_mapping) {
+    slam = make_stereo_slam(id, rig, monocular_settings(loaded.settings), mode);
+  } else if (single_camera) {
     MonoLocalizerOptions mono;
     mono.tracker = options_.slam.tracker;
     SessionWiring wiring;  // it reads any stored map, holding no lease (it changes nothing)
@@ -468,7 +489,7 @@ std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
   const std::vector<MapId> held = leases_.held_by(id);
   const auto live = session(id);
   const MapRig rig = mapping_rig(id);
-  if (!is_single_camera(live->info().sensor)) {
+  if (live->mode() == SessionMode::kMap) {
     std::lock_guard lock(rigs_mutex_);
     for (const MapId map : held) map_rigs_.try_emplace(map, rig);
   }
@@ -648,8 +669,9 @@ SessionStatus AtlasService::finish_session(SessionId id, const std::string& ende
                          "session " + std::to_string(id) + " ended but could not be stored yet: " +
                              checkpointer_->stats().last_error + " (the server keeps retrying)");
     live->release_anchors();  // stored: the database answers for its trajectory from now on
-    // A single camera only read the maps it held: nothing new to merge (and
-    // its camera is not the rig the maps were made with).
+    // A localising single camera only read the maps it held; a mapping one
+    // made maps without metric scale, which the merging worker's rigid
+    // alignment does not fit (Sim(3) merges do not exist yet).
     if (!is_single_camera(live->info().sensor)) submit_merges(id, held);
     // The session's SLAM objects (images, pyramids, rectification maps) are
     // gone: give the allocator's idle pages back, so a server that runs

@@ -79,8 +79,10 @@ struct SettingsSource {
 struct SessionRequest {
   std::string name;
   std::string sensor;  // empty: the config's Sensor.type
-  // "map" or "localize"; empty: map for a stereo rig, localize for a single
-  // camera (which cannot map yet: "map" with a single camera is refused).
+  // "map" or "localize"; empty: map for a stereo rig, an RGB-D camera and a
+  // single camera with a mono config; localize for the first camera of a
+  // stereo config and for mono_inertial (which cannot map yet: "map" is
+  // refused for it).
   std::string mode;
   SettingsSource settings;
 };
@@ -124,11 +126,13 @@ class AtlasService {
 
   SessionId create_session(const SessionRequest& request);
   // ServiceError when the settings cannot be used (uploads check before receiving).
-  // Uploads run stereo (or RGB-D) sessions: ServiceError 400/404 for settings that
-  // cannot be used, 422 for a single camera (it only localises; stream it instead).
+  // Uploads run sessions that map (stereo, RGB-D, or a single camera with a
+  // mono config): ServiceError 400/404 for settings that cannot be used, 422
+  // for a single camera that would only localise (stream it instead).
   void check_upload(const SessionRequest& request) const;
-  // Does the request start an RGB-D session (its recording: the TUM RGB-D layout)?
-  bool is_rgbd_request(const SessionRequest& request) const;
+  // The sensor a request's session has (its recording: the TUM RGB-D layout
+  // for rgbd, cam0 of an ASL folder for a single camera, else stereo pairs).
+  SensorType request_sensor(const SessionRequest& request) const;
   std::shared_ptr<LiveSession> session(SessionId id) const;    // ServiceError 404
   std::vector<std::shared_ptr<LiveSession>> sessions() const;  // by id
   // GET /v1/sessions/{id}: LiveSession::status with `map` the map the session's

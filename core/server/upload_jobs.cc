@@ -39,11 +39,14 @@ struct UploadedRecording {
   std::vector<StereoFrame> frames;
   std::vector<GroundTruthState> ground_truth;
   std::vector<ImuSample> imu;
+  // A single camera's: the camera in the body (its poses are the camera's,
+  // at its map's scale: scored with a similarity against the camera's truth).
+  std::optional<Pose3> T_b_c0;
 };
 
-UploadedRecording read_recording(const fs::path& root, bool rgbd) {
+UploadedRecording read_recording(const fs::path& root, SensorType sensor) {
   UploadedRecording r;
-  if (rgbd) {
+  if (sensor == SensorType::kRgbd) {
     ORBATLAS_DATA_CHECK(fs::is_regular_file(root / "rgb.txt"),
                         "an RGB-D session's upload is a TUM RGB-D recording (rgb.txt, depth.txt, rgb/, depth/)");
     const TumRgbdDataset d = read_tum_rgbd(root);
@@ -55,11 +58,18 @@ UploadedRecording read_recording(const fs::path& root, bool rgbd) {
   ORBATLAS_DATA_CHECK(fs::is_directory(root / "mav0"),
                       "a stereo session's upload is an EuRoC ASL recording (mav0/); a TUM RGB-D one needs an rgbd "
                       "config");
+  const bool single_camera = is_single_camera(sensor);
   EurocReadOptions read_options;
-  read_options.require_cam1 = true;
+  read_options.require_cam1 = !single_camera;
   EurocDataset dataset = read_euroc_dataset(root, read_options);
-  r.frames = pair_stereo_frames(dataset);
-  ORBATLAS_DATA_CHECK(!r.frames.empty(), "the recording has no stereo frames");
+  if (single_camera) {
+    ORBATLAS_DATA_CHECK(!dataset.cameras.empty(), "the recording has no cam0");
+    for (const auto& image : dataset.cameras[0].frames) r.frames.push_back({image.t_ns, image.path, {}});
+    r.T_b_c0 = dataset.cameras[0].calibration.T_b_c;
+  } else {
+    r.frames = pair_stereo_frames(dataset);
+  }
+  ORBATLAS_DATA_CHECK(!r.frames.empty(), "the recording has no " << (single_camera ? "images" : "stereo frames"));
   r.ground_truth = std::move(dataset.ground_truth);
   r.imu = std::move(dataset.imu);
   return r;
@@ -240,8 +250,9 @@ void UploadJobs::run(JobId id) {
   });
   const RemoveOnExit remove_folder{folder};
   const fs::path root = dataset_root(folder);
-  const bool rgbd = service_.is_rgbd_request(request);
-  const UploadedRecording recording = read_recording(root, rgbd);
+  const SensorType sensor = service_.request_sensor(request);
+  const bool rgbd = sensor == SensorType::kRgbd;
+  const UploadedRecording recording = read_recording(root, sensor);
   const std::vector<StereoFrame>& frames = recording.frames;
   if (request.name.empty()) request.name = "upload " + std::to_string(id);
   const SessionId session = service_.create_session(request);
@@ -263,9 +274,11 @@ void UploadJobs::run(JobId id) {
     }
     const cv::Mat left = cv::imread(frames[i].left.string(), cv::IMREAD_GRAYSCALE);
     // An RGB-D frame's second image is its 16-bit depth image, read as it is.
-    const cv::Mat right = cv::imread(frames[i].right.string(), rgbd ? cv::IMREAD_UNCHANGED : cv::IMREAD_GRAYSCALE);
+    const bool single = frames[i].right.empty();  // a single camera's frame
+    const cv::Mat right =
+        single ? cv::Mat() : cv::imread(frames[i].right.string(), rgbd ? cv::IMREAD_UNCHANGED : cv::IMREAD_GRAYSCALE);
     try {
-      ORBATLAS_DATA_CHECK(!left.empty() && !right.empty(), "cannot read the images at " << frames[i].t_ns);
+      ORBATLAS_DATA_CHECK(!left.empty() && (single || !right.empty()), "cannot read the images at " << frames[i].t_ns);
       if (service_.process_frame(session, frames[i].t_ns, left, right).result.tracked) ++tracked;
     } catch (const DataError& e) {
       ++rejected;
@@ -285,8 +298,12 @@ void UploadJobs::run(JobId id) {
   if (!recording.ground_truth.empty()) {
     const Trajectory trajectory = service_.trajectory(session).poses;
     try {
+      const Trajectory truth = from_ground_truth_states(recording.ground_truth);
+      EvalOptions eval;
+      if (recording.T_b_c0) eval.align = AlignMode::kSim3;
       if (trajectory.size() >= 3)
-        ate = evaluate_trajectory(trajectory, from_ground_truth_states(recording.ground_truth)).ate.rmse;
+        ate = evaluate_trajectory(trajectory, recording.T_b_c0 ? attached_frame(truth, *recording.T_b_c0) : truth, eval)
+                  .ate.rmse;
     } catch (const Error& e) {
       log_warn("upload job " + std::to_string(id) + ": no ATE: " + e.what());
     }

@@ -38,7 +38,10 @@ nlohmann::json DatasetRunReport::to_json() const {
   j["peak_rss_mb"] = peak_rss_mb;
   j["wall_s"] = wall_s;
   if (!failed.empty()) j["failed"] = failed;
-  if (ate_rmse_m) j["ate_rmse_m"] = *ate_rmse_m;
+  if (ate_rmse_m) {
+    j["ate_rmse_m"] = *ate_rmse_m;
+    j["ate_align"] = ate_sim3 ? "sim3" : "se3";
+  }
   if (session) j["session"] = *session;
   if (loaded_maps > 0 || session) {
     j["atlas"] = {{"loaded_maps", loaded_maps}, {"loaded_keyframes", loaded_keyframes}, {"load_s", atlas_load_s}};
@@ -93,13 +96,19 @@ RunInputs read_inputs(const DatasetRunOptions& options) {
   if (settings.is_rgbd()) return read_rgbd_inputs(options, std::move(settings));
   RunInputs in;
   in.settings = std::move(settings);
-  ORBATLAS_CHECK(in.settings.is_stereo(),
-                 options.settings << " is neither a stereo nor an rgbd configuration (a single camera does not map)");
+  const bool single_camera =
+      in.settings.sensor == SensorType::kMonocular || in.settings.sensor == SensorType::kMonocularInertial;
   EurocReadOptions read_options;
-  read_options.require_cam1 = true;
+  read_options.require_cam1 = !single_camera;
   in.dataset = read_euroc_dataset(options.dataset, read_options);
   for (const auto& w : in.dataset.warnings) log_warn(w);
-  in.frames = pair_stereo_frames(in.dataset);
+  if (single_camera) {
+    ORBATLAS_CHECK(!in.dataset.cameras.empty() && !in.dataset.cameras[0].frames.empty(),
+                   options.dataset << " has no cam0 images");
+    for (const auto& image : in.dataset.cameras[0].frames) in.frames.push_back({image.t_ns, image.path, {}});
+  } else {
+    in.frames = pair_stereo_frames(in.dataset);
+  }
   keep_time_window(in.frames, options.start_s, options.duration_s, options.dataset);
   return in;
 }
@@ -303,7 +312,14 @@ void collect_results(const StereoSlam& slam, const EurocDataset& dataset, Datase
   if (dataset.ground_truth.empty() || report.trajectory.size() < 3) return;
   const Trajectory gt = from_ground_truth_states(dataset.ground_truth);
   try {
-    report.ate_rmse_m = evaluate_trajectory(report.trajectory, gt).ate.rmse;
+    // A single camera reports the camera's poses, at the scale of its map.
+    EvalOptions eval;
+    if (slam.monocular()) eval.align = AlignMode::kSim3;
+    report.ate_rmse_m =
+        evaluate_trajectory(report.trajectory,
+                            slam.monocular() ? attached_frame(gt, slam.frontend().calibration().T_b_c) : gt, eval)
+            .ate.rmse;
+    report.ate_sim3 = slam.monocular();
   } catch (const Error& e) {
     log_warn(std::string("no ATE: ") + e.what());
   }

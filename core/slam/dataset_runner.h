@@ -49,6 +49,7 @@ struct DatasetRunReport {
   double peak_rss_mb = 0.0;
   double wall_s = 0.0;
   std::optional<double> ate_rmse_m;  // when the dataset has ground truth (SE3 alignment)
+  bool ate_sim3 = false;             // monocular: the camera's poses, Sim(3) alignment
   // With an atlas: what was loaded, the session stored, and the checkpoints.
   std::size_t loaded_maps = 0, loaded_keyframes = 0;
   double atlas_load_s = 0.0;

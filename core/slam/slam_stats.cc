@@ -162,6 +162,7 @@ nlohmann::json to_json(const SlamStats& s) {
   for (const WorkerErrorCounts* e : {&s.loop.errors, &s.mapping.errors, &s.tracking_errors})
     if (!e->last.empty()) j["last_worker_error"] = e->last;
   j["slot_races"] = s.slot_races;
+  if (s.monocular) j["monocular"] = {{"attempts", s.monocular_attempts}, {"starts", s.monocular_starts}};
   return j;
 }
 

@@ -44,6 +44,10 @@ struct SlamStats {
   WorkerErrorCounts tracking_errors;
   // New-keyframe slots local mapping filled while tracking filled them (handled).
   std::size_t slot_races = 0;
+  // Single-camera sessions that map: two-view reconstructions tried, and maps
+  // started from one (the rest waited for more parallax).
+  bool monocular = false;
+  std::size_t monocular_attempts = 0, monocular_starts = 0;
   // Visual-inertial sessions (issue 19): IMU samples received, keyframes linked
   // to their predecessor by preintegrated IMU, and the inertial initialisation
   // of the map the session is in (when it happened: seconds since the session's
@@ -71,7 +75,8 @@ std::size_t worker_error_total(const SlamStats& stats);
 // global_ba[], false_loops, live_merges[], merge_search_ms_per_kf}, maps_started,
 // live_merges (count), final_global_ba{keyframes, seconds} (when it ran),
 // worker_errors (total), worker_errors_by{tracking, local_mapping, loop_closing},
-// last_worker_error (when any), slot_races; with an IMU: imu{samples, linked_keyframes,
+// last_worker_error (when any), slot_races; monocular{attempts, starts} (a single
+// camera that maps); with an IMU: imu{samples, linked_keyframes,
 // uncovered_keyframes, frames_optimized}, frames_tracked_by_imu, imu_initialized_at_s, imu_gravity_w, imu_bias{gyro,
 // acc} (once initialised). Fills maps, keyframes, mappoints (maps holding keyframes) and the object counters from the
 // atlas as it is now.

@@ -27,10 +27,28 @@ void StereoSlamOptions::check() const {
 
 StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
                        StereoSlamOptions options, SessionWiring wiring)
-    : atlas_(atlas), options_(std::move(options)), frontend_(make_frame_frontend(settings)), rgbd_(settings.is_rgbd()) {
+    : atlas_(atlas),
+      options_(std::move(options)),
+      frontend_(make_frame_frontend(settings)),
+      rgbd_(settings.is_rgbd()),
+      monocular_(frontend_->baseline() <= 0.0) {
+  ORBATLAS_CHECK(settings.sensor != SensorType::kMonocularInertial,
+                 "monocular-inertial mapping is not built yet (issue 20): use a mono config (the IMU is not "
+                 "fused) or a stereo_inertial one");
   cam_ = frontend_->frame_camera();
   options_.tracker.th_depth_m = settings.stereo_th_depth * frontend_->baseline();
   options_.tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));
+  if (monocular_) {
+    // ORB-SLAM's single-camera rules: new points come from triangulation
+    // only, so with more neighbours. Loops and merges of a map without
+    // metric scale need Sim(3) corrections, which are not built yet: off.
+    options_.mapper.triangulation_neighbours = 20;
+    options_.mapper.fusion_neighbours = 20;
+    if (options_.loop_closing || options_.live_merging)
+      log_info("monocular session: loop closing and map merging are off (no Sim(3) correction yet)");
+    options_.loop_closing = false;
+    options_.live_merging = false;
+  }
   if (!settings.orbatlas.empty()) {  // the settings' Orbatlas.* keys win over what is derived above
     apply_slam_tuning(settings.orbatlas, options_);
     const auto values = slam_tuning_values(options_);
@@ -60,7 +78,10 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
       options_.mapper.culling.max_inertial_span_initialized_s = 3.0;
   }
   options_.check();
-  const Pose3 T_b_c = frontend_->calibration().T_b_c;
+  // A single camera's map has no metric scale, so the body is the camera
+  // itself (a lever arm in metres would not fit the map's units): the poses
+  // reported are the camera's.
+  const Pose3 T_b_c = monocular_ ? Pose3() : frontend_->calibration().T_b_c;
   if (options_.relocalization)
     relocalizer_ =
         std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c, wiring.may_enter_map);
@@ -134,8 +155,10 @@ StereoSlam::~StereoSlam() {
 
 TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
   ORBATLAS_CHECK(!finished_, "this SLAM session has finished; it takes no more frames");
-  ORBATLAS_DATA_CHECK(!right.empty(), "a stereo session takes a stereo pair: the right image is missing");
+  ORBATLAS_DATA_CHECK(monocular_ || !right.empty(), "a stereo session takes a stereo pair: the right image is missing");
   const auto start = std::chrono::steady_clock::now();
+  frontend_->set_map_starting(tracker_->state() == TrackingState::kNotInitialized ||
+                              tracker_->state() == TrackingState::kLost);
   Frame frame = frontend_->make_frame(t_ns, left, right);
   if (first_t_ns_.load() < 0) first_t_ns_.store(t_ns);
   const TrackResult result = frames_.track(*tracker_, std::move(frame), atlas_, start);
@@ -203,6 +226,11 @@ SlamStats StereoSlam::stats() const {
   s.lost = s.frames - s.tracked - s.frames_tracked_by_imu;
   s.tracking_errors = frames_.errors();
   s.slot_races = tracker_->slot_races();
+  if (monocular_) {
+    s.monocular = true;
+    s.monocular_attempts = tracker_->monocular_attempts();
+    s.monocular_starts = tracker_->monocular_starts();
+  }
   s.keyframes_made = keyframes_made_;
   add_atlas_counts(atlas_, s);
   s.tracking_ms = frames_.tracking_ms();

@@ -1,5 +1,5 @@
 #pragma once
-// One SLAM session with depth (a stereo rig, or an RGB-D camera: FrameFrontend):
+// One SLAM session of a stereo rig, an RGB-D camera or a single camera (FrameFrontend):
 // the front end and tracking on the caller's thread,
 // attached to the mapping of the maps it is in (MappingWorkers: local mapping
 // per map, loop closing; its own, or the owner's shared with other sessions),
@@ -77,11 +77,13 @@ class StereoSlam final : public SessionSlam {
   StereoSlam(const StereoSlam&) = delete;
   StereoSlam& operator=(const StereoSlam&) = delete;
 
-  // One stereo pair (throws Error on bad images or a timestamp that does not increase).
+  // One stereo pair, image and depth image, or image (`right` empty); throws
+  // Error on bad images or a timestamp that does not increase.
   TrackResult process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) override;
   void add_imu(const std::vector<ImuSample>& samples) override;
   bool inertial() const { return imu_noise_.has_value(); }
-  bool rgbd() const { return rgbd_; }  // frames are an image and its depth image
+  bool rgbd() const { return rgbd_; }            // frames are an image and its depth image
+  bool monocular() const { return monocular_; }  // frames are one image (mono settings)
 
   // Lets local mapping finish what is queued (its own mapping stops; a shared
   // one goes on for the others) and releases the last frame (so every culled
@@ -102,6 +104,7 @@ class StereoSlam final : public SessionSlam {
   StereoSlamOptions options_;
   std::unique_ptr<FrameFrontend> frontend_;  // stereo pairs, or images with their depth (rgbd)
   bool rgbd_ = false;
+  bool monocular_ = false;
   FrameCamera cam_;
   std::unique_ptr<FrameRelocalizer> relocalizer_;
   std::shared_ptr<MappingWorkers> mapping_;  // null when localising

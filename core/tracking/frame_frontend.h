@@ -1,9 +1,10 @@
 #pragma once
-// What turns a sensor's frame into a Frame for tracking and mapping, whatever
-// the sensor gives depth with: a stereo pair (StereoFrontend) or an image and
-// its registered depth image (RgbdFrontend). Both hand tracking an undistorted
-// pinhole camera and a right image coordinate per keypoint with depth (real or
-// virtual), so the stereo machinery serves both.
+// What turns a sensor's frame into a Frame for tracking and mapping: a stereo
+// pair (StereoFrontend), an image and its registered depth image
+// (RgbdFrontend), or one image (MonoFrontend). The first two hand tracking an
+// undistorted pinhole camera and a right image coordinate per keypoint with
+// depth (real or virtual), so the stereo machinery serves both; the single
+// camera gives no depth (bf 0: monocular tracking and mapping).
 #include <memory>
 #include <opencv2/core/mat.hpp>
 
@@ -24,10 +25,13 @@ class FrameFrontend {
   virtual FrameCamera frame_camera() const = 0;
   virtual const CameraCalibration& calibration() const = 0;
   virtual double baseline() const = 0;  // metres (the RGB-D sensor's virtual one)
+  // While a map is starting (tracking not initialised): a single camera
+  // extracts more features then (its map starts from two views' matches).
+  virtual void set_map_starting(bool /*starting*/) {}
 };
 
-// A stereo front end for stereo settings, an RGB-D one for rgbd settings;
-// Error for the others (a single camera has no depth).
+// A stereo front end for stereo settings, an RGB-D one for rgbd settings, a
+// single-camera one for mono and mono_inertial settings.
 std::unique_ptr<FrameFrontend> make_frame_frontend(const SlamSettings& settings);
 
 }  // namespace orbatlas

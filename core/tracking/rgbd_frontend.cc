@@ -8,6 +8,7 @@
 #include "core/camera/camera_factory.h"
 #include "core/common/error.h"
 #include "core/tracking/gray_image.h"
+#include "core/tracking/mono_frontend.h"
 #include "core/tracking/stereo_frontend.h"
 
 namespace orbatlas {
@@ -81,8 +82,9 @@ FrameCamera RgbdFrontend::frame_camera() const { return make_frame_camera(*camer
 
 std::unique_ptr<FrameFrontend> make_frame_frontend(const SlamSettings& settings) {
   if (settings.is_rgbd()) return std::make_unique<RgbdFrontend>(settings);
-  ORBATLAS_CHECK(settings.is_stereo(),
-                 "tracking that maps needs depth: a stereo or rgbd sensor, not " << sensor_type_name(settings.sensor));
+  if (settings.sensor == SensorType::kMonocular || settings.sensor == SensorType::kMonocularInertial)
+    return std::make_unique<MonoFrontend>(settings);
+  ORBATLAS_CHECK(settings.is_stereo(), "no front end for sensor " << sensor_type_name(settings.sensor));
   return std::make_unique<StereoFrontend>(settings);
 }
 

@@ -12,7 +12,8 @@
 namespace orbatlas {
 namespace {
 
-constexpr float kMotionModelRadius = 7.0f;  // ORB-SLAM's th for stereo
+constexpr float kMotionModelRadius = 7.0f;       // ORB-SLAM's th for stereo
+constexpr float kMonoMotionModelRadius = 15.0f;  // and for a single camera
 constexpr int kMinMotionMatches = 20;
 constexpr int kMinPoseInliers = 10;
 constexpr int kMinBowMatches = 15;
@@ -46,6 +47,7 @@ void TrackerOptions::check() const {
   ORBATLAS_CHECK(max_local_keyframes >= 0, "tracker: max_local_keyframes must be >= 0, not " << max_local_keyframes);
   ORBATLAS_CHECK(min_keyframes_to_keep_map >= 0,
                  "tracker: min_keyframes_to_keep_map must be >= 0, not " << min_keyframes_to_keep_map);
+  monocular.check();
 }
 
 const char* tracking_state_name(TrackingState state) {
@@ -70,13 +72,14 @@ Tracker::Tracker(Atlas& atlas, const Vocabulary& vocabulary, KeyframeSink& sink,
       relocalizer_(relocalizer),
       cam_(std::move(cam)),
       T_b_c_(T_b_c),
-      options_(options) {
+      options_(options),
+      monocular_(cam_.bf <= 0.0) {
   options_.check();
   ORBATLAS_CHECK(cam_.camera != nullptr, "tracker needs a camera");
-  ORBATLAS_CHECK(cam_.bf > 0.0 || options_.localization_only,
-                 "the tracker needs a stereo rig (bf > 0) unless it only localises");
   ORBATLAS_CHECK(!options_.localization_only || relocalizer_ != nullptr,
                  "localisation on stored maps needs a relocaliser");
+  if (monocular_ && !options_.localization_only)
+    mono_initializer_ = std::make_unique<MonocularInitializer>(options_.monocular, cam_.camera->calibration().fx);
 }
 
 TrackResult Tracker::track(Frame frame) {
@@ -250,6 +253,7 @@ void Tracker::release_frames() {
 
 void Tracker::start_new_map() {
   if (inertial_) inertial_->reset();
+  if (mono_initializer_) mono_initializer_->reset();
   if (!map_ || map_->keyframe_count() > 0) {
     map_ = atlas_.create_map();
     ++maps_started_;
@@ -297,11 +301,12 @@ void Tracker::ensure_bow(Frame& frame) const {
 }
 
 bool Tracker::initialize(Frame& frame) {
-  if (static_cast<int>(frame.stereo_count()) < options_.min_init_stereo_points) return false;
   // A new map waits (a frame or two) while local mapping cannot take its first
   // keyframe: the insert below blocks on a full queue, under the tracking lock a
   // paused mapper's loop correction is waiting for (docs/architecture.md, Locks).
   if (!options_.localization_only && (!sink_.accepting(map_->id()) || sink_.queued(map_->id()) >= 3)) return false;
+  if (monocular_) return initialize_monocular(frame);
+  if (static_cast<int>(frame.stereo_count()) < options_.min_init_stereo_points) return false;
   frame.T_w_b = Pose3();
   frame.has_pose = true;
   std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
@@ -317,10 +322,11 @@ bool Tracker::track_motion_model(Frame& frame) {
   frame.T_w_b = imu_prediction_ ? *imu_prediction_ : last_->T_w_b * *velocity_;
   std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
   const Pose3 T_c_w = (frame.T_w_b * T_b_c_).inverse();
-  int matches = search_from_last_frame(frame, *last_, T_c_w, cam_, kMotionModelRadius);
+  const float radius = monocular_ ? kMonoMotionModelRadius : kMotionModelRadius;
+  int matches = search_from_last_frame(frame, *last_, T_c_w, cam_, radius);
   if (matches < kMinMotionMatches) {
     std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
-    matches = search_from_last_frame(frame, *last_, T_c_w, cam_, 2.0f * kMotionModelRadius);
+    matches = search_from_last_frame(frame, *last_, T_c_w, cam_, 2.0f * radius);
   }
   if (matches < kMinMotionMatches) return false;
   optimize_frame_pose(frame, cam_, T_b_c_);
@@ -475,7 +481,9 @@ bool Tracker::need_new_keyframe(const Frame& frame, int inliers) const {
       sink_.queued(map_->id()) < 3)
     return true;
   const std::size_t n_kfs = map_->keyframe_count();
-  const int min_obs = n_kfs <= 2 ? 1 : 2;  // keyframes; ORB-SLAM counts stereo observations twice (3 of 4)
+  // Observing keyframes; ORB-SLAM counts a stereo observation twice (its 3, or
+  // 2 in a map of two keyframes).
+  const int min_obs = monocular_ ? (n_kfs <= 2 ? 2 : 3) : (n_kfs <= 2 ? 1 : 2);
   int ref_matches = 0;
   for (const auto& mp : reference_->map_points())
     if (!mp->is_bad() && mp->observation_count() >= static_cast<std::size_t>(min_obs)) ++ref_matches;
@@ -491,7 +499,7 @@ bool Tracker::need_new_keyframe(const Frame& frame, int inliers) const {
     }
   }
   const bool need_close = tracked_close < 100 && untracked_close > 70;
-  const double ref_ratio = n_kfs < 2 ? 0.4 : 0.75;
+  const double ref_ratio = monocular_ ? 0.9 : n_kfs < 2 ? 0.4 : 0.75;
   const bool idle = sink_.idle(map_->id());
   const bool c1a = frame_index_ >= last_keyframe_index_ + options_.max_frames_between_keyframes;
   const bool c1b = idle;
@@ -500,10 +508,12 @@ bool Tracker::need_new_keyframe(const Frame& frame, int inliers) const {
   if (!((c1a || c1b || c1c) && c2)) return false;
   if (idle) return true;
   sink_.interrupt_optimization(map_->id());
-  return sink_.queued(map_->id()) < 3;
+  // A single camera waits for local mapping (its new points come from
+  // triangulation there, not from this frame's depth).
+  return !monocular_ && sink_.queued(map_->id()) < 3;
 }
 
-void Tracker::create_keyframe(Frame& frame, bool all_stereo_points) {
+std::shared_ptr<KeyFrame> Tracker::new_keyframe(Frame& frame) {
   ensure_bow(frame);
   KeyFrameData data;
   data.timestamp_ns = frame.t_ns;
@@ -515,19 +525,26 @@ void Tracker::create_keyframe(Frame& frame, bool all_stereo_points) {
   data.bow = frame.bow;
   data.feature_vector = frame.feature_vector;
   data.grid = frame.grid;
-  auto kf = map_->new_keyframe(std::move(data));
+  return map_->new_keyframe(std::move(data));
+}
+
+void Tracker::keyframe_made(std::shared_ptr<KeyFrame> kf) {
+  if (keyframe_listener_) keyframe_listener_(kf, last_keyframe_);
+  reference_ = kf;
+  last_keyframe_ = kf;
+  last_keyframe_index_ = frame_index_;
+  sink_.insert(std::move(kf));
+}
+
+void Tracker::create_keyframe(Frame& frame, bool all_stereo_points) {
+  auto kf = new_keyframe(frame);
   KeyframePointsOptions points;
   points.th_depth_m = options_.th_depth_m;
   points.all_stereo_points = all_stereo_points;
   // Local mapping may already be editing the keyframe's slots (see keyframe_points.h).
   const KeyframePointsResult added = add_keyframe_points(*map_, kf, frame, T_b_c_, cam_.pyramid, points);
   slot_races_ += added.lost_races;
-
-  if (keyframe_listener_) keyframe_listener_(kf, last_keyframe_);
-  reference_ = kf;
-  last_keyframe_ = kf;
-  last_keyframe_index_ = frame_index_;
-  sink_.insert(std::move(kf));
+  keyframe_made(std::move(kf));
 }
 
 }  // namespace orbatlas

@@ -1,6 +1,7 @@
 #pragma once
-// The tracking state machine of one session (ORB-SLAM3's Tracking for a stereo
-// rig without IMU): stereo initialisation, the motion model, the reference
+// The tracking state machine of one session (ORB-SLAM3's Tracking): stereo (or
+// RGB-D) initialisation from one frame, monocular initialisation from two
+// (a camera without depth: bf 0), the motion model, the reference
 // keyframe by bag of words, the local map, the keyframe decision, and the states
 // NOT_INITIALIZED -> OK <-> RECENTLY_LOST -> LOST. When tracking is lost for good
 // a new map is started in the atlas and initialised from the next stereo frame.
@@ -16,6 +17,7 @@
 #include "core/tracking/frame_relocalizer.h"
 #include "core/tracking/inertial_tracking.h"
 #include "core/tracking/keyframe_sink.h"
+#include "core/tracking/monocular_initializer.h"
 #include "core/tracking/projection_search.h"
 #include "core/vocabulary/vocabulary.h"
 
@@ -52,6 +54,8 @@ struct TrackerOptions {
   // tracks in that map, in its frame, and makes no map of its own; otherwise a
   // new map starts as usual (and may be merged later).
   bool start_in_stored_map = false;
+  // A camera without depth (bf 0) that maps: how its maps start.
+  MonocularInitializerOptions monocular;
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -91,6 +95,9 @@ class Tracker {
   // Slots of new keyframes that local mapping filled while tracking was
   // filling them (handled: the point local mapping put there is used).
   std::size_t slot_races() const { return slot_races_; }
+  // Monocular: two-view reconstructions tried, and maps started from them.
+  std::size_t monocular_attempts() const { return mono_initializer_ ? mono_initializer_->attempts() : 0; }
+  std::size_t monocular_starts() const { return monocular_starts_; }
   // Visual-inertial tracking (not owned; it must outlive the tracker; may be
   // null): once a map is inertially initialised, frames are predicted and
   // optimised with the IMU, and frames that cannot be tracked visually are
@@ -121,6 +128,7 @@ class Tracker {
   void after_tracked(Frame& frame, TrackResult& result);         // velocity, a keyframe when needed
   void finish_frame(Frame frame, bool ok, TrackResult& result);  // result, anchor, last frame
   bool initialize(Frame& frame);
+  bool initialize_monocular(Frame& frame);  // two views (bf 0)
   bool track_motion_model(Frame& frame);
   bool track_from_imu_prediction(Frame& frame);  // the local map from the predicted pose
   bool track_reference_keyframe(Frame& frame, const std::shared_ptr<KeyFrame>& keyframe);
@@ -129,6 +137,8 @@ class Tracker {
   void update_local_map(const Frame& frame);
   bool need_new_keyframe(const Frame& frame, int inliers) const;
   void create_keyframe(Frame& frame, bool all_stereo_points);
+  std::shared_ptr<KeyFrame> new_keyframe(Frame& frame);    // in the map, with no points yet
+  void keyframe_made(std::shared_ptr<KeyFrame> keyframe);  // the listener, the sink, the bookkeeping
   void ensure_bow(Frame& frame) const;
   void start_new_map();
   // The active map was merged into another (live map merging): continue there.
@@ -142,6 +152,8 @@ class Tracker {
   const FrameCamera cam_;
   const Pose3 T_b_c_;
   const TrackerOptions options_;
+  const bool monocular_;                                    // no depth: two-view initialisation
+  std::unique_ptr<MonocularInitializer> mono_initializer_;  // when monocular_ and mapping
 
   TrackingState state_ = TrackingState::kNotInitialized;
   std::shared_ptr<Map> map_;
@@ -160,7 +172,7 @@ class Tracker {
   bool has_last_t_ = false;
   TimestampNs lost_since_ns_ = 0;
   int failed_relocalizations_ = 0;  // in a row, while recently lost
-  std::size_t maps_started_ = 0, relocalizations_ = 0, maps_followed_ = 0, slot_races_ = 0;
+  std::size_t maps_started_ = 0, relocalizations_ = 0, maps_followed_ = 0, slot_races_ = 0, monocular_starts_ = 0;
   std::vector<FrameAnchor> anchors_;
 };
 

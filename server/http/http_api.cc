@@ -367,6 +367,7 @@ void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jo
       request.name = req.get_param_value("name");
       request.settings.config = req.has_param("config") ? req.get_param_value("config") : "euroc/stereo";
       if (req.has_param("sensor")) request.sensor = req.get_param_value("sensor");
+      if (req.has_param("mode")) request.mode = req.get_param_value("mode");
       service.check_upload(request);  // before receiving gigabytes for nothing
       // Extracted while it arrives: no copy of the archive on disk. Its files may
       // not add up to more than the upload limit (sparse entries could).
