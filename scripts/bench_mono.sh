@@ -1,15 +1,19 @@
 #!/usr/bin/env bash
-# Long benchmark (issue 20, not part of the test suite): monocular SLAM on
-# full-length simulated Machine Hall sequences, on both simulator looks (cam0
-# of the renders scripts/bench_slam.sh keeps in $ORBATLAS_BENCH_DATA, default
-# build/bench_data). Runs `orbatlas run` with config/euroc/mono.yaml and scores
-# the camera's trajectory with `orbatlas eval --align sim3 --est-frame cam0`
-# (a single camera has no metric scale); prints one table with the ATE, the
+# Long benchmark (issue 20, not part of the test suite): monocular and
+# monocular-inertial SLAM on full-length simulated Machine Hall sequences, on
+# both simulator looks (cam0 and imu0 of the renders scripts/bench_slam.sh
+# keeps in $ORBATLAS_BENCH_DATA, default build/bench_data). Runs `orbatlas run`
+# with config/euroc/mono.yaml and mono_inertial.yaml and scores the camera's
+# trajectory with `orbatlas eval --est-frame cam0`: `--align sim3` for mono (a
+# single camera has no metric scale), `--align se3` for mono_inertial (the IMU
+# makes it metric; the scale error is the Sim3 alignment's scale - 1); prints
+# one table with the ATE, the
 # share of the path it is, the frames covered and when the map started
 # (seconds after the first frame).
 #   scripts/bench_mono.sh                     # MH_01..MH_05, both looks
 #   scripts/bench_mono.sh MH_01 MH_03         # some of them
 #   LOOKS=real scripts/bench_mono.sh          # one look
+#   MODES=mono_inertial scripts/bench_mono.sh # one sensor
 #   ORBATLAS_BIN=/tmp/orbatlas scripts/bench_mono.sh   # a frozen binary (no set-up, no build)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -26,6 +30,7 @@ mkdir -p "$DATA" "$OUT"
 SEQUENCES=("$@")
 [ ${#SEQUENCES[@]} -eq 0 ] && SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)
 read -r -a LOOK_LIST <<< "${LOOKS:-clean real}"
+read -r -a MODE_LIST <<< "${MODES:-mono mono_inertial}"
 
 NAMES=()
 for look in "${LOOK_LIST[@]}"; do
@@ -37,12 +42,16 @@ for look in "${LOOK_LIST[@]}"; do
       rm -rf "$src"
       "$OA" sim --sequence "$s" --look "$look" --out "$src"
     fi
-    name="${s}_${look}_mono"
-    echo "== orbatlas run mono on $s ($look look)"
-    "$OA" run --config "$ROOT/config/euroc/mono.yaml" --dataset "$src" --no-progress \
-        --out-trajectory "$OUT/$name.txt" --stats "$OUT/$name.json" > "$OUT/$name.log" 2>&1
-    "$OA" eval --gt "$src" --est "$OUT/$name.txt" --align sim3 --est-frame cam0 --json > "$OUT/$name.eval.json"
-    /usr/bin/python3 - "$src" "$OUT/$name.txt" > "$OUT/$name.path.json" <<'PY'
+    for mode in "${MODE_LIST[@]}"; do
+      name="${s}_${look}_${mode}"
+      echo "== orbatlas run $mode on $s ($look look)"
+      "$OA" run --config "$ROOT/config/euroc/$mode.yaml" --dataset "$src" --no-progress \
+          --out-trajectory "$OUT/$name.txt" --stats "$OUT/$name.json" > "$OUT/$name.log" 2>&1
+      align=sim3
+      [ "$mode" = mono_inertial ] && align=se3
+      "$OA" eval --gt "$src" --est "$OUT/$name.txt" --align "$align" --est-frame cam0 --json > "$OUT/$name.eval.json"
+      "$OA" eval --gt "$src" --est "$OUT/$name.txt" --align sim3 --est-frame cam0 --json > "$OUT/$name.sim3.json"
+      /usr/bin/python3 - "$src" "$OUT/$name.txt" > "$OUT/$name.path.json" <<'PY'
 import json, sys
 import numpy as np
 gt = np.loadtxt(f"{sys.argv[1]}/mav0/state_groundtruth_estimate0/data.csv", delimiter=",", comments="#")
@@ -54,20 +63,26 @@ first_frame = np.loadtxt(f"{sys.argv[1]}/mav0/cam0/data.csv", delimiter=",", com
 print(json.dumps({"path_m": float(np.linalg.norm(np.diff(inside[:, 1:4], axis=0), axis=1).sum()),
                   "first_pose_s": float((t0 - float(first_frame)) * 1e-9)}))
 PY
-    NAMES+=("$name")
+      NAMES+=("$name")
+    done
   done
 done
 
 /usr/bin/python3 - "$OUT" "${NAMES[@]}" <<'PY'
 import json, sys
 out, names = sys.argv[1], sys.argv[2:]
-print(f"{'run':20} {'frames':>6} {'tracked':>7} {'cover':>6} {'maps':>4} {'keyframes':>9} {'ATE[m]':>7} {'path[m]':>7} "
-      f"{'ATE/path':>8} {'start[s]':>8} {'track p50/p95[ms]':>17} {'BA p50[ms]':>10}")
+print(f"{'run':28} {'frames':>6} {'tracked':>7} {'cover':>6} {'maps':>4} {'keyframes':>9} {'align':>5} {'ATE[m]':>7} "
+      f"{'path[m]':>7} {'ATE/path':>8} {'scale-1':>8} {'start[s]':>8} {'IMU init[s]':>11} {'track p50/p95[ms]':>17} "
+      f"{'BA p50[ms]':>10}")
 for n in names:
     j = json.load(open(f"{out}/{n}.json")); e = json.load(open(f"{out}/{n}.eval.json"))
     p = json.load(open(f"{out}/{n}.path.json"))
-    print(f"{n:20} {j['frames']:>6} {j['tracked']:>7} {e['coverage']:>6.3f} {j['maps']:>4} {j['keyframes']:>9} "
-          f"{e['ate_rmse_m']:>7.4f} {p['path_m']:>7.1f} {100 * e['ate_rmse_m'] / max(p['path_m'], 1e-9):>7.3f}% "
-          f"{p['first_pose_s']:>8.1f} {j['tracking_ms']['p50']:>8.1f}/{j['tracking_ms']['p95']:<8.1f} "
+    sim3 = json.load(open(f"{out}/{n}.sim3.json"))
+    init = j.get("imu_initialized_at_s")
+    init = f"{init:>11.2f}" if init is not None else f"{'-':>11}"
+    print(f"{n:28} {j['frames']:>6} {j['tracked']:>7} {e['coverage']:>6.3f} {j['maps']:>4} {j['keyframes']:>9} "
+          f"{e['align']:>5} {e['ate_rmse_m']:>7.4f} {p['path_m']:>7.1f} "
+          f"{100 * e['ate_rmse_m'] / max(p['path_m'], 1e-9):>7.3f}% {sim3['scale'] - 1:>8.4f} "
+          f"{p['first_pose_s']:>8.1f} {init} {j['tracking_ms']['p50']:>8.1f}/{j['tracking_ms']['p95']:<8.1f} "
           f"{j['local_ba_ms']['p50']:>10.1f}")
 PY

@@ -505,6 +505,11 @@ TEST(ServerUploads, RecordingBecomesAStoredSessionAndBadArchivesAreRefused) {
       client.http().Post("/v1/uploads?config=euroc/stereo&sensor=mono", std::string(10, 'x'), "application/x-tar");
   ASSERT_TRUE(mono_sensor);
   EXPECT_EQ(mono_sensor->status, 422) << mono_sensor->body;
+  const auto bad_mode =
+      client.http().Post("/v1/uploads?config=euroc/stereo&mode=fly", std::string(10, 'x'), "application/x-tar");
+  ASSERT_TRUE(bad_mode);
+  EXPECT_EQ(bad_mode->status, 400) << bad_mode->body;
+  EXPECT_NE(bad_mode->body.find("map or localize"), std::string::npos) << bad_mode->body;
   const auto empty = client.http().Post("/v1/uploads", "", "application/x-tar");
   ASSERT_TRUE(empty);
   EXPECT_EQ(empty->status, 400);

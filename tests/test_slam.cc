@@ -285,17 +285,20 @@ TEST(DatasetRunner, UnreadableImageIsSkippedAndReported) {
   EXPECT_EQ(r.stats.tracked, r.stats.frames);
 }
 
-TEST(DatasetRunner, RejectsMonoInertialSettingsAndMissingDatasets) {
+TEST(DatasetRunner, TakesSingleCameraSettingsAndRejectsMissingDatasets) {
   EXPECT_THROW(run_stereo_dataset(options_for("/nonexistent/orbatlas/dataset")), Error);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
   Atlas atlas;
-  // A single camera maps (monocular SLAM); with its IMU it cannot yet.
+  // A single camera maps (monocular SLAM), also with its IMU.
   const SlamSettings mono = read_settings(shipped_config_dir() / "euroc" / "mono.yaml");
   const StereoSlam slam(atlas, mono, vocabulary);
   EXPECT_TRUE(slam.monocular());
+  EXPECT_FALSE(slam.inertial());
   EXPECT_EQ(slam.frontend().baseline(), 0.0);
   const SlamSettings mono_inertial = read_settings(shipped_config_dir() / "euroc" / "mono_inertial.yaml");
-  EXPECT_THROW(StereoSlam(atlas, mono_inertial, vocabulary), Error);
+  const StereoSlam with_imu(atlas, mono_inertial, vocabulary);
+  EXPECT_TRUE(with_imu.monocular());
+  EXPECT_TRUE(with_imu.inertial());
 }
 
 }  // namespace

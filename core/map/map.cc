@@ -2,6 +2,7 @@
 #include "core/map/map.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "core/common/error.h"
 
@@ -176,6 +177,35 @@ void Map::change_frame(const Pose3& T_new_old) {
       if (!anchor.parent) anchor.T_parent_b = T_new_old * anchor.T_parent_b;  // a root: its world pose
   }
   frame_epoch_.fetch_add(1);
+}
+
+void Map::rescale(double s) {
+  ORBATLAS_CHECK(std::isfinite(s) && s > 0.0, "a map is rescaled by a finite factor > 0, not " << s);
+  std::lock_guard structure(structure_mutex_);
+  for (const auto& kf : keyframes()) {
+    Pose3 T = kf->T_w_b();
+    T.t *= s;
+    kf->set_T_w_b(T);
+    if (auto imu = kf->imu_state()) {
+      imu->v_i *= s;
+      kf->set_imu_state(*imu);
+    }
+  }
+  for (const auto& mp : map_points()) {
+    mp->set_p_w(s * mp->p_w());
+    mp->set_distances(static_cast<float>(s * mp->min_distance()), static_cast<float>(s * mp->max_distance()));
+  }
+  {
+    std::lock_guard lock(objects_mutex_);
+    for (auto& [id, anchor] : culled_anchors_) anchor.T_parent_b.t *= s;
+    units_scale_ *= s;
+  }
+  frame_epoch_.fetch_add(1);
+}
+
+double Map::units_scale() const {
+  std::lock_guard lock(objects_mutex_);
+  return units_scale_;
 }
 
 std::optional<Map::InertialState> Map::inertial_state() const {

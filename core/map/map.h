@@ -103,6 +103,15 @@ class Map {
   // maps exclusive and keeps the map's local mapping from running meanwhile.
   void change_frame(const Pose3& T_new_old);
   std::uint64_t frame_epoch() const { return frame_epoch_.load(); }
+  // Scales the whole map about its origin by `s` > 0 (a monocular map made
+  // metric by its inertial initialisation): keyframe positions, points and
+  // their distance bounds, culled keyframes' anchors, keyframe IMU velocities;
+  // frame_epoch() moves on and units_scale() is multiplied by `s`. The same
+  // rules as change_frame for the caller.
+  void rescale(double s);
+  // The product of every rescale so far (1 for a map never rescaled): poses
+  // kept relative to its keyframes from before a rescale scale by the ratio.
+  double units_scale() const;
 
  private:
   struct CulledAnchor {
@@ -126,6 +135,7 @@ class Map {
   std::unordered_map<KeyframeId, std::shared_ptr<KeyFrame>> keyframes_;
   std::unordered_map<KeyframeId, CulledAnchor> culled_anchors_;
   std::optional<InertialState> inertial_;  // guarded by objects_mutex_
+  double units_scale_ = 1.0;               // guarded by objects_mutex_
   std::atomic<std::uint64_t> frame_epoch_{0};
 };
 

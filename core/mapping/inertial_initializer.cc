@@ -80,9 +80,12 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
     log_warn(what + " of map " + std::to_string(map.id()) + " found no consistent solution (retried)");
     return std::nullopt;
   }
-  for (std::size_t k = 0; k < chain.size() && k < result.velocities.size(); ++k) {
-    const Eigen::Matrix3d R_w_i = (poses[k] * options.T_b_i).q.normalized().toRotationMatrix();
-    chain[k]->set_imu_state(KeyFrame::ImuState{R_w_i.transpose() * result.velocities[k], result.bias});
+  // A monocular map is made metric: scaled by what the IMU says (its
+  // velocities come out metric), before it is turned.
+  const bool rescale = solver.estimate_scale && std::abs(result.scale - 1.0) > 1e-9;
+  if (solver.estimate_scale && !(std::isfinite(result.scale) && result.scale > 0.0)) {
+    log_warn(what + " of map " + std::to_string(map.id()) + " found no usable scale (retried)");
+    return std::nullopt;
   }
   const std::size_t reintegrated = reintegrate_far_links(chain, result.bias, options.reintegrate_gyro_bias_change);
   state.gravity_w = Eigen::Vector3d(0.0, 0.0, -solver.gravity);  // after the alignment below
@@ -91,6 +94,11 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
     // Sessions tracking in the map see it before or after, never half-turned.
     std::unique_lock<WriterPriorityMutex> whole;
     if (atlas) whole = atlas->lock_maps_exclusive();
+    if (rescale) map.rescale(result.scale);
+    for (std::size_t k = 0; k < chain.size() && k < result.velocities.size(); ++k) {
+      const Eigen::Matrix3d R_w_i = (poses[k] * options.T_b_i).q.normalized().toRotationMatrix();
+      chain[k]->set_imu_state(KeyFrame::ImuState{R_w_i.transpose() * result.velocities[k], result.bias});
+    }
     map.change_frame(Pose3(Eigen::Quaterniond(result.R_w_g.transpose()), Eigen::Vector3d::Zero()));
     map.set_inertial_state(state);
   }
@@ -102,6 +110,7 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
        << " deg to point it along -z); gyro bias (" << result.bias.gyro.transpose() << ") rad/s, accelerometer bias ("
        << result.bias.accel.transpose() << ") m/s^2; " << result.iterations << " iterations; " << reintegrated
        << " links integrated again at the gyro bias found";
+  if (solver.estimate_scale) line << "; scale " << result.scale << " applied";
   log_info(line.str());
   return state;
 }

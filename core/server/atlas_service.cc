@@ -76,7 +76,9 @@ namespace {
 SessionMode session_mode(const SessionRequest& request, SensorType sensor, const SlamSettings& settings) {
   // A single camera maps by default when its config is a monocular one; the
   // first camera of a stereo config localises in that rig's maps by default.
-  // Monocular-inertial mapping does not exist yet.
+  // Monocular-inertial mapping is offline only: the stored trajectory keeps
+  // frames relative to keyframes in the map's units, which its inertial
+  // initialisation changes (Map::rescale) after frames were checkpointed.
   const bool single_camera = is_single_camera(sensor);
   const bool mono_config = settings.sensor == SensorType::kMonocular;
   if (request.mode.empty())
@@ -86,8 +88,9 @@ SessionMode session_mode(const SessionRequest& request, SensorType sensor, const
   if (request.mode != "map") throw_bad_request("unknown mode '" + request.mode + "' (map or localize)");
   if (sensor == SensorType::kMonocularInertial)
     throw ServiceError(ServiceErrorKind::kUnprocessable, "cannot_map",
-                       "a single camera with its IMU cannot map yet (monocular-inertial mapping does not exist); "
-                       "start it as sensor \"mono\" to map without the IMU, or with mode \"localize\"");
+                       "a single camera with its IMU does not map on the server yet (monocular-inertial mapping runs "
+                       "offline: orbatlas run); start it as sensor \"mono\" to map without the IMU, or with mode "
+                       "\"localize\"");
   return SessionMode::kMap;
 }
 
@@ -296,6 +299,7 @@ void AtlasService::check_upload(const SessionRequest& request) const {
   check_session_name(request.name);
   const LoadedSettings loaded = load_settings(request.settings);
   const SensorType sensor = session_sensor(request, loaded.settings);
+  const SessionMode mode = session_mode(request, sensor, loaded.settings);  // 400 for an unknown one
   if (sensor == SensorType::kRgbd || loaded.settings.is_rgbd()) {
     if (sensor != SensorType::kRgbd || !loaded.settings.is_rgbd())
       throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
@@ -304,7 +308,7 @@ void AtlasService::check_upload(const SessionRequest& request) const {
     return;  // a TUM RGB-D recording, mapped as an rgbd session
   }
   if (is_single_camera(sensor)) {
-    if (session_mode(request, sensor, loaded.settings) != SessionMode::kMap)
+    if (mode != SessionMode::kMap)
       throw ServiceError(ServiceErrorKind::kUnprocessable, "unsupported_sensor",
                          "uploads are mapped; this single camera only localises in stored maps (stream it as a "
                          "session, or upload it with a mono config to map it)");

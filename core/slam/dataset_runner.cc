@@ -312,14 +312,15 @@ void collect_results(const StereoSlam& slam, const EurocDataset& dataset, Datase
   if (dataset.ground_truth.empty() || report.trajectory.size() < 3) return;
   const Trajectory gt = from_ground_truth_states(dataset.ground_truth);
   try {
-    // A single camera reports the camera's poses, at the scale of its map.
+    // A single camera reports the camera's poses, at the scale of its map
+    // (metric once its IMU initialised it).
     EvalOptions eval;
-    if (slam.monocular()) eval.align = AlignMode::kSim3;
+    if (slam.monocular() && !slam.inertial()) eval.align = AlignMode::kSim3;
     report.ate_rmse_m =
         evaluate_trajectory(report.trajectory,
                             slam.monocular() ? attached_frame(gt, slam.frontend().calibration().T_b_c) : gt, eval)
             .ate.rmse;
-    report.ate_sim3 = slam.monocular();
+    report.ate_sim3 = eval.align == AlignMode::kSim3;
   } catch (const Error& e) {
     log_warn(std::string("no ATE: ") + e.what());
   }
@@ -361,6 +362,10 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   const RunInputs in = read_inputs(options);
   const Vocabulary vocabulary =
       Vocabulary::load(options.vocabulary.empty() ? default_vocabulary_path() : options.vocabulary);
+  // The stored trajectory keeps frames relative to keyframes in the map's
+  // units, which a monocular-inertial map changes when its IMU initialises it.
+  ORBATLAS_CHECK(options.atlas.empty() || in.settings.sensor != SensorType::kMonocularInertial,
+                 "a mono_inertial run does not map into a stored atlas yet (--atlas); run it without");
   Atlas atlas;
   DatasetRunReport report;
   const StoredAtlas stored = open_atlas(options, in.settings, vocabulary, atlas, report);

@@ -155,6 +155,17 @@ void InertialTracking::frame_done(const Frame& frame, const Frame* previous, Out
   last_ = s;
 }
 
+void InertialTracking::rescale(double factor) {
+  if (!last_) return;
+  last_->v_i *= factor;
+  if (last_->covariance) {
+    // Position and velocity sigmas scale with the units.
+    StateCovariance J = StateCovariance::Identity();
+    J.block<6, 6>(3, 3) *= factor;
+    last_->covariance = J * *last_->covariance * J.transpose();
+  }
+}
+
 void InertialTracking::reset() {
   last_.reset();
   prediction_.reset();

@@ -67,6 +67,9 @@ class InertialTracking {
   void frame_done(const Frame& frame, const Frame* previous, Outcome outcome);
   // A new map, or the session is lost: nothing carries over.
   void reset();
+  // The map's units changed by `factor` (Map::rescale: a monocular map made
+  // metric): the last frame's velocity, kept in them, follows.
+  void rescale(double factor);
 
   // The IMU state the frame at `t_ns` was given before frame_done() for it:
   // its visual-inertial estimate, else the prediction (velocity in the world,

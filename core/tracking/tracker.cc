@@ -89,6 +89,7 @@ TrackResult Tracker::track(Frame frame) {
   result.t_ns = frame.t_ns;
 
   follow_merged_map();
+  adopt_map_units();
   const bool joined_stored_map = !options_.localization_only && !map_ && options_.start_in_stored_map && relocalizer_ &&
                                  join_stored_map(frame, result);
   bool ok = joined_stored_map;
@@ -288,6 +289,25 @@ void Tracker::follow_merged_map() {
   map_ = std::move(into);
   if (!options_.localization_only) atlas_.set_active(map_->id());
   ++maps_followed_;
+}
+
+void Tracker::adopt_map_units() {
+  if (!map_) return;
+  const double units = map_->units_scale();
+  if (map_->id() != units_map_) {
+    units_map_ = map_->id();
+    units_seen_ = units;
+    return;
+  }
+  if (units == units_seen_) return;
+  const double f = units / units_seen_;
+  units_seen_ = units;
+  T_ref_last_.t *= f;
+  if (velocity_) velocity_->t *= f;
+  for (auto& anchor : anchors_)
+    if (anchor.map == map_->id()) anchor.T_ref_b.t *= f;
+  if (inertial_) inertial_->rescale(f);
+  ++anchor_rescales_;
 }
 
 void Tracker::refresh_last_frame_pose() {

@@ -95,6 +95,9 @@ class Tracker {
   // Slots of new keyframes that local mapping filled while tracking was
   // filling them (handled: the point local mapping put there is used).
   std::size_t slot_races() const { return slot_races_; }
+  // Times the anchors were scaled with their map (Map::rescale: a monocular
+  // map made metric by its IMU); a copy of anchors() is stale after one.
+  std::size_t anchor_rescales() const { return anchor_rescales_; }
   // Monocular: two-view reconstructions tried, and maps started from them.
   std::size_t monocular_attempts() const { return mono_initializer_ ? mono_initializer_->attempts() : 0; }
   std::size_t monocular_starts() const { return monocular_starts_; }
@@ -144,6 +147,9 @@ class Tracker {
   // The active map was merged into another (live map merging): continue there.
   void follow_merged_map();
   void refresh_last_frame_pose();
+  // The map's units changed since the last frame (Map::rescale): what the
+  // tracker keeps relative to its keyframes is scaled to them.
+  void adopt_map_units();
 
   Atlas& atlas_;
   const Vocabulary& vocabulary_;
@@ -174,6 +180,9 @@ class Tracker {
   int failed_relocalizations_ = 0;  // in a row, while recently lost
   std::size_t maps_started_ = 0, relocalizations_ = 0, maps_followed_ = 0, slot_races_ = 0, monocular_starts_ = 0;
   std::vector<FrameAnchor> anchors_;
+  MapId units_map_ = kInvalidMapId;  // the map whose units_scale() was seen last
+  double units_seen_ = 1.0;
+  std::size_t anchor_rescales_ = 0;
 };
 
 }  // namespace orbatlas
