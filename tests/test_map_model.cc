@@ -358,5 +358,45 @@ TEST(MapModel, ChangingTheFrameMovesEverythingAndKeepsTheGeometry) {
   EXPECT_LT(after.q.angularDistance(relative.q), 1e-12);
 }
 
+// Rescaling a map (a monocular map made metric by its IMU): positions, point
+// distances, IMU velocities and culled keyframes' anchors scale; rotations and
+// viewing directions stay; units_scale() accumulates and the epoch moves on.
+TEST(MapModel, RescalingScalesPositionsDistancesVelocitiesAndAnchors) {
+  Atlas atlas;
+  auto map = atlas.create_map();
+  auto a = map->new_keyframe(keyframe_data(1));
+  auto b = map->new_keyframe(keyframe_data(1));
+  auto c = map->new_keyframe(keyframe_data(1));
+  const Eigen::Quaterniond qa(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
+  a->set_T_w_b(Pose3(qa, Eigen::Vector3d(1, 2, 3)));
+  b->set_T_w_b(Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 1, 0)));
+  c->set_T_w_b(Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 2, 0)));
+  c->set_parent(b);
+  a->set_imu_state(KeyFrame::ImuState{Eigen::Vector3d(0.1, 0.2, 0.3), {}});
+  MapPointData d;
+  d.p_w = Eigen::Vector3d(4, 5, 6);
+  auto p = map->new_map_point(d);
+  p->set_normal(Eigen::Vector3d(0, 0, 1));
+  p->set_distances(1.0f, 8.0f);
+  ASSERT_TRUE(map->cull_keyframe(c->id()));  // anchored to b: 1 m along y
+  const auto epoch = map->frame_epoch();
+  map->rescale(2.5);
+  map->rescale(2.0);
+  EXPECT_DOUBLE_EQ(map->units_scale(), 5.0);
+  EXPECT_EQ(map->frame_epoch(), epoch + 2);
+  EXPECT_LT((a->T_w_b().t - Eigen::Vector3d(5, 10, 15)).norm(), 1e-12);
+  EXPECT_LT(a->T_w_b().q.angularDistance(qa), 1e-12);
+  EXPECT_LT((a->imu_state()->v_i - Eigen::Vector3d(0.5, 1.0, 1.5)).norm(), 1e-12);
+  EXPECT_LT((p->p_w() - Eigen::Vector3d(20, 25, 30)).norm(), 1e-12);
+  EXPECT_LT((p->normal() - Eigen::Vector3d(0, 0, 1)).norm(), 1e-12);
+  EXPECT_FLOAT_EQ(p->min_distance(), 5.0f);
+  EXPECT_FLOAT_EQ(p->max_distance(), 40.0f);
+  const auto culled = map->keyframe_pose(c->id());
+  ASSERT_TRUE(culled.has_value());
+  EXPECT_LT((culled->t - Eigen::Vector3d(0, 10, 0)).norm(), 1e-12);  // b at 5, and 5 m on
+  EXPECT_THROW(map->rescale(0.0), Error);
+  EXPECT_THROW(map->rescale(std::nan("")), Error);
+}
+
 }  // namespace
 }  // namespace orbatlas
