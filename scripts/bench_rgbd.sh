@@ -13,16 +13,9 @@
 #   ORBATLAS_BIN=/tmp/orbatlas scripts/bench_rgbd.sh   # a frozen binary (no set-up, no build)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
-if [ -n "${ORBATLAS_BIN:-}" ]; then
-  OA="$ORBATLAS_BIN"
-else
-  "$ROOT/scripts/setup.sh"
-  OA="$BUILD_DIR/client/orbatlas"
-fi
-DATA="${ORBATLAS_BENCH_DATA:-$BUILD_DIR/bench_data}"
-OUT="${ORBATLAS_BENCH_OUT:-$ROOT/out/bench_rgbd}"
-mkdir -p "$DATA" "$OUT"
+BENCH_NAME=bench_rgbd
+# shellcheck source=scripts/bench_env.sh
+source "$ROOT/scripts/bench_env.sh"
 SEQUENCES=("$@")
 [ ${#SEQUENCES[@]} -eq 0 ] && SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)
 read -r -a LOOK_LIST <<< "${LOOKS:-clean real}"

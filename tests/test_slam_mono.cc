@@ -71,11 +71,11 @@ TEST(MonoInertialSlam, TheImuGivesTheMapItsMetricScale) {
   EXPECT_FALSE(report.ate_sim3);  // metric: SE3
   ASSERT_TRUE(report.stats.imu_initialized_at_s.has_value());
   const EurocDataset dataset = test::stereo_dataset(clip);
-  const Trajectory camera_truth =
-      attached_frame(from_ground_truth_states(dataset.ground_truth), dataset.cameras[0].calibration.T_b_c);
   EvalOptions sim3;
   sim3.align = AlignMode::kSim3;
-  const EvalResult with_scale = evaluate_trajectory(report.trajectory, camera_truth, sim3);
+  sim3.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;
+  const EvalResult with_scale =
+      evaluate_trajectory(report.trajectory, from_ground_truth_states(dataset.ground_truth), sim3);
   std::printf(
       "mono-inertial: %zu of %zu frames tracked, %zu maps, IMU initialised at %.2f s, ATE %.4f m (SE3), "
       "scale error %.4f\n",

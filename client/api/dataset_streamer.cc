@@ -138,13 +138,13 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
                                            &report.trajectory_maps);
   if (!dataset.ground_truth.empty() && report.trajectory.size() >= 3) {
     try {
-      const Trajectory truth = from_ground_truth_states(dataset.ground_truth);
       EvalOptions eval;
-      if (monocular_map) eval.align = AlignMode::kSim3;
+      if (monocular_map) {
+        eval.align = AlignMode::kSim3;
+        eval.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;
+      }
       report.ate_rmse_m =
-          evaluate_trajectory(report.trajectory,
-                              monocular_map ? attached_frame(truth, dataset.cameras[0].calibration.T_b_c) : truth, eval)
-              .ate.rmse;
+          evaluate_trajectory(report.trajectory, from_ground_truth_states(dataset.ground_truth), eval).ate.rmse;
       report.ate_sim3 = monocular_map;
     } catch (const Error& e) {
       log_warn(std::string("no ATE: ") + e.what());

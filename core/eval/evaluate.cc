@@ -43,8 +43,10 @@ void EvalOptions::check() const {
   ORBATLAS_CHECK(rpe_delta_ns > 0, "eval: rpe_delta_ns must be > 0, not " << rpe_delta_ns);
 }
 
-EvalResult evaluate_trajectory(const Trajectory& estimate, const Trajectory& ground_truth, const EvalOptions& options) {
+EvalResult evaluate_trajectory(const Trajectory& estimate, const Trajectory& body_truth, const EvalOptions& options) {
   options.check();
+  const Trajectory moved = options.estimate_T_b_x ? attached_frame(body_truth, *options.estimate_T_b_x) : Trajectory();
+  const Trajectory& ground_truth = options.estimate_T_b_x ? moved : body_truth;
   EvalResult result;
   result.align = options.align;
   result.est_poses = estimate.size();

@@ -2,6 +2,7 @@
 // The whole evaluation of an estimated trajectory against ground truth:
 // associate -> align -> ATE and RPE (what `orbatlas eval` reports).
 #include <cstddef>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -19,6 +20,10 @@ struct EvalOptions {
   // evaluated together); empty: the ground truth's first to last pose.
   // `orbatlas eval` passes each dataset's camera frames.
   std::vector<std::pair<TimestampNs, TimestampNs>> spans;
+  // The estimate is of a frame attached to the body (a single camera that
+  // maps reports its camera's poses): the ground truth's body poses are moved
+  // to it (T_w_b * T_b_x) before they are compared. None: the body's.
+  std::optional<Pose3> estimate_T_b_x;
 
   // Throws Error naming the first value out of range.
   void check() const;

@@ -1,6 +1,8 @@
 // KeyFrame: construction, pose and the observation slots (both sides).
 #include "core/map/keyframe.h"
 
+#include <algorithm>
+
 #include "core/common/error.h"
 
 namespace orbatlas {
@@ -187,6 +189,16 @@ std::vector<std::shared_ptr<MapPoint>> KeyFrame::map_points() const {
 void KeyFrame::mark_bad() {
   std::lock_guard lock(mutex_);
   bad_.store(true);
+}
+
+double median_scene_depth(const KeyFrame& keyframe) {
+  const Pose3 T_c_w = keyframe.T_w_c().inverse();
+  std::vector<double> depths;
+  for (const auto& mp : keyframe.map_points())
+    if (!mp->is_bad()) depths.push_back((T_c_w * mp->p_w()).z());
+  if (depths.empty()) return -1.0;
+  std::nth_element(depths.begin(), depths.begin() + static_cast<std::ptrdiff_t>(depths.size() / 2), depths.end());
+  return depths[depths.size() / 2];
 }
 
 }  // namespace orbatlas

@@ -183,4 +183,8 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   std::optional<ImuState> imu_state_;
 };
 
+// Median depth of the points a keyframe observes, in its camera (ORB-SLAM's
+// ComputeSceneMedianDepth); -1 when it observes none.
+double median_scene_depth(const KeyFrame& keyframe);
+
 }  // namespace orbatlas

@@ -47,18 +47,6 @@ bool reprojects(const KeyFrame& kf, std::size_t slot, const Eigen::Vector3d& p_c
   return e2 / sigma2 <= kChi2Mono95;
 }
 
-// Median depth of the points a keyframe observes, in its camera (ORB-SLAM's
-// ComputeSceneMedianDepth); -1 without points.
-double median_scene_depth(const KeyFrame& kf) {
-  const Pose3 T_c_w = kf.T_w_c().inverse();
-  std::vector<double> depths;
-  for (const auto& mp : kf.map_points())
-    if (!mp->is_bad()) depths.push_back((T_c_w * mp->p_w()).z());
-  if (depths.empty()) return -1.0;
-  std::nth_element(depths.begin(), depths.begin() + static_cast<std::ptrdiff_t>(depths.size() / 2), depths.end());
-  return depths[depths.size() / 2];
-}
-
 }  // namespace
 
 TriangulationStats triangulate_pair(Map& map, const std::shared_ptr<KeyFrame>& kf1,

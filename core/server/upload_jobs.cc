@@ -298,12 +298,11 @@ void UploadJobs::run(JobId id) {
   if (!recording.ground_truth.empty()) {
     const Trajectory trajectory = service_.trajectory(session).poses;
     try {
-      const Trajectory truth = from_ground_truth_states(recording.ground_truth);
       EvalOptions eval;
+      eval.estimate_T_b_x = recording.T_b_c0;
       if (recording.T_b_c0) eval.align = AlignMode::kSim3;
       if (trajectory.size() >= 3)
-        ate = evaluate_trajectory(trajectory, recording.T_b_c0 ? attached_frame(truth, *recording.T_b_c0) : truth, eval)
-                  .ate.rmse;
+        ate = evaluate_trajectory(trajectory, from_ground_truth_states(recording.ground_truth), eval).ate.rmse;
     } catch (const Error& e) {
       log_warn("upload job " + std::to_string(id) + ": no ATE: " + e.what());
     }

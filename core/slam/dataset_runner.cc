@@ -315,11 +315,9 @@ void collect_results(const StereoSlam& slam, const EurocDataset& dataset, Datase
     // A single camera reports the camera's poses, at the scale of its map
     // (metric once its IMU initialised it).
     EvalOptions eval;
+    if (slam.monocular()) eval.estimate_T_b_x = slam.frontend().calibration().T_b_c;
     if (slam.monocular() && !slam.inertial()) eval.align = AlignMode::kSim3;
-    report.ate_rmse_m =
-        evaluate_trajectory(report.trajectory,
-                            slam.monocular() ? attached_frame(gt, slam.frontend().calibration().T_b_c) : gt, eval)
-            .ate.rmse;
+    report.ate_rmse_m = evaluate_trajectory(report.trajectory, gt, eval).ate.rmse;
     report.ate_sim3 = eval.align == AlignMode::kSim3;
   } catch (const Error& e) {
     log_warn(std::string("no ATE: ") + e.what());

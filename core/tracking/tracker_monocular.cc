@@ -59,17 +59,8 @@ bool Tracker::initialize_monocular(Frame& frame) {
   apply_global_adjustment(*map_, global_bundle_adjustment(*map_, *cam_.camera, 0.0, ba), cam_.pyramid);
 
   // Scale: the median depth of the points in the first camera becomes 1.
-  std::vector<double> depths;
-  depths.reserve(points.size());
-  const Pose3 T_c1_w = kf1->T_w_c().inverse();
-  for (const auto& mp : points)
-    if (!mp->is_bad()) depths.push_back((T_c1_w * mp->p_w()).z());
-  double median = -1.0;
-  if (!depths.empty()) {
-    std::nth_element(depths.begin(), depths.begin() + static_cast<std::ptrdiff_t>(depths.size() / 2), depths.end());
-    median = depths[depths.size() / 2];
-  }
-  if (!(median > 0.0) || static_cast<int>(depths.size()) < options_.monocular.min_points) {
+  const double median = median_scene_depth(*kf1);
+  if (!(median > 0.0) || static_cast<int>(kf1->map_point_count()) < options_.monocular.min_points) {
     // Degenerate after the adjustment: nothing of it stays; the next frames try again.
     for (const auto& mp : points) map_->cull_map_point(mp->id());
     map_->cull_keyframe(kf2->id());
@@ -78,6 +69,7 @@ bool Tracker::initialize_monocular(Frame& frame) {
     frame.has_pose = false;
     return false;
   }
+  const Pose3 T_c1_w = kf1->T_w_c().inverse();
   const double s = 1.0 / median;
   const Pose3 T_w_c1 = kf1->T_w_c();  // the identity, up to the solver's rounding
   const auto rescale = [&](const Eigen::Vector3d& p_w) -> Eigen::Vector3d { return T_w_c1 * ((T_c1_w * p_w) * s); };

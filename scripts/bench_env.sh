@@ -1,0 +1,16 @@
+# Sourced by the long benchmarks (bench_inertial.sh, bench_rgbd.sh,
+# bench_mono.sh) after they set ROOT and BENCH_NAME: the orbatlas binary
+# (OA: $ORBATLAS_BIN, a frozen binary with no set-up and no build; else the
+# README's set-up and build), the rendered sequences (DATA:
+# $ORBATLAS_BENCH_DATA, default build/bench_data, shared by every benchmark)
+# and the results folder (OUT: $ORBATLAS_BENCH_OUT, default out/$BENCH_NAME).
+BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
+if [ -n "${ORBATLAS_BIN:-}" ]; then
+  OA="$ORBATLAS_BIN"
+else
+  "$ROOT/scripts/setup.sh"
+  OA="$BUILD_DIR/client/orbatlas"
+fi
+DATA="${ORBATLAS_BENCH_DATA:-$BUILD_DIR/bench_data}"
+OUT="${ORBATLAS_BENCH_OUT:-$ROOT/out/$BENCH_NAME}"
+mkdir -p "$DATA" "$OUT"
