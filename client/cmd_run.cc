@@ -22,7 +22,7 @@ namespace {
 
 struct RunArgs {
   DatasetRunOptions run;
-  std::string config, stats, vocabulary, culling = "incremental", mode = "map";
+  std::string config, stats, vocabulary, culling = "incremental", mode = "map", sensor;
   std::vector<std::string> datasets, out_trajectories;
   double start_s = 0.0, duration_s = 0.0;
   bool compare_culling = false;
@@ -161,6 +161,10 @@ void register_run_command(CLI::App& app) {
                   "change nothing, as `orbatlas localize` does)")
       ->check(CLI::IsMember({"map", "localize"}))
       ->capture_default_str();
+  cmd->add_option("--sensor", args->sensor,
+                  "mono or mono_inertial: the left camera of a stereo config alone (rectified as the rig's stereo "
+                  "maps are, so its map can merge into them and take their metric scale)")
+      ->check(CLI::IsMember({"mono", "mono_inertial"}));
   cmd->add_flag("--final-ba", args->run.slam.final_global_ba,
                 "After the last frame, one global bundle adjustment over the session's maps (offline refinement)");
   cmd->add_option("--black-out", args->black_out,
@@ -175,6 +179,7 @@ void register_run_command(CLI::App& app) {
     if (args->duration_s > 0.0) options.duration_s = args->duration_s;
     options.slam.mapper.culling.scheme = args->culling == "scan" ? CullingScheme::kScan : CullingScheme::kIncremental;
     options.slam.mapper.culling.compare_schemes = args->compare_culling;
+    if (!args->sensor.empty()) options.sensor = parse_sensor_type(args->sensor);
     options.localize_only = args->mode == "localize";  // DatasetRunOptions::check: needs --atlas
     if (!args->black_out.empty()) options.black_out_s = parse_black_out(args->black_out);
 

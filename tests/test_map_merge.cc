@@ -35,12 +35,19 @@ struct Session {
 };
 
 // Each session keeps to its own map (relocalisation may not enter another);
-// with `live_merging` its map may be merged into another while it runs.
+// with `live_merging` its map may be merged into another while it runs. With
+// monocular settings the left images only are sent, and the ground truth is
+// the camera's (a single camera's body is its camera).
 Session run_session(Atlas& atlas, const std::filesystem::path& clip, const SlamSettings& settings,
                     const Vocabulary& vocabulary, bool live_merging = false) {
   const EurocDataset dataset = test::stereo_dataset(clip);
+  const bool monocular = settings.sensor == SensorType::kMonocular;
   Session s;
   s.ground_truth = from_ground_truth_states(dataset.ground_truth);
+  if (monocular) {
+    const Pose3 T_b_c = StereoFrontend(settings, false).calibration().T_b_c;  // the rectified left camera
+    for (auto& p : s.ground_truth) p.pose = p.pose * T_b_c;
+  }
   StereoSlamOptions o;
   o.synchronous_mapping = true;  // deterministic
   o.live_merging = live_merging;
@@ -49,7 +56,7 @@ Session run_session(Atlas& atlas, const std::filesystem::path& clip, const SlamS
   StereoSlam slam(atlas, settings, vocabulary, o, wiring);
   for (const auto& f : pair_stereo_frames(dataset))
     s.results.push_back(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
-                                     cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE)));
+                                     monocular ? cv::Mat() : cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE)));
   slam.finish();
   s.anchors = slam.anchors();
   s.stats = slam.stats();
@@ -205,6 +212,68 @@ TEST(MapMerge, ARunningSessionsMapIsMergedLiveAndTrackingFollows) {
       b.results.size(), merge.matches, merge.merge.keyframes_moved, merge.merge.points_moved, merge.merge.points_fused,
       merge.merge.ms, ate);
   EXPECT_LT(ate, 0.007);  // measured 0.0033 m
+}
+
+// A single camera of the same rig (its left camera, rectified as the stereo
+// maps' keyframes are) maps at its own scale, recognises the stored stereo
+// map, and the merge, a similarity, gives its map the stereo map's metric
+// scale: afterwards both sessions fit the ground truth under ONE rigid
+// alignment, its earlier frames included.
+TEST(MapMerge, AMonocularSessionMergedIntoAStereoMapBecomesMetric) {
+  const OverlappingClips clips;
+  SlamSettings mono = clips.settings;
+  mono.sensor = SensorType::kMonocular;  // the rig's left camera alone
+
+  Atlas atlas;
+  const Session a = run_session(atlas, clips.a, clips.settings, clips.vocabulary, true);
+  const Session b = run_session(atlas, clips.b, mono, clips.vocabulary, true);
+
+  ASSERT_EQ(b.stats.loop.merges.size(), 1u) << "the monocular map was not merged into the stereo one";
+  const LiveMerge& merge = b.stats.loop.merges.front();
+  EXPECT_EQ(merge.merge.target, a.map);
+  EXPECT_EQ(b.map, a.map);
+  EXPECT_NE(merge.merge.scale, 1.0);  // its map had a scale of its own
+  ASSERT_EQ(atlas.maps().size(), 1u);
+
+  const double ate = joint_ate(atlas, {&a, &b});
+  Trajectory b_frames;
+  for (const auto& anchor : b.anchors)
+    if (const auto pose = atlas.frame_pose(anchor)) b_frames.push_back({anchor.t_ns, *pose});
+  EvalOptions sim3;
+  sim3.align = AlignMode::kSim3;
+  const EvalResult b_alone = evaluate_trajectory(b_frames, b.ground_truth, sim3);
+  std::printf(
+      "monocular session merged into the stereo map at %.2f s (%d matches, scale x%.3f): joint ATE of both sessions "
+      "under one rigid alignment %.4f m; the monocular session alone: scale error %.4f, %zu of %zu frames placed\n",
+      static_cast<double>(merge.current_t_ns - b.results.front().t_ns) * 1e-9, merge.matches, merge.merge.scale, ate,
+      b_alone.alignment.scale - 1.0, b_frames.size(), b.results.size());
+  EXPECT_LT(std::abs(b_alone.alignment.scale - 1.0), 0.012);  // measured -0.0058
+  EXPECT_LT(ate, 0.011);                                      // measured 0.0052 m
+  std::size_t after = 0;
+  for (const auto& r : b.results) {
+    if (r.t_ns <= merge.current_t_ns + 200'000'000) continue;
+    ++after;
+    EXPECT_TRUE(r.tracked && r.map == a.map) << "frame at " << r.t_ns << " ns";
+  }
+  EXPECT_GT(after, 100u);  // merged within ~1 s of its map's start (measured 1.10 s)
+}
+
+// The reverse order: a metric (stereo) session neither enters nor merges into
+// a map of free scale (a monocular one), whose lengths would disagree with its
+// own; both maps stay, each in its own units.
+TEST(MapMerge, AStereoSessionLeavesAMonocularMapAlone) {
+  const OverlappingClips clips;
+  SlamSettings mono = clips.settings;
+  mono.sensor = SensorType::kMonocular;
+
+  Atlas atlas;
+  const Session b = run_session(atlas, clips.b, mono, clips.vocabulary, true);
+  const Session a = run_session(atlas, clips.a, clips.settings, clips.vocabulary, true);
+  EXPECT_TRUE(a.stats.loop.merges.empty());
+  EXPECT_NE(a.map, b.map);
+  ASSERT_EQ(atlas.maps().size(), 2u);
+  EXPECT_FALSE(atlas.map(b.map)->metric_scale());
+  EXPECT_TRUE(atlas.map(a.map)->metric_scale());
 }
 
 }  // namespace

@@ -398,5 +398,29 @@ TEST(MapModel, RescalingScalesPositionsDistancesVelocitiesAndAnchors) {
   EXPECT_THROW(map->rescale(std::nan("")), Error);
 }
 
+// A map is metric once it holds a keyframe with measured depths (stereo,
+// RGB-D) or is inertial; monocular keyframes (depths all -1) leave it free.
+TEST(MapModel, AMapIsMetricWithAKeyframeOfMeasuredDepthOrAnImu) {
+  Atlas atlas;
+  auto map = atlas.create_map();
+  EXPECT_FALSE(map->metric_scale());  // empty
+  KeyFrameData mono = keyframe_data(3);
+  mono.depth.assign(3, -1.0f);
+  mono.u_right.assign(3, -1.0f);
+  EXPECT_FALSE(map->new_keyframe(mono)->has_depth());
+  EXPECT_FALSE(map->metric_scale());
+  map->set_inertial_state(Map::InertialState{});
+  EXPECT_TRUE(map->metric_scale());
+
+  auto stereo_map = atlas.create_map();
+  map->new_keyframe(keyframe_data(2));  // no stereo vectors at all
+  KeyFrameData stereo = mono;
+  stereo.depth[1] = 2.5f;
+  stereo.u_right[1] = 300.0f;
+  const auto kf = stereo_map->new_keyframe(stereo);
+  EXPECT_TRUE(kf->has_depth());
+  EXPECT_TRUE(stereo_map->metric_scale());
+}
+
 }  // namespace
 }  // namespace orbatlas

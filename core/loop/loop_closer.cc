@@ -131,11 +131,13 @@ LoopClosingStats LoopCloser::stats() const {
 void LoopCloser::process(const Item& item) {
   const std::shared_ptr<KeyFrame>& keyframe = item.keyframe;
   Recognizers& recognizers = this->recognizers(item.stream);
+  const auto map = atlas_.map(keyframe->map_id());
+  const bool free_scale = options_.monocular && map && !map->inertial_state();
   if (recognizers.merges) {
     // ORB-SLAM3 looks for a merge first: a keyframe that joins another map is
     // not also taken as a loop.
     const auto start = std::chrono::steady_clock::now();
-    const PlaceRecognitionStep step = recognizers.merges->process(keyframe);
+    const PlaceRecognitionStep step = recognizers.merges->process(keyframe, free_scale);
     {
       std::lock_guard lock(stats_mutex_);
       stats_.merge_search_ms.add(ms_since(start));
@@ -143,7 +145,7 @@ void LoopCloser::process(const Item& item) {
     if (step.match && !step.match->same_map() && merge_live(*step.match)) return;
   }
   const auto start = std::chrono::steady_clock::now();
-  const PlaceRecognitionStep step = recognizers.loops.process(keyframe);
+  const PlaceRecognitionStep step = recognizers.loops.process(keyframe, free_scale);
   {
     std::lock_guard lock(stats_mutex_);
     ++stats_.keyframes;
@@ -174,7 +176,8 @@ void LoopCloser::close_loop(const PlaceMatch& loop) {
     closed.matched = loop.matched->id();
     closed.current_t_ns = loop.current->timestamp_ns();
     closed.matched_t_ns = loop.matched->timestamp_ns();
-    closed.T_cur_m = loop.T_cur_m;
+    closed.T_cur_m = rigid_pose_c_w(loop.S_cur_m);
+    closed.scale = loop.S_cur_m.s;
     closed.matches = loop.matches;
     closed.correction = correction;
     stats_.loops.push_back(closed);

@@ -47,6 +47,9 @@ struct LoopCloserOptions {
   LoopCorrectionOptions correction;
   bool global_bundle_adjustment = true;
   GlobalBundleAdjustmentOptions global;
+  // The sessions' maps have no metric scale until an IMU gives them one
+  // (monocular): loops and merges are then similarities (Sim(3)).
+  bool monocular = false;
 
   // Live map merging: each keyframe is also searched for in the other maps of
   // the atlas (those LoopCloserWiring::may_merge_into accepts).
@@ -76,7 +79,8 @@ struct LoopCloserWiring {
 struct ClosedLoop {
   KeyframeId current = 0, matched = 0;
   TimestampNs current_t_ns = 0, matched_t_ns = 0;
-  Pose3 T_cur_m;  // estimated relative camera pose (current <- matched)
+  Pose3 T_cur_m;       // estimated relative camera pose (current <- matched), in the matched units
+  double scale = 1.0;  // current units per matched unit (1 unless the map's scale is free)
   int matches = 0;
   LoopCorrectionStats correction;
 };

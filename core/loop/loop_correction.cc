@@ -47,7 +47,7 @@ CorrectedGroup correct_group(Map& map, const PlaceMatch& loop, const FrameCamera
     if (auto kf = map.keyframe(edge.keyframe); kf && !kf->is_bad()) g.keyframes.push_back(std::move(kf));
   const Pose3 T_a_w_old = current->T_w_c().inverse();
   const Sim3 S_a_w_new =
-      map.inertial_state() ? yaw_only_correction(T_a_w_old, Sim3(loop.T_c_w_corrected)) : Sim3(loop.T_c_w_corrected);
+      map.inertial_state() ? yaw_only_correction(T_a_w_old, loop.S_c_w_corrected) : loop.S_c_w_corrected;
   for (const auto& kf : g.keyframes) {
     g.old_T_c_w[kf->id()] = kf->T_w_c().inverse();
     g.corrected[kf->id()] = propagate_correction(g.old_T_c_w[kf->id()], T_a_w_old, S_a_w_new);
@@ -56,6 +56,7 @@ CorrectedGroup correct_group(Map& map, const PlaceMatch& loop, const FrameCamera
   const Pose3 T_w_c_old = T_a_w_old.inverse();
   stats.correction_m = translation_distance(T_w_c_old, T_w_c_new);
   stats.correction_deg = rotation_distance(T_w_c_old, T_w_c_new) * 180.0 / M_PI;
+  stats.correction_scale = 1.0 / S_a_w_new.s;  // lengths about the current keyframe are multiplied by it
 
   std::vector<std::shared_ptr<MapPoint>> moved;
   for (const auto& kf : g.keyframes) {
@@ -150,8 +151,8 @@ GraphSolution optimise_essential_graph(Map& map, const PlaceMatch& loop, Correct
     }
   }
   EssentialGraphOptions graph_options = options.graph;
-  graph_options.fix_scale = true;                             // stereo maps have metric scale
-  graph_options.yaw_only = map.inertial_state().has_value();  // and inertial ones know their roll and pitch
+  graph_options.fix_scale = !loop.scale_free;                 // a metric map keeps its scale everywhere
+  graph_options.yaw_only = map.inertial_state().has_value();  // and an inertial one knows its roll and pitch
   stats.four_dof = graph_options.yaw_only;
   const auto graph_start = std::chrono::steady_clock::now();
   const EssentialGraphResult result = optimize_essential_graph(nodes, edges, graph_options);
@@ -202,6 +203,8 @@ LoopCorrectionStats correct_loop(Map& map, const PlaceMatch& loop, const FrameCa
   options.check();
   LoopCorrectionStats stats;
   ORBATLAS_CHECK(loop.current && loop.matched, "loop correction needs both keyframes");
+  ORBATLAS_CHECK(!loop.scale_free || !map.inertial_state(),
+                 "loop correction: map " << map.id() << " is inertial (metric); its loop cannot change the scale");
   ORBATLAS_CHECK(loop.current->map_id() == map.id() && loop.matched->map_id() == map.id(),
                  "loop correction: keyframes " << loop.current->id() << " and " << loop.matched->id()
                                                << " are not both in map " << map.id());

@@ -8,8 +8,10 @@
 //     observations), which creates new covisibility links across the loop;
 //  3. essential-graph optimisation over every keyframe of the map (spanning
 //     tree, existing loop edges, strong covisibility, and the new loop links),
-//     the map's first keyframe fixed; every point follows the keyframe that
-//     corrected it or its reference keyframe;
+//     the map's first keyframe fixed; in Sim(3) when the loop's scale is free
+//     (a monocular map: the scale drift is spread along the loop), else in
+//     SE(3), or yaw and translation for an inertial map; every point follows
+//     the keyframe that corrected it or its reference keyframe;
 //  4. a loop edge between the current and the matched keyframe.
 #include "core/loop/place_match.h"
 #include "core/map/map.h"
@@ -21,7 +23,7 @@ namespace orbatlas {
 struct LoopCorrectionOptions {
   float fusion_th = 4.0f;         // ORB-SLAM's SearchAndFuse radius (pixels x scale)
   int strong_covisibility = 100;  // covisibility edges of the essential graph
-  EssentialGraphOptions graph;    // fix_scale is forced for stereo maps
+  EssentialGraphOptions graph;    // fix_scale and yaw_only are set from the loop and the map
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -31,9 +33,10 @@ struct LoopCorrectionStats {
   std::size_t group_keyframes = 0, corrected_points = 0;
   std::size_t observations_fused = 0, points_fused = 0, new_links = 0;
   std::size_t graph_nodes = 0, graph_edges = 0;
-  double correction_m = 0.0;    // translation applied to the current keyframe
-  double correction_deg = 0.0;  // rotation applied to the current keyframe
-  bool four_dof = false;        // an inertial map: yaw and translation only
+  double correction_m = 0.0;      // translation applied to the current keyframe
+  double correction_deg = 0.0;    // rotation applied to the current keyframe
+  double correction_scale = 1.0;  // lengths about the current keyframe are multiplied by it (1: metric map)
+  bool four_dof = false;          // an inertial map: yaw and translation only
   double graph_ms = 0.0, total_ms = 0.0;
 };
 

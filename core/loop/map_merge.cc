@@ -54,7 +54,17 @@ MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamer
   // 1. Move the source map into the target's world. The match says where the
   // current camera is in the target's world.
   const Pose3 T_ws_c = current->T_w_c();
-  Pose3 T_wt_ws = match.T_c_w_corrected.inverse() * T_ws_c.inverse();
+  const Sim3 S_wt_ws = match.S_c_w_corrected.inverse() * Sim3(T_ws_c.inverse());
+  if (match.scale_free) {
+    // A map of free scale (monocular) takes the target's: scaled about its
+    // origin first (lengths, and the tracker's poses kept relative to its
+    // keyframes follow units_scale()), then moved rigidly.
+    ORBATLAS_CHECK(!source->inertial_state(),
+                   "map merge: map " << source->id() << " is inertial (metric); a merge cannot change its scale");
+    stats.scale = S_wt_ws.s;
+    source->rescale(S_wt_ws.s);
+  }
+  Pose3 T_wt_ws(S_wt_ws.q, S_wt_ws.t);
   if (source->inertial_state() && target->inertial_state()) {
     // Both worlds have gravity along -z: they differ by a turn about z and a
     // move (the current camera lands where the match puts it).

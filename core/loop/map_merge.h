@@ -1,9 +1,11 @@
 #pragma once
 // Merging two maps of the atlas that place recognition found to share a place
-// (ORB-SLAM3's map merging, for stereo maps, whose scale is known):
+// (ORB-SLAM3's map merging):
 //  1. the source map (the one holding `current`) is moved whole into the
 //     target map (holding `matched`), every pose and point transformed by the
-//     rigid transform the place match measured; the source map leaves the atlas;
+//     transform the place match measured (a similarity when the source's scale
+//     is free: a monocular map takes the target's scale, e.g. a stereo map's
+//     metric one); the source map leaves the atlas;
 //  2. the spanning trees are joined: the path from `current` to its old root
 //     is reversed and `current` becomes a child of `matched`;
 //  3. the matched window's points are fused into `current` and its covisible
@@ -30,6 +32,7 @@ struct MapMergeStats {
   std::size_t keyframes_moved = 0, points_moved = 0;
   std::size_t observations_fused = 0, points_fused = 0, new_links = 0;
   bool four_dof = false;  // two inertial maps: the source turned about z and moved only
+  double scale = 1.0;     // the source's lengths were multiplied by it (a map of free scale)
   double ms = 0.0;
 };
 

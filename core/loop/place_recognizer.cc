@@ -78,7 +78,7 @@ PlaceRecognizer::PlaceRecognizer(const KeyframeIndex& index, FrameCamera cam, Pl
   ORBATLAS_CHECK(cam_.camera != nullptr, "place recognition needs a camera");
 }
 
-PlaceRecognitionStep PlaceRecognizer::process(const std::shared_ptr<KeyFrame>& keyframe) {
+PlaceRecognitionStep PlaceRecognizer::process(const std::shared_ptr<KeyFrame>& keyframe, bool free_scale) {
   PlaceRecognitionStep step;
   if (!keyframe || keyframe->is_bad()) return step;
 
@@ -89,14 +89,14 @@ PlaceRecognitionStep PlaceRecognizer::process(const std::shared_ptr<KeyFrame>& k
                         keyframe->map_id() == m.current->map_id();
     if (usable) {
       const Pose3 T_new_old = keyframe->T_w_c().inverse() * m.current->T_w_c();
-      const Pose3 T_c_w = T_new_old * m.T_c_w_corrected;
-      const int n = confirm(*keyframe, T_c_w, m);
+      const Sim3 S_c_w = Sim3(T_new_old) * m.S_c_w_corrected;
+      const int n = confirm(*keyframe, rigid_pose_c_w(S_c_w), m);
       step.best_matches = n;
       if (n >= options_.verify_matches) {
         ++m.verified_keyframes;
         m.current = keyframe;
-        m.T_c_w_corrected = T_c_w;
-        m.T_cur_m = T_c_w * m.matched->T_w_c();
+        m.S_c_w_corrected = S_c_w;
+        m.S_cur_m = S_c_w * Sim3(m.matched->T_w_c());
         m.matches = n;
         pending_->failures = 0;
         if (m.verified_keyframes >= options_.verify_keyframes) {
@@ -114,7 +114,7 @@ PlaceRecognitionStep PlaceRecognizer::process(const std::shared_ptr<KeyFrame>& k
     }
   }
 
-  std::optional<PlaceMatch> m = detect(keyframe, step);
+  std::optional<PlaceMatch> m = detect(keyframe, free_scale, step);
   if (!m) return step;
   step.hypothesis = true;
   verify_with_covisibles(*m);
@@ -127,7 +127,7 @@ PlaceRecognitionStep PlaceRecognizer::process(const std::shared_ptr<KeyFrame>& k
   return step;
 }
 
-std::optional<PlaceMatch> PlaceRecognizer::detect(const std::shared_ptr<KeyFrame>& keyframe,
+std::optional<PlaceMatch> PlaceRecognizer::detect(const std::shared_ptr<KeyFrame>& keyframe, bool free_scale,
                                                   PlaceRecognitionStep& step) {
   if (keyframe->bow().empty()) return std::nullopt;
   const auto exclude = connected_ids(*keyframe);
@@ -174,7 +174,7 @@ std::optional<PlaceMatch> PlaceRecognizer::detect(const std::shared_ptr<KeyFrame
 
   std::optional<PlaceMatch> best;
   for (const auto& candidate : candidates) {
-    auto m = try_candidate(keyframe, candidate, exclude);
+    auto m = try_candidate(keyframe, candidate, exclude, free_scale);
     if (m && (!best || m->matches > best->matches)) best = std::move(m);
   }
   if (best) step.best_matches = best->matches;
@@ -183,7 +183,8 @@ std::optional<PlaceMatch> PlaceRecognizer::detect(const std::shared_ptr<KeyFrame
 
 std::optional<PlaceMatch> PlaceRecognizer::try_candidate(const std::shared_ptr<KeyFrame>& keyframe,
                                                          const std::shared_ptr<KeyFrame>& candidate,
-                                                         const std::unordered_set<KeyframeId>& connected) {
+                                                         const std::unordered_set<KeyframeId>& connected,
+                                                         bool free_scale) {
   std::vector<std::shared_ptr<KeyFrame>> window{candidate};
   for (auto& kf : candidate->best_covisibles(options_.window_covisibles))
     if (kf->map_id() == candidate->map_id() && !connected.count(kf->id())) window.push_back(std::move(kf));
@@ -217,12 +218,12 @@ std::optional<PlaceMatch> PlaceRecognizer::try_candidate(const std::shared_ptr<K
   }
   if (static_cast<int>(ransac_matches.size()) < options_.min_ransac_inliers) return std::nullopt;
   Sim3SolverOptions so;
-  so.fix_scale = true;  // stereo: metric scale
+  so.fix_scale = !free_scale;
   so.min_inliers = options_.min_ransac_inliers;
   so.seed = options_.seed + attempts_++;
   const Sim3SolverResult ransac = solve_sim3_ransac(std::move(ransac_matches), camera, camera, so);
   if (!ransac.success) return std::nullopt;
-  Pose3 T_a_m = ransac.S_1_2.to_pose3(1e-6);
+  Sim3 S_a_m = ransac.S_1_2;
 
   // 3. Guided matching with every window point, refinement, then a narrower pass.
   std::vector<std::shared_ptr<MapPoint>> window_points;
@@ -238,7 +239,7 @@ std::optional<PlaceMatch> PlaceRecognizer::try_candidate(const std::shared_ptr<K
   for (int pass = 0; pass < 2; ++pass) {
     const float th = pass == 0 ? options_.first_search_th : options_.second_search_th;
     Frame guided = probe_frame(*keyframe);
-    const Pose3 T_c_w = T_a_m * T_m_w;
+    const Pose3 T_c_w = rigid_pose_c_w(S_a_m * Sim3(T_m_w));
     std::vector<ProjectedPoint> projected;
     ProjectedPoint pp;
     for (const auto& mp : m.window_points)
@@ -257,17 +258,18 @@ std::optional<PlaceMatch> PlaceRecognizer::try_candidate(const std::shared_ptr<K
       if (auto match = make_match(*keyframe, T_a_w, i, *matched, T_m_w, *mp)) refine_matches.push_back(*match);
     }
     Sim3RefinementOptions ro;
-    ro.fix_scale = true;
-    const Sim3RefinementResult refined = refine_sim3(Sim3(T_a_m), refine_matches, camera, camera, ro);
+    ro.fix_scale = !free_scale;
+    const Sim3RefinementResult refined = refine_sim3(S_a_m, refine_matches, camera, camera, ro);
     if (!refined.success || refined.inlier_count < options_.min_refined_inliers) return std::nullopt;
-    T_a_m = refined.S_1_2.to_pose3(1e-6);
+    S_a_m = refined.S_1_2;
   }
 
   m.current = keyframe;
   m.detected_on = keyframe;
   m.matched = matched;
-  m.T_cur_m = T_a_m;
-  m.T_c_w_corrected = T_a_m * T_m_w;
+  m.S_cur_m = S_a_m;
+  m.S_c_w_corrected = S_a_m * Sim3(T_m_w);
+  m.scale_free = free_scale;
   m.matches = matches;
   m.verified_keyframes = 1;
   return m;
@@ -292,7 +294,7 @@ void PlaceRecognizer::verify_with_covisibles(PlaceMatch& match) const {
   for (const auto& cov : match.current->best_covisibles(options_.verify_covisibles)) {
     if (match.verified_keyframes >= options_.verify_keyframes) break;
     if (cov->is_bad() || in_window.count(cov->id()) || cov->map_id() != match.current->map_id()) continue;
-    const Pose3 T_c_w = cov->T_w_c().inverse() * T_w_a * match.T_c_w_corrected;
+    const Pose3 T_c_w = rigid_pose_c_w(Sim3(cov->T_w_c().inverse() * T_w_a) * match.S_c_w_corrected);
     if (confirm(*cov, T_c_w, match) >= options_.verify_matches) ++match.verified_keyframes;
   }
 }

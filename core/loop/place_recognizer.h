@@ -5,8 +5,9 @@
 //     of other maps (merges, PlaceScope), excluding
 //     the keyframe's covisibles, grouped by covisibility (top 3 groups);
 //  2. a local window: each candidate and its best covisibles, with their points;
-//  3. BoW matches keyframe <-> window, Horn 3-point RANSAC (SE3: stereo scale is
-//     known) scored by reprojection in both keyframes;
+//  3. BoW matches keyframe <-> window, Horn 3-point RANSAC scored by
+//     reprojection in both keyframes: SE3 when the keyframe's map has metric
+//     scale, Sim(3) when its scale is free (a monocular map);
 //  4. guided matching: every window point projected with the estimate, the
 //     transform refined on the bidirectional reprojection error, then a second,
 //     narrower search;
@@ -71,7 +72,9 @@ class PlaceRecognizer {
   // `index` and the camera must outlive the recogniser.
   PlaceRecognizer(const KeyframeIndex& index, FrameCamera cam, PlaceRecognitionOptions options = {});
 
-  PlaceRecognitionStep process(const std::shared_ptr<KeyFrame>& keyframe);
+  // `free_scale`: the keyframe's map has no metric scale (monocular, no IMU
+  // yet), so the transform to the place is a similarity.
+  PlaceRecognitionStep process(const std::shared_ptr<KeyFrame>& keyframe, bool free_scale = false);
 
  private:
   struct Hypothesis {
@@ -79,11 +82,12 @@ class PlaceRecognizer {
     int failures = 0;
   };
 
-  std::optional<PlaceMatch> detect(const std::shared_ptr<KeyFrame>& keyframe, PlaceRecognitionStep& step);
+  std::optional<PlaceMatch> detect(const std::shared_ptr<KeyFrame>& keyframe, bool free_scale,
+                                   PlaceRecognitionStep& step);
   // `connected`: the keyframe and its covisibles (left out of the window).
   std::optional<PlaceMatch> try_candidate(const std::shared_ptr<KeyFrame>& keyframe,
                                           const std::shared_ptr<KeyFrame>& candidate,
-                                          const std::unordered_set<KeyframeId>& connected);
+                                          const std::unordered_set<KeyframeId>& connected, bool free_scale);
   // The 3D-3D match of a keyframe slot with a window point, both in camera frames.
   std::optional<Sim3Match> make_match(const KeyFrame& keyframe, const Pose3& T_a_w, std::size_t slot,
                                       const KeyFrame& matched, const Pose3& T_m_w, const MapPoint& point) const;

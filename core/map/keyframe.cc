@@ -29,6 +29,7 @@ KeyFrame::KeyFrame(KeyframeId id, MapId map, KeyFrameData data, std::shared_ptr<
       id_(id),
       map_id_(map),
       data_(std::move(data)),
+      has_depth_(std::any_of(data_.depth.begin(), data_.depth.end(), [](float d) { return d > 0.0f; })),
       redundant_(std::make_shared<std::atomic<int>>(0)),
       T_w_b_(data_.T_w_b),
       slots_(data_.features.keypoints.size()) {}

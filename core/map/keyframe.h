@@ -45,6 +45,9 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   std::size_t slot_count() const { return data_.features.keypoints.size(); }
   const Keypoint& keypoint(std::size_t slot) const;
   bool is_stereo() const { return !data_.depth.empty(); }
+  // Some keypoint has a measured depth (stereo or RGB-D): the keyframe was
+  // made in metric units. A monocular keyframe has none.
+  bool has_depth() const { return has_depth_; }
   float depth(std::size_t slot) const;    // -1 when unmatched or monocular
   float u_right(std::size_t slot) const;  // -1 when unmatched or monocular
   const BowVector& bow() const { return data_.bow; }
@@ -165,6 +168,7 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   const KeyframeId id_;
   std::atomic<MapId> map_id_;  // set by Map::absorb
   const KeyFrameData data_;    // data_.T_w_b is only the initial pose; T_w_b_ is current
+  const bool has_depth_;
   const std::shared_ptr<std::atomic<int>> redundant_;
   std::atomic<bool> bad_{false};
   std::atomic<int> map_point_count_{0};

@@ -203,6 +203,14 @@ void Map::rescale(double s) {
   frame_epoch_.fetch_add(1);
 }
 
+bool Map::metric_scale() const {
+  std::lock_guard lock(objects_mutex_);
+  if (inertial_) return true;
+  for (const auto& [id, kf] : keyframes_)
+    if (kf->has_depth()) return true;
+  return false;
+}
+
 double Map::units_scale() const {
   std::lock_guard lock(objects_mutex_);
   return units_scale_;

@@ -109,6 +109,10 @@ class Map {
   // frame_epoch() moves on and units_scale() is multiplied by `s`. The same
   // rules as change_frame for the caller.
   void rescale(double s);
+  // Whether the map's lengths are metres: it is inertial (initialised) or
+  // holds a keyframe with measured depths (stereo, RGB-D). A monocular map's
+  // scale is its own until an IMU or a merge into a metric map gives it one.
+  bool metric_scale() const;
   // The product of every rescale so far (1 for a map never rescaled): poses
   // kept relative to its keyframes from before a rescale scale by the ratio.
   double units_scale() const;

@@ -478,9 +478,12 @@ std::shared_ptr<MappingWorkers> AtlasService::mapping_for(const MapRig& rig, con
   // Live merging into maps of the same rig, also those other sessions are
   // mapping now (their sessions and the merged map's then share the joined
   // map), never one the merging worker holds.
-  wiring.may_merge_into = [this, rig](MapId map) {
+  // A metric rig (stereo, RGB-D) merges only into maps of metric scale.
+  wiring.may_merge_into = [this, rig, metric = cam.bf > 0.0](MapId map) {
     const auto holders = leases_.holders(map);
-    return holders != std::vector<SessionId>{kMergeWorkerLease} && mapping_rig_matches(rig, map);
+    if (holders == std::vector<SessionId>{kMergeWorkerLease} || !mapping_rig_matches(rig, map)) return false;
+    const auto target = metric ? atlas_.map(map) : nullptr;
+    return !metric || (target && target->metric_scale());
   };
   wiring.hold_map = [this](MapId source, MapId target) { return leases_.share(source, target); };
   wiring.on_merged = [this](const LiveMerge& merge) { merged_live(merge); };

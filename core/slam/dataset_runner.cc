@@ -93,6 +93,17 @@ RunInputs read_rgbd_inputs(const DatasetRunOptions& options, SlamSettings settin
 
 RunInputs read_inputs(const DatasetRunOptions& options) {
   SlamSettings settings = read_settings(options.settings, SensorType::kStereo);
+  if (options.sensor && *options.sensor != settings.sensor) {
+    const bool inertial = *options.sensor == SensorType::kMonocularInertial;
+    ORBATLAS_CHECK(settings.is_stereo() && is_single_camera(*options.sensor),
+                   "run: --sensor " << sensor_type_name(*options.sensor)
+                                    << " takes the left camera of a stereo config; " << options.settings << " is a "
+                                    << sensor_type_name(settings.sensor) << " one");
+    ORBATLAS_CHECK(!inertial || settings.imu,
+                   "run: --sensor mono_inertial needs the IMU.* keys in " << options.settings);
+    settings.sensor = *options.sensor;
+    if (!inertial) settings.imu.reset();
+  }
   if (settings.is_rgbd()) return read_rgbd_inputs(options, std::move(settings));
   RunInputs in;
   in.settings = std::move(settings);

@@ -35,6 +35,9 @@ struct DatasetRunOptions {
   // Every image black from `first` to `second` seconds after the run's first
   // frame (`orbatlas run --black-out`: what the IMU carries a session through).
   std::optional<std::pair<double, double>> black_out_s;
+  // A single camera of a stereo config (kMonocular, kMonocularInertial): its
+  // left camera alone, rectified as the rig's stereo maps are (`--sensor`).
+  std::optional<SensorType> sensor;
 
   // Throws Error naming the first value out of range.
   void check() const;

@@ -37,14 +37,11 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
   options_.tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));
   if (monocular_) {
     // ORB-SLAM's single-camera rules: new points come from triangulation
-    // only, so with more neighbours. Loops and merges of a map without
-    // metric scale need Sim(3) corrections, which are not built yet: off.
+    // only, so with more neighbours; loops and merges of a map without
+    // metric scale are similarities (Sim(3)).
     options_.mapper.triangulation_neighbours = 20;
     options_.mapper.fusion_neighbours = 20;
-    if (options_.loop_closing || options_.live_merging)
-      log_info("monocular session: loop closing and map merging are off (no Sim(3) correction yet)");
-    options_.loop_closing = false;
-    options_.live_merging = false;
+    options_.loop.monocular = true;
   }
   if (!settings.orbatlas.empty()) {  // the settings' Orbatlas.* keys win over what is derived above
     apply_slam_tuning(settings.orbatlas, options_);
@@ -92,6 +89,20 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
       options_.mapper.culling.max_inertial_span_initialized_s = 3.0;
   }
   options_.check();
+  if (!monocular_) {
+    // A metric session (stereo, RGB-D) neither enters nor merges into a map of
+    // free scale (a monocular one): its points would disagree in scale.
+    const auto metric = [&atlas = atlas_](MapId id) {
+      const auto map = atlas.map(id);
+      return map && map->metric_scale();
+    };
+    const auto only_metric = [metric](std::function<bool(MapId)> allowed) {
+      return std::function<bool(MapId)>(
+          [metric, allowed = std::move(allowed)](MapId id) { return metric(id) && (!allowed || allowed(id)); });
+    };
+    wiring.may_enter_map = only_metric(std::move(wiring.may_enter_map));
+    wiring.may_merge_into = only_metric(std::move(wiring.may_merge_into));
+  }
   // A single camera's map has no metric scale, so the body is the camera
   // itself (a lever arm in metres would not fit the map's units): the poses
   // reported are the camera's.

@@ -31,7 +31,9 @@ class FrameFrontend {
 };
 
 // A stereo front end for stereo settings, an RGB-D one for rgbd settings, a
-// single-camera one for mono and mono_inertial settings.
+// single-camera one for mono and mono_inertial settings: the rectified left
+// camera of the rig when the settings still hold a second camera (a stereo
+// config used as a single camera), else the camera as it is.
 std::unique_ptr<FrameFrontend> make_frame_frontend(const SlamSettings& settings);
 
 }  // namespace orbatlas

@@ -9,6 +9,7 @@
 #include "core/common/error.h"
 #include "core/tracking/gray_image.h"
 #include "core/tracking/mono_frontend.h"
+#include "core/tracking/stereo_left_frontend.h"
 #include "core/tracking/stereo_frontend.h"
 
 namespace orbatlas {
@@ -82,8 +83,11 @@ FrameCamera RgbdFrontend::frame_camera() const { return make_frame_camera(*camer
 
 std::unique_ptr<FrameFrontend> make_frame_frontend(const SlamSettings& settings) {
   if (settings.is_rgbd()) return std::make_unique<RgbdFrontend>(settings);
-  if (settings.sensor == SensorType::kMonocular || settings.sensor == SensorType::kMonocularInertial)
+  if (settings.sensor == SensorType::kMonocular || settings.sensor == SensorType::kMonocularInertial) {
+    // The left camera of a stereo rig: rectified as the rig's stereo maps are.
+    if (settings.camera1) return std::make_unique<StereoLeftFrontend>(settings);
     return std::make_unique<MonoFrontend>(settings);
+  }
   ORBATLAS_CHECK(settings.is_stereo(), "no front end for sensor " << sensor_type_name(settings.sensor));
   return std::make_unique<StereoFrontend>(settings);
 }

@@ -269,6 +269,7 @@ void Tracker::start_new_map() {
 
 void Tracker::follow_merged_map() {
   if (!map_ || atlas_.map(map_->id())) return;  // still in the atlas
+  adopt_map_units();                            // a merge scales a map of free scale before moving it
   // Merged away: the keyframes went with it, so the reference says where to.
   std::shared_ptr<Map> into = reference_ ? atlas_.map(reference_->map_id()) : nullptr;
   if (!into) {
