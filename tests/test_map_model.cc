@@ -360,7 +360,7 @@ TEST(MapModel, ChangingTheFrameMovesEverythingAndKeepsTheGeometry) {
 
 // Rescaling a map (a monocular map made metric by its IMU): positions, point
 // distances, IMU velocities and culled keyframes' anchors scale; rotations and
-// viewing directions stay; units_scale() accumulates and the epoch moves on.
+// viewing directions stay; the keyframes' units accumulate and the epoch moves on.
 TEST(MapModel, RescalingScalesPositionsDistancesVelocitiesAndAnchors) {
   Atlas atlas;
   auto map = atlas.create_map();
@@ -382,7 +382,8 @@ TEST(MapModel, RescalingScalesPositionsDistancesVelocitiesAndAnchors) {
   const auto epoch = map->frame_epoch();
   map->rescale(2.5);
   map->rescale(2.0);
-  EXPECT_DOUBLE_EQ(map->units_scale(), 5.0);
+  EXPECT_DOUBLE_EQ(a->units(), 5.0);
+  EXPECT_DOUBLE_EQ(map->keyframe_placement(c->id())->units, 5.0);  // culled: through b
   EXPECT_EQ(map->frame_epoch(), epoch + 2);
   EXPECT_LT((a->T_w_b().t - Eigen::Vector3d(5, 10, 15)).norm(), 1e-12);
   EXPECT_LT(a->T_w_b().q.angularDistance(qa), 1e-12);
@@ -420,6 +421,39 @@ TEST(MapModel, AMapIsMetricWithAKeyframeOfMeasuredDepthOrAnImu) {
   const auto kf = stereo_map->new_keyframe(stereo);
   EXPECT_TRUE(kf->has_depth());
   EXPECT_TRUE(stereo_map->metric_scale());
+}
+
+// Frame anchors are stored in their keyframe's units, culled anchors in their
+// parent's: a later change of scale about a keyframe (a Sim(3) loop moving
+// it, a rescale of the map) moves and scales what hangs from it, exactly.
+TEST(MapModel, AnchorsFollowTheirKeyframesUnitsThroughCulledParents) {
+  Atlas atlas;
+  auto map = atlas.create_map();
+  auto a = map->new_keyframe(keyframe_data(1));
+  auto b = map->new_keyframe(keyframe_data(1));
+  a->set_T_w_b(Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 0, 0)));
+  b->set_T_w_b(Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 2, 0)));
+  b->set_parent(a);
+  b->scale_units(2.0);  // b's neighbourhood was scaled once already
+  // A frame 4 along z from b, stored as tracking stores it: divided by b's units.
+  const FrameAnchor frame{1, map->id(), b->id(), Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 2))};
+  const auto at = [&] { return atlas.frame_pose(frame).value().t; };
+  EXPECT_LT((at() - Eigen::Vector3d(1, 2, 4)).norm(), 1e-12);
+  ASSERT_TRUE(map->cull_keyframe(b->id()));
+  EXPECT_LT((at() - Eigen::Vector3d(1, 2, 4)).norm(), 1e-12);  // through a now
+  EXPECT_DOUBLE_EQ(map->keyframe_placement(b->id())->units, 2.0);
+
+  // A Sim(3) correction about a: moved to the origin, lengths about it x3.
+  a->set_T_w_b(Pose3());
+  a->scale_units(3.0);
+  EXPECT_LT((map->keyframe_pose(b->id())->t - Eigen::Vector3d(0, 6, 0)).norm(), 1e-12);
+  EXPECT_DOUBLE_EQ(map->keyframe_placement(b->id())->units, 6.0);
+  EXPECT_LT((at() - Eigen::Vector3d(0, 6, 12)).norm(), 1e-12);
+  // The whole map halved.
+  map->rescale(0.5);
+  EXPECT_LT((at() - Eigen::Vector3d(0, 3, 6)).norm(), 1e-12);
+  EXPECT_THROW(a->scale_units(0.0), Error);
+  EXPECT_THROW(a->set_units(-1.0), Error);
 }
 
 }  // namespace

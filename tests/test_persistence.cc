@@ -101,7 +101,7 @@ TEST(Persistence, VersionOneAtlasMigratesForward) {
         "PRAGMA foreign_keys = OFF; BEGIN; DROP TABLE keyframe_imu_states; DROP TABLE keyframe_inertial_links; DROP "
         "TABLE map_inertial_states; "
         "DROP TABLE upload_jobs; DROP TRIGGER keyframes_not_culled; "
-        "DROP TABLE culled_keyframes; ALTER TABLE atlas DROP COLUMN "
+        "DROP TABLE culled_keyframes; ALTER TABLE keyframes DROP COLUMN units; ALTER TABLE atlas DROP COLUMN "
         "checkpoint_seq; DELETE FROM schema_migrations WHERE version >= 2; PRAGMA user_version = 1; COMMIT");
     ASSERT_EQ(raw.query_int64("SELECT count(*) FROM sqlite_schema WHERE name = 'keyframes_not_culled'"), 0);
   }
@@ -339,7 +339,8 @@ TEST(Persistence, VersionFiveSessionsSurviveTheRebuildForRgbd) {
         "PRAGMA foreign_keys = OFF; BEGIN; CREATE TABLE s5 (id INTEGER PRIMARY KEY CHECK (id >= 0), name TEXT NOT "
         "NULL, sensor TEXT NOT NULL CHECK (sensor IN ('mono', 'stereo', 'mono_inertial', 'stereo_inertial')), "
         "created_ns INTEGER NOT NULL) STRICT; INSERT INTO s5 SELECT * FROM sessions; DROP TABLE sessions; ALTER "
-        "TABLE s5 RENAME TO sessions; DELETE FROM schema_migrations WHERE version >= 6; PRAGMA user_version = 5; "
+        "TABLE s5 RENAME TO sessions; ALTER TABLE keyframes DROP COLUMN units; ALTER TABLE culled_keyframes DROP "
+        "COLUMN units; DELETE FROM schema_migrations WHERE version >= 6; PRAGMA user_version = 5; "
         "COMMIT");
     EXPECT_THROW(raw.exec("INSERT INTO sessions VALUES (4, 'x', 'rgbd', 0)"), Error);
   }
@@ -625,12 +626,14 @@ TEST(Persistence, SchemaConstraintsHold) {
   EXPECT_THROW(raw.exec("UPDATE keyframes SET features = 'text, not a blob'"), Error);  // STRICT types
   EXPECT_THROW(raw.exec("UPDATE map_points SET descriptor = zeroblob(31)"), Error);
   // Culled keyframes: never alive at the same time, not their own parent, a unit quaternion.
-  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (1, 1, NULL, 1, 0, 0, 0, 0, 0, 0)"), Error);
-  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (2, 1, 2, 1, 0, 0, 0, 0, 0, 0)"), Error);
-  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (2, 1, 1, 0.5, 0, 0, 0, 0, 0, 0)"), Error);
-  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (2, 7, 1, 1, 0, 0, 0, 0, 0, 0)"), Error);  // no map 7
-  raw.exec("INSERT INTO culled_keyframes VALUES (2, 1, 1, 1, 0, 0, 0, 0, 0, 0)");
-  raw.exec("INSERT INTO culled_keyframes VALUES (3, 1, 2, 1, 0, 0, 0, 0, 0, 0)");  // a chain 3 -> 2 -> 1
+  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (1, 1, NULL, 1, 0, 0, 0, 0, 0, 0, 1)"), Error);
+  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (2, 1, 2, 1, 0, 0, 0, 0, 0, 0, 1)"), Error);
+  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (2, 1, 1, 0.5, 0, 0, 0, 0, 0, 0, 1)"), Error);
+  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (2, 7, 1, 1, 0, 0, 0, 0, 0, 0, 1)"), Error);  // no map 7
+  EXPECT_THROW(raw.exec("INSERT INTO culled_keyframes VALUES (2, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0)"), Error);  // units
+  EXPECT_THROW(raw.exec("UPDATE keyframes SET units = -2"), Error);
+  raw.exec("INSERT INTO culled_keyframes VALUES (2, 1, 1, 1, 0, 0, 0, 0, 0, 0, 1)");
+  raw.exec("INSERT INTO culled_keyframes VALUES (3, 1, 2, 1, 0, 0, 0, 0, 0, 0, 1)");  // a chain 3 -> 2 -> 1
   EXPECT_THROW(raw.exec("INSERT INTO keyframes(id, map_id, timestamp_ns, qw, qx, qy, qz, tx, ty, tz, "
                         "c_qw, c_qx, c_qy, c_qz, c_tx, c_ty, c_tz, slot_count, features) "
                         "VALUES (2, 1, 0, 1, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 4, X'')"),

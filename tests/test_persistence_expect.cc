@@ -36,6 +36,8 @@ void expect_keyframe_eq(const Map& map_a, const KeyFrame& a, const KeyFrame& b, 
   }
   EXPECT_EQ(a.features().descriptors, b.features().descriptors) << what;
   EXPECT_EQ(a.is_stereo(), b.is_stereo()) << what;
+  EXPECT_EQ(a.has_depth(), b.has_depth()) << what;
+  EXPECT_EQ(a.units(), b.units()) << what;
   if (same_bow) {
     EXPECT_EQ(a.bow(), b.bow()) << what;
     EXPECT_EQ(a.feature_vector(), b.feature_vector()) << what;
@@ -105,6 +107,7 @@ void expect_culled_eq(const Map& a, const Map& b) {
     ASSERT_EQ(ca[i].id, cb[i].id) << what;
     EXPECT_EQ(ca[i].parent, cb[i].parent) << what;
     expect_pose_eq(ca[i].T_parent_b, cb[i].T_parent_b, what + " T_parent_b");
+    EXPECT_EQ(ca[i].units, cb[i].units) << what;
     // What trajectories anchored to it resolve to: chained through the same
     // (possibly culled) parents to the same alive keyframe.
     const auto pa = a.keyframe_pose(ca[i].id), pb = b.keyframe_pose(cb[i].id);

@@ -146,6 +146,9 @@ void build_atlas(Atlas& atlas, const Vocabulary& vocabulary, std::uint64_t seed)
   pa[10]->set_reference_keyframe(obs.back().kf.lock());
   // Culling: ka[3] has children to reattach and a loop edge; a point goes too.
   // ka[7] (parent ka[6]) and then its parent: a chain of two culled anchors.
+  // Keyframes of different units (a monocular map after Sim(3) corrections).
+  ka[6]->scale_units(1.5);
+  ka[7]->scale_units(0.8);
   ORBATLAS_CHECK(a->cull_keyframe(ka[3]->id()), "cull");
   ORBATLAS_CHECK(a->cull_map_point(pa[20]->id()), "cull");
   ORBATLAS_CHECK(a->cull_keyframe(ka[7]->id()), "cull");
@@ -164,6 +167,7 @@ void build_atlas(Atlas& atlas, const Vocabulary& vocabulary, std::uint64_t seed)
   alive_a[1]->update_connections(1000);
   // Moving the parent afterwards moves the culled keyframes anchored to it.
   alive_a[2]->set_T_w_b(random_pose(rng));
+  alive_a[2]->scale_units(2.0);
 
   // Map b: 5 keyframes; its last keyframe and point are culled.
   std::vector<std::shared_ptr<KeyFrame>> kb;
@@ -176,6 +180,8 @@ void build_atlas(Atlas& atlas, const Vocabulary& vocabulary, std::uint64_t seed)
   kb[1]->add_loop_edge(kb[3]);
   auto last_kf = add_random_keyframe(*b, rng, &vocabulary, 20, true);  // a root: anchored in the world
   auto last_mp = add_random_point(*b, rng);
+  kb[2]->scale_units(0.7);
+  last_kf->scale_units(1.3);
   ORBATLAS_CHECK(b->cull_keyframe(last_kf->id()), "cull");
   ORBATLAS_CHECK(b->cull_map_point(last_mp->id()), "cull");
 

@@ -333,6 +333,64 @@ TEST(ServerEndToEnd, ASingleCameraSessionMapsAtItsOwnScale) {
   EXPECT_EQ(uploaded["mode"], "map");
 }
 
+// A single camera with its IMU maps on the server (monocular-inertial SLAM):
+// its map starts at its own scale and becomes metric at the inertial
+// initialisation, which rescales the frames already checkpointed relative to
+// its keyframes too (FrameAnchor units): a restarted server gives the same
+// metric trajectory.
+TEST(ServerEndToEnd, ASingleCameraWithItsImuMapsInMetres) {
+  const auto clip = test::simulated_clip("MH_01", 50.0, 10.0);
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath db("mono_inertial_map");
+  const EurocDataset dataset = test::stereo_dataset(clip);
+  const auto camera_ate = [&](const Trajectory& trajectory) {
+    EvalOptions eval;  // SE3: metric
+    eval.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;
+    return evaluate_trajectory(trajectory, from_ground_truth_states(dataset.ground_truth), eval).ate.rmse;
+  };
+  std::uint64_t session = 0;
+  double streamed_ate = 0.0;
+  {
+    test::TestServer server(test::server_options(db.path));
+    ServerClient client(server.url());
+    StreamOptions o = test::stream_options(clip);
+    o.config = "euroc/mono_inertial";  // maps by default
+    const StreamReport report = stream_dataset(client, o);
+    session = report.session;
+    EXPECT_EQ(report.finish_status.value("sensor", ""), "mono_inertial");
+    EXPECT_EQ(report.finish_status.value("mode", ""), "map");
+    EXPECT_GT(report.imu_samples, 1800u);  // 200 Hz over 10 s
+    const nlohmann::json& slam = report.finish_status.at("slam");
+    ASSERT_TRUE(slam.contains("imu_initialized_at_s")) << report.finish_status.dump();
+    EXPECT_LT(slam["imu_initialized_at_s"].get<double>(), 4.0);
+    ASSERT_TRUE(report.ate_rmse_m.has_value());
+    EXPECT_FALSE(report.ate_sim3);
+    streamed_ate = *report.ate_rmse_m;
+    std::printf(
+        "single camera with IMU over HTTP: %zu of %zu frames tracked, IMU initialised at %.2f s, ATE %.4f m "
+        "(SE3)\n",
+        report.tracked, report.frames, slam["imu_initialized_at_s"].get<double>(), streamed_ate);
+    EXPECT_GE(report.tracked + 8, report.frames);
+    // Measured 0.007-0.086 m over six runs (alone and under the full suite's
+    // load): the server maps asynchronously, and when the inertial
+    // initialisation and its refinement run moves the scale (docs/monocular.md).
+    EXPECT_LT(streamed_ate, 0.15);
+  }
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  std::vector<MapId> maps;
+  const Trajectory stored = parse_tum_trajectory(client.trajectory_tum(session), "stored", &maps);
+  const double stored_ate = camera_ate(stored);
+  EvalOptions sim3;
+  sim3.align = AlignMode::kSim3;
+  sim3.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;
+  const double scale =
+      evaluate_trajectory(stored, from_ground_truth_states(dataset.ground_truth), sim3).alignment.scale;
+  std::printf("after a restart: %zu poses, ATE %.4f m (SE3), Sim3 scale %.4f\n", stored.size(), stored_ate, scale);
+  EXPECT_NEAR(stored_ate, streamed_ate, 1e-4);
+  EXPECT_NEAR(scale, 1.0, 0.05);  // metric (measured within 0.015), not the arbitrary scale of its start
+}
+
 TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
   const std::array<std::filesystem::path, 3> clips = {test::simulated_clip("MH_01", 40.0, 4.0),
                                                       test::simulated_clip("MH_02", 30.0, 4.0),
@@ -731,6 +789,62 @@ TEST(ServerMerging, ASessionsMapIsMergedWhileItStreams) {
   EXPECT_NEAR(ate_restarted, ate_live, 1e-4);
   std::printf("joint ATE of both sessions after the live merge: %.4f m (after restart %.4f m)\n", ate_live,
               ate_restarted);
+}
+
+// The left camera of the stereo rig streamed alone (sensor mono, mode map)
+// maps at its own scale until it recognises the rig's stereo map; the live
+// merge, a similarity, makes its map and its frames (those stored before
+// included) metric: its trajectory then meets the ground truth with a rigid
+// alignment, also from a restarted server.
+TEST(ServerMerging, ALeftCameraSessionIsMergedIntoTheStereoMapAndBecomesMetric) {
+  const std::vector<std::filesystem::path> clips = {test::simulated_clip("MH_01", 46.0, 8.0),
+                                                    test::simulated_clip("MH_02", 38.0, 8.0)};
+  const test::ClipCleanup cleanups[] = {{clips[0]}, {clips[1]}};
+  test::TempDbPath db("mono_left_merge");
+  const EurocDataset dataset = test::stereo_dataset(clips[1]);
+  const auto camera_eval = [&](const Trajectory& trajectory, AlignMode align) {
+    EvalOptions eval;
+    eval.align = align;
+    eval.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;  // its poses are the camera's
+    return evaluate_trajectory(trajectory, from_ground_truth_states(dataset.ground_truth), eval);
+  };
+  std::uint64_t session = 0;
+  double ate_live = 0.0;
+  {
+    AtlasServiceOptions options = test::server_options(db.path);
+    options.start_in_stored_maps = false;  // the second session starts apart
+    test::TestServer server(options);
+    ServerClient client(server.url());
+    const StreamReport a = stream_dataset(client, test::stream_options(clips[0]));
+    ASSERT_FALSE(a.reply_maps.empty());
+    const std::uint64_t first_map = a.reply_maps.back();
+    StreamOptions o = test::stream_options(clips[1]);
+    o.sensor = "mono";
+    o.mode = "map";
+    const StreamReport b = stream_dataset(client, o);
+    session = b.session;
+    ASSERT_FALSE(b.reply_maps.empty());
+    ASSERT_NE(b.reply_maps.front(), first_map);  // it started on its own
+    const auto switched = std::find(b.reply_maps.begin(), b.reply_maps.end(), first_map);
+    ASSERT_NE(switched, b.reply_maps.end()) << "the single camera's map was not merged into the stereo one";
+    EXPECT_GT(b.reply_maps.end() - switched, 100);
+    const auto merges = wait_for_merges(client);
+    ASSERT_EQ(merges["live_merges"].size(), 1u) << merges.dump(2);
+    EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
+    const Trajectory trajectory = parse_tum_trajectory(client.trajectory_tum(session), "mono", nullptr);
+    ate_live = camera_eval(trajectory, AlignMode::kSe3).ate.rmse;
+    const double scale = camera_eval(trajectory, AlignMode::kSim3).alignment.scale;
+    std::printf(
+        "left camera merged into the stereo map: %zu of %zu replies after it, ATE %.4f m (SE3), Sim3 scale "
+        "%.4f\n",
+        static_cast<std::size_t>(b.reply_maps.end() - switched), b.reply_maps.size(), ate_live, scale);
+    EXPECT_LT(ate_live, 0.02);
+    EXPECT_NEAR(scale, 1.0, 0.02);
+  }
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  const Trajectory stored = parse_tum_trajectory(client.trajectory_tum(session), "stored", nullptr);
+  EXPECT_NEAR(camera_eval(stored, AlignMode::kSe3).ate.rmse, ate_live, 1e-4);
 }
 
 // Local mapping adjusts every keyframe of the map it works in with its own

@@ -321,12 +321,13 @@ TEST(SharedMaps, TheModeIsCheckedAtStart) {
   const auto [bad_status, bad_body] = refused({{"config", "euroc/stereo"}, {"mode", "fly"}});
   EXPECT_EQ(bad_status, 400) << bad_body;
   EXPECT_NE(bad_body.find("map or localize"), std::string::npos) << bad_body;
-  // A single camera with its IMU cannot map yet.
-  const auto [mono_status, mono_body] = refused({{"config", "euroc/mono_inertial"}, {"mode", "map"}});
-  EXPECT_EQ(mono_status, 422) << mono_body;
-  EXPECT_NE(mono_body.find("cannot_map"), std::string::npos) << mono_body;
-  // Defaults: map for a stereo rig and a single camera of a mono config;
-  // localize for the first camera of a stereo config and a mono_inertial one.
+  // A single camera with its IMU needs a config that has one.
+  const auto [mono_status, mono_body] =
+      refused({{"config", "euroc/mono"}, {"sensor", "mono_inertial"}, {"mode", "map"}});
+  EXPECT_EQ(mono_status, 400) << mono_body;
+  EXPECT_NE(mono_body.find("IMU"), std::string::npos) << mono_body;
+  // Defaults: map for a stereo rig and a single camera of a single-camera
+  // config (mono, mono_inertial); localize for the first camera of a stereo config.
   const nlohmann::json stereo = client.start_session("euroc/stereo", "s");
   EXPECT_EQ(stereo["session"]["mode"], "map");
   const nlohmann::json mono = client.start_session("euroc/mono", "m");
@@ -334,7 +335,7 @@ TEST(SharedMaps, TheModeIsCheckedAtStart) {
   const nlohmann::json left = client.start_session("euroc/stereo", "l", "mono");
   EXPECT_EQ(left["session"]["mode"], "localize");
   const nlohmann::json mono_inertial = client.start_session("euroc/mono_inertial", "mi");
-  EXPECT_EQ(mono_inertial["session"]["mode"], "localize");
+  EXPECT_EQ(mono_inertial["session"]["mode"], "map");
   for (const auto* s : {&stereo, &mono, &left, &mono_inertial}) client.finish_session((*s)["id"]);
 }
 

@@ -140,12 +140,13 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
     try {
       EvalOptions eval;
       if (monocular_map) {
-        eval.align = AlignMode::kSim3;
+        // The camera's poses; at the map's own scale, unless the IMU made it metric.
+        if (sensor != "mono_inertial") eval.align = AlignMode::kSim3;
         eval.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;
       }
       report.ate_rmse_m =
           evaluate_trajectory(report.trajectory, from_ground_truth_states(dataset.ground_truth), eval).ate.rmse;
-      report.ate_sim3 = monocular_map;
+      report.ate_sim3 = eval.align == AlignMode::kSim3;
     } catch (const Error& e) {
       log_warn(std::string("no ATE: ") + e.what());
     }

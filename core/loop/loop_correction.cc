@@ -167,8 +167,12 @@ GraphSolution optimise_essential_graph(Map& map, const PlaceMatch& loop, Correct
 // corrected them, else their reference keyframe.
 void apply_solution(Map& map, const CorrectedGroup& g, const GraphSolution& solution, const FrameCamera& cam) {
   for (const auto& kf : map.keyframes())
-    if (const auto it = solution.optimised.find(kf->id()); it != solution.optimised.end() && !kf->is_bad())
+    if (const auto it = solution.optimised.find(kf->id()); it != solution.optimised.end() && !kf->is_bad()) {
       set_camera_pose(*kf, rigid_pose_c_w(it->second));
+      // Lengths about the keyframe were multiplied by 1 / s (the points below
+      // follow it the same way; a metric map's s is 1).
+      if (it->second.s != 1.0) kf->scale_units(1.0 / it->second.s);
+    }
   for (const auto& mp : map.map_points()) {
     if (mp->is_bad()) continue;
     KeyframeId ref = 0;

@@ -57,8 +57,8 @@ MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamer
   const Sim3 S_wt_ws = match.S_c_w_corrected.inverse() * Sim3(T_ws_c.inverse());
   if (match.scale_free) {
     // A map of free scale (monocular) takes the target's: scaled about its
-    // origin first (lengths, and the tracker's poses kept relative to its
-    // keyframes follow units_scale()), then moved rigidly.
+    // origin first (lengths, and with its keyframes' units the poses kept
+    // relative to them), then moved rigidly.
     ORBATLAS_CHECK(!source->inertial_state(),
                    "map merge: map " << source->id() << " is inertial (metric); a merge cannot change its scale");
     stats.scale = S_wt_ws.s;

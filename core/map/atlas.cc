@@ -61,11 +61,17 @@ std::optional<Pose3> Atlas::frame_pose(const FrameAnchor& anchor) const {
 }
 
 std::optional<std::pair<MapId, Pose3>> Atlas::locate_frame(const FrameAnchor& anchor) const {
+  // The anchor's translation is in its reference keyframe's units (FrameAnchor).
+  const auto place = [&](const Map::KeyframePlacement& ref) {
+    Pose3 T_ref_b = anchor.T_ref_b;
+    T_ref_b.t *= ref.units;
+    return ref.T_w_b * T_ref_b;
+  };
   if (const auto m = map(anchor.map))
-    if (const auto T_w_ref = m->keyframe_pose(anchor.reference)) return std::pair{m->id(), *T_w_ref * anchor.T_ref_b};
+    if (const auto ref = m->keyframe_placement(anchor.reference)) return std::pair{m->id(), place(*ref)};
   // A merge moved the reference keyframe into another map.
   for (const auto& m : maps())
-    if (const auto T_w_ref = m->keyframe_pose(anchor.reference)) return std::pair{m->id(), *T_w_ref * anchor.T_ref_b};
+    if (const auto ref = m->keyframe_placement(anchor.reference)) return std::pair{m->id(), place(*ref)};
   return std::nullopt;
 }
 

@@ -2,6 +2,7 @@
 #include "core/map/keyframe.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "core/common/error.h"
 
@@ -73,6 +74,25 @@ Pose3 KeyFrame::T_w_c() const { return T_w_b() * data_.T_b_c; }
 void KeyFrame::set_T_w_b(const Pose3& T_w_b) {
   std::lock_guard lock(mutex_);
   T_w_b_ = T_w_b;
+}
+
+double KeyFrame::units() const {
+  std::lock_guard lock(mutex_);
+  return units_;
+}
+
+void KeyFrame::scale_units(double factor) {
+  ORBATLAS_CHECK(std::isfinite(factor) && factor > 0.0,
+                 "keyframe " << id_ << ": units are scaled by a finite factor > 0, not " << factor);
+  std::lock_guard lock(mutex_);
+  units_ *= factor;
+}
+
+void KeyFrame::set_units(double units) {
+  ORBATLAS_CHECK(std::isfinite(units) && units > 0.0,
+                 "keyframe " << id_ << ": units must be finite and > 0, not " << units);
+  std::lock_guard lock(mutex_);
+  units_ = units;
 }
 
 SlotEdit KeyFrame::attach_locked(std::size_t slot, const std::shared_ptr<MapPoint>& map_point) {

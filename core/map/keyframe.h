@@ -61,6 +61,14 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   Pose3 T_w_b() const;
   Pose3 T_w_c() const;
   void set_T_w_b(const Pose3& T_w_b);
+  // The scale of lengths about the keyframe since it was made (1 at first): a
+  // map's rescale multiplies it for every keyframe, a Sim(3) loop correction by
+  // the keyframe's own scale change. Poses kept relative to the keyframe
+  // (FrameAnchor) are stored divided by it, so they follow every later change
+  // of scale (docs/map_model.md); always 1 in metric maps.
+  double units() const;
+  void scale_units(double factor);  // Error unless finite and > 0
+  void set_units(double units);     // loading a map
 
   // --- observations (both sides: the slot and the map point's observer list) ---
   // Puts the point in a free slot, as one step against concurrent edits: what
@@ -175,6 +183,7 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
 
   mutable std::mutex mutex_;  // guards everything below
   Pose3 T_w_b_;
+  double units_ = 1.0;
   std::vector<std::shared_ptr<MapPoint>> slots_;
   std::map<KeyframeId, Link> connections_;
   std::vector<CovisibilityEdge> ordered_;  // connections_ by weight descending, id ascending

@@ -111,7 +111,8 @@ std::vector<Map::CulledKeyframe> Map::culled_keyframes() const {
   {
     std::lock_guard lock(objects_mutex_);  // culling records anchors under it
     out.reserve(culled_anchors_.size());
-    for (const auto& [id, anchor] : culled_anchors_) out.push_back({id, anchor.parent, anchor.T_parent_b});
+    for (const auto& [id, anchor] : culled_anchors_)
+      out.push_back({id, anchor.parent, anchor.T_parent_b, anchor.units});
   }
   std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.id < b.id; });
   return out;
@@ -121,7 +122,9 @@ void Map::restore_culled_keyframes(const std::vector<CulledKeyframe>& culled) {
   std::lock_guard lock(objects_mutex_);
   for (const CulledKeyframe& c : culled) {
     ORBATLAS_CHECK(!keyframes_.contains(c.id), "map " << id_ << ": culled keyframe " << c.id << " is alive here");
-    const bool inserted = culled_anchors_.try_emplace(c.id, CulledAnchor{c.parent, c.T_parent_b}).second;
+    ORBATLAS_CHECK(std::isfinite(c.units) && c.units > 0.0,
+                   "map " << id_ << ": culled keyframe " << c.id << " has units " << c.units);
+    const bool inserted = culled_anchors_.try_emplace(c.id, CulledAnchor{c.parent, c.T_parent_b, c.units}).second;
     ORBATLAS_CHECK(inserted, "map " << id_ << ": culled keyframe " << c.id << " restored twice");
   }
 }
@@ -186,6 +189,7 @@ void Map::rescale(double s) {
     Pose3 T = kf->T_w_b();
     T.t *= s;
     kf->set_T_w_b(T);
+    kf->scale_units(s);
     if (auto imu = kf->imu_state()) {
       imu->v_i *= s;
       kf->set_imu_state(*imu);
@@ -197,8 +201,12 @@ void Map::rescale(double s) {
   }
   {
     std::lock_guard lock(objects_mutex_);
-    for (auto& [id, anchor] : culled_anchors_) anchor.T_parent_b.t *= s;
-    units_scale_ *= s;
+    // Anchors below a parent follow its units; a root's world pose scales.
+    for (auto& [id, anchor] : culled_anchors_)
+      if (!anchor.parent) {
+        anchor.T_parent_b.t *= s;
+        anchor.units *= s;
+      }
   }
   frame_epoch_.fetch_add(1);
 }
@@ -209,11 +217,6 @@ bool Map::metric_scale() const {
   for (const auto& [id, kf] : keyframes_)
     if (kf->has_depth()) return true;
   return false;
-}
-
-double Map::units_scale() const {
-  std::lock_guard lock(objects_mutex_);
-  return units_scale_;
 }
 
 std::optional<Map::InertialState> Map::inertial_state() const {

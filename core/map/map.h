@@ -55,12 +55,23 @@ class Map {
   // few bytes per culled keyframe; the keyframe itself is freed), so frame poses
   // anchored to it follow later corrections. Null for an id the map never held.
   std::optional<Pose3> keyframe_pose(KeyframeId id) const;
+  // The same with the keyframe's units (KeyFrame::units; a culled keyframe's
+  // through its anchors): a pose stored relative to it, divided by those units,
+  // is T_w_b * (its rotation, its translation * units).
+  struct KeyframePlacement {
+    Pose3 T_w_b;
+    double units = 1.0;
+  };
+  std::optional<KeyframePlacement> keyframe_placement(KeyframeId id) const;
 
   // What a culled keyframe leaves for keyframe_pose, as persisted with the map.
   struct CulledKeyframe {
     KeyframeId id = 0;
     std::optional<KeyframeId> parent;  // none: T_parent_b is the world pose
+    // Relative to the parent, its translation divided by the parent's units
+    // (so it follows the parent's later changes of scale); a root's is its world pose.
     Pose3 T_parent_b;
+    double units = 1.0;  // the culled keyframe's units over its parent's (a root's own units)
   };
   // Snapshot of every culled keyframe's anchor, by id.
   std::vector<CulledKeyframe> culled_keyframes() const;
@@ -104,23 +115,21 @@ class Map {
   void change_frame(const Pose3& T_new_old);
   std::uint64_t frame_epoch() const { return frame_epoch_.load(); }
   // Scales the whole map about its origin by `s` > 0 (a monocular map made
-  // metric by its inertial initialisation): keyframe positions, points and
-  // their distance bounds, culled keyframes' anchors, keyframe IMU velocities;
-  // frame_epoch() moves on and units_scale() is multiplied by `s`. The same
-  // rules as change_frame for the caller.
+  // metric by its inertial initialisation, or merged into a metric map):
+  // keyframe positions and units, points and their distance bounds, root
+  // culled keyframes' anchors, keyframe IMU velocities; frame_epoch() moves on.
+  // The same rules as change_frame for the caller.
   void rescale(double s);
   // Whether the map's lengths are metres: it is inertial (initialised) or
   // holds a keyframe with measured depths (stereo, RGB-D). A monocular map's
   // scale is its own until an IMU or a merge into a metric map gives it one.
   bool metric_scale() const;
-  // The product of every rescale so far (1 for a map never rescaled): poses
-  // kept relative to its keyframes from before a rescale scale by the ratio.
-  double units_scale() const;
 
  private:
   struct CulledAnchor {
     std::optional<KeyframeId> parent;  // none: T is the world pose
-    Pose3 T_parent_b;
+    Pose3 T_parent_b;                  // as CulledKeyframe
+    double units = 1.0;
   };
 
   void reattach_children(const std::shared_ptr<KeyFrame>& culled);
@@ -139,7 +148,6 @@ class Map {
   std::unordered_map<KeyframeId, std::shared_ptr<KeyFrame>> keyframes_;
   std::unordered_map<KeyframeId, CulledAnchor> culled_anchors_;
   std::optional<InertialState> inertial_;  // guarded by objects_mutex_
-  double units_scale_ = 1.0;               // guarded by objects_mutex_
   std::atomic<std::uint64_t> frame_epoch_{0};
 };
 

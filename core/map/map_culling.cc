@@ -2,6 +2,7 @@
 // once; then every relation is detached, so that only threads still holding a
 // shared_ptr keep it alive. The last of them frees it.
 #include <map>
+#include <vector>
 
 #include "core/map/map.h"
 
@@ -41,10 +42,14 @@ bool Map::cull_keyframe(KeyframeId id) {
   {
     CulledAnchor anchor;
     if (const auto parent = kf->parent()) {
+      const double parent_units = parent->units();
       anchor.parent = parent->id();
       anchor.T_parent_b = parent->T_w_b().inverse() * kf->T_w_b();
+      anchor.T_parent_b.t /= parent_units;
+      anchor.units = kf->units() / parent_units;
     } else {
       anchor.T_parent_b = kf->T_w_b();
+      anchor.units = kf->units();
     }
     std::lock_guard lock(objects_mutex_);
     culled_anchors_[id] = anchor;
@@ -90,21 +95,46 @@ void Map::reattach_children(const std::shared_ptr<KeyFrame>& culled) {
 }
 
 std::optional<Pose3> Map::keyframe_pose(KeyframeId id) const {
-  Pose3 T_anchor_b;  // accumulated: the pose of the body in the current anchor's frame
-  std::unique_lock lock(objects_mutex_);
-  for (std::size_t hops = 0; hops <= culled_anchors_.size(); ++hops) {
-    if (const auto it = keyframes_.find(id); it != keyframes_.end()) {
-      const auto kf = it->second;
-      lock.unlock();
-      return kf->T_w_b() * T_anchor_b;
+  const auto placement = keyframe_placement(id);
+  if (!placement) return std::nullopt;
+  return placement->T_w_b;
+}
+
+std::optional<Map::KeyframePlacement> Map::keyframe_placement(KeyframeId id) const {
+  // The chain of culled anchors from `id` up to a live keyframe or a root,
+  // then composed from the top down (each step scaled by its parent's units).
+  std::vector<CulledAnchor> chain;
+  std::shared_ptr<KeyFrame> top;
+  {
+    std::lock_guard lock(objects_mutex_);
+    for (std::size_t hops = 0;; ++hops) {
+      if (hops > culled_anchors_.size()) return std::nullopt;  // a cycle: cannot happen with a tree, guarded anyway
+      if (const auto it = keyframes_.find(id); it != keyframes_.end()) {
+        top = it->second;
+        break;
+      }
+      const auto anchor = culled_anchors_.find(id);
+      if (anchor == culled_anchors_.end()) return std::nullopt;
+      chain.push_back(anchor->second);
+      if (!anchor->second.parent) break;
+      id = *anchor->second.parent;
     }
-    const auto anchor = culled_anchors_.find(id);
-    if (anchor == culled_anchors_.end()) return std::nullopt;
-    T_anchor_b = anchor->second.T_parent_b * T_anchor_b;
-    if (!anchor->second.parent) return T_anchor_b;
-    id = *anchor->second.parent;
   }
-  return std::nullopt;  // a cycle: cannot happen with a tree, guarded anyway
+  KeyframePlacement placement;
+  auto step = chain.rbegin();
+  if (top) {
+    placement = {top->T_w_b(), top->units()};
+  } else {  // a root anchor: its world pose and its own units
+    placement = {step->T_parent_b, step->units};
+    ++step;
+  }
+  for (; step != chain.rend(); ++step) {
+    Pose3 T = step->T_parent_b;
+    T.t *= placement.units;
+    placement.T_w_b = placement.T_w_b * T;
+    placement.units *= step->units;
+  }
+  return placement;
 }
 
 bool Map::cull_map_point(MapPointId id) {

@@ -5,6 +5,7 @@
 // records, redundancy counts, children lists, ordered covisibility — is rebuilt
 // by the same code that maintains it at run time.
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <unordered_map>
 
@@ -29,7 +30,7 @@ class AtlasReader {
         vocabulary_(vocabulary),
         report_(report),
         keyframes_(db.prepare("SELECT id, session_id, timestamp_ns, qw, qx, qy, qz, tx, ty, tz, "
-                              "c_qw, c_qx, c_qy, c_qz, c_tx, c_ty, c_tz, parent_id, slot_count, features "
+                              "c_qw, c_qx, c_qy, c_qz, c_tx, c_ty, c_tz, parent_id, slot_count, features, units "
                               "FROM keyframes WHERE map_id = ?1 ORDER BY id")),
         points_(db.prepare("SELECT id, x, y, z, nx, ny, nz, min_distance, max_distance, descriptor, "
                            "reference_keyframe_id, visible, found FROM map_points WHERE map_id = ?1 ORDER BY id")),
@@ -42,7 +43,7 @@ class AtlasReader {
         loop_edges_(db.prepare("SELECT l.keyframe_id, l.other_id FROM loop_edges l "
                                "JOIN keyframes k ON k.id = l.keyframe_id WHERE k.map_id = ?1 "
                                "ORDER BY l.keyframe_id, l.other_id")),
-        culled_(db.prepare("SELECT id, parent_id, qw, qx, qy, qz, tx, ty, tz FROM culled_keyframes "
+        culled_(db.prepare("SELECT id, parent_id, qw, qx, qy, qz, tx, ty, tz, units FROM culled_keyframes "
                            "WHERE map_id = ?1 ORDER BY id")),
         inertial_links_(db.prepare("SELECT l.keyframe_id, l.previous_id, l.increments FROM keyframe_inertial_links l "
                                    "JOIN keyframes k ON k.id = l.keyframe_id WHERE k.map_id = ?1 "
@@ -107,6 +108,10 @@ class AtlasReader {
       if (!row.is_null(17)) loaded.parent = id_column(row, 17);
       if (!row.is_null(1)) report_.keyframe_sessions[id] = id_column(row, 1);
       loaded.keyframe = KeyFrame::create(id, map.id(), std::move(data), map.counters());
+      const double units = row.real(20);
+      if (!(std::isfinite(units) && units > 0.0))
+        fail("keyframe " + std::to_string(id) + ": units " + std::to_string(units));
+      loaded.keyframe->set_units(units);
       map.add_keyframe(loaded.keyframe);
       keyframes_by_id_.emplace(id, std::move(loaded));
       max_keyframe_id = std::max(max_keyframe_id.value_or(0), id);
@@ -127,6 +132,9 @@ class AtlasReader {
       c.id = id_column(culled_, 0);
       if (!culled_.is_null(1)) c.parent = id_column(culled_, 1);
       c.T_parent_b = pose_columns(culled_, 2);
+      c.units = culled_.real(9);
+      if (!(std::isfinite(c.units) && c.units > 0.0))
+        fail("culled keyframe " + std::to_string(c.id) + ": units " + std::to_string(c.units));
       if (keyframes_by_id_.contains(c.id))
         fail("culled keyframe " + std::to_string(c.id) + " is also an alive keyframe of map " +
              std::to_string(map.id()));

@@ -47,12 +47,13 @@ AtlasRowWriter::AtlasRowWriter(SqliteDb& db)
                              "ON CONFLICT(id) DO UPDATE SET saved_ns = excluded.saved_ns")),
       insert_keyframe_(db.prepare(
           "INSERT INTO keyframes(id, map_id, session_id, timestamp_ns, qw, qx, qy, qz, tx, ty, tz, "
-          "c_qw, c_qx, c_qy, c_qz, c_tx, c_ty, c_tz, parent_id, slot_count, features) "
-          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21)")),
+          "c_qw, c_qx, c_qy, c_qz, c_tx, c_ty, c_tz, parent_id, slot_count, features, units) "
+          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, "
+          "?22)")),
       // The mutable columns only: the features blob (most of the bytes) is never rewritten.
       update_keyframe_(db.prepare(
           "UPDATE keyframes SET qw = ?2, qx = ?3, qy = ?4, qz = ?5, tx = ?6, ty = ?7, tz = ?8, parent_id = ?9, "
-          "session_id = coalesce(?10, session_id), map_id = ?11 WHERE id = ?1")),
+          "session_id = coalesce(?10, session_id), map_id = ?11, units = ?12 WHERE id = ?1")),
       delete_keyframe_(db.prepare("DELETE FROM keyframes WHERE id = ?1")),
       upsert_point_(db.prepare(
           "INSERT INTO map_points(id, map_id, x, y, z, nx, ny, nz, min_distance, max_distance, descriptor, "
@@ -65,11 +66,11 @@ AtlasRowWriter::AtlasRowWriter(SqliteDb& db)
           "found = excluded.found")),
       delete_point_(db.prepare("DELETE FROM map_points WHERE id = ?1")),
       upsert_culled_(
-          db.prepare("INSERT INTO culled_keyframes(id, map_id, parent_id, qw, qx, qy, qz, tx, ty, tz) "
-                     "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10) "
+          db.prepare("INSERT INTO culled_keyframes(id, map_id, parent_id, qw, qx, qy, qz, tx, ty, tz, units) "
+                     "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11) "
                      "ON CONFLICT(id) DO UPDATE SET map_id = excluded.map_id, parent_id = excluded.parent_id, "
                      "qw = excluded.qw, qx = excluded.qx, qy = excluded.qy, qz = excluded.qz, "
-                     "tx = excluded.tx, ty = excluded.ty, tz = excluded.tz")),
+                     "tx = excluded.tx, ty = excluded.ty, tz = excluded.tz, units = excluded.units")),
       upsert_inertial_link_(db.prepare("INSERT INTO keyframe_inertial_links(keyframe_id, previous_id, increments) "
                                        "VALUES (?1, ?2, ?3) ON CONFLICT(keyframe_id) DO UPDATE SET "
                                        "previous_id = excluded.previous_id, increments = excluded.increments")),
@@ -145,6 +146,7 @@ void AtlasRowWriter::insert_keyframe(const KeyframeRow& row) {
   bind_optional_id(s, 19, row.parent);
   s.bind_int64(20, static_cast<std::int64_t>(kf.slot_count()));
   s.bind_blob(21, features_blob(kf));
+  s.bind_real(22, row.units);
   run_once(s);
 }
 
@@ -155,6 +157,7 @@ void AtlasRowWriter::update_keyframe(const KeyframeRow& row) {
   bind_optional_id(s, 9, row.parent);
   bind_optional_id(s, 10, row.session);
   s.bind_int64(11, sql_id(row.map));
+  s.bind_real(12, row.units);
   run_once(s);
 }
 
@@ -231,6 +234,7 @@ void AtlasRowWriter::upsert_culled_keyframe(const CulledKeyframeRow& row) {
   s.bind_int64(1, sql_id(row.anchor.id)).bind_int64(2, sql_id(row.map));
   bind_optional_id(s, 3, row.anchor.parent);
   bind_pose(s, 4, row.anchor.T_parent_b);
+  s.bind_real(11, row.anchor.units);
   run_once(s);
 }
 

@@ -46,7 +46,7 @@ class MapRowCollector {
     for (const Map::CulledKeyframe& c : culled) {
       if (has_keyframe(c.id)) continue;
       CulledKeyframeRow row{map.id(), c, 0};
-      row.hash = RowHash().add(row.map).add(c.id).add(c.parent).add(c.T_parent_b).value();
+      row.hash = RowHash().add(row.map).add(c.id).add(c.parent).add(c.T_parent_b).add(c.units).value();
       rows_.culled.push_back(row);
     }
   }
@@ -61,9 +61,10 @@ class MapRowCollector {
     row.keyframe = kf;
     row.map = map;
     row.T_w_b = kf->T_w_b();
+    row.units = kf->units();
     if (const auto parent = kf->parent_id(); parent && has_keyframe(*parent)) row.parent = parent;
     row.session = session_of_ ? session_of_(row.id) : std::nullopt;
-    row.hash = RowHash().add(map).add(row.T_w_b).add(row.parent).value();
+    row.hash = RowHash().add(map).add(row.T_w_b).add(row.units).add(row.parent).value();
 
     const auto slots = kf->slots();
     row.slots.assign(slots.size(), kNoMapPoint);

@@ -25,9 +25,10 @@ struct KeyframeRow {
   std::shared_ptr<const KeyFrame> keyframe;
   MapId map = 0;
   Pose3 T_w_b;
+  double units = 1.0;                // KeyFrame::units
   std::optional<KeyframeId> parent;  // NULL: a root, or the parent is not in the snapshot
   std::optional<SessionId> session;  // none: the stored value stays (NULL for a new row)
-  // Of map, T_w_b and parent: the other columns never change for an id (the
+  // Of map, T_w_b, units and parent: the other columns never change for an id (the
   // features are immutable), and a keyframe's session is set once.
   std::uint64_t hash = 0;
   std::vector<MapPointId> slots;               // observations by slot; kNoMapPoint when empty

@@ -15,7 +15,12 @@ bool same_rig(const CameraRig& a, const CameraRig& b) {
 }
 
 bool same_mapping_rig(const MapRig& a, const MapRig& b) {
-  return a.inertial == b.inertial && same_rig(a.cameras, b.cameras);
+  return a.inertial == b.inertial && a.monocular == b.monocular && same_rig(a.cameras, b.cameras);
+}
+
+bool may_map_into(const MapRig& session, const MapRig& map) {
+  return session.inertial == map.inertial && (session.monocular || !map.monocular) &&
+         same_rig(session.cameras, map.cameras);
 }
 
 bool is_single_camera(SensorType sensor) {

@@ -20,17 +20,25 @@ using CameraRig = std::vector<CameraCalibration>;
 
 struct MapRig {
   CameraRig cameras;
-  bool inertial = false;  // mapped by sessions that fuse their IMU
+  bool inertial = false;   // mapped by sessions that fuse their IMU
+  bool monocular = false;  // mapped by single-camera sessions (monocular SLAM)
 };
 
 // Same cameras in the same order: model, size, intrinsics, distortion, pose in the body.
 bool same_rig(const CameraRig& a, const CameraRig& b);
 
-// A single camera (mono, mono_inertial): it only localises, it makes no map.
+// A single camera (mono, mono_inertial): a monocular session or a localising one.
 bool is_single_camera(SensorType sensor);
 
-// Same cameras, and both with or both without the IMU fused.
+// Same cameras, both with or both without the IMU fused, both monocular or
+// both not: sessions that may share one local mapping.
 bool same_mapping_rig(const MapRig& a, const MapRig& b);
+
+// May a session of rig `session` map in (enter, merge into) a map made by rig
+// `map`? Same cameras and IMU use, and a monocular session may also take a
+// map its cameras' stereo sessions made (it then maps at that map's metric
+// scale; the left camera of the rig, docs/monocular.md), not the reverse.
+bool may_map_into(const MapRig& session, const MapRig& map);
 
 // Records `session`'s rig for the maps of `atlas` holding its frames (a map
 // keeps the first rig recorded; a stereo_inertial session's counts as fusing

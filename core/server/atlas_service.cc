@@ -74,32 +74,34 @@ namespace {
 // The session's mode: as asked, else map for a stereo rig and localize for a
 // single camera of a monocular config (session_mode).
 SessionMode session_mode(const SessionRequest& request, SensorType sensor, const SlamSettings& settings) {
-  // A single camera maps by default when its config is a monocular one; the
-  // first camera of a stereo config localises in that rig's maps by default.
-  // Monocular-inertial mapping is offline only: the stored trajectory keeps
-  // frames relative to keyframes in the map's units, which its inertial
-  // initialisation changes (Map::rescale) after frames were checkpointed.
+  // A single camera maps by default when its config is a single-camera one
+  // (mono, mono_inertial); the first camera of a stereo config localises in
+  // that rig's maps by default.
   const bool single_camera = is_single_camera(sensor);
-  const bool mono_config = settings.sensor == SensorType::kMonocular;
-  if (request.mode.empty())
-    return single_camera && (sensor == SensorType::kMonocularInertial || !mono_config) ? SessionMode::kLocalize
-                                                                                       : SessionMode::kMap;
+  const bool single_camera_config = is_single_camera(settings.sensor);
+  if (request.mode.empty()) return single_camera && !single_camera_config ? SessionMode::kLocalize : SessionMode::kMap;
   if (request.mode == "localize") return SessionMode::kLocalize;
   if (request.mode != "map") throw_bad_request("unknown mode '" + request.mode + "' (map or localize)");
-  if (sensor == SensorType::kMonocularInertial)
-    throw ServiceError(ServiceErrorKind::kUnprocessable, "cannot_map",
-                       "a single camera with its IMU does not map on the server yet (monocular-inertial mapping runs "
-                       "offline: orbatlas run); start it as sensor \"mono\" to map without the IMU, or with mode "
-                       "\"localize\"");
   return SessionMode::kMap;
 }
 
-// The settings a single camera maps with: the config's first camera alone.
-SlamSettings monocular_settings(SlamSettings settings) {
-  settings.sensor = SensorType::kMonocular;
-  settings.camera1.reset();
-  settings.imu.reset();
+// The settings a single camera maps with: the config's first camera alone
+// (of a stereo config: its left camera rectified as the rig's stereo maps are,
+// StereoLeftFrontend), with its IMU for a mono_inertial session (400 when the
+// config has none).
+SlamSettings monocular_settings(SlamSettings settings, SensorType sensor) {
+  if (sensor == SensorType::kMonocularInertial && !settings.imu)
+    throw_bad_request("a mono_inertial session needs a config with its IMU (IMU.* keys); this one has none");
+  settings.sensor = sensor;
+  if (sensor != SensorType::kMonocularInertial) settings.imu.reset();
   return settings;
+}
+
+// Where a single camera that maps sits in the body: the rectified left camera
+// of a stereo config, else the config's camera.
+Pose3 single_camera_T_b_c(const SlamSettings& settings) {
+  if (!settings.camera1) return settings.camera0.T_b_c;
+  return StereoRectifier(settings.camera0, *settings.camera1).rectified_left().T_b_c;
 }
 
 SensorType session_sensor(const SessionRequest& request, const SlamSettings& settings) {
@@ -361,8 +363,8 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   check_session_name(request.name);
   const LoadedSettings loaded = load_settings(request.settings);
   const SensorType sensor = session_sensor(request, loaded.settings);
-  // A single camera maps (monocular SLAM, its own maps at their own scale) or
-  // localises in the stored maps; the inertial variant only localises,
+  // A single camera maps (monocular SLAM, its own maps at their own scale;
+  // metric with its IMU, mono_inertial) or localises in the stored maps,
   // tracked visually, its IMU checked and counted. A single camera may also
   // be the first camera of a stereo config.
   const bool single_camera = is_single_camera(sensor);
@@ -395,19 +397,23 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   info.sensor = sensor;
   info.created_ns = unix_now_ns();
   info.cameras.push_back(loaded.settings.camera0);
-  if (loaded.settings.camera1 && !monocular_mapping) info.cameras.push_back(*loaded.settings.camera1);
+  if (loaded.settings.camera1) info.cameras.push_back(*loaded.settings.camera1);
 
   // As StereoSlam decides whether it fuses the IMU.
   std::optional<GlobalBundleAdjustmentOptions::Inertial> inertial;
-  if (!single_camera && mode == SessionMode::kMap && options_.slam.inertial && loaded.settings.imu)
+  const bool fuses_imu = mode == SessionMode::kMap && options_.slam.inertial && loaded.settings.imu &&
+                         (!single_camera || sensor == SensorType::kMonocularInertial);
+  if (fuses_imu)
     inertial = GlobalBundleAdjustmentOptions::Inertial{
-        .T_b_i = loaded.settings.imu->T_b_i,
+        // A single camera's body is its camera (docs/monocular.md).
+        .T_b_i = single_camera ? single_camera_T_b_c(loaded.settings).inverse() * loaded.settings.imu->T_b_i
+                               : loaded.settings.imu->T_b_i,
         .max_chain_keyframes = options_.slam.mapper.inertial.refinement_max_keyframes};
-  const MapRig rig{info.cameras, inertial.has_value()};
+  const MapRig rig{info.cameras, inertial.has_value(), monocular_mapping};
 
   std::unique_ptr<SessionSlam> slam;
   if (monocular_mapping) {
-    slam = make_stereo_slam(id, rig, monocular_settings(loaded.settings), mode);
+    slam = make_stereo_slam(id, rig, monocular_settings(loaded.settings, sensor), mode);
   } else if (single_camera) {
     MonoLocalizerOptions mono;
     mono.tracker = options_.slam.tracker;
@@ -538,14 +544,13 @@ void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
 }
 
 bool AtlasService::rigs_match(MapId source, MapId target) const {
-  CameraRig cameras;
-  {
-    std::lock_guard lock(rigs_mutex_);
-    const auto a = map_rigs_.find(source);
-    if (a == map_rigs_.end()) return false;
-    cameras = a->second.cameras;
-  }
-  return cameras_match(cameras, target);
+  // The merging worker's transforms are rigid: maps of monocular sessions
+  // (their own scale) are left to live merging.
+  std::lock_guard lock(rigs_mutex_);
+  const auto a = map_rigs_.find(source);
+  const auto b = map_rigs_.find(target);
+  return a != map_rigs_.end() && b != map_rigs_.end() && !a->second.monocular && !b->second.monocular &&
+         same_rig(a->second.cameras, b->second.cameras);
 }
 
 bool AtlasService::cameras_match(const CameraRig& cameras, MapId target) const {
@@ -555,9 +560,16 @@ bool AtlasService::cameras_match(const CameraRig& cameras, MapId target) const {
 }
 
 bool AtlasService::mapping_rig_matches(const MapRig& rig, MapId target) const {
-  std::lock_guard lock(rigs_mutex_);
-  const auto b = map_rigs_.find(target);
-  return b != map_rigs_.end() && same_mapping_rig(rig, b->second);
+  {
+    std::lock_guard lock(rigs_mutex_);
+    const auto b = map_rigs_.find(target);
+    if (b == map_rigs_.end() || !may_map_into(rig, b->second)) return false;
+  }
+  // One local mapping per map: the sessions mapping in it now map as `rig` does
+  // (a monocular session and a stereo one never map one map at once).
+  for (const SessionId holder : leases_.holders(target))
+    if (holder != kMergeWorkerLease && !same_mapping_rig(mapping_rig(holder), rig)) return false;
+  return true;
 }
 
 MapRig AtlasService::mapping_rig(SessionId id) const {
@@ -566,7 +578,8 @@ MapRig AtlasService::mapping_rig(SessionId id) const {
   if (it != session_starts_.end()) return it->second.rig;
   const auto s = sessions_.find(id);  // a stored session (this run did not start it)
   if (s == sessions_.end()) return {};
-  return MapRig{s->second->info().cameras, s->second->info().sensor == SensorType::kStereoInertial};
+  const SensorType sensor = s->second->info().sensor;
+  return MapRig{s->second->info().cameras, sensor == SensorType::kStereoInertial, is_single_camera(sensor)};
 }
 
 void AtlasService::merged_live(const LiveMerge& merge) {

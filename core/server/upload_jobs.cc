@@ -300,7 +300,8 @@ void UploadJobs::run(JobId id) {
     try {
       EvalOptions eval;
       eval.estimate_T_b_x = recording.T_b_c0;
-      if (recording.T_b_c0) eval.align = AlignMode::kSim3;
+      // A single camera's map has its own scale, unless its IMU made it metric.
+      if (recording.T_b_c0 && sensor != SensorType::kMonocularInertial) eval.align = AlignMode::kSim3;
       if (trajectory.size() >= 3)
         ate = evaluate_trajectory(trajectory, from_ground_truth_states(recording.ground_truth), eval).ate.rmse;
     } catch (const Error& e) {

@@ -373,8 +373,6 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
       Vocabulary::load(options.vocabulary.empty() ? default_vocabulary_path() : options.vocabulary);
   // The stored trajectory keeps frames relative to keyframes in the map's
   // units, which a monocular-inertial map changes when its IMU initialises it.
-  ORBATLAS_CHECK(options.atlas.empty() || in.settings.sensor != SensorType::kMonocularInertial,
-                 "a mono_inertial run does not map into a stored atlas yet (--atlas); run it without");
   Atlas atlas;
   DatasetRunReport report;
   const StoredAtlas stored = open_atlas(options, in.settings, vocabulary, atlas, report);

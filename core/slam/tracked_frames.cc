@@ -27,11 +27,7 @@ TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, const Atlas& atl
   }
   tracking_ms_.add(ms_since(started));
   ++frames_;
-  if (tracker.anchor_rescales() != anchor_rescales_) {
-    std::lock_guard lock(anchors_mutex_);
-    anchors_ = tracker.anchors();  // some were scaled with their map
-    anchor_rescales_ = tracker.anchor_rescales();
-  } else if (result.tracked) {
+  if (result.tracked) {
     std::lock_guard lock(anchors_mutex_);
     anchors_.push_back(tracker.anchors().back());
   }

@@ -47,7 +47,6 @@ class TrackedFrames {
   std::size_t frames_ = 0, tracked_ = 0, tracked_by_imu_ = 0;
   mutable std::mutex anchors_mutex_;
   std::vector<FrameAnchor> anchors_;  // copy of the tracker's, for other threads
-  std::size_t anchor_rescales_ = 0;   // the tracker's count the copy follows
 };
 
 }  // namespace orbatlas

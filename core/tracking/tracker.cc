@@ -89,7 +89,7 @@ TrackResult Tracker::track(Frame frame) {
   result.t_ns = frame.t_ns;
 
   follow_merged_map();
-  adopt_map_units();
+  adopt_reference_units();
   const bool joined_stored_map = !options_.localization_only && !map_ && options_.start_in_stored_map && relocalizer_ &&
                                  join_stored_map(frame, result);
   bool ok = joined_stored_map;
@@ -237,7 +237,10 @@ void Tracker::finish_frame(Frame frame, bool ok, TrackResult& result) {
     discard_outliers(frame);
     T_ref_last_ = reference_->T_w_b().inverse() * frame.T_w_b;
     last_reference_ = reference_->id();
-    anchors_.push_back({frame.t_ns, map_->id(), reference_->id(), T_ref_last_});
+    reference_units_ = reference_->units();
+    Pose3 T_ref_b = T_ref_last_;
+    T_ref_b.t /= reference_units_;  // FrameAnchor: in the keyframe's units
+    anchors_.push_back({frame.t_ns, map_->id(), reference_->id(), T_ref_b});
   } else {
     frame.has_pose = false;
     last_reference_.reset();
@@ -269,7 +272,6 @@ void Tracker::start_new_map() {
 
 void Tracker::follow_merged_map() {
   if (!map_ || atlas_.map(map_->id())) return;  // still in the atlas
-  adopt_map_units();                            // a merge scales a map of free scale before moving it
   // Merged away: the keyframes went with it, so the reference says where to.
   std::shared_ptr<Map> into = reference_ ? atlas_.map(reference_->map_id()) : nullptr;
   if (!into) {
@@ -292,23 +294,15 @@ void Tracker::follow_merged_map() {
   ++maps_followed_;
 }
 
-void Tracker::adopt_map_units() {
-  if (!map_) return;
-  const double units = map_->units_scale();
-  if (map_->id() != units_map_) {
-    units_map_ = map_->id();
-    units_seen_ = units;
-    return;
-  }
-  if (units == units_seen_) return;
-  const double f = units / units_seen_;
-  units_seen_ = units;
+void Tracker::adopt_reference_units() {
+  if (!map_ || !last_reference_) return;
+  const auto placement = map_->keyframe_placement(*last_reference_);
+  if (!placement || placement->units == reference_units_) return;
+  const double f = placement->units / reference_units_;
+  reference_units_ = placement->units;
   T_ref_last_.t *= f;
   if (velocity_) velocity_->t *= f;
-  for (auto& anchor : anchors_)
-    if (anchor.map == map_->id()) anchor.T_ref_b.t *= f;
   if (inertial_) inertial_->rescale(f);
-  ++anchor_rescales_;
 }
 
 void Tracker::refresh_last_frame_pose() {

@@ -97,7 +97,6 @@ class Tracker {
   std::size_t slot_races() const { return slot_races_; }
   // Times the anchors were scaled with their map (Map::rescale: a monocular
   // map made metric by its IMU); a copy of anchors() is stale after one.
-  std::size_t anchor_rescales() const { return anchor_rescales_; }
   // Monocular: two-view reconstructions tried, and maps started from them.
   std::size_t monocular_attempts() const { return mono_initializer_ ? mono_initializer_->attempts() : 0; }
   std::size_t monocular_starts() const { return monocular_starts_; }
@@ -147,9 +146,11 @@ class Tracker {
   // The active map was merged into another (live map merging): continue there.
   void follow_merged_map();
   void refresh_last_frame_pose();
-  // The map's units changed since the last frame (Map::rescale): what the
-  // tracker keeps relative to its keyframes is scaled to them.
-  void adopt_map_units();
+  // The last frame's reference keyframe changed scale since the last frame
+  // (KeyFrame::units: a rescale, a merge, a Sim(3) loop): what the tracker
+  // keeps relative to it (the last frame's pose, the motion model, the IMU
+  // velocity) is scaled with it.
+  void adopt_reference_units();
 
   Atlas& atlas_;
   const Vocabulary& vocabulary_;
@@ -172,6 +173,7 @@ class Tracker {
   std::shared_ptr<KeyFrame> last_keyframe_;
   std::optional<KeyframeId> last_reference_;  // of the last frame, for its pose refresh
   Pose3 T_ref_last_;
+  double reference_units_ = 1.0;  // the units of the last frame's reference keyframe then
   std::vector<std::shared_ptr<KeyFrame>> local_keyframes_;
   std::int64_t frame_index_ = 0, last_keyframe_index_ = 0, last_recovery_index_ = -1000000;
   TimestampNs last_t_ns_ = 0;
@@ -180,9 +182,6 @@ class Tracker {
   int failed_relocalizations_ = 0;  // in a row, while recently lost
   std::size_t maps_started_ = 0, relocalizations_ = 0, maps_followed_ = 0, slot_races_ = 0, monocular_starts_ = 0;
   std::vector<FrameAnchor> anchors_;
-  MapId units_map_ = kInvalidMapId;  // the map whose units_scale() was seen last
-  double units_seen_ = 1.0;
-  std::size_t anchor_rescales_ = 0;
 };
 
 }  // namespace orbatlas
