@@ -52,7 +52,7 @@ for look in "${LOOK_LIST[@]}"; do
         if [ ! -f "$base" ]; then
           echo "== the stereo map of $ref ($look look) into $base"
           "$OA" run --config "$ROOT/config/euroc/stereo.yaml" --dataset "$ref_src" --no-progress --atlas "$base" \
-              > "$OUT/stereo_${ref}_${look}.log" 2>&1
+              --out-trajectory "$OUT/stereo_${ref}_${look}.txt" > "$OUT/stereo_${ref}_${look}.log" 2>&1
         fi
         rm -f "$OUT/$name.db"
         cp "$base" "$OUT/$name.db"

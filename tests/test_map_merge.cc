@@ -276,5 +276,33 @@ TEST(MapMerge, AStereoSessionLeavesAMonocularMapAlone) {
   EXPECT_TRUE(atlas.map(a.map)->metric_scale());
 }
 
+// A merge moves the source map into the target's units: a map of free scale
+// (monocular) may go into any map, a metric one (measured depths, or an IMU)
+// only into a metric one (the loop closer refuses the rest; the free map may
+// join it from its own side later).
+TEST(MapMerge, AMetricMapIsNeverMergedIntoOneOfFreeScale) {
+  Atlas atlas;
+  KeyFrameData mono;
+  mono.features.keypoints.resize(2);
+  mono.depth.assign(2, -1.0f);
+  mono.u_right.assign(2, -1.0f);
+  KeyFrameData stereo = mono;
+  stereo.depth[0] = 3.0f;
+  stereo.u_right[0] = 200.0f;
+  auto mono_map = atlas.create_map();
+  mono_map->new_keyframe(mono);
+  auto stereo_map = atlas.create_map();
+  stereo_map->new_keyframe(stereo);
+  auto inertial_map = atlas.create_map();
+  inertial_map->new_keyframe(mono);
+  inertial_map->set_inertial_state(Map::InertialState{});
+  EXPECT_TRUE(merge_keeps_scale(*mono_map, *stereo_map));
+  EXPECT_TRUE(merge_keeps_scale(*mono_map, *inertial_map));
+  EXPECT_TRUE(merge_keeps_scale(*stereo_map, *inertial_map));
+  EXPECT_TRUE(merge_keeps_scale(*inertial_map, *stereo_map));
+  EXPECT_FALSE(merge_keeps_scale(*stereo_map, *mono_map));
+  EXPECT_FALSE(merge_keeps_scale(*inertial_map, *mono_map));
+}
+
 }  // namespace
 }  // namespace orbatlas

@@ -132,7 +132,9 @@ void LoopCloser::process(const Item& item) {
   const std::shared_ptr<KeyFrame>& keyframe = item.keyframe;
   Recognizers& recognizers = this->recognizers(item.stream);
   const auto map = atlas_.map(keyframe->map_id());
-  const bool free_scale = options_.monocular && map && !map->inertial_state();
+  // A monocular map is of free scale until an IMU or a merge into a metric
+  // map makes it metric.
+  const bool free_scale = options_.monocular && map && !map->metric_scale();
   if (recognizers.merges) {
     // ORB-SLAM3 looks for a merge first: a keyframe that joins another map is
     // not also taken as a loop.
@@ -188,7 +190,13 @@ void LoopCloser::close_loop(const PlaceMatch& loop) {
 bool LoopCloser::merge_live(const PlaceMatch& match) {
   const MapId source = match.current->map_id();
   const MapId target = match.matched->map_id();
-  if (source == target || !atlas_.map(source) || !atlas_.map(target)) return false;
+  const auto source_map = atlas_.map(source), target_map = atlas_.map(target);
+  if (source == target || !source_map || !target_map) return false;
+  if (!merge_keeps_scale(*source_map, *target_map)) {
+    log_info("live merge: map " + std::to_string(source) + " is metric and map " + std::to_string(target) +
+             " is not; not merged");
+    return false;
+  }
   if (wiring_.hold_map && !wiring_.hold_map(source, target)) {
     log_info("live merge: map " + std::to_string(target) + " was taken by another session meanwhile; not merged");
     return false;

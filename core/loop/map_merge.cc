@@ -33,6 +33,8 @@ void MapMergeOptions::check() const {
                  "map merge: fusion_th must be a finite value >= 0, not " << fusion_th);
 }
 
+bool merge_keeps_scale(const Map& source, const Map& target) { return !source.metric_scale() || target.metric_scale(); }
+
 MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamera& cam,
                          const MapMergeOptions& options) {
   const auto start = std::chrono::steady_clock::now();

@@ -36,6 +36,11 @@ struct MapMergeStats {
   double ms = 0.0;
 };
 
+// Whether `source` may be merged into `target`: the merge moves the source
+// into the target's units, so a metric map (Map::metric_scale) never goes into
+// one of free scale (a monocular map); that map may join it from its own side.
+bool merge_keeps_scale(const Map& source, const Map& target);
+
 // Throws Error when the match is within one map or a map is missing.
 MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamera& cam,
                          const MapMergeOptions& options = {});

@@ -19,6 +19,7 @@
 #include "core/slam/slam_stats.h"
 #include "core/slam/stereo_slam.h"
 #include "core/server/service_error.h"
+#include "core/server/session_rules.h"
 #include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
 
@@ -30,86 +31,6 @@ namespace fs = std::filesystem;
 TimestampNs unix_now_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
       .count();
-}
-
-// Valid UTF-8 (no overlong forms or surrogates), no control characters.
-bool is_printable_utf8(const std::string& text) {
-  for (std::size_t i = 0; i < text.size();) {
-    const auto c = static_cast<unsigned char>(text[i]);
-    if (c < 0x80) {
-      if (c < 0x20 || c == 0x7f) return false;
-      ++i;
-      continue;
-    }
-    const int extra = (c & 0xe0) == 0xc0 ? 1 : (c & 0xf0) == 0xe0 ? 2 : (c & 0xf8) == 0xf0 ? 3 : -1;
-    if (extra < 0 || i + static_cast<std::size_t>(extra) >= text.size()) return false;
-    std::uint32_t code = c & (0x3f >> extra);
-    for (int k = 1; k <= extra; ++k) {
-      const auto next = static_cast<unsigned char>(text[i + k]);
-      if ((next & 0xc0) != 0x80) return false;
-      code = (code << 6) | (next & 0x3f);
-    }
-    const std::uint32_t smallest[] = {0, 0x80, 0x800, 0x10000};
-    if (code < smallest[extra] || code > 0x10ffff || (code >= 0xd800 && code <= 0xdfff) ||
-        (code >= 0x80 && code < 0xa0))
-      return false;
-    i += 1 + extra;
-  }
-  return true;
-}
-
-void check_session_name(const std::string& name) {
-  if (name.size() > kMaxSessionNameBytes)
-    throw_bad_request("a session name has at most " + std::to_string(kMaxSessionNameBytes) + " bytes, got " +
-                      std::to_string(name.size()));
-  if (!is_printable_utf8(name)) throw_bad_request("a session name must be UTF-8 text without control characters");
-}
-
-}  // namespace
-
-// The frontend and camera a localisation request needs, per configuration.
-namespace {
-
-// The request's sensor, else the settings' Sensor.type; 400 for an unknown name.
-// The session's mode: as asked, else map for a stereo rig and localize for a
-// single camera of a monocular config (session_mode).
-SessionMode session_mode(const SessionRequest& request, SensorType sensor, const SlamSettings& settings) {
-  // A single camera maps by default when its config is a single-camera one
-  // (mono, mono_inertial); the first camera of a stereo config localises in
-  // that rig's maps by default.
-  const bool single_camera = is_single_camera(sensor);
-  const bool single_camera_config = is_single_camera(settings.sensor);
-  if (request.mode.empty()) return single_camera && !single_camera_config ? SessionMode::kLocalize : SessionMode::kMap;
-  if (request.mode == "localize") return SessionMode::kLocalize;
-  if (request.mode != "map") throw_bad_request("unknown mode '" + request.mode + "' (map or localize)");
-  return SessionMode::kMap;
-}
-
-// The settings a single camera maps with: the config's first camera alone
-// (of a stereo config: its left camera rectified as the rig's stereo maps are,
-// StereoLeftFrontend), with its IMU for a mono_inertial session (400 when the
-// config has none).
-SlamSettings monocular_settings(SlamSettings settings, SensorType sensor) {
-  if (sensor == SensorType::kMonocularInertial && !settings.imu)
-    throw_bad_request("a mono_inertial session needs a config with its IMU (IMU.* keys); this one has none");
-  settings.sensor = sensor;
-  if (sensor != SensorType::kMonocularInertial) settings.imu.reset();
-  return settings;
-}
-
-// Where a single camera that maps sits in the body: the rectified left camera
-// of a stereo config, else the config's camera.
-Pose3 single_camera_T_b_c(const SlamSettings& settings) {
-  if (!settings.camera1) return settings.camera0.T_b_c;
-  return StereoRectifier(settings.camera0, *settings.camera1).rectified_left().T_b_c;
-}
-
-SensorType session_sensor(const SessionRequest& request, const SlamSettings& settings) {
-  if (request.sensor.empty()) return settings.sensor;
-  const auto sensor = parse_sensor_type(request.sensor);
-  if (!sensor)
-    throw_bad_request("unknown sensor '" + request.sensor + "' (stereo, stereo_inertial, mono, mono_inertial)");
-  return *sensor;
 }
 
 }  // namespace
@@ -294,14 +215,14 @@ AtlasService::LoadedSettings AtlasService::load_settings(const SettingsSource& s
 
 SensorType AtlasService::request_sensor(const SessionRequest& request) const {
   const LoadedSettings loaded = load_settings(request.settings);
-  return session_sensor(request, loaded.settings);
+  return session_sensor(request.sensor, loaded.settings);
 }
 
 void AtlasService::check_upload(const SessionRequest& request) const {
   check_session_name(request.name);
   const LoadedSettings loaded = load_settings(request.settings);
-  const SensorType sensor = session_sensor(request, loaded.settings);
-  const SessionMode mode = session_mode(request, sensor, loaded.settings);  // 400 for an unknown one
+  const SensorType sensor = session_sensor(request.sensor, loaded.settings);
+  const SessionMode mode = session_mode(request.mode, sensor, loaded.settings);  // 400 for an unknown one
   if (sensor == SensorType::kRgbd || loaded.settings.is_rgbd()) {
     if (sensor != SensorType::kRgbd || !loaded.settings.is_rgbd())
       throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
@@ -362,13 +283,13 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
 SessionId AtlasService::create_session(const SessionRequest& request) {
   check_session_name(request.name);
   const LoadedSettings loaded = load_settings(request.settings);
-  const SensorType sensor = session_sensor(request, loaded.settings);
+  const SensorType sensor = session_sensor(request.sensor, loaded.settings);
   // A single camera maps (monocular SLAM, its own maps at their own scale;
   // metric with its IMU, mono_inertial) or localises in the stored maps,
   // tracked visually, its IMU checked and counted. A single camera may also
   // be the first camera of a stereo config.
   const bool single_camera = is_single_camera(sensor);
-  const SessionMode mode = session_mode(request, sensor, loaded.settings);
+  const SessionMode mode = session_mode(request.mode, sensor, loaded.settings);
   const bool monocular_mapping = single_camera && mode == SessionMode::kMap;
   if (!single_camera && !loaded.settings.is_stereo() && !loaded.settings.is_rgbd())
     throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",

@@ -27,6 +27,7 @@
 #include "core/server/map_leases.h"
 #include "core/server/map_merge_worker.h"
 #include "core/server/service_results.h"
+#include "core/server/session_rules.h"
 #include "core/slam/stereo_slam.h"
 #include "core/vocabulary/vocabulary.h"
 
@@ -34,7 +35,6 @@ namespace orbatlas {
 
 // Request limits checked at the edge (400 beyond them).
 inline constexpr std::size_t kMaxSettingsBytes = 1 << 20;  // a settings_yaml text
-inline constexpr std::size_t kMaxSessionNameBytes = 200;   // UTF-8, no control characters
 
 struct AtlasServiceOptions {
   std::filesystem::path db;          // created when missing
@@ -79,10 +79,7 @@ struct SettingsSource {
 struct SessionRequest {
   std::string name;
   std::string sensor;  // empty: the config's Sensor.type
-  // "map" or "localize"; empty: map for a stereo rig, an RGB-D camera and a
-  // single camera with a mono config; localize for the first camera of a
-  // stereo config and for mono_inertial (which cannot map yet: "map" is
-  // refused for it).
+  // "map" or "localize"; empty: as session_mode (session_rules.h) decides.
   std::string mode;
   SettingsSource settings;
 };
