@@ -31,9 +31,11 @@ void Map::add_keyframe(std::shared_ptr<KeyFrame> keyframe) {
                  "keyframe " << keyframe->id() << " belongs to map " << keyframe->map_id() << ", not " << id_);
   ORBATLAS_CHECK(!keyframe->is_bad(), "map " << id_ << ": keyframe " << keyframe->id() << " is culled");
   const KeyframeId kf_id = keyframe->id();
+  const bool has_depth = keyframe->has_depth();
   std::lock_guard lock(objects_mutex_);
   const bool inserted = keyframes_.try_emplace(kf_id, std::move(keyframe)).second;
   ORBATLAS_CHECK(inserted, "map " << id_ << ": keyframe id " << kf_id << " already present");
+  measured_depth_ = measured_depth_ || has_depth;
 }
 
 void Map::add_map_point(std::shared_ptr<MapPoint> map_point) {
@@ -135,11 +137,13 @@ Map::AbsorbCounts Map::absorb(Map& source, const Pose3& T_this_source) {
   std::unordered_map<KeyframeId, std::shared_ptr<KeyFrame>> keyframes;
   std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> points;
   std::unordered_map<KeyframeId, CulledAnchor> culled;
+  bool source_depth = false;
   {
     std::lock_guard lock(source.objects_mutex_);
     keyframes.swap(source.keyframes_);
     points.swap(source.map_points_);
     culled.swap(source.culled_anchors_);
+    source_depth = source.measured_depth_;
   }
   const Eigen::Quaterniond R = T_this_source.q;
   for (const auto& [id, kf] : keyframes) {
@@ -163,6 +167,7 @@ Map::AbsorbCounts Map::absorb(Map& source, const Pose3& T_this_source) {
     ORBATLAS_CHECK(map_points_.try_emplace(id, std::move(mp)).second,
                    "map " << id_ << ": map point id " << id << " already present");
   for (auto& [id, anchor] : culled) culled_anchors_.insert_or_assign(id, anchor);
+  measured_depth_ = measured_depth_ || source_depth;
   return counts;
 }
 
@@ -213,10 +218,7 @@ void Map::rescale(double s) {
 
 bool Map::metric_scale() const {
   std::lock_guard lock(objects_mutex_);
-  if (inertial_) return true;
-  for (const auto& [id, kf] : keyframes_)
-    if (kf->has_depth()) return true;
-  return false;
+  return measured_depth_ || inertial_.has_value();
 }
 
 std::optional<Map::InertialState> Map::inertial_state() const {

@@ -121,8 +121,9 @@ class Map {
   // The same rules as change_frame for the caller.
   void rescale(double s);
   // Whether the map's lengths are metres: it is inertial (initialised) or
-  // holds a keyframe with measured depths (stereo, RGB-D). A monocular map's
-  // scale is its own until an IMU or a merge into a metric map gives it one.
+  // ever held a keyframe with measured depths (stereo, RGB-D). A monocular
+  // map's scale is its own until an IMU or a merge into a metric map gives it
+  // one. O(1): place recognition and relocalisation ask it per candidate.
   bool metric_scale() const;
 
  private:
@@ -148,6 +149,7 @@ class Map {
   std::unordered_map<KeyframeId, std::shared_ptr<KeyFrame>> keyframes_;
   std::unordered_map<KeyframeId, CulledAnchor> culled_anchors_;
   std::optional<InertialState> inertial_;  // guarded by objects_mutex_
+  bool measured_depth_ = false;            // a keyframe with depths was added; guarded by objects_mutex_
   std::atomic<std::uint64_t> frame_epoch_{0};
 };
 

@@ -11,11 +11,7 @@ MonoFrontend::MonoFrontend(const SlamSettings& settings)
     : calibration_(settings.camera0),
       camera_(make_camera(settings.camera0)),
       extractor_(orb_options_from(settings)),
-      starting_extractor_([&] {
-        OrbExtractorOptions o = orb_options_from(settings);
-        o.n_features *= kStartingFeatureFactor;
-        return o;
-      }()) {}
+      starting_extractor_(starting_orb_options(settings)) {}
 
 Frame MonoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& image) {
   const cv::Mat& gray = as_gray(image, gray_, "camera");
@@ -34,6 +30,12 @@ Frame MonoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& image) {
 Frame MonoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& image, const cv::Mat& second) {
   ORBATLAS_DATA_CHECK(second.empty(), "a single-camera session takes one image per frame, not two");
   return make_frame(t_ns, image);
+}
+
+OrbExtractorOptions starting_orb_options(const SlamSettings& settings) {
+  OrbExtractorOptions o = orb_options_from(settings);
+  o.n_features *= MonoFrontend::kStartingFeatureFactor;
+  return o;
 }
 
 FrameCamera MonoFrontend::frame_camera() const { return make_frame_camera(*camera_, 0.0, extractor_); }

@@ -47,4 +47,8 @@ class MonoFrontend final : public FrameFrontend {
   cv::Mat gray_;
 };
 
+// The extractor a single camera uses while its map starts:
+// kStartingFeatureFactor times the settings' features.
+OrbExtractorOptions starting_orb_options(const SlamSettings& settings);
+
 }  // namespace orbatlas

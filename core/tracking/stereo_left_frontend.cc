@@ -20,11 +20,7 @@ StereoLeftFrontend::StereoLeftFrontend(const SlamSettings& settings)
     : rectifier_(settings.camera0, require_camera1(settings)),
       camera_(make_camera(rectifier_.rectified_left())),
       extractor_(orb_options_from(settings)),
-      starting_extractor_([&] {
-        OrbExtractorOptions o = orb_options_from(settings);
-        o.n_features *= MonoFrontend::kStartingFeatureFactor;
-        return o;
-      }()) {}
+      starting_extractor_(starting_orb_options(settings)) {}
 
 Frame StereoLeftFrontend::make_frame(TimestampNs t_ns, const cv::Mat& image, const cv::Mat& second) {
   ORBATLAS_DATA_CHECK(second.empty(), "a single-camera session takes one image per frame, not two");
