@@ -348,6 +348,52 @@ TEST(InertialBundleAdjustment, TheMapsInitialisationIntegratesFarLinksAgainAtThe
   EXPECT_EQ(kept->keyframes.back()->inertial_link()->from_previous->bias().gyro, Eigen::Vector3d::Zero());
 }
 
+// A refinement re-estimates gravity (and a monocular map's scale) over the
+// newest keyframe's chain and applies it to the whole map. After a merge or a
+// late join that chain is a few seconds of another session: the map, estimated
+// over a longer window, is left as it is; over a chain as long, it is refined.
+TEST(InertialBundleAdjustment, ARefinementOverAChainShorterThanTheMapsEstimateLeavesTheMapAlone) {
+  InertialInitializationOptions options;
+  options.enabled = true;
+  options.refinements = {{0.5, 1.0, 1e5}};
+  const auto initialised = [&](std::unique_ptr<InertialWorld>& w) {
+    const double span_s = ns_to_s(w->keyframes.back()->timestamp_ns() - w->keyframes.front()->timestamp_ns());
+    Map::InertialState state;
+    state.initialized_at_ns = w->keyframes.front()->timestamp_ns();
+    state.gravity_w = kGravity;  // the world is gravity aligned already
+    state.keyframes = w->keyframes.size();
+    state.span_s = span_s;
+    w->map->set_inertial_state(state);
+  };
+  // The newest keyframe's chain: the last five of twelve (1 s of 2.75 s).
+  auto w = make_world(45.0, /*second_session_from=*/7);
+  initialised(w);
+  const Pose3 before = w->keyframes.front()->T_w_b();
+  EXPECT_FALSE(refine_map_inertial(*w->map, w->keyframes.back(), options).has_value());
+  const auto kept = w->map->inertial_state();
+  ASSERT_TRUE(kept.has_value());
+  EXPECT_EQ(kept->refinements, 1u);  // tried, not waited for
+  EXPECT_EQ(kept->keyframes, w->keyframes.size());
+  EXPECT_EQ(w->keyframes.front()->T_w_b().t, before.t);
+  EXPECT_EQ(w->keyframes.front()->T_w_b().q.coeffs(), before.q.coeffs());
+
+  // The whole chain: refined, and the state says over which window.
+  auto whole = make_world(45.0);
+  initialised(whole);
+  const auto refined = refine_map_inertial(*whole->map, whole->keyframes.back(), options);
+  ASSERT_TRUE(refined.has_value());
+  EXPECT_EQ(refined->refinements, 1u);
+  EXPECT_EQ(refined->keyframes, whole->keyframes.size());
+  EXPECT_NEAR(refined->span_s, 2.75, 1e-9);
+  // With the rule off the short chain is used.
+  options.refinement_min_span_fraction = 0.0;
+  auto short_chain = make_world(45.0, /*second_session_from=*/7);
+  initialised(short_chain);
+  const auto forced = refine_map_inertial(*short_chain->map, short_chain->keyframes.back(), options);
+  ASSERT_TRUE(forced.has_value());
+  EXPECT_EQ(forced->keyframes, 5u);
+}
+
 TEST(InertialBundleAdjustment, BiasWalkCostIsTheDifferenceOverTheWalkSigma) {
   ImuNoise noise;
   const double dt = 0.2;

@@ -193,6 +193,29 @@ TEST(LocalBundleAdjustment, WithoutBorderTheOldestKeyframeIsFixed) {
               stats.observations, stats.iterations, stats.time_ms);
 }
 
+// A point behind one of its cameras where the solve starts (after a merge or a
+// loop correction moved it) cannot be evaluated; Ceres would end the whole
+// solve at its first evaluation. It is left out, and the rest converges.
+TEST(LocalBundleAdjustment, APointBehindACameraAtTheStartDoesNotStopTheSolve) {
+  auto w = make_world(0);
+  perturb(*w, 1);
+  const auto& last = w->keyframes.back();
+  std::shared_ptr<MapPoint> moved;
+  for (const auto& mp : last->map_points())
+    if (mp->observations().size() >= 3) {
+      moved = mp;
+      break;
+    }
+  ASSERT_NE(moved, nullptr);
+  const Pose3 T_w_c = last->T_w_c();
+  moved->set_p_w(T_w_c * Eigen::Vector3d(0.0, 0.0, -3.0));  // 3 m behind the newest camera
+  const LocalBundleAdjustmentStats stats = local_bundle_adjustment(*w->map, last, *w->camera, w->bf);
+  EXPECT_GT(stats.iterations, 0);
+  EXPECT_GE(stats.observations_removed, 1u);
+  for (std::size_t i = 1; i < w->keyframes.size(); ++i)
+    EXPECT_LT(translation_distance(w->keyframes[i]->T_w_b(), w->true_T_w_b[i]), 1e-3) << "keyframe " << i;
+}
+
 TEST(LocalBundleAdjustment, StopFlagInterrupts) {
   auto w = make_world(37);
   perturb(*w, 3);

@@ -304,5 +304,51 @@ TEST(MapMerge, AMetricMapIsNeverMergedIntoOneOfFreeScale) {
   EXPECT_FALSE(merge_keeps_scale(*inertial_map, *mono_map));
 }
 
+// A monocular-inertial map whose IMU scale has not settled (before its second
+// refinement) is merged in Sim(3): scaled to the target's units (positions,
+// keyframe units, IMU velocities), then turned about gravity and moved so the
+// current keyframe lands where the match puts it. Exact on a synthetic pair.
+TEST(MapMerge, AnInertialMonocularMapWhoseScaleHasNotSettledTakesTheTargetsScale) {
+  Atlas atlas;
+  KeyFrameData mono;
+  mono.features.keypoints.resize(2);
+  mono.depth.assign(2, -1.0f);
+  mono.u_right.assign(2, -1.0f);
+  auto source = atlas.create_map();
+  KeyFrameData first = mono, second = mono;
+  second.timestamp_ns = 500'000'000;
+  second.T_w_b = Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1.0, 0.0, 0.0));
+  auto k0 = source->new_keyframe(first);
+  auto k1 = source->new_keyframe(second);
+  k1->set_imu_state(KeyFrame::ImuState{Eigen::Vector3d(0.5, 0.0, 0.0), ImuBias{}});
+  source->set_inertial_state(Map::InertialState{});  // initialised, not refined
+  auto target = atlas.create_map();
+  KeyFrameData stereo = mono;
+  stereo.depth[0] = 3.0f;
+  stereo.u_right[0] = 200.0f;
+  auto m = target->new_keyframe(stereo);
+  target->set_inertial_state(Map::InertialState{});
+
+  // The source's world in the target's: a turn of 30 deg about z, a move, and
+  // 1.25 target metres per source unit (what the match estimated).
+  const Sim3 S_wt_ws(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 6.0, Eigen::Vector3d::UnitZ())),
+                     Eigen::Vector3d(5.0, 2.0, 0.0), 1.25);
+  PlaceMatch match;
+  match.current = k1;
+  match.matched = m;
+  match.detected_on = m;
+  match.scale_free = true;
+  match.S_c_w_corrected = Sim3(k1->T_w_c().inverse()) * S_wt_ws.inverse();
+  const MapMergeStats stats = merge_maps(atlas, match, FrameCamera{});
+  EXPECT_NEAR(stats.scale, 1.25, 1e-12);
+  EXPECT_TRUE(stats.four_dof);
+  ASSERT_EQ(atlas.maps().size(), 1u);
+  const Eigen::Vector3d expected_k1 = S_wt_ws * Eigen::Vector3d(1.0, 0.0, 0.0);
+  EXPECT_LT((k1->T_w_b().t - expected_k1).norm(), 1e-12);
+  EXPECT_LT((k0->T_w_b().t - S_wt_ws.t).norm(), 1e-12);
+  EXPECT_NEAR(k1->units(), 1.25, 1e-12);
+  EXPECT_LT((k1->imu_state()->v_i - Eigen::Vector3d(0.625, 0.0, 0.0)).norm(), 1e-12);  // in its IMU frame
+}
+
 }  // namespace
 }  // namespace orbatlas

@@ -50,6 +50,11 @@ struct LoopCloserOptions {
   // The sessions' maps have no metric scale until an IMU gives them one
   // (monocular): loops and merges are then similarities (Sim(3)).
   bool monocular = false;
+  // A monocular map made metric by its IMU keeps a scale several per cent off
+  // until this many inertial refinements (ORB-SLAM3 merges an inertial map
+  // only after its second, "BA2"): until then it is merged in Sim(3), taking
+  // the target's scale, as a map of free scale is.
+  std::size_t settled_inertial_refinements = 2;
 
   // Live map merging: each keyframe is also searched for in the other maps of
   // the atlas (those LoopCloserWiring::may_merge_into accepts).
@@ -146,6 +151,9 @@ class LoopCloser {
   Recognizers& recognizers(std::uint64_t stream);  // worker thread
   void process(const Item& item);
   void close_loop(const PlaceMatch& loop);
+  // Whether `map`'s merges are estimated in Sim(3) although it is metric: an
+  // inertial monocular map before its scale settled (settled_inertial_refinements).
+  bool merges_in_sim3(const Map* map) const;
   // True when the active map was merged into the match's map.
   bool merge_live(const PlaceMatch& match);
   void stop_global_adjustment();

@@ -58,19 +58,22 @@ MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamer
   const Pose3 T_ws_c = current->T_w_c();
   const Sim3 S_wt_ws = match.S_c_w_corrected.inverse() * Sim3(T_ws_c.inverse());
   if (match.scale_free) {
-    // A map of free scale (monocular) takes the target's: scaled about its
-    // origin first (lengths, and with its keyframes' units the poses kept
-    // relative to them), then moved rigidly.
-    ORBATLAS_CHECK(!source->inertial_state(),
-                   "map merge: map " << source->id() << " is inertial (metric); a merge cannot change its scale");
+    // A map of free scale (monocular), or a monocular-inertial one whose
+    // scale has not settled, takes the target's: scaled about its origin first
+    // (lengths, and with its keyframes' units the poses kept relative to them;
+    // IMU velocities), then moved rigidly.
+    ORBATLAS_CHECK(!source->metric_scale() || target->metric_scale(),
+                   "map merge: map " << source->id() << " is metric and map " << target->id()
+                                     << " is not; a merge cannot take its scale");
     stats.scale = S_wt_ws.s;
     source->rescale(S_wt_ws.s);
   }
   Pose3 T_wt_ws(S_wt_ws.q, S_wt_ws.t);
   if (source->inertial_state() && target->inertial_state()) {
     // Both worlds have gravity along -z: they differ by a turn about z and a
-    // move (the current camera lands where the match puts it).
-    T_wt_ws = yaw_only_transform(T_wt_ws, T_ws_c.t);
+    // move (the current camera, where the rescale above put it, lands where
+    // the match puts it).
+    T_wt_ws = yaw_only_transform(T_wt_ws, stats.scale * T_ws_c.t);
     stats.four_dof = true;
   }
   const Map::AbsorbCounts moved = target->absorb(*source, T_wt_ws);

@@ -5,7 +5,9 @@
 //     target map (holding `matched`), every pose and point transformed by the
 //     transform the place match measured (a similarity when the source's scale
 //     is free: a monocular map takes the target's scale, e.g. a stereo map's
-//     metric one); the source map leaves the atlas;
+//     metric one, and so does a monocular-inertial map whose scale has not
+//     settled, LoopCloserOptions::settled_inertial_refinements); the source
+//     map leaves the atlas;
 //  2. the spanning trees are joined: the path from `current` to its old root
 //     is reversed and `current` becomes a child of `matched`;
 //  3. the matched window's points are fused into `current` and its covisible

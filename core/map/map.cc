@@ -221,6 +221,11 @@ bool Map::metric_scale() const {
   return measured_depth_ || inertial_.has_value();
 }
 
+bool Map::measured_depth() const {
+  std::lock_guard lock(objects_mutex_);
+  return measured_depth_;
+}
+
 std::optional<Map::InertialState> Map::inertial_state() const {
   std::lock_guard lock(objects_mutex_);
   return inertial_;

@@ -100,8 +100,8 @@ class Map {
     TimestampNs initialized_at_ns = 0;  // the newest keyframe of the window
     Eigen::Vector3d gravity_w = Eigen::Vector3d::Zero();
     ImuBias bias;
-    std::size_t keyframes = 0;  // in the window
-    double span_s = 0.0;
+    std::size_t keyframes = 0;    // in the window of the latest estimate (initialisation or refinement)
+    double span_s = 0.0;          // of that window
     std::size_t refinements = 0;  // done since (inertial_initializer.h)
   };
   std::optional<InertialState> inertial_state() const;
@@ -125,6 +125,9 @@ class Map {
   // map's scale is its own until an IMU or a merge into a metric map gives it
   // one. O(1): place recognition and relocalisation ask it per candidate.
   bool metric_scale() const;
+  // Whether a keyframe with measured depths was ever added (metric_scale
+  // without an IMU).
+  bool measured_depth() const;
 
  private:
   struct CulledAnchor {

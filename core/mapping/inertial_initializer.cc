@@ -27,6 +27,9 @@ void InertialInitializationOptions::check() const {
     previous_s = r.after_s;
   }
   ORBATLAS_CHECK(
+      std::isfinite(refinement_min_span_fraction) && refinement_min_span_fraction >= 0.0,
+      "inertial initialisation: refinement_min_span_fraction must be >= 0, not " << refinement_min_span_fraction);
+  ORBATLAS_CHECK(
       std::isfinite(reintegrate_gyro_bias_change) && reintegrate_gyro_bias_change >= 0.0,
       "inertial initialisation: reintegrate_gyro_bias_change must be >= 0, not " << reintegrate_gyro_bias_change);
   solver.check();
@@ -142,14 +145,21 @@ std::optional<Map::InertialState> refine_map_inertial(Map& map, const std::share
   const auto chain = inertial_chain(newest, options.refinement_max_keyframes);
   Map::InertialState refined = *state;
   ++refined.refinements;  // tried once: a chain too short (a session that joined the map late) is not waited for
-  if (chain.size() < options.min_keyframes) {
+  const double span_s = chain.empty() ? 0.0 : ns_to_s(chain.back()->timestamp_ns() - chain.front()->timestamp_ns());
+  // A chain much shorter than the one the map's gravity and scale came from (a
+  // session that joined the map late, or a map merged in after a loss) would
+  // turn and scale the whole map by what a few seconds saw: not tried.
+  if (chain.size() < options.min_keyframes || span_s < options.refinement_min_span_fraction * state->span_s) {
     map.set_inertial_state(refined);
     return std::nullopt;
   }
+  Map::InertialState estimate = refined;  // what the map holds when it is applied
+  estimate.keyframes = chain.size();
+  estimate.span_s = span_s;
   InertialInitOptions solver = options.solver;
   solver.gyro_bias_prior = step.gyro_bias_prior;
   solver.accel_bias_prior = step.accel_bias_prior;
-  auto applied = estimate_and_apply(map, chain, state->bias, refined, options, solver, atlas,
+  auto applied = estimate_and_apply(map, chain, state->bias, estimate, options, solver, atlas,
                                     "inertial refinement " + std::to_string(refined.refinements));
   if (!applied) map.set_inertial_state(refined);
   return applied;

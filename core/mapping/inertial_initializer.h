@@ -43,6 +43,11 @@ struct InertialInitializationOptions {
                                                  {35.0, 0.0, 0.0}, {45.0, 0.0, 0.0}, {55.0, 0.0, 0.0},
                                                  {65.0, 0.0, 0.0}, {75.0, 0.0, 0.0}};
   std::size_t refinement_max_keyframes = 200;  // the newest ones of the chain
+  // A refinement runs only on a chain spanning at least this fraction of the
+  // window the map's estimate came from (InertialState::span_s): after a merge
+  // or a late join the session's chain is a few seconds long, and its gravity
+  // and scale would be applied to the whole map. Tried once all the same.
+  double refinement_min_span_fraction = 0.8;
   // A link whose linearisation gyro bias is this far from the bias found is
   // integrated again at it (ORB-SLAM3's 0.01 rad/s): the rotation increment
   // is corrected to first order only, which a larger change leaves off.
@@ -63,7 +68,8 @@ std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::s
 // The next refinement of an initialised map when its time has come (the chain
 // ending at `newest` estimated again, each of its keyframes given the velocity
 // and biases found, the map turned to the gravity found); returns the state it
-// set. A refinement is tried once (Map::InertialState::refinements counts them).
+// set. A refinement is tried once (Map::InertialState::refinements counts them),
+// and skipped when the chain is too short (refinement_min_span_fraction).
 std::optional<Map::InertialState> refine_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
                                                       const InertialInitializationOptions& options,
                                                       Atlas* atlas = nullptr);

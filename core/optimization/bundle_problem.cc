@@ -127,6 +127,13 @@ ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int it
   };
   for (BundleEdge& e : lp.edges) {
     if (!e.active) continue;
+    // An observation that cannot be evaluated where the solve starts (its
+    // point behind the camera, e.g. after a merge moved one of them) would
+    // make Ceres give up on the whole problem: it is an outlier, left out.
+    if (!bundle_edge_chi2(lp, e)) {
+      e.active = false;
+      continue;
+    }
     PoseParameters& pose = lp.poses[e.keyframe];
     double* p = lp.positions[e.point].data();
     add_pose(e.keyframe);

@@ -47,6 +47,8 @@ nlohmann::json to_json(const LiveMerge& m) {
           {"keyframes_moved", m.merge.keyframes_moved},
           {"map_points_moved", m.merge.points_moved},
           {"points_fused", m.merge.points_fused},
+          {"scale", m.merge.scale},
+          {"four_dof", m.merge.four_dof},
           {"merge_ms", m.merge.ms}};
 }
 

@@ -64,6 +64,10 @@ const std::vector<Binding>& bindings() {
                       "links linearised at a gyro bias this far [rad/s] from the one an initialisation or refinement "
                       "finds are integrated again (10: never)",
                       mapper.inertial.reintegrate_gyro_bias_change),
+      ORBATLAS_TUNING("LocalMapping.InertialRefinementMinSpan", 0, 1, false,
+                      "an inertial refinement runs on a chain spanning at least this fraction of the window the "
+                      "map's estimate came from (0: always)",
+                      mapper.inertial.refinement_min_span_fraction),
       ORBATLAS_TUNING("LoopClosing.Enabled", 0, 1, true, "1: place recognition, loop correction, global BA",
                       loop_closing),
       ORBATLAS_TUNING("LoopClosing.QueueCapacity", 1, 10000, true,

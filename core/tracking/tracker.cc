@@ -189,9 +189,22 @@ bool Tracker::track_from_last_frame(Frame& frame) {
       failed_relocalizations_ = 0;
       return true;
     }
+    // A relocalisation the local map does not confirm changes nothing: the
+    // frame may still be placed by the IMU, in the map and relative to the
+    // keyframe its prediction was made in (not a candidate of another map).
+    std::shared_ptr<Map> map = map_;
+    std::shared_ptr<KeyFrame> reference = reference_, last_keyframe = last_keyframe_;
+    std::vector<std::shared_ptr<KeyFrame>> local_keyframes = local_keyframes_;
     ok = recover(frame);
     if (ok) last_recovery_index_ = frame_index_;
     failed_relocalizations_ = ok ? 0 : failed_relocalizations_ + 1;
+    if (ok && track_local_map(frame)) return true;
+    if (ok && map && map != map_ && !options_.localization_only && atlas_.map(map->id())) atlas_.set_active(map->id());
+    map_ = std::move(map);
+    reference_ = std::move(reference);
+    last_keyframe_ = std::move(last_keyframe);
+    local_keyframes_ = std::move(local_keyframes);
+    return false;
   }
   return ok && track_local_map(frame);
 }
