@@ -46,6 +46,7 @@ nlohmann::json stream_json(const StreamReport& r) {
                       {"rejected", r.rejected},
                       {"keyframes", r.keyframes},
                       {"late_frames", r.late_frames},
+                      {"skipped_frames", r.skipped_frames},
                       {"imu_samples", r.imu_samples},
                       {"wall_s", r.wall_s},
                       {"fps", r.fps()},
@@ -74,9 +75,10 @@ void print_stream_summary(const nlohmann::json& j) {
               j["tracked"].get<std::size_t>(), j["rejected"].get<std::size_t>(), j["keyframes"].get<std::size_t>(),
               j["fps"].get<double>());
   if (j["frames"].get<std::size_t>() > 0) {
-    std::printf("  tracking p50 %.1f / p95 %.1f ms; round trip p50 %.1f / p95 %.1f ms; late frames %zu\n",
-                p("tracking_ms", "p50"), p("tracking_ms", "p95"), p("round_trip_ms", "p50"), p("round_trip_ms", "p95"),
-                j["late_frames"].get<std::size_t>());
+    std::printf(
+        "  tracking p50 %.1f / p95 %.1f ms; round trip p50 %.1f / p95 %.1f ms; late frames %zu; skipped frames %zu\n",
+        p("tracking_ms", "p50"), p("tracking_ms", "p95"), p("round_trip_ms", "p50"), p("round_trip_ms", "p95"),
+        j["late_frames"].get<std::size_t>(), j["skipped_frames"].get<std::size_t>());
     std::printf(
         "  added by the server (request - tracking) p50 %.2f / p95 %.2f ms; by HTTP and the client p50 %.2f ms\n",
         p("server_overhead_ms", "p50"), p("server_overhead_ms", "p95"), p("client_overhead_ms", "p50"));
@@ -113,6 +115,10 @@ void register_stream(CLI::App& app) {
                   "1: at the sensor rate, 2: twice as fast, 0: as fast as the server answers")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--max-lag", args->stream.max_lag_s,
+                  "A real-time session: the server skips the frames that arrive more than this many seconds behind "
+                  "the sensor's clock (counted as skipped frames) instead of falling further behind")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--encoding", args->encoding, "Images as 'raw' 8-bit pixels or 'png'")
       ->capture_default_str()
       ->check(CLI::IsMember({"raw", "png"}));

@@ -62,6 +62,12 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
                "bad_config");
   EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/stereo", "sensor": "sonar"})", "application/json"), 400,
                "bad_request");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/stereo", "max_lag_s": "soon"})", "application/json"), 400,
+               "bad_request");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/stereo", "max_lag_s": -0.1})", "application/json"), 400,
+               "bad_request");
+  EXPECT_REPLY(http.Post("/v1/sessions", R"({"config": "euroc/stereo", "max_lag_s": 3600})", "application/json"), 400,
+               "bad_request");
   EXPECT_REPLY(http.Post("/v1/sessions", R"({"settings_yaml": "%YAML:1.0\nCamera1.fx: [oops"})", "application/json"),
                400, "bad_config");
   // GET /v1/sessions/{id}
@@ -143,6 +149,40 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
   client.finish_session(id);
   EXPECT_REPLY(http.Post(sid + "/frames", frame_form(std::to_string(frames[6].t_ns), left, right)), 409, "conflict");
   EXPECT_REPLY(http.Post(sid + "/finish", "{}", "application/json"), 200, "");
+}
+
+// A real-time session ("max_lag_s"): a frame that arrives further behind the
+// sensor's clock than the lag allows is skipped, not tracked, and said so; the
+// frames after it are tracked again as soon as they arrive on time.
+TEST(ServerErrors, ARealTimeSessionSkipsAFrameThatArrivesTooLate) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 1.0);
+  test::ClipCleanup cleanup{clip};
+  const auto frames = test::stereo_frames(clip);
+  test::TempDbPath db("realtime");
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  const auto started = client.start_session("euroc/stereo", "realtime", "", "", 0.03);
+  const std::uint64_t id = started.at("id").get<std::uint64_t>();
+  const auto send = [&](std::size_t i) {
+    return client.post_frame(id, frames[i].t_ns, cv::imread(frames[i].left.string(), cv::IMREAD_GRAYSCALE),
+                             cv::imread(frames[i].right.string(), cv::IMREAD_GRAYSCALE));
+  };
+  EXPECT_FALSE(send(0)["skipped"].get<bool>());
+  // Frame 1 was captured 50 ms after frame 0 and is sent 300 ms after it:
+  // 250 ms late, more than the 30 ms allowed.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const auto late = send(1);
+  EXPECT_TRUE(late["skipped"].get<bool>());
+  EXPECT_FALSE(late["tracked"].get<bool>());
+  // Frame 14 (700 ms after frame 0 in the sensor's time) arrives on time
+  // again (unless tracking frame 0 took over 0.4 s).
+  const auto on_time = send(14);
+  EXPECT_FALSE(on_time["skipped"].get<bool>());
+  EXPECT_TRUE(on_time["tracked"].get<bool>());
+  const auto status = client.get_json("/v1/sessions/" + std::to_string(id));
+  EXPECT_EQ(status["skipped_frames"], 1);
+  EXPECT_EQ(status["frames"], 2);
+  client.finish_session(id);
 }
 
 TEST(ServerErrors, TokenIsRequiredAndChecked) {

@@ -33,6 +33,8 @@ void StreamOptions::check() const {
   ORBATLAS_CHECK(mode.empty() || mode == "map" || mode == "localize",
                  "stream: mode must be map or localize, not '" << mode << "'");
   ORBATLAS_CHECK(rate >= 0.0 && std::isfinite(rate), "stream: rate must be >= 0 (0: no pacing), not " << rate);
+  ORBATLAS_CHECK(!max_lag_s || (std::isfinite(*max_lag_s) && *max_lag_s > 0.0),
+                 "stream: max_lag_s must be > 0 s, not " << max_lag_s.value_or(0.0));
   ORBATLAS_CHECK(start_s >= 0.0 && std::isfinite(start_s), "stream: start_s must be >= 0 s, not " << start_s);
   ORBATLAS_CHECK(!duration_s || (*duration_s > 0.0 && std::isfinite(*duration_s)),
                  "stream: duration_s must be > 0 s, not " << duration_s.value_or(0.0));
@@ -53,7 +55,8 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   StreamReport report;
   std::string name = options.name;
   if (name.empty()) name = std::filesystem::absolute(options.dataset).lexically_normal().filename().string();
-  const nlohmann::json started = client.start_session(options.config, name, options.sensor, options.mode);
+  const nlohmann::json started =
+      client.start_session(options.config, name, options.sensor, options.mode, options.max_lag_s);
   report.session = started.at("id").get<std::uint64_t>();
   const std::string sensor = started.at("session").value("sensor", "stereo");
   const bool single_camera = sensor == "mono" || sensor == "mono_inertial";
@@ -115,6 +118,10 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
     try {
       const auto reply = client.post_frame(report.session, pair->t_ns, pair->left, pair->right, options.encoding);
       last_reply = Clock::now();
+      if (reply.value("skipped", false)) {
+        ++report.skipped_frames;
+        continue;
+      }
       report.round_trip_ms.push_back(ms_between(sent, *last_reply));
       report.tracking_ms.push_back(reply.at("tracking_ms").get<double>());
       report.server_ms.push_back(reply.at("server_ms").get<double>());

@@ -24,6 +24,9 @@ struct StreamOptions {
   std::string mode;
   std::string name;   // default: the dataset folder's name
   double rate = 0.0;  // 1: real time; 2: twice as fast; 0: no pacing
+  // A real-time session (SessionRequest::max_lag_s): the server skips the
+  // frames that arrive more than this behind the sensor's clock.
+  std::optional<double> max_lag_s;
   ImageEncoding encoding = ImageEncoding::kRaw;
   double start_s = 0.0;
   std::optional<double> duration_s;
@@ -38,6 +41,7 @@ struct StreamReport {
   std::size_t frames = 0, tracked = 0, rejected = 0, keyframes = 0;
   // With pacing (rate > 0): replies that arrived after the next frame was due.
   std::size_t late_frames = 0;
+  std::size_t skipped_frames = 0;     // the server skipped them (max_lag_s): too late
   std::size_t imu_samples = 0;        // sent (inertial sessions: the recording's imu0)
   std::vector<double> tracking_ms;    // the server's tracking time per frame
   std::vector<double> server_ms;      // the server's time per request (parsing, decoding, tracking)

@@ -132,7 +132,7 @@ SettingsChoice choose_settings(const std::string& config) {
 }
 
 json ServerClient::start_session(const std::string& config, const std::string& name, const std::string& sensor,
-                                 const std::string& mode) {
+                                 const std::string& mode, std::optional<double> max_lag_s) {
   const SettingsChoice settings = choose_settings(config);
   json body = json::object();
   if (!settings.config.empty()) body["config"] = settings.config;
@@ -140,6 +140,7 @@ json ServerClient::start_session(const std::string& config, const std::string& n
   if (!name.empty()) body["name"] = name;
   if (!sensor.empty()) body["sensor"] = sensor;
   if (!mode.empty()) body["mode"] = mode;
+  if (max_lag_s) body["max_lag_s"] = *max_lag_s;
   return post_json("/v1/sessions", body);
 }
 

@@ -64,8 +64,10 @@ class ServerClient {
   // (choose_settings), and a sensor (empty takes the config's Sensor.type);
   // returns the reply: {"id", "session": {... "sensor"}}.
   // `mode`: "map" or "localize" (empty: the server's default for the sensor).
+  // `max_lag_s`: a real-time session, whose frames that arrive more than this
+  // behind the sensor's clock the server skips.
   nlohmann::json start_session(const std::string& config, const std::string& name = {}, const std::string& sensor = {},
-                               const std::string& mode = {});
+                               const std::string& mode = {}, std::optional<double> max_lag_s = std::nullopt);
   // The same; returns the session id.
   std::uint64_t create_session(const std::string& config, const std::string& name = {}) {
     return start_session(config, name).at("id").get<std::uint64_t>();

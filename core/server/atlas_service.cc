@@ -282,6 +282,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
 
 SessionId AtlasService::create_session(const SessionRequest& request) {
   check_session_name(request.name);
+  check_max_lag(request.max_lag_s);
   const LoadedSettings loaded = load_settings(request.settings);
   const SensorType sensor = session_sensor(request.sensor, loaded.settings);
   // A single camera maps (monocular SLAM, its own maps at their own scale;
@@ -357,7 +358,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
     throw ServiceError(ServiceErrorKind::kUnavailable, "storage_failed",
                        std::string("cannot store the new session: ") + e.what());
   }
-  auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam), mode);
+  auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam), mode, request.max_lag_s);
   {
     std::lock_guard lock(mutex_);
     sessions_[id] = live;
@@ -560,12 +561,17 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     const FrameOutcome out = live->process(t_ns, left, right);
     reply.result = out.result;
     reply.tracking_ms = out.tracking_ms;
+    reply.skipped = out.skipped;
   } catch (const ServiceError& e) {
     if (e.code() == "session_failed") end_session_storage(id);
     throw;
   } catch (const DataError&) {
     frames_rejected_.Increment();
     throw;
+  }
+  if (reply.skipped) {
+    frames_skipped_.Increment();
+    return reply;  // nothing tracked: the leases and the checkpoints stay as they are
   }
   // A localisation holds no lease: it changes nothing, any number share a map.
   if (live->mode() != SessionMode::kLocalize) {
@@ -611,8 +617,9 @@ SessionStatus AtlasService::finish_session(SessionId id, const std::string& ende
                              checkpointer_->stats().last_error + " (the server keeps retrying)");
     live->release_anchors();  // stored: the database answers for its trajectory from now on
     // A localising single camera only read the maps it held; a mapping one
-    // made maps without metric scale, which the merging worker's rigid
-    // alignment does not fit (Sim(3) merges do not exist yet).
+    // made maps of free scale (or, with its IMU, of a scale that may not have
+    // settled), which the merging worker's rigid alignment does not fit: they
+    // merge live only (the loop closer's Sim(3) merges).
     if (!is_single_camera(live->info().sensor)) submit_merges(id, held);
     // The session's SLAM objects (images, pyramids, rectification maps) are
     // gone: give the allocator's idle pages back, so a server that runs

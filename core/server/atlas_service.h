@@ -82,12 +82,18 @@ struct SessionRequest {
   // "map" or "localize"; empty: as session_mode (session_rules.h) decides.
   std::string mode;
   SettingsSource settings;
+  // A real-time client: a frame that arrives more than this many seconds
+  // behind the session's sensor clock is skipped (FrameReply::skipped), so the
+  // session catches up instead of falling further behind. None: every frame is
+  // tracked however late.
+  std::optional<double> max_lag_s;
 };
 
 struct FrameReply {
   SessionId session = 0;
   TrackResult result;
   double tracking_ms = 0.0;
+  bool skipped = false;  // too late (SessionRequest::max_lag_s): not tracked
 };
 
 struct SessionTrajectory {
@@ -271,6 +277,8 @@ class AtlasService {
   prometheus::Counter& frames_ = metrics_.counter("orbatlas_frames_total", "Frames processed.");
   prometheus::Counter& frames_rejected_ =
       metrics_.counter("orbatlas_frames_rejected_total", "Frames refused as bad input.");
+  prometheus::Counter& frames_skipped_ = metrics_.counter(
+      "orbatlas_frames_skipped_total", "Frames of real-time sessions skipped for arriving too late (max_lag_s).");
   prometheus::Histogram& tracking_latency_ = metrics_.histogram(
       "orbatlas_tracking_latency_seconds", "Time to track one frame (features included).", latency_buckets_seconds());
   prometheus::Counter& localize_requests_ =

@@ -25,12 +25,14 @@ const char* session_state_name(SessionState state) {
   return "?";
 }
 
-LiveSession::LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam, SessionMode mode)
+LiveSession::LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam, SessionMode mode,
+                         std::optional<double> max_lag_s)
     : info_(std::move(info)),
       config_(std::move(config)),
       mode_(mode),
       slam_(std::move(slam)),
-      state_(SessionState::kActive) {}
+      state_(SessionState::kActive),
+      max_lag_ns_(max_lag_s ? std::optional<std::int64_t>(s_to_ns(*max_lag_s)) : std::nullopt) {}
 
 LiveSession::LiveSession(SessionInfo info, std::size_t tracked_frames, std::optional<FrameAnchor> last_frame)
     : info_(std::move(info)), state_(SessionState::kStored), anchors_released_(true), last_anchor_(last_frame) {
@@ -73,6 +75,21 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
   }
   FrameOutcome out;
   const auto start = std::chrono::steady_clock::now();
+  if (max_lag_ns_) {
+    // Arrival minus capture, against the smallest seen: how far behind the
+    // sensor this frame is (the network's and the client's constant delays cancel).
+    const std::int64_t offset =
+        std::chrono::duration_cast<std::chrono::nanoseconds>(start.time_since_epoch()).count() - t_ns;
+    if (!min_offset_ns_ || offset < *min_offset_ns_) min_offset_ns_ = offset;
+    if (offset - *min_offset_ns_ > *max_lag_ns_) {
+      last_frame_t_ = t_ns;  // timestamps still increase across skipped frames
+      ++skipped_frames_;
+      out.skipped = true;
+      out.result.t_ns = t_ns;
+      if (last_) out.result.state = last_->state;
+      return out;
+    }
+  }
   try {
     out.result = slam_->process(t_ns, left, right);
   } catch (const DataError&) {
@@ -183,6 +200,7 @@ SessionStatus LiveSession::status() const {
   s.tracked = tracked_;
   s.keyframes = keyframes_;
   s.rejected_frames = rejected_frames_;
+  s.skipped_frames = skipped_frames_;
   s.imu_samples = imu_samples_;
   s.worker_errors = worker_errors_.load();
   s.config = config_;

@@ -24,12 +24,15 @@ namespace orbatlas {
 struct FrameOutcome {
   TrackResult result;
   double tracking_ms = 0.0;  // inside StereoSlam::process (features + tracking)
+  bool skipped = false;      // arrived too late (max_lag_s): not tracked
 };
 
 class LiveSession {
  public:
+  // `max_lag_s`: a frame that arrives more than this behind the session's
+  // sensor clock is skipped (see process()); none: every frame is tracked.
   LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam,
-              SessionMode mode = SessionMode::kMap);
+              SessionMode mode = SessionMode::kMap, std::optional<double> max_lag_s = std::nullopt);
   // A stored session (an earlier run's): how many frames it tracked and its
   // last frame; its trajectory stays in the database.
   LiveSession(SessionInfo info, std::size_t tracked_frames, std::optional<FrameAnchor> last_frame);
@@ -47,7 +50,10 @@ class LiveSession {
   // One stereo pair, or one image (`right` empty) for a single-camera session. ServiceError 409 when the session is not
   // active; DataError for a bad frame (timestamp not after the previous one, wrong size...): the session goes on. Any
   // other failure of tracking or mapping fails the session (state "failed", ServiceError 500 naming the cause); the
-  // server goes on.
+  // server goes on. With a largest lag, a frame whose arrival is more than it
+  // behind its timestamp, measured against the earliest arrival seen (the
+  // frame that came soonest after its capture sets the clock offset), is
+  // skipped: not tracked, counted (`skipped_frames`), the reply says so.
   FrameOutcome process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
   // A batch of IMU samples, checked (finite, strictly increasing across
   // batches, no gap over `max_gap_s`) and counted; DataError otherwise, and then
@@ -92,7 +98,9 @@ class LiveSession {
   bool anchors_released_ = false;
   std::optional<FrameAnchor> last_anchor_;  // kept when released
   std::optional<TimestampNs> last_frame_t_, last_imu_t_;
-  std::size_t frames_ = 0, tracked_ = 0, keyframes_ = 0, rejected_frames_ = 0, imu_samples_ = 0;
+  std::size_t frames_ = 0, tracked_ = 0, keyframes_ = 0, rejected_frames_ = 0, imu_samples_ = 0, skipped_frames_ = 0;
+  const std::optional<std::int64_t> max_lag_ns_;
+  std::optional<std::int64_t> min_offset_ns_;  // smallest arrival - timestamp seen
   std::optional<TrackResult> last_;
   SampleSummary tracking_ms_;
   std::optional<SessionStatus::SlamCounts> final_counts_;  // captured by finish()

@@ -35,6 +35,7 @@ struct SessionStatus {
   SensorType sensor = SensorType::kStereo;
   std::optional<SessionMode> mode;  // none for a session of an earlier run (not stored)
   std::size_t frames = 0, tracked = 0, keyframes = 0, rejected_frames = 0, imu_samples = 0;
+  std::size_t skipped_frames = 0;  // too late for a real-time session (max_lag_s)
   std::size_t worker_errors = 0;
   std::string config;    // the config name it was started with ("" for inline settings)
   std::string error;     // why it failed ("" unless failed)

@@ -1,5 +1,6 @@
 #include "core/server/session_rules.h"
 
+#include <cmath>
 #include <cstdint>
 
 #include "core/features/stereo_rectified.h"
@@ -75,6 +76,11 @@ SlamSettings monocular_settings(SlamSettings settings, SensorType sensor) {
 Pose3 single_camera_T_b_c(const SlamSettings& settings) {
   if (!settings.camera1) return settings.camera0.T_b_c;
   return StereoRectifier(settings.camera0, *settings.camera1).rectified_left().T_b_c;
+}
+
+void check_max_lag(const std::optional<double>& max_lag_s) {
+  if (max_lag_s && !(std::isfinite(*max_lag_s) && *max_lag_s > 0.0 && *max_lag_s <= 60.0))
+    throw_bad_request("max_lag_s must be a number of seconds in (0, 60], not " + std::to_string(*max_lag_s));
 }
 
 }  // namespace orbatlas

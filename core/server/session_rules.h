@@ -4,6 +4,7 @@
 // the settings a single camera maps with. Every refusal is a ServiceError
 // (400), thrown before anything is created.
 #include <cstddef>
+#include <optional>
 #include <string>
 
 #include "core/geometry/pose.h"
@@ -30,6 +31,10 @@ SessionMode session_mode(const std::string& mode, SensorType sensor, const SlamS
 // StereoLeftFrontend), with its IMU for a mono_inertial session (400 when the
 // config has none).
 SlamSettings monocular_settings(SlamSettings settings, SensorType sensor);
+
+// A real-time session's largest lag (POST /v1/sessions "max_lag_s"): none, or
+// a finite number of seconds in (0, 60]; 400 otherwise.
+void check_max_lag(const std::optional<double>& max_lag_s);
 
 // Where a single camera that maps sits in the body: the rectified left camera
 // of a stereo config, else the config's camera.

@@ -226,6 +226,10 @@ void install_session_routes(Router& router, AtlasService& service) {
                 request.name = optional_string(body, "name");
                 if (body.contains("sensor")) request.sensor = optional_string(body, "sensor");
                 if (body.contains("mode")) request.mode = optional_string(body, "mode");
+                if (body.contains("max_lag_s")) {
+                  if (!body["max_lag_s"].is_number()) throw_bad_request("'max_lag_s' must be a number of seconds");
+                  request.max_lag_s = body["max_lag_s"].get<double>();
+                }
                 request.settings.config = optional_string(body, "config");
                 request.settings.settings_yaml = optional_string(body, "settings_yaml");
                 const SessionId id = service.create_session(request);
@@ -264,7 +268,7 @@ void install_session_routes(Router& router, AtlasService& service) {
         json body = {{"t_ns", r.result.t_ns},         {"state", tracking_state_name(r.result.state)},
                      {"tracked", r.result.tracked},   {"by_imu", r.result.by_imu},
                      {"keyframe", r.result.keyframe}, {"inliers", r.result.inliers},
-                     {"tracking_ms", r.tracking_ms}};
+                     {"tracking_ms", r.tracking_ms},  {"skipped", r.skipped}};
         if (r.result.tracked) {
           body["map"] = r.result.map;
           body["T_w_b"] = pose_to_json(r.result.T_w_b);
