@@ -3,6 +3,9 @@
 
 #include <algorithm>
 
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
 #include "core/camera/camera_factory.h"
 #include "core/common/error.h"
 #include "core/features/keypoint_geometry.h"
@@ -96,6 +99,38 @@ TEST(RectifiedStereo, RejectsMismatchedImagesAndFisheye) {
   cv::Mat small(100, 100, CV_8UC1, cv::Scalar(0)), a, b;
   EXPECT_THROW(rectifier.rectify(small, small, a, b), Error);
   EXPECT_THROW(StereoRectifier(test::fisheye_left(), test::fisheye_right()), Error);
+}
+
+// The rectifier keeps remap's fixed-point maps (converted once) instead of
+// float maps (converted by remap on every image): the images are the same.
+TEST(RectifiedStereo, FixedPointMapsRectifyAsTheFloatMapsDo) {
+  const CameraCalibration left = test::euroc_cam0(), right = test::euroc_cam1();
+  const StereoRectifier rectifier(left, right);
+  cv::Mat image(left.height, left.width, CV_8UC1);
+  cv::randu(image, 0, 256);
+  cv::GaussianBlur(image, image, cv::Size(5, 5), 1.0);
+  cv::Mat left_rect, right_rect;
+  rectifier.rectify(image, image, left_rect, right_rect);
+  // The float maps of the same rectification.
+  const Pose3 T_c1_c0 = right.T_b_c.inverse() * left.T_b_c;
+  const auto K = [](const CameraCalibration& c) -> cv::Mat {
+    return (cv::Mat_<double>(3, 3) << c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0);
+  };
+  cv::Mat R1, R2, P1, P2, Q, R(3, 3, CV_64F);
+  const Eigen::Matrix3d rotation = T_c1_c0.rotation();
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) R.at<double>(r, c) = rotation(r, c);
+  const cv::Mat T = (cv::Mat_<double>(3, 1) << T_c1_c0.t.x(), T_c1_c0.t.y(), T_c1_c0.t.z());
+  const cv::Size size(left.width, left.height);
+  cv::stereoRectify(K(left), cv::Mat(left.distortion), K(right), cv::Mat(right.distortion), size, R, T, R1, R2, P1, P2,
+                    Q, cv::CALIB_ZERO_DISPARITY, 0);
+  cv::Mat map_x, map_y, expected;
+  cv::initUndistortRectifyMap(K(left), cv::Mat(left.distortion), R1, P1, size, CV_32F, map_x, map_y);
+  cv::remap(image, expected, map_x, map_y, cv::INTER_LINEAR);
+  EXPECT_EQ(cv::norm(left_rect, expected, cv::NORM_INF), 0.0);
+  cv::initUndistortRectifyMap(K(right), cv::Mat(right.distortion), R2, P2, size, CV_32F, map_x, map_y);
+  cv::remap(image, expected, map_x, map_y, cv::INTER_LINEAR);
+  EXPECT_EQ(cv::norm(right_rect, expected, cv::NORM_INF), 0.0);
 }
 
 TEST(TriangulatedStereo, FisheyeDepthAtFiveMetres) {

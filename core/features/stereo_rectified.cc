@@ -42,10 +42,12 @@ StereoRectifier::StereoRectifier(const CameraCalibration& left, const CameraCali
   const cv::Mat T = (cv::Mat_<double>(3, 1) << T_c1_c0.t.x(), T_c1_c0.t.y(), T_c1_c0.t.z());
   cv::stereoRectify(intrinsics(left), cv::Mat(left.distortion), intrinsics(right), cv::Mat(right.distortion), size,
                     to_cv(T_c1_c0.rotation()), T, R1, R2, P1, P2, Q, cv::CALIB_ZERO_DISPARITY, 0);
-  cv::initUndistortRectifyMap(intrinsics(left), cv::Mat(left.distortion), R1, P1, size, CV_32F, map_left_x_,
-                              map_left_y_);
-  cv::initUndistortRectifyMap(intrinsics(right), cv::Mat(right.distortion), R2, P2, size, CV_32F, map_right_x_,
-                              map_right_y_);
+  cv::Mat map_x, map_y;
+  cv::initUndistortRectifyMap(intrinsics(left), cv::Mat(left.distortion), R1, P1, size, CV_32F, map_x, map_y);
+  cv::convertMaps(map_x, map_y, map_left_xy_, map_left_frac_, CV_16SC2);
+  cv::initUndistortRectifyMap(intrinsics(right), cv::Mat(right.distortion), R2, P2, size, CV_32F, map_x, map_y);
+  cv::convertMaps(map_x, map_y, map_right_xy_, map_right_frac_, CV_16SC2);
+  size_ = size;
   baseline_ = -P2.at<double>(0, 3) / P2.at<double>(0, 0);
   ORBATLAS_CHECK(baseline_ > 0.0, "stereo rectification: the right camera is not to the right of the left one");
 
@@ -67,24 +69,23 @@ StereoRectifier::StereoRectifier(const CameraCalibration& left, const CameraCali
 
 void StereoRectifier::rectify(const cv::Mat& left, const cv::Mat& right, cv::Mat& left_rect,
                               cv::Mat& right_rect) const {
-  ORBATLAS_CHECK(left.size() == map_left_x_.size() && right.size() == map_right_x_.size(),
+  ORBATLAS_CHECK(left.size() == size_ && right.size() == size_,
                  "stereo images of " << left.cols << "x" << left.rows << " and " << right.cols << "x" << right.rows
-                                     << " do not match the calibration (" << map_left_x_.cols << "x" << map_left_x_.rows
-                                     << ")");
-  cv::remap(left, left_rect, map_left_x_, map_left_y_, cv::INTER_LINEAR);
-  cv::remap(right, right_rect, map_right_x_, map_right_y_, cv::INTER_LINEAR);
+                                     << " do not match the calibration (" << size_.width << "x" << size_.height << ")");
+  cv::remap(left, left_rect, map_left_xy_, map_left_frac_, cv::INTER_LINEAR);
+  cv::remap(right, right_rect, map_right_xy_, map_right_frac_, cv::INTER_LINEAR);
 }
 
 void StereoRectifier::rectify_left(const cv::Mat& left, cv::Mat& left_rect) const {
-  ORBATLAS_CHECK(left.size() == map_left_x_.size(),
+  ORBATLAS_CHECK(left.size() == size_,
                  "left image of " << left.cols << "x" << left.rows << " does not match the calibration");
-  cv::remap(left, left_rect, map_left_x_, map_left_y_, cv::INTER_LINEAR);
+  cv::remap(left, left_rect, map_left_xy_, map_left_frac_, cv::INTER_LINEAR);
 }
 
 void StereoRectifier::rectify_right(const cv::Mat& right, cv::Mat& right_rect) const {
-  ORBATLAS_CHECK(right.size() == map_right_x_.size(),
+  ORBATLAS_CHECK(right.size() == size_,
                  "right image of " << right.cols << "x" << right.rows << " does not match the calibration");
-  cv::remap(right, right_rect, map_right_x_, map_right_y_, cv::INTER_LINEAR);
+  cv::remap(right, right_rect, map_right_xy_, map_right_frac_, cv::INTER_LINEAR);
 }
 
 std::size_t StereoDepths::matched() const {

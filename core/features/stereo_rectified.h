@@ -32,7 +32,11 @@ class StereoRectifier {
  private:
   CameraCalibration rect_left_, rect_right_;
   double baseline_ = 0.0;
-  cv::Mat map_left_x_, map_left_y_, map_right_x_, map_right_y_;
+  // cv::remap's fixed-point form of the float maps (CV_16SC2 whole pixels and
+  // CV_16UC1 interpolation-table indices): the same result, without remap
+  // converting the float maps again on every image (issue 21's profile).
+  cv::Mat map_left_xy_, map_left_frac_, map_right_xy_, map_right_frac_;
+  cv::Size size_;
 };
 
 struct StereoMatchOptions {

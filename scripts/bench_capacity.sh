@@ -1,0 +1,124 @@
+#!/usr/bin/env bash
+# Capacity benchmark (issue 21, not part of the test suite): how many live
+# stereo sessions one orbatlas-server carries at the camera's rate. For each N,
+# a fresh server on a fresh atlas takes N sessions at once, each streaming its
+# own Machine Hall sequence (MH_01, MH_02, ... in turn) at the sensor rate
+# (`orbatlas stream --rate 1`) as a real-time session (`--max-lag`: frames that
+# arrive too late are skipped by the server and counted). Per N it prints the
+# late and skipped frames, tracking p50/p95, the server's CPU (cores, and per
+# session), its peak resident size, and each session's ATE against the same
+# clip streamed alone (N = 1 for every sequence used).
+#   scripts/bench_capacity.sh                 # N = 1 2 3 4, 60 s each, real look
+#   NS="1 2 3 4 5 6" scripts/bench_capacity.sh
+#   SECONDS_PER_SESSION=120 LOOK=clean MAX_LAG=0.1 scripts/bench_capacity.sh
+#   ORBATLAS_BIN=/tmp/orbatlas ORBATLAS_SERVER_BIN=/tmp/orbatlas-server scripts/bench_capacity.sh   # frozen binaries
+# The sequences are rendered once into $ORBATLAS_BENCH_DATA (default
+# build/bench_data, shared with the other benchmarks); results in
+# $ORBATLAS_BENCH_OUT (default out/bench_capacity).
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+BENCH_NAME=bench_capacity
+# shellcheck source=scripts/bench_env.sh
+source "$ROOT/scripts/bench_env.sh"
+SERVER_BIN="${ORBATLAS_SERVER_BIN:-$BUILD_DIR/server/orbatlas-server}"
+read -r -a N_LIST <<< "${NS:-1 2 3 4}"
+SECONDS_PER_SESSION="${SECONDS_PER_SESSION:-60}"
+START_S="${START_S:-20}"
+LOOK="${LOOK:-real}"
+MAX_LAG="${MAX_LAG:-0.1}"
+SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05 MH_01)
+
+dataset() {  # the rendered full sequence of the i-th session
+  local seq=$1 dir
+  dir="$DATA/$seq"
+  [ "$LOOK" = clean ] || dir="$DATA/${seq}_$LOOK"
+  if [ ! -d "$dir/mav0" ]; then
+    echo "== rendering $seq ($LOOK look) into $dir" >&2
+    "$OA" sim --sequence "$seq" --look "$LOOK" --out "$dir" --no-progress >&2
+  fi
+  echo "$dir"
+}
+
+SERVER_PID=""
+stop_server() {
+  if [ -n "$SERVER_PID" ]; then
+    kill -TERM "$SERVER_PID" 2>/dev/null || true
+    wait "$SERVER_PID" 2>/dev/null || true
+    SERVER_PID=""
+  fi
+}
+trap stop_server EXIT
+
+cpu_ticks() { awk '{print $14 + $15}' "/proc/$1/stat"; }  # utime + stime of the whole process
+
+# run_sessions NAME SEQ...: a fresh server, one real-time session per SEQ at
+# once; writes $OUT/NAME/{server.json, SEQ_i.json}.
+run_sessions() {
+  local name=$1
+  shift
+  local dir="$OUT/$name"
+  rm -rf "$dir"
+  mkdir -p "$dir"
+  "$SERVER_BIN" --db "$dir/atlas.db" --listen 127.0.0.1:0 --port-file "$dir/port" 2>"$dir/server.log" &
+  SERVER_PID=$!
+  for _ in $(seq 1 300); do [ -s "$dir/port" ] && break; sleep 0.1; done
+  [ -s "$dir/port" ] || { cat "$dir/server.log" >&2; echo "bench_capacity: the server did not start" >&2; exit 1; }
+  local url="http://127.0.0.1:$(cat "$dir/port")"
+  local ticks0 t0 pids=() i=0
+  ticks0=$(cpu_ticks "$SERVER_PID")
+  t0=$(date +%s.%N)
+  for seq in "$@"; do
+    i=$((i + 1))
+    "$OA" stream --server "$url" --dataset "$(dataset "$seq")" --start "$START_S" --duration "$SECONDS_PER_SESSION" \
+        --rate 1 --max-lag "$MAX_LAG" --name "$name-$i-$seq" --no-progress --stats "$dir/${i}_$seq.json" \
+        > "$dir/${i}_$seq.txt" 2>&1 &
+    pids+=($!)
+  done
+  for p in "${pids[@]}"; do wait "$p"; done
+  local t1 ticks1 hwm
+  t1=$(date +%s.%N)
+  ticks1=$(cpu_ticks "$SERVER_PID")
+  hwm=$(awk '/VmHWM/ {print $2}' "/proc/$SERVER_PID/status")
+  awk -v t0="$t0" -v t1="$t1" -v c0="$ticks0" -v c1="$ticks1" -v hz="$(getconf CLK_TCK)" -v hwm="$hwm" -v n="$#" \
+      'BEGIN { printf "{\"wall_s\": %.3f, \"cpu_s\": %.3f, \"peak_rss_kb\": %d, \"sessions\": %d}\n", t1 - t0, (c1 - c0) / hz, hwm, n }' \
+      > "$dir/server.json"
+  stop_server
+}
+
+MAX_N=1
+for n in "${N_LIST[@]}"; do [ "$n" -gt "$MAX_N" ] && MAX_N=$n; done
+for ((k = 0; k < MAX_N; ++k)); do
+  seq=${SEQUENCES[$k]}
+  [ -f "$OUT/alone_$seq/1_$seq.json" ] && [ -n "${KEEP_ALONE:-}" ] && continue
+  echo "== alone: $seq ($LOOK look, ${SECONDS_PER_SESSION} s from ${START_S} s, rate 1)"
+  run_sessions "alone_$seq" "$seq"
+done
+for n in "${N_LIST[@]}"; do
+  [ "$n" -le 1 ] && continue
+  echo "== $n sessions at once"
+  run_sessions "n$n" "${SEQUENCES[@]:0:$n}"
+done
+
+/usr/bin/python3 - "$OUT" "${N_LIST[*]}" "${SEQUENCES[*]}" <<'PY'
+import json, sys, os
+out, ns, seqs = sys.argv[1], [int(n) for n in sys.argv[2].split()], sys.argv[3].split()
+def load(d, i, seq): return json.load(open(os.path.join(out, d, f"{i}_{seq}.json")))
+alone = {s: load(f"alone_{s}", 1, s) for s in seqs[:max(ns)]}
+print(f"{'N':>2} {'frames':>7} {'late':>6} {'late%':>6} {'skipped':>7} {'skip%':>6} {'track p50/p95 [ms]':>19} "
+      f"{'cores':>6} {'cores/session':>13} {'peak RSS [MB]':>13} {'RSS/session':>11}  ATE per session [m] (alone)")
+for n in ns:
+    d = f"alone_{seqs[0]}" if n == 1 else f"n{n}"
+    server = json.load(open(os.path.join(out, d, "server.json")))
+    runs = [load(d, i + 1, s) for i, s in enumerate(seqs[:n])]
+    sent = sum(r["frames"] + r["skipped_frames"] for r in runs)
+    late = sum(r["late_frames"] for r in runs)
+    skipped = sum(r["skipped_frames"] for r in runs)
+    p50 = sum(r["tracking_ms"]["p50"] for r in runs) / n
+    p95 = max(r["tracking_ms"]["p95"] for r in runs)
+    cores = server["cpu_s"] / server["wall_s"]
+    rss = server["peak_rss_kb"] / 1024.0
+    ates = " ".join(f"{r.get('ate_rmse_m', float('nan')):.4f}({alone[s].get('ate_rmse_m', float('nan')):.4f})"
+                    for r, s in zip(runs, seqs))
+    print(f"{n:>2} {sent:>7} {late:>6} {100.0 * late / sent:>5.2f}% {skipped:>7} {100.0 * skipped / sent:>5.2f}% "
+          f"{p50:>10.1f}/{p95:<8.1f} {cores:>6.2f} {cores / n:>13.2f} {rss:>13.0f} {rss / n:>11.0f}  {ates}")
+PY
