@@ -20,6 +20,10 @@
 # an atlas holding the stereo map of another sequence (MH_01's; MH_02's for
 # MH_01): the single camera starts its own map at its own scale, and merging
 # into the stereo map makes it metric, so it is scored with --align se3.
+# mono_inertial_left: the same with the IMU (`--config stereo_inertial.yaml
+# --sensor mono_inertial`) on a copy of the stereo-inertial map of the other
+# sequence: a monocular-inertial map merged into a stereo-inertial one.
+#   MODES=mono_inertial_left scripts/bench_mono.sh
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BENCH_NAME=bench_mono
@@ -43,27 +47,30 @@ for look in "${LOOK_LIST[@]}"; do
     for mode in "${MODE_LIST[@]}"; do
       name="${s}_${look}_${mode}"
       echo "== orbatlas run $mode on $s ($look look)"
-      if [ "$mode" = mono_left ]; then
+      if [ "$mode" = mono_left ] || [ "$mode" = mono_inertial_left ]; then
+        rig=stereo
+        sensor=mono
+        [ "$mode" = mono_inertial_left ] && rig=stereo_inertial && sensor=mono_inertial
         ref=MH_01
         [ "$s" = MH_01 ] && ref=MH_02
         ref_src="$DATA/$ref"
         [ "$look" = clean ] || ref_src="$DATA/${ref}_$look"
-        base="$OUT/stereo_${ref}_${look}.db"
+        base="$OUT/${rig}_${ref}_${look}.db"
         if [ ! -f "$base" ]; then
-          echo "== the stereo map of $ref ($look look) into $base"
-          "$OA" run --config "$ROOT/config/euroc/stereo.yaml" --dataset "$ref_src" --no-progress --atlas "$base" \
-              --out-trajectory "$OUT/stereo_${ref}_${look}.txt" > "$OUT/stereo_${ref}_${look}.log" 2>&1
+          echo "== the $rig map of $ref ($look look) into $base"
+          "$OA" run --config "$ROOT/config/euroc/$rig.yaml" --dataset "$ref_src" --no-progress --atlas "$base" \
+              --out-trajectory "$OUT/${rig}_${ref}_${look}.txt" > "$OUT/${rig}_${ref}_${look}.log" 2>&1
         fi
         rm -f "$OUT/$name.db"
         cp "$base" "$OUT/$name.db"
-        "$OA" run --config "$ROOT/config/euroc/stereo.yaml" --sensor mono --atlas "$OUT/$name.db" --dataset "$src" \
+        "$OA" run --config "$ROOT/config/euroc/$rig.yaml" --sensor "$sensor" --atlas "$OUT/$name.db" --dataset "$src" \
             --no-progress --out-trajectory "$OUT/$name.txt" --stats "$OUT/$name.json" > "$OUT/$name.log" 2>&1
       else
         "$OA" run --config "$ROOT/config/euroc/$mode.yaml" --dataset "$src" --no-progress \
             --out-trajectory "$OUT/$name.txt" --stats "$OUT/$name.json" > "$OUT/$name.log" 2>&1
       fi
       align=sim3
-      [ "$mode" = mono_inertial ] || [ "$mode" = mono_left ] && align=se3
+      [ "$mode" = mono ] || align=se3
       "$OA" eval --gt "$src" --est "$OUT/$name.txt" --align "$align" --est-frame cam0 --json > "$OUT/$name.eval.json"
       "$OA" eval --gt "$src" --est "$OUT/$name.txt" --align sim3 --est-frame cam0 --json > "$OUT/$name.sim3.json"
       /usr/bin/python3 - "$src" "$OUT/$name.txt" > "$OUT/$name.path.json" <<'PY'

@@ -85,6 +85,11 @@ int main(int argc, char** argv) {
   app.add_option("--idle-timeout", service_options.idle_timeout_s,
                  "Finish a live session after this many seconds without a frame (its data is stored; 0: never)")
       ->capture_default_str();
+  app.add_option("--background-nice", service_options.background_nice,
+                 "Nice value (0-19) of local mapping, loop closing and map merging; above 0 the sessions' tracking is "
+                 "served first on a loaded machine (0: all alike)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 19));
   orbatlas::ConnectionLimits limits;
   app.add_option("--header-timeout", limits.header_timeout_s,
                  "Seconds a request's line and headers may take once it started")

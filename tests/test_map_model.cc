@@ -423,6 +423,30 @@ TEST(MapModel, AMapIsMetricWithAKeyframeOfMeasuredDepthOrAnImu) {
   EXPECT_TRUE(stereo_map->metric_scale());
 }
 
+// What "body" means in a map is its first keyframe's camera-in-body (a single
+// camera's body is the camera, a stereo rig's its IMU); a merge keeps the
+// target's, and an empty map takes the source's.
+TEST(MapModel, AMapsBodyIsItsFirstKeyframesAndAMergeKeepsTheTargets) {
+  Atlas atlas;
+  auto rig = atlas.create_map();
+  auto camera = atlas.create_map();
+  EXPECT_FALSE(rig->first_T_b_c().has_value());
+  KeyFrameData imu_body = keyframe_data(1);
+  imu_body.T_b_c = Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(-0.02, 0.06, 0.01));
+  rig->new_keyframe(imu_body);
+  KeyFrameData camera_body = keyframe_data(1);  // T_b_c identity
+  rig->new_keyframe(camera_body);
+  camera->new_keyframe(camera_body);
+  ASSERT_TRUE(rig->first_T_b_c().has_value());
+  EXPECT_EQ(rig->first_T_b_c()->t, imu_body.T_b_c.t);
+  EXPECT_EQ(camera->first_T_b_c()->t, Eigen::Vector3d::Zero());
+  rig->absorb(*camera, Pose3());
+  EXPECT_EQ(rig->first_T_b_c()->t, imu_body.T_b_c.t);
+  auto empty = atlas.create_map();
+  empty->absorb(*rig, Pose3());
+  EXPECT_EQ(empty->first_T_b_c()->t, imu_body.T_b_c.t);
+}
+
 // Frame anchors are stored in their keyframe's units, culled anchors in their
 // parent's: a later change of scale about a keyframe (a Sim(3) loop moving
 // it, a rescale of the map) moves and scales what hangs from it, exactly.

@@ -4,6 +4,7 @@
 // discards, and on a shared thread finish() waits for the worker's own items.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <future>
 #include <mutex>
 #include <stdexcept>
@@ -11,6 +12,7 @@
 #include <vector>
 
 #include "core/common/queue_worker.h"
+#include "core/common/thread_priority.h"
 
 namespace orbatlas {
 namespace {
@@ -68,6 +70,35 @@ TEST(QueueWorker, RunsItemsInOrderOnOneThreadAndReportsIdle) {
   worker.finish();
   EXPECT_FALSE(worker.push(99));  // finished: refused
   EXPECT_FALSE(worker.try_push(99));
+}
+
+// Background workers run at the nice value they are given (the map server's
+// mapping below its tracking); the thread that created them keeps its own.
+TEST(QueueWorker, AWorkersThreadRunsAtItsNiceValue) {
+  const int own = current_thread_nice();
+  std::atomic<int> seen{-100};
+  {
+    QueueWorker<int> worker(
+        QueueWorkerOptions::own_thread("nice", 4, 20, 7), [&](int&) { seen.store(current_thread_nice()); },
+        [](const int& i) { return std::to_string(i); });
+    worker.push(1);
+    worker.wait_until_idle();
+  }
+  // Raising a thread's nice value always works; lowering it below the
+  // creator's (when the tests themselves run niced) may need privileges.
+  if (own <= 7) EXPECT_EQ(seen.load(), 7);
+  EXPECT_GE(seen.load(), 7);
+  EXPECT_EQ(current_thread_nice(), own);
+  SerialWorker serial(2, 3);
+  std::atomic<int> serial_seen{-100};
+  std::promise<void> done;
+  ASSERT_TRUE(serial.try_post([&] {
+    serial_seen.store(current_thread_nice());
+    done.set_value();
+  }));
+  done.get_future().wait();
+  if (own <= 3) EXPECT_EQ(serial_seen.load(), 3);
+  EXPECT_GE(serial_seen.load(), 3);
 }
 
 TEST(QueueWorker, TryPushRefusesWhenFullWithoutBlocking) {

@@ -26,6 +26,7 @@
 #include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/common/serial_worker.h"
+#include "core/common/thread_priority.h"
 #include "core/common/worker_errors.h"
 
 namespace orbatlas {
@@ -41,12 +42,16 @@ struct QueueWorkerOptions {
   // instead of a thread of the worker's own; its queue then bounds them, and
   // pause() must not be used (it would hold up the other workers).
   std::shared_ptr<SerialWorker> shared;
+  // The nice value of a thread of its own (thread_priority.h; 0: as created).
+  int nice = 0;
 
-  static QueueWorkerOptions own_thread(std::string name, std::size_t capacity, std::size_t fatal_after = 20) {
+  static QueueWorkerOptions own_thread(std::string name, std::size_t capacity, std::size_t fatal_after = 20,
+                                       int nice = 0) {
     QueueWorkerOptions o;
     o.name = std::move(name);
     o.capacity = capacity;
     o.fatal_after = fatal_after;
+    o.nice = nice;
     return o;
   }
 };
@@ -65,7 +70,11 @@ class QueueWorker {
         errors_(options_.name, options_.fatal_after),
         queue_(options_.capacity) {
     ORBATLAS_CHECK(handler_ != nullptr, "a queue worker needs a handler");
-    if (!options_.shared) thread_ = std::thread([this] { run(); });
+    if (!options_.shared)
+      thread_ = std::thread([this] {
+        set_current_thread_nice(options_.nice);
+        run();
+      });
   }
   ~QueueWorker() {
     try {

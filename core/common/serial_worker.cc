@@ -1,11 +1,13 @@
 #include "core/common/serial_worker.h"
 
 #include "core/common/log.h"
+#include "core/common/thread_priority.h"
 
 namespace orbatlas {
 
-SerialWorker::SerialWorker(std::size_t capacity) : queue_(capacity) {
-  thread_ = std::thread([this] {
+SerialWorker::SerialWorker(std::size_t capacity, int nice) : queue_(capacity) {
+  thread_ = std::thread([this, nice] {
+    set_current_thread_nice(nice);
     while (auto task = queue_.pop()) {
       try {
         (*task)();

@@ -13,7 +13,8 @@ namespace orbatlas {
 
 class SerialWorker {
  public:
-  explicit SerialWorker(std::size_t capacity);
+  // `nice`: the thread's nice value (thread_priority.h; 0: as created).
+  explicit SerialWorker(std::size_t capacity, int nice = 0);
   ~SerialWorker();  // stop()
   SerialWorker(const SerialWorker&) = delete;
   SerialWorker& operator=(const SerialWorker&) = delete;

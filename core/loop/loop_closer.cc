@@ -1,3 +1,4 @@
+#include "core/common/thread_priority.h"
 #include "core/loop/loop_closer.h"
 
 #include <chrono>
@@ -38,6 +39,8 @@ class MappingPause {
 
 void LoopCloserOptions::check() const {
   ORBATLAS_CHECK(queue_capacity > 0, "loop closing: queue_capacity must be > 0, not " << queue_capacity);
+  ORBATLAS_CHECK(worker_nice >= 0 && worker_nice <= 19,
+                 "loop closing: worker_nice must be in 0..19, not " << worker_nice);
   recognition.check();
   correction.check();
   global.check();
@@ -53,8 +56,10 @@ LoopCloser::LoopCloser(Atlas& atlas, FrameCamera cam, MappingControl& mapping, L
       options_((options.check(), std::move(options))),
       wiring_(std::move(wiring)),
       worker_(
-          QueueWorkerOptions{
-              .name = "loop closing", .capacity = options_.queue_capacity, .shared = wiring_.shared_worker},
+          QueueWorkerOptions{.name = "loop closing",
+                             .capacity = options_.queue_capacity,
+                             .shared = wiring_.shared_worker,
+                             .nice = options_.worker_nice},
           [this](Item& item) { process(item); },
           [](const Item& item) { return "keyframe " + std::to_string(item.keyframe->id()); }) {}
 
@@ -249,6 +254,7 @@ void LoopCloser::start_global_adjustment(MapId map_id) {
     global_running_ = true;
   }
   global_thread_ = std::thread([this, map_id] {
+    set_current_thread_nice(options_.worker_nice);
     try {
       const auto map = atlas_.map(map_id);
       if (map) {

@@ -43,6 +43,9 @@ struct LiveMerge {
 
 struct LoopCloserOptions {
   std::size_t queue_capacity = 32;  // keyframes waiting for place recognition (more are skipped)
+  // The nice value of its threads (place recognition when it has its own, the
+  // global BA; thread_priority.h); 0 leaves them as created.
+  int worker_nice = 0;
   PlaceRecognitionOptions recognition;
   LoopCorrectionOptions correction;
   bool global_bundle_adjustment = true;

@@ -118,6 +118,14 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
   return state;
 }
 
+// A single camera's map whose lengths are already metres (it was merged into a
+// stereo or RGB-D map: measured depths) keeps them: its IMU estimate leaves
+// the scale alone instead of rescaling the whole map.
+InertialInitOptions solver_for(const Map& map, InertialInitOptions solver) {
+  if (map.measured_depth()) solver.estimate_scale = false;
+  return solver;
+}
+
 }  // namespace
 
 std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
@@ -132,7 +140,7 @@ std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::s
   state.keyframes = chain.size();
   state.span_s = span_s;
   return estimate_and_apply(map, chain, chain[1]->inertial_link()->from_previous->bias(), state, options,
-                            options.solver, atlas, "inertial initialisation");
+                            solver_for(map, options.solver), atlas, "inertial initialisation");
 }
 
 std::optional<Map::InertialState> refine_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
@@ -156,7 +164,7 @@ std::optional<Map::InertialState> refine_map_inertial(Map& map, const std::share
   Map::InertialState estimate = refined;  // what the map holds when it is applied
   estimate.keyframes = chain.size();
   estimate.span_s = span_s;
-  InertialInitOptions solver = options.solver;
+  InertialInitOptions solver = solver_for(map, options.solver);
   solver.gyro_bias_prior = step.gyro_bias_prior;
   solver.accel_bias_prior = step.accel_bias_prior;
   auto applied = estimate_and_apply(map, chain, state->bias, estimate, options, solver, atlas,

@@ -32,6 +32,8 @@ int weighted_observations(const MapPoint& point) {
 
 void LocalMapperOptions::check() const {
   ORBATLAS_CHECK(queue_capacity > 0, "local mapping: queue_capacity must be > 0, not " << queue_capacity);
+  ORBATLAS_CHECK(worker_nice >= 0 && worker_nice <= 19,
+                 "local mapping: worker_nice must be in 0..19, not " << worker_nice);
   ORBATLAS_CHECK(std::isfinite(fusion_radius) && fusion_radius >= 0.0f,
                  "local mapping: fusion_radius must be a finite value >= 0, not " << fusion_radius);
   culling.check();
@@ -51,7 +53,7 @@ LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions optio
       options_((options.check(), std::move(options))),
       board_(board ? std::move(board) : std::make_shared<LocalMapperStatsBoard>()),
       worker_(
-          QueueWorkerOptions::own_thread("local mapping", options_.queue_capacity),
+          QueueWorkerOptions::own_thread("local mapping", options_.queue_capacity, 20, options_.worker_nice),
           [this](std::shared_ptr<KeyFrame>& keyframe) { run_one(keyframe); },
           [](const std::shared_ptr<KeyFrame>& keyframe) { return "keyframe " + std::to_string(keyframe->id()); }) {
   ORBATLAS_CHECK(cam_.camera != nullptr, "local mapper needs a camera");

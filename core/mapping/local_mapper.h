@@ -29,6 +29,9 @@ namespace orbatlas {
 
 struct LocalMapperOptions {
   std::size_t queue_capacity = 8;
+  // The mapping thread's nice value (thread_priority.h): the map server runs
+  // background work below its sessions' tracking; 0 leaves it as created.
+  int worker_nice = 0;
   std::size_t triangulation_neighbours = 10;  // best covisibles (ORB-SLAM: 10 for stereo)
   std::size_t fusion_neighbours = 10;
   std::size_t fusion_second_neighbours = 5;

@@ -78,16 +78,31 @@ void AtlasServiceOptions::check() const {
   ORBATLAS_CHECK(max_imu_gap_s > 0.0 && std::isfinite(max_imu_gap_s),
                  "server: max_imu_gap_s must be > 0 s, not " << max_imu_gap_s);
   ORBATLAS_CHECK(loop_queue > 0, "server: loop_queue must be > 0, not " << loop_queue);
+  ORBATLAS_CHECK(background_nice >= 0 && background_nice <= 19,
+                 "server: background_nice must be in 0..19, not " << background_nice);
   slam.check();
   merging.check();
   checkpoints.check();
 }
 
+namespace {
+
+// Every background worker of the sessions (their options are copied from
+// these) at the server's background nice value.
+AtlasServiceOptions with_background_nice(AtlasServiceOptions options) {
+  options.slam.mapper.worker_nice = options.background_nice;
+  options.slam.loop.worker_nice = options.background_nice;
+  options.merging.worker_nice = options.background_nice;
+  return options;
+}
+
+}  // namespace
+
 AtlasService::AtlasService(AtlasServiceOptions options)
-    : options_((options.check(), std::move(options))),
+    : options_((options.check(), with_background_nice(std::move(options)))),
       db_lock_(options_.db.empty() ? nullptr : std::make_unique<DatabaseLock>(options_.db)),
       vocabulary_(Vocabulary::load(options_.vocabulary.empty() ? default_vocabulary_path() : options_.vocabulary)),
-      loop_worker_(std::make_shared<SerialWorker>(options_.loop_queue)) {
+      loop_worker_(std::make_shared<SerialWorker>(options_.loop_queue, options_.background_nice)) {
   const auto start = std::chrono::steady_clock::now();
   {
     AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());

@@ -64,6 +64,12 @@ struct AtlasServiceOptions {
   // (a full queue skips a keyframe, counted in the session's loop statistics).
   std::size_t loop_queue = 64;
   MapMergeWorkerOptions merging;
+  // The nice value (0..19) of every background thread: local mapping, loop
+  // closing and its global BAs, map merging (thread_priority.h); above 0 the
+  // sessions' tracking is served first on a loaded machine. 0 (all alike) by
+  // default: at 10, four sessions on two cores starved their mapping and
+  // ended 0.02-0.19 m off instead of 0.009-0.015 m (docs/benchmarks.md).
+  int background_nice = 0;
 
   // Throws Error naming the first value out of range (also of the parts).
   void check() const;

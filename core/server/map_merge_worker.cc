@@ -10,6 +10,8 @@ namespace orbatlas {
 
 void MapMergeWorkerOptions::check() const {
   ORBATLAS_CHECK(queue_capacity > 0, "map merging: queue_capacity must be > 0, not " << queue_capacity);
+  ORBATLAS_CHECK(worker_nice >= 0 && worker_nice <= 19,
+                 "map merging: worker_nice must be in 0..19, not " << worker_nice);
   recognition.check();
   merge.check();
   global.check();
@@ -23,7 +25,8 @@ MapMergeWorker::MapMergeWorker(Atlas& atlas, MapLeases& leases, MayMerge may_mer
       on_merged_(std::move(on_merged)),
       options_((options.check(), std::move(options))),
       worker_(
-          QueueWorkerOptions::own_thread("map merging", options_.queue_capacity, QueueWorkerOptions::kNeverFatal),
+          QueueWorkerOptions::own_thread("map merging", options_.queue_capacity, QueueWorkerOptions::kNeverFatal,
+                                         options_.worker_nice),
           [this](MergeRequest& request) { run_one(request); },
           [](const MergeRequest& request) { return "the merge request for map " + std::to_string(request.map); }) {}
 

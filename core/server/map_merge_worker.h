@@ -30,6 +30,7 @@ inline constexpr SessionId kMergeWorkerLease = kInvalidSessionId - 1;  // no ses
 
 struct MapMergeWorkerOptions {
   std::size_t queue_capacity = 16;
+  int worker_nice = 0;                  // the worker thread's nice value (thread_priority.h)
   PlaceRecognitionOptions recognition;  // scope is forced to PlaceScope::kOtherMaps
   MapMergeOptions merge;
   bool global_bundle_adjustment = true;  // after a merge, and (below) on a map not merged
