@@ -309,6 +309,24 @@ TEST(OrbExtractor, RepeatableAcrossCallsAndSizes) {
   }
 }
 
+// FAST scored 32 pixels at a time (AVX2, where the CPU has it) and 16 at a
+// time (SSE2) give the same keypoints and descriptors, on a rendered frame and
+// on noise (many corners, every score value).
+TEST(OrbExtractor, TheAvx2AndSse2FastPathsGiveTheSameFeatures) {
+  OrbExtractorOptions sse2;
+  sse2.use_avx2 = false;
+  for (const cv::Mat& image : {rendered_frame(), noise_image(752, 480, 3)}) {
+    OrbExtractor wide({}), narrow(sse2);
+    const ImageFeatures a = wide.extract(image), b = narrow.extract(image);
+    ASSERT_EQ(a.keypoints.size(), b.keypoints.size());
+    for (std::size_t i = 0; i < a.keypoints.size(); ++i) {
+      EXPECT_EQ(a.keypoints[i].uv, b.keypoints[i].uv);
+      EXPECT_EQ(a.keypoints[i].response, b.keypoints[i].response);
+      EXPECT_EQ(a.descriptors[i], b.descriptors[i]);
+    }
+  }
+}
+
 TEST(OrbExtractor, PyramidLevelsHaveReflectedBorders) {
   OrbExtractor extractor({});
   extractor.extract(rendered_frame());
