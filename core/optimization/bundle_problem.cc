@@ -127,13 +127,6 @@ ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int it
   };
   for (BundleEdge& e : lp.edges) {
     if (!e.active) continue;
-    // An observation that cannot be evaluated where the solve starts (its
-    // point behind the camera, e.g. after a merge moved one of them) would
-    // make Ceres give up on the whole problem: it is an outlier, left out.
-    if (!bundle_edge_chi2(lp, e)) {
-      e.active = false;
-      continue;
-    }
     PoseParameters& pose = lp.poses[e.keyframe];
     double* p = lp.positions[e.point].data();
     add_pose(e.keyframe);
@@ -176,6 +169,19 @@ ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int it
   so.callbacks.push_back(&callback);  // not owned
   if (!lp.extra_terms.empty()) so.initial_trust_region_radius = options.inertial_trust_region_radius;
   ceres::Solve(so, &problem, &summary);
+  if (summary.termination_type == ceres::FAILURE && summary.iterations.size() <= 1) {
+    // Ceres gave up at its first evaluation (the parameters are untouched): an
+    // observation cannot be evaluated where the solve starts (its point behind
+    // the camera, e.g. after a merge moved one of them). Those are outliers:
+    // left out, and the stage solved again. Checked only then, not per solve.
+    bool dropped = false;
+    for (BundleEdge& e : lp.edges)
+      if (e.active && !bundle_edge_chi2(lp, e)) {
+        e.active = false;
+        dropped = true;
+      }
+    if (dropped) return solve_bundle_stage(lp, robust, iterations, options, callback);
+  }
   return summary;
 }
 
