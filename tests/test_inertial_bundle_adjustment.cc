@@ -43,6 +43,7 @@ struct InertialWorld {
   double bf = 0.0;
   std::vector<std::shared_ptr<KeyFrame>> keyframes;
   std::vector<Pose3> true_T_w_b;
+  std::vector<Pose3> T_b_i;  // each keyframe's IMU in its body
   std::vector<Eigen::Vector3d> true_v_w;
   std::map<MapPointId, Eigen::Vector3d> true_p_w;
   std::vector<ImuSample> imu;  // what the links were preintegrated from
@@ -50,8 +51,16 @@ struct InertialWorld {
 
 // The body is the IMU (T_b_i identity, as EuRoC's). With `second_session_from`
 // the keyframes from there on are another session's: its chain starts there
-// (no link to the keyframe before).
-std::unique_ptr<InertialWorld> make_world(double at_s, std::size_t second_session_from = 0) {
+// (no link to the keyframe before); with `second_body_is_camera` that session's
+// body is its camera (a single camera's), so its keyframes' poses are the
+// camera's and its IMU sits at T_c_i in the body. Every link carries the IMU in
+// its camera unless `links_place_imu` is false (links stored before schema 8).
+struct WorldOptions {
+  std::size_t second_session_from = 0;
+  bool second_body_is_camera = false;
+  bool links_place_imu = true;
+};
+std::unique_ptr<InertialWorld> make_world(double at_s, const WorldOptions& wo) {
   auto w = std::make_unique<InertialWorld>();
   w->map = w->atlas.create_map();
   const CameraCalibration calib = test::euroc_cam0();
@@ -60,10 +69,15 @@ std::unique_ptr<InertialWorld> make_world(double at_s, std::size_t second_sessio
   static const sim::TrajectorySpline spline(sim::load_ground_truth(sim::find_sequence("MH_01")));
   const TimestampNs t0 = spline.start_ns() + s_to_ns(at_s);
   std::vector<TimestampNs> times;
+  std::vector<Pose3> T_b_c;  // each keyframe's camera in its body
   for (int i = 0; i < kKeyframes; ++i) {
     times.push_back(t0 + s_to_ns(kSpacingS * i));
     const sim::SplineState s = spline.evaluate(times.back());
-    w->true_T_w_b.push_back(s.T_w_b);
+    const bool camera_body =
+        wo.second_body_is_camera && wo.second_session_from > 0 && static_cast<std::size_t>(i) >= wo.second_session_from;
+    T_b_c.push_back(camera_body ? Pose3() : calib.T_b_c);
+    w->T_b_i.push_back(camera_body ? calib.T_b_c.inverse() : Pose3());
+    w->true_T_w_b.push_back(s.T_w_b * w->T_b_i.back().inverse());
     w->true_v_w.push_back(s.v_w);
   }
 
@@ -73,7 +87,7 @@ std::unique_ptr<InertialWorld> make_world(double at_s, std::size_t second_sessio
   std::uniform_real_distribution<double> u(20.0, calib.width - 20.0), v(20.0, calib.height - 20.0), depth(2.0, 8.0);
   std::vector<std::shared_ptr<MapPoint>> points;
   for (int i = 0; i < kKeyframes; ++i) {
-    const Pose3 T_w_c = w->true_T_w_b[static_cast<std::size_t>(i)] * calib.T_b_c;
+    const Pose3 T_w_c = w->true_T_w_b[static_cast<std::size_t>(i)] * T_b_c[static_cast<std::size_t>(i)];
     for (int j = 0; j < 40; ++j) {
       MapPointData d;
       d.p_w = T_w_c * (w->camera->unproject(Eigen::Vector2d(u(rng), v(rng))) * depth(rng));
@@ -82,10 +96,10 @@ std::unique_ptr<InertialWorld> make_world(double at_s, std::size_t second_sessio
     }
   }
   for (int i = 0; i < kKeyframes; ++i) {
-    const Pose3 T_w_c = w->true_T_w_b[static_cast<std::size_t>(i)] * calib.T_b_c;
+    const Pose3 T_w_c = w->true_T_w_b[static_cast<std::size_t>(i)] * T_b_c[static_cast<std::size_t>(i)];
     KeyFrameData data;
     data.timestamp_ns = times[static_cast<std::size_t>(i)];
-    data.T_b_c = calib.T_b_c;
+    data.T_b_c = T_b_c[static_cast<std::size_t>(i)];
     data.T_w_b = w->true_T_w_b[static_cast<std::size_t>(i)];
     std::vector<std::pair<std::size_t, std::shared_ptr<MapPoint>>> seen;
     for (const auto& mp : points) {
@@ -113,13 +127,16 @@ std::unique_ptr<InertialWorld> make_world(double at_s, std::size_t second_sessio
     s.gyro += true_bias().gyro;
     s.accel += true_bias().accel;
   }
+  const std::optional<Pose3> T_c_i = wo.links_place_imu ? std::optional<Pose3>(calib.T_b_c.inverse()) : std::nullopt;
   for (std::size_t i = 1; i < w->keyframes.size(); ++i)
-    if (i != second_session_from)
+    if (i != wo.second_session_from)
       w->keyframes[i]->set_inertial_link(w->keyframes[i - 1],
                                          std::make_shared<const Preintegration>(Preintegration::between(
-                                             imu.samples, times[i - 1], times[i], true_bias(), ImuNoise{})));
+                                             imu.samples, times[i - 1], times[i], true_bias(), ImuNoise{})),
+                                         T_c_i);
   for (std::size_t i = 0; i < w->keyframes.size(); ++i)
-    w->keyframes[i]->set_imu_state(KeyFrame::ImuState{w->true_T_w_b[i].q.conjugate() * w->true_v_w[i], true_bias()});
+    w->keyframes[i]->set_imu_state(
+        KeyFrame::ImuState{(w->true_T_w_b[i] * w->T_b_i[i]).q.conjugate() * w->true_v_w[i], true_bias()});
   w->imu = std::move(imu.samples);
   return w;
 }
@@ -143,7 +160,8 @@ void perturb(InertialWorld& w) {
                   Eigen::Vector3d(n(rng), n(rng), n(rng)) * 0.01);
     w.keyframes[i]->set_T_w_b(w.true_T_w_b[i] * d);
     const Eigen::Vector3d v_w = w.true_v_w[i] + Eigen::Vector3d(n(rng), n(rng), n(rng)) * 0.05;
-    w.keyframes[i]->set_imu_state(KeyFrame::ImuState{w.keyframes[i]->T_w_b().q.conjugate() * v_w, ImuBias{}});
+    w.keyframes[i]->set_imu_state(
+        KeyFrame::ImuState{(w.keyframes[i]->T_w_b() * w.T_b_i[i]).q.conjugate() * v_w, ImuBias{}});
   }
   for (const auto& mp : w.map->map_points())
     mp->set_p_w(w.true_p_w[mp->id()] + Eigen::Vector3d(n(rng), n(rng), n(rng)) * 0.01);
@@ -160,7 +178,7 @@ Errors window_errors(const InertialWorld& w) {
     const auto state = w.keyframes[i]->imu_state();
     e.position = std::max(e.position, (T.t - w.true_T_w_b[i].t).norm());
     e.rotation = std::max(e.rotation, so3_log(w.true_T_w_b[i].q.conjugate() * T.q).norm());
-    e.velocity = std::max(e.velocity, (T.q * state->v_i - w.true_v_w[i]).norm());
+    e.velocity = std::max(e.velocity, ((T * w.T_b_i[i]).q * state->v_i - w.true_v_w[i]).norm());
     e.gyro_bias = std::max(e.gyro_bias, (state->bias.gyro - true_bias().gyro).norm());
     e.accel_bias = std::max(e.accel_bias, (state->bias.accel - true_bias().accel).norm());
   }
@@ -169,7 +187,7 @@ Errors window_errors(const InertialWorld& w) {
 
 TEST(InertialBundleAdjustment, TheWindowReturnsToTheTrueStatesAndBiases) {
   for (const double at_s : {45.0, 90.0}) {
-    auto w = make_world(at_s);
+    auto w = make_world(at_s, {});
     perturb(*w);
     const Errors before = window_errors(*w);
     const LocalBundleAdjustmentStats stats =
@@ -218,7 +236,7 @@ GlobalBundleAdjustmentResult full_inertial_ba(InertialWorld& w, double huber = s
 
 // Every keyframe and point of the map and the whole chain's IMU states.
 TEST(InertialBundleAdjustment, TheFullBundleAdjustmentReturnsEveryStateToTheTruth) {
-  auto w = make_world(45.0);
+  auto w = make_world(45.0, {});
   perturb(*w);
   const Errors before = window_errors(*w);
   const GlobalBundleAdjustmentResult stats = full_inertial_ba(*w);
@@ -252,7 +270,7 @@ TEST(InertialBundleAdjustment, TheFullBundleAdjustmentReturnsEveryStateToTheTrut
 // second starting at keyframe 6 with no link to the first. Both keep their IMU
 // terms and return to the truth, not only the newest session's.
 TEST(InertialBundleAdjustment, TheFullBundleAdjustmentKeepsEverySessionsChain) {
-  auto w = make_world(45.0, /*second_session_from=*/6);
+  auto w = make_world(45.0, {.second_session_from = 6});
   perturb(*w);
   const GlobalBundleAdjustmentResult stats = full_inertial_ba(*w);
   const Errors after = window_errors(*w);
@@ -276,19 +294,53 @@ TEST(InertialBundleAdjustment, TheFullBundleAdjustmentKeepsEverySessionsChain) {
   EXPECT_LT(after.accel_bias, 1.8e-4);
 }
 
+// A map a stereo-inertial rig (body: its IMU) and a single camera with its IMU
+// (body: its camera) built: the full BA takes the first's IMU-in-body, and the
+// second chain's links place their IMU in the camera themselves, so both
+// return to the truth. Links without it (stored before schema 8) would put the
+// camera session's IMU at the camera: its chain is bent (measured below).
+TEST(InertialBundleAdjustment, EachChainPlacesItsOwnImuWhenTheSessionsBodiesDiffer) {
+  const auto run = [](bool links_place_imu) {
+    auto w =
+        make_world(45.0, {.second_session_from = 6, .second_body_is_camera = true, .links_place_imu = links_place_imu});
+    perturb(*w);
+    const GlobalBundleAdjustmentResult stats = full_inertial_ba(*w);
+    const Errors after = window_errors(*w);
+    std::printf(
+        "bodies differ, links %s the IMU: %zu chains; position %.2e m, rotation %.2e rad, velocity %.2e m/s, "
+        "gyro bias %.2e rad/s, accel bias %.2e m/s^2, inertial chi2 max %.2e\n",
+        links_place_imu ? "place" : "do not place", stats.inertial_chains, after.position, after.rotation,
+        after.velocity, after.gyro_bias, after.accel_bias, stats.inertial_chi2_max);
+    EXPECT_EQ(stats.inertial_chains, 2u);
+    return after;
+  };
+  const Errors placed = run(true);
+  // Measured: as the two sessions of one body (the test above).
+  EXPECT_LT(placed.position, 2.2e-5);
+  EXPECT_LT(placed.rotation, 8.5e-6);
+  EXPECT_LT(placed.velocity, 1.2e-4);
+  EXPECT_LT(placed.gyro_bias, 1.1e-5);
+  EXPECT_LT(placed.accel_bias, 1.8e-4);
+  const Errors legacy = run(false);
+  // Measured without: position 2.2e-2 m, velocity 0.34 m/s, accel bias 13 m/s^2.
+  EXPECT_GT(legacy.position, 100.0 * placed.position);
+  EXPECT_GT(legacy.velocity, 100.0 * placed.velocity);
+}
+
 // One link the IMU and the images disagree on (its samples 0.3 m/s^2 off for
 // 0.25 s: 9 mm of displacement): the Huber kernel on the inertial terms lets
 // it bend the map less; without it every keyframe moves towards it.
 TEST(InertialBundleAdjustment, TheFullBundleAdjustmentResistsALinkTheImagesContradict) {
   const auto max_position_error = [](double huber) {
-    auto w = make_world(45.0);
+    auto w = make_world(45.0, {});
     const std::size_t bad = 6;
     std::vector<ImuSample> samples = w->imu;
     for (ImuSample& s : samples) s.accel += Eigen::Vector3d(0.3, 0.0, 0.0);
     const TimestampNs t0 = w->keyframes[bad - 1]->timestamp_ns(), t1 = w->keyframes[bad]->timestamp_ns();
     w->keyframes[bad]->set_inertial_link(
         w->keyframes[bad - 1],
-        std::make_shared<const Preintegration>(Preintegration::between(samples, t0, t1, true_bias(), ImuNoise{})));
+        std::make_shared<const Preintegration>(Preintegration::between(samples, t0, t1, true_bias(), ImuNoise{})),
+        w->keyframes[bad]->inertial_link()->T_c_i);
     const GlobalBundleAdjustmentResult result = full_inertial_ba(*w, huber);
     double error = 0.0;
     for (std::size_t i = 0; i < w->keyframes.size(); ++i)
@@ -313,14 +365,15 @@ TEST(InertialBundleAdjustment, TheMapsInitialisationIntegratesFarLinksAgainAtThe
   const Eigen::Vector3d extra_gyro(0.015, 0.0, 0.0);
   std::vector<ImuSample> samples;
   const auto world_linked_at_zero_bias = [&] {
-    auto w = make_world(45.0);
+    auto w = make_world(45.0, {});
     samples = w->imu;
     for (ImuSample& s : samples) s.gyro += extra_gyro;
     for (std::size_t i = 1; i < w->keyframes.size(); ++i)
       w->keyframes[i]->set_inertial_link(
           w->keyframes[i - 1],
           std::make_shared<const Preintegration>(Preintegration::between(
-              samples, w->keyframes[i - 1]->timestamp_ns(), w->keyframes[i]->timestamp_ns(), ImuBias{}, ImuNoise{})));
+              samples, w->keyframes[i - 1]->timestamp_ns(), w->keyframes[i]->timestamp_ns(), ImuBias{}, ImuNoise{})),
+          w->keyframes[i]->inertial_link()->T_c_i);
     return w;
   };
   auto w = world_linked_at_zero_bias();
@@ -366,7 +419,7 @@ TEST(InertialBundleAdjustment, ARefinementOverAChainShorterThanTheMapsEstimateLe
     w->map->set_inertial_state(state);
   };
   // The newest keyframe's chain: the last five of twelve (1 s of 2.75 s).
-  auto w = make_world(45.0, /*second_session_from=*/7);
+  auto w = make_world(45.0, {.second_session_from = 7});
   initialised(w);
   const Pose3 before = w->keyframes.front()->T_w_b();
   EXPECT_FALSE(refine_map_inertial(*w->map, w->keyframes.back(), options).has_value());
@@ -378,7 +431,7 @@ TEST(InertialBundleAdjustment, ARefinementOverAChainShorterThanTheMapsEstimateLe
   EXPECT_EQ(w->keyframes.front()->T_w_b().q.coeffs(), before.q.coeffs());
 
   // The whole chain: refined, and the state says over which window.
-  auto whole = make_world(45.0);
+  auto whole = make_world(45.0, {});
   initialised(whole);
   const auto refined = refine_map_inertial(*whole->map, whole->keyframes.back(), options);
   ASSERT_TRUE(refined.has_value());
@@ -387,7 +440,7 @@ TEST(InertialBundleAdjustment, ARefinementOverAChainShorterThanTheMapsEstimateLe
   EXPECT_NEAR(refined->span_s, 2.75, 1e-9);
   // With the rule off the short chain is used.
   options.refinement_min_span_fraction = 0.0;
-  auto short_chain = make_world(45.0, /*second_session_from=*/7);
+  auto short_chain = make_world(45.0, {.second_session_from = 7});
   initialised(short_chain);
   const auto forced = refine_map_inertial(*short_chain->map, short_chain->keyframes.back(), options);
   ASSERT_TRUE(forced.has_value());

@@ -313,12 +313,15 @@ TEST(MapModel, CullingAKeyframeOfTheInertialChainJoinsItsIncrements) {
       pre->integrate(Eigen::Vector3d(0.1, 0.0, 0.2), Eigen::Vector3d(0.3, 0.0, 9.81), 0.005);
     return pre;
   };
-  for (int k = 1; k < 4; ++k) kfs[k]->set_inertial_link(kfs[k - 1], increments(80));
+  const Pose3 T_c_i(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.01, 0.02, 0.03));
+  for (int k = 1; k < 4; ++k) kfs[k]->set_inertial_link(kfs[k - 1], increments(80), T_c_i);
   EXPECT_EQ(kfs[0]->inertial_next(), kfs[1]);
   ASSERT_TRUE(map->cull_keyframe(kfs[1]->id()));
   const auto joined = kfs[2]->inertial_link();
   ASSERT_TRUE(joined.has_value());
   EXPECT_EQ(joined->previous_id, kfs[0]->id());
+  ASSERT_TRUE(joined->T_c_i.has_value());  // the chain's IMU stays where it was
+  EXPECT_EQ(joined->T_c_i->t, T_c_i.t);
   EXPECT_EQ(kfs[0]->inertial_next(), kfs[2]);
   const auto whole = increments(160);  // what one link over both would hold
   EXPECT_NEAR(joined->from_previous->dt(), 0.8, 1e-12);
@@ -328,7 +331,7 @@ TEST(MapModel, CullingAKeyframeOfTheInertialChainJoinsItsIncrements) {
   ASSERT_TRUE(map->cull_keyframe(kfs[0]->id()));
   EXPECT_FALSE(kfs[2]->inertial_link().has_value());
   EXPECT_TRUE(kfs[3]->inertial_link().has_value());
-  EXPECT_THROW(kfs[3]->set_inertial_link(kfs[3], increments(1)), Error);
+  EXPECT_THROW(kfs[3]->set_inertial_link(kfs[3], increments(1), T_c_i), Error);
 }
 
 // Changing a map's frame (the gravity alignment of a visual-inertial map):
@@ -421,30 +424,6 @@ TEST(MapModel, AMapIsMetricWithAKeyframeOfMeasuredDepthOrAnImu) {
   const auto kf = stereo_map->new_keyframe(stereo);
   EXPECT_TRUE(kf->has_depth());
   EXPECT_TRUE(stereo_map->metric_scale());
-}
-
-// What "body" means in a map is its first keyframe's camera-in-body (a single
-// camera's body is the camera, a stereo rig's its IMU); a merge keeps the
-// target's, and an empty map takes the source's.
-TEST(MapModel, AMapsBodyIsItsFirstKeyframesAndAMergeKeepsTheTargets) {
-  Atlas atlas;
-  auto rig = atlas.create_map();
-  auto camera = atlas.create_map();
-  EXPECT_FALSE(rig->first_T_b_c().has_value());
-  KeyFrameData imu_body = keyframe_data(1);
-  imu_body.T_b_c = Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(-0.02, 0.06, 0.01));
-  rig->new_keyframe(imu_body);
-  KeyFrameData camera_body = keyframe_data(1);  // T_b_c identity
-  rig->new_keyframe(camera_body);
-  camera->new_keyframe(camera_body);
-  ASSERT_TRUE(rig->first_T_b_c().has_value());
-  EXPECT_EQ(rig->first_T_b_c()->t, imu_body.T_b_c.t);
-  EXPECT_EQ(camera->first_T_b_c()->t, Eigen::Vector3d::Zero());
-  rig->absorb(*camera, Pose3());
-  EXPECT_EQ(rig->first_T_b_c()->t, imu_body.T_b_c.t);
-  auto empty = atlas.create_map();
-  empty->absorb(*rig, Pose3());
-  EXPECT_EQ(empty->first_T_b_c()->t, imu_body.T_b_c.t);
 }
 
 // Frame anchors are stored in their keyframe's units, culled anchors in their

@@ -340,7 +340,11 @@ TEST(Persistence, VersionFiveSessionsSurviveTheRebuildForRgbd) {
         "NULL, sensor TEXT NOT NULL CHECK (sensor IN ('mono', 'stereo', 'mono_inertial', 'stereo_inertial')), "
         "created_ns INTEGER NOT NULL) STRICT; INSERT INTO s5 SELECT * FROM sessions; DROP TABLE sessions; ALTER "
         "TABLE s5 RENAME TO sessions; ALTER TABLE keyframes DROP COLUMN units; ALTER TABLE culled_keyframes DROP "
-        "COLUMN units; DELETE FROM schema_migrations WHERE version >= 6; PRAGMA user_version = 5; "
+        "COLUMN units; ALTER TABLE keyframe_inertial_links DROP COLUMN c_i_qw; ALTER TABLE keyframe_inertial_links "
+        "DROP COLUMN c_i_qx; ALTER TABLE keyframe_inertial_links DROP COLUMN c_i_qy; ALTER TABLE "
+        "keyframe_inertial_links DROP COLUMN c_i_qz; ALTER TABLE keyframe_inertial_links DROP COLUMN c_i_tx; ALTER "
+        "TABLE keyframe_inertial_links DROP COLUMN c_i_ty; ALTER TABLE keyframe_inertial_links DROP COLUMN c_i_tz; "
+        "DELETE FROM schema_migrations WHERE version >= 6; PRAGMA user_version = 5; "
         "COMMIT");
     EXPECT_THROW(raw.exec("INSERT INTO sessions VALUES (4, 'x', 'rgbd', 0)"), Error);
   }

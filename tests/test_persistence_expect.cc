@@ -142,6 +142,11 @@ void expect_inertial_eq(const Map& a, const Map& b) {
     ASSERT_EQ(la.has_value(), lb.has_value()) << what;
     if (!la) continue;
     EXPECT_EQ(la->previous_id, lb->previous_id) << what;
+    ASSERT_EQ(la->T_c_i.has_value(), lb->T_c_i.has_value()) << what << " IMU in the camera";
+    if (la->T_c_i) {
+      EXPECT_EQ(la->T_c_i->t, lb->T_c_i->t) << what << " IMU in the camera";
+      EXPECT_EQ(la->T_c_i->q.coeffs(), lb->T_c_i->q.coeffs()) << what << " IMU in the camera";
+    }
     const Preintegration &pa = *la->from_previous, &pb = *lb->from_previous;
     // Integrated again from the stored measurements: bit for bit.
     EXPECT_EQ(pa.measurements().size(), pb.measurements().size()) << what;

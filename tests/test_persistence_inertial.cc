@@ -37,7 +37,12 @@ std::shared_ptr<Map> inertial_map(Atlas& atlas, std::mt19937_64& rng, const Voca
   for (int k = 0; k < 5; ++k) kfs.push_back(add_random_keyframe(*map, rng, &vocabulary, 40, true));
   std::normal_distribution<double> n(0.0, 1.0);
   for (std::size_t k = 1; k < kfs.size(); ++k) {
-    kfs[k]->set_inertial_link(kfs[k - 1], random_increments(rng, 60));
+    // The IMU in the camera on all but the first link (one stored before schema 8).
+    std::optional<Pose3> T_c_i;
+    if (k > 1)
+      T_c_i = Pose3(Eigen::Quaterniond(0.5, -0.5, 0.5, -0.5),
+                    Eigen::Vector3d(0.02, -0.065, 0.008 * static_cast<double>(k)));
+    kfs[k]->set_inertial_link(kfs[k - 1], random_increments(rng, 60), T_c_i);
     KeyFrame::ImuState imu;
     imu.v_i = Eigen::Vector3d(n(rng), n(rng), n(rng));
     imu.bias.gyro = Eigen::Vector3d(n(rng), n(rng), n(rng)) * 0.001;
@@ -122,6 +127,20 @@ TEST(Persistence, InertialLinksAndStatesRoundTripAndFollowCulling) {
     expect_atlas_eq(original, loaded, true);
   }
 
+  // The IMU in the camera stored in part: the load fails with a DataError naming the link.
+  {
+    SqliteDb raw(db.path());
+    raw.exec("UPDATE keyframe_inertial_links SET c_i_tx = NULL WHERE keyframe_id = " + std::to_string(kfs[4]->id()));
+    AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+    Atlas broken;
+    try {
+      store.load_atlas(broken, &vocabulary);
+      FAIL() << "a link whose IMU-in-camera is stored in part was loaded";
+    } catch (const DataError& e) {
+      EXPECT_NE(std::string(e.what()).find("IMU in the camera is stored in part"), std::string::npos) << e.what();
+    }
+    raw.exec("UPDATE keyframe_inertial_links SET c_i_tx = 0.02 WHERE keyframe_id = " + std::to_string(kfs[4]->id()));
+  }
   // A corrupt increments blob: the load fails with a DataError naming the link.
   {
     SqliteDb raw(db.path());

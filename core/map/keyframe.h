@@ -128,9 +128,13 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
     std::weak_ptr<KeyFrame> previous;
     KeyframeId previous_id = 0;
     std::shared_ptr<const Preintegration> from_previous;
+    // The IMU in this keyframe's camera (the session's rig; the same for every
+    // link of one chain). Unset: a link stored before the atlas kept it, whose
+    // IMU the map's settings place (InertialWindowOptions::T_b_i).
+    std::optional<Pose3> T_c_i;
   };
-  void set_inertial_link(const std::shared_ptr<KeyFrame>& previous,
-                         std::shared_ptr<const Preintegration> from_previous);
+  void set_inertial_link(const std::shared_ptr<KeyFrame>& previous, std::shared_ptr<const Preintegration> from_previous,
+                         std::optional<Pose3> T_c_i);
   std::optional<InertialLink> inertial_link() const;
   std::shared_ptr<KeyFrame> inertial_next() const;  // the keyframe whose link leads here (null: none)
   void clear_inertial_link();                       // the chain breaks before this keyframe

@@ -171,12 +171,12 @@ std::map<KeyframeId, std::weak_ptr<KeyFrame>> KeyFrame::take_loop_edges() {
 }
 
 void KeyFrame::set_inertial_link(const std::shared_ptr<KeyFrame>& previous,
-                                 std::shared_ptr<const Preintegration> from_previous) {
+                                 std::shared_ptr<const Preintegration> from_previous, std::optional<Pose3> T_c_i) {
   ORBATLAS_CHECK(previous != nullptr && previous.get() != this && from_previous != nullptr,
                  "keyframe " << id_ << ": bad inertial link");
   {
     std::lock_guard lock(mutex_);
-    inertial_ = InertialLink{previous, previous->id(), std::move(from_previous)};
+    inertial_ = InertialLink{previous, previous->id(), std::move(from_previous), T_c_i};
   }
   std::lock_guard lock(previous->mutex_);
   previous->inertial_next_ = weak_from_this();

@@ -32,12 +32,10 @@ void Map::add_keyframe(std::shared_ptr<KeyFrame> keyframe) {
   ORBATLAS_CHECK(!keyframe->is_bad(), "map " << id_ << ": keyframe " << keyframe->id() << " is culled");
   const KeyframeId kf_id = keyframe->id();
   const bool has_depth = keyframe->has_depth();
-  const Pose3 T_b_c = keyframe->T_b_c();
   std::lock_guard lock(objects_mutex_);
   const bool inserted = keyframes_.try_emplace(kf_id, std::move(keyframe)).second;
   ORBATLAS_CHECK(inserted, "map " << id_ << ": keyframe id " << kf_id << " already present");
   measured_depth_ = measured_depth_ || has_depth;
-  if (!first_T_b_c_) first_T_b_c_ = T_b_c;
 }
 
 void Map::add_map_point(std::shared_ptr<MapPoint> map_point) {
@@ -140,10 +138,8 @@ Map::AbsorbCounts Map::absorb(Map& source, const Pose3& T_this_source) {
   std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> points;
   std::unordered_map<KeyframeId, CulledAnchor> culled;
   bool source_depth = false;
-  std::optional<Pose3> source_T_b_c;
   {
     std::lock_guard lock(source.objects_mutex_);
-    source_T_b_c = source.first_T_b_c_;
     keyframes.swap(source.keyframes_);
     points.swap(source.map_points_);
     culled.swap(source.culled_anchors_);
@@ -172,7 +168,6 @@ Map::AbsorbCounts Map::absorb(Map& source, const Pose3& T_this_source) {
                    "map " << id_ << ": map point id " << id << " already present");
   for (auto& [id, anchor] : culled) culled_anchors_.insert_or_assign(id, anchor);
   measured_depth_ = measured_depth_ || source_depth;
-  if (!first_T_b_c_) first_T_b_c_ = source_T_b_c;
   return counts;
 }
 
@@ -224,11 +219,6 @@ void Map::rescale(double s) {
 bool Map::metric_scale() const {
   std::lock_guard lock(objects_mutex_);
   return measured_depth_ || inertial_.has_value();
-}
-
-std::optional<Pose3> Map::first_T_b_c() const {
-  std::lock_guard lock(objects_mutex_);
-  return first_T_b_c_;
 }
 
 bool Map::measured_depth() const {

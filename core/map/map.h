@@ -128,12 +128,6 @@ class Map {
   // Whether a keyframe with measured depths was ever added (metric_scale
   // without an IMU).
   bool measured_depth() const;
-  // The camera in the body of the map's first keyframe (none before one):
-  // what "body" means in the map. A stereo(-inertial) session's body is its
-  // IMU, a single camera's is the camera itself; one visual-inertial
-  // optimisation takes one IMU-in-body for every chain of the map, so
-  // sessions fusing an IMU share a map only with the same body. O(1).
-  std::optional<Pose3> first_T_b_c() const;
 
  private:
   struct CulledAnchor {
@@ -158,7 +152,6 @@ class Map {
   std::unordered_map<KeyframeId, std::shared_ptr<KeyFrame>> keyframes_;
   std::unordered_map<KeyframeId, CulledAnchor> culled_anchors_;
   std::optional<InertialState> inertial_;  // guarded by objects_mutex_
-  std::optional<Pose3> first_T_b_c_;       // guarded by objects_mutex_
   bool measured_depth_ = false;            // a keyframe with depths was added; guarded by objects_mutex_
   std::atomic<std::uint64_t> frame_epoch_{0};
 };

@@ -34,7 +34,7 @@ bool Map::cull_keyframe(KeyframeId id) {
     if (previous && !previous->is_bad() && next_link && next_link->previous_id == id) {
       auto joined = std::make_shared<Preintegration>(*link->from_previous);
       joined->append(*next_link->from_previous);
-      next->set_inertial_link(previous, std::move(joined));
+      next->set_inertial_link(previous, std::move(joined), next_link->T_c_i);
     } else {
       next->clear_inertial_link();
     }

@@ -49,7 +49,7 @@ std::size_t reintegrate_far_links(const std::vector<std::shared_ptr<KeyFrame>>& 
       continue;
     auto again = std::make_shared<Preintegration>(*link->from_previous);
     again->reintegrate(bias);
-    chain[k]->set_inertial_link(previous, std::move(again));
+    chain[k]->set_inertial_link(previous, std::move(again), link->T_c_i);
     ++count;
   }
   return count;

@@ -27,7 +27,8 @@ struct GlobalBundleAdjustmentOptions {
   // Fixed for the gauge; by default the map's oldest live keyframe.
   std::optional<KeyframeId> origin;
   int num_threads = 1;
-  // Visual-inertial sessions (the IMU at T_b_i in the body): when the map is
+  // Visual-inertial sessions (each chain's IMU placed by its links' T_c_i; T_b_i,
+  // the IMU in the body, for links without it): when the map is
   // inertially initialised, each of its inertial chains (one per session that
   // mapped in it; the newest max_chain_keyframes of each) joins with its IMU
   // velocities and biases, tied by the preintegrated IMU and the biases' random walk, in

@@ -26,6 +26,15 @@ Pose3 imu_pose(const BundleProblem& lp, std::size_t k, const Pose3& T_c_i) {
   return lp.poses[k].pose().inverse() * T_c_i;
 }
 
+// The IMU in the cameras of a chain's keyframes: its links' own (every link of
+// one chain is one session's), else the map's settings' (links stored before
+// the atlas kept theirs).
+Pose3 chain_T_c_i(const std::vector<std::shared_ptr<KeyFrame>>& keyframes, const InertialWindowOptions& options) {
+  for (std::size_t i = 1; i < keyframes.size(); ++i)
+    if (const auto link = keyframes[i]->inertial_link(); link && link->T_c_i) return *link->T_c_i;
+  return keyframes.back()->T_b_c().inverse() * options.T_b_i;
+}
+
 }  // namespace
 
 void InertialWindowOptions::check() const {
@@ -54,7 +63,7 @@ InertialWindow add_inertial_window(BundleProblem& lp, const InertialChainWindow&
   w.keyframes = chain.keyframes;
   w.anchored = chain.anchored && w.keyframes.size() >= 2;
   if (w.keyframes.size() < 2) return w;
-  const Pose3 T_c_i = w.keyframes.back()->T_b_c().inverse() * options.T_b_i;
+  const Pose3 T_c_i = chain_T_c_i(w.keyframes, options);
 
   // Every keyframe first: adding one may move the pose storage.
   for (const auto& kf : w.keyframes) w.index.push_back(bundle_keyframe_index(lp, kf));
@@ -124,7 +133,7 @@ std::vector<std::pair<std::shared_ptr<KeyFrame>, KeyFrame::ImuState>> inertial_w
     const BundleProblem& lp, const InertialWindow& window, const InertialWindowOptions& options) {
   std::vector<std::pair<std::shared_ptr<KeyFrame>, KeyFrame::ImuState>> states;
   if (window.keyframes.size() < 2) return states;
-  const Pose3 T_c_i = window.keyframes.back()->T_b_c().inverse() * options.T_b_i;
+  const Pose3 T_c_i = chain_T_c_i(window.keyframes, options);
   for (std::size_t i = window.anchored ? 1 : 0; i < window.keyframes.size(); ++i) {
     const Eigen::Map<const Eigen::Vector3d> v_w(lp.extra_blocks[window.velocity[i]].values.get());
     const double* b = lp.extra_blocks[window.bias[i]].values.get();

@@ -20,7 +20,9 @@
 namespace orbatlas {
 
 struct InertialWindowOptions {
-  Pose3 T_b_i;                                          // the IMU in the body frame
+  // The IMU in the body frame, for a chain whose links do not carry the IMU
+  // in the camera (InertialLink::T_c_i: links stored before schema 8).
+  Pose3 T_b_i;
   Eigen::Vector3d gravity_w = Eigen::Vector3d::Zero();  // in the map
   ImuBias map_bias;                                     // for keyframes without an IMU state
   std::size_t temporal_keyframes = 10;                  // ORB-SLAM3: 10

@@ -45,7 +45,8 @@ class AtlasReader {
                                "ORDER BY l.keyframe_id, l.other_id")),
         culled_(db.prepare("SELECT id, parent_id, qw, qx, qy, qz, tx, ty, tz, units FROM culled_keyframes "
                            "WHERE map_id = ?1 ORDER BY id")),
-        inertial_links_(db.prepare("SELECT l.keyframe_id, l.previous_id, l.increments FROM keyframe_inertial_links l "
+        inertial_links_(db.prepare("SELECT l.keyframe_id, l.previous_id, l.increments, l.c_i_qw, l.c_i_qx, l.c_i_qy, "
+                                   "l.c_i_qz, l.c_i_tx, l.c_i_ty, l.c_i_tz FROM keyframe_inertial_links l "
                                    "JOIN keyframes k ON k.id = l.keyframe_id WHERE k.map_id = ?1 "
                                    "ORDER BY l.keyframe_id")),
         imu_states_(db.prepare("SELECT s.keyframe_id, s.vx, s.vy, s.vz, s.bgx, s.bgy, s.bgz, s.bax, s.bay, s.baz "
@@ -240,6 +241,20 @@ class AtlasReader {
     loop_edges_.reset();
   }
 
+  // The IMU in the camera of an inertial link (schema 8): none when all seven
+  // columns are NULL (a link stored before), else a finite pose with a unit
+  // quaternion.
+  std::optional<Pose3> imu_in_camera(const SqliteStatement& row, int first, const std::string& who) const {
+    int nulls = 0;
+    for (int c = first; c < first + 7; ++c) nulls += row.is_null(c) ? 1 : 0;
+    if (nulls == 7) return std::nullopt;
+    if (nulls != 0) fail(who + ": the IMU in the camera is stored in part (" + std::to_string(nulls) + " of 7 NULL)");
+    const Pose3 T_c_i = pose_columns(row, first);
+    if (!T_c_i.t.allFinite() || !T_c_i.q.coeffs().allFinite() || std::abs(T_c_i.q.norm() - 1.0) > 1e-6)
+      fail(who + ": the IMU in the camera is not a finite pose with a unit quaternion");
+    return T_c_i;
+  }
+
   void read_inertial(Map& map, std::int64_t map_id) {
     inertial_links_.bind_int64(1, map_id);
     while (inertial_links_.step()) {
@@ -247,7 +262,8 @@ class AtlasReader {
       const std::string who = "inertial link " + std::to_string(previous) + " -> " + std::to_string(id);
       auto increments =
           std::make_shared<const Preintegration>(decode_increments(inertial_links_.blob(2), file_ + ": " + who));
-      keyframe_in_map(id, who)->set_inertial_link(keyframe_in_map(previous, who), std::move(increments));
+      keyframe_in_map(id, who)->set_inertial_link(keyframe_in_map(previous, who), std::move(increments),
+                                                  imu_in_camera(inertial_links_, 3, who));
       ++report_.inertial_links;
     }
     inertial_links_.reset();

@@ -71,9 +71,12 @@ AtlasRowWriter::AtlasRowWriter(SqliteDb& db)
                      "ON CONFLICT(id) DO UPDATE SET map_id = excluded.map_id, parent_id = excluded.parent_id, "
                      "qw = excluded.qw, qx = excluded.qx, qy = excluded.qy, qz = excluded.qz, "
                      "tx = excluded.tx, ty = excluded.ty, tz = excluded.tz, units = excluded.units")),
-      upsert_inertial_link_(db.prepare("INSERT INTO keyframe_inertial_links(keyframe_id, previous_id, increments) "
-                                       "VALUES (?1, ?2, ?3) ON CONFLICT(keyframe_id) DO UPDATE SET "
-                                       "previous_id = excluded.previous_id, increments = excluded.increments")),
+      upsert_inertial_link_(db.prepare(
+          "INSERT INTO keyframe_inertial_links(keyframe_id, previous_id, increments, c_i_qw, c_i_qx, c_i_qy, c_i_qz, "
+          "c_i_tx, c_i_ty, c_i_tz) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10) ON CONFLICT(keyframe_id) DO "
+          "UPDATE SET previous_id = excluded.previous_id, increments = excluded.increments, c_i_qw = excluded.c_i_qw, "
+          "c_i_qx = excluded.c_i_qx, c_i_qy = excluded.c_i_qy, c_i_qz = excluded.c_i_qz, c_i_tx = excluded.c_i_tx, "
+          "c_i_ty = excluded.c_i_ty, c_i_tz = excluded.c_i_tz")),
       delete_inertial_link_(db.prepare("DELETE FROM keyframe_inertial_links WHERE keyframe_id = ?1")),
       upsert_imu_state_(
           db.prepare("INSERT INTO keyframe_imu_states(keyframe_id, vx, vy, vz, bgx, bgy, bgz, bax, bay, baz) "
@@ -176,6 +179,11 @@ void AtlasRowWriter::write_inertial_link(const KeyframeRow& row) {
   s.bind_int64(1, sql_id(row.id));
   s.bind_int64(2, sql_id(*row.inertial_previous));
   s.bind_blob(3, encode_increments(*row.inertial_increments));
+  if (row.inertial_T_c_i) {
+    bind_pose(s, 4, *row.inertial_T_c_i);
+  } else {
+    for (int i = 4; i < 11; ++i) s.bind_null(i);
+  }
   run_once(s);
 }
 

@@ -78,6 +78,7 @@ class MapRowCollector {
     if (const auto link = kf->inertial_link(); link && link->from_previous && has_keyframe(link->previous_id)) {
       row.inertial_previous = link->previous_id;
       row.inertial_increments = link->from_previous;
+      row.inertial_T_c_i = link->T_c_i;
       const Preintegration& d = *link->from_previous;
       row.inertial_hash = RowHash()
                               .add(link->previous_id)
@@ -87,6 +88,8 @@ class MapRowCollector {
                               .add(d.delta_v())
                               .add(d.bias().gyro)
                               .add(d.bias().accel)
+                              .add(link->T_c_i ? *link->T_c_i : Pose3())
+                              .add(static_cast<std::uint64_t>(link->T_c_i.has_value()))
                               .value();
     }
     if (const auto imu = kf->imu_state()) {

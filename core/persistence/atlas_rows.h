@@ -38,6 +38,7 @@ struct KeyframeRow {
   // commit, and inertial_hash (previous id and increments) says when to rewrite.
   std::optional<KeyframeId> inertial_previous;
   std::shared_ptr<const Preintegration> inertial_increments;
+  std::optional<Pose3> inertial_T_c_i;  // the IMU in the camera (InertialLink::T_c_i)
   std::uint64_t inertial_hash = 0;
   // The keyframe's IMU state (keyframe_imu_states), with a hash of it.
   std::optional<KeyFrame::ImuState> imu;

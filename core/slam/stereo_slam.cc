@@ -107,26 +107,6 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
   // itself (a lever arm in metres would not fit the map's units): the poses
   // reported are the camera's.
   const Pose3 T_b_c = monocular_ ? Pose3() : frontend_->calibration().T_b_c;
-  if (options_.mapper.inertial.enabled) {
-    // A session fusing its IMU neither enters nor merges into an inertial map
-    // whose body is another (a single camera's body is its camera, a stereo
-    // rig's its IMU): the map's visual-inertial BA takes one IMU-in-body for
-    // every chain, and the stereo-inertial map's chains would be bent by the
-    // camera's (measured: a left camera with its IMU merged into a
-    // stereo-inertial map of MH_01 ended 0.25-0.56 m off, 10-13 % in scale).
-    const auto same_body = [&atlas = atlas_, T_b_c](MapId id) {
-      const auto map = atlas.map(id);
-      if (!map || !map->inertial_state()) return map != nullptr;
-      const auto first = map->first_T_b_c();
-      return !first || (first->t == T_b_c.t && first->q.coeffs() == T_b_c.q.coeffs());
-    };
-    const auto only_same_body = [same_body](std::function<bool(MapId)> allowed) {
-      return std::function<bool(MapId)>(
-          [same_body, allowed = std::move(allowed)](MapId id) { return same_body(id) && (!allowed || allowed(id)); });
-    };
-    wiring.may_enter_map = only_same_body(std::move(wiring.may_enter_map));
-    wiring.may_merge_into = only_same_body(std::move(wiring.may_merge_into));
-  }
   if (options_.relocalization)
     relocalizer_ =
         std::make_unique<IndexRelocalizer>(vocabulary, atlas_.keyframe_index(), cam_, T_b_c, wiring.may_enter_map);
@@ -157,8 +137,12 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
     tracker_->set_inertial(inertial_tracking_.get());
     // Each keyframe is linked to the previous one of this session in its map
     // by the IMU between them, preintegrated at the map's bias estimate.
+    // Each link carries the IMU in this session's camera: one map holds the
+    // chains of sessions whose bodies differ (a single camera's is its camera,
+    // a stereo rig's its IMU), and each chain's visual-inertial terms use its own.
     tracker_->set_keyframe_listener(
-        [this](const std::shared_ptr<KeyFrame>& made, const std::shared_ptr<KeyFrame>& previous) {
+        [this, T_c_i = Pose3(T_b_c.inverse() * T_b_i)](const std::shared_ptr<KeyFrame>& made,
+                                                       const std::shared_ptr<KeyFrame>& previous) {
           if (const auto state = inertial_tracking_->frame_state(made->timestamp_ns())) {
             const Eigen::Matrix3d R_w_i =
                 (made->T_w_b() * options_.mapper.inertial.T_b_i).q.normalized().toRotationMatrix();
@@ -174,7 +158,7 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
             if (const auto state = map->inertial_state()) bias = state->bias;
           auto increments = imu_.between(previous->timestamp_ns(), made->timestamp_ns(), bias, *imu_noise_);
           if (!increments) return;  // not covered (counted by the buffer)
-          made->set_inertial_link(previous, std::make_shared<const Preintegration>(std::move(*increments)));
+          made->set_inertial_link(previous, std::make_shared<const Preintegration>(std::move(*increments)), T_c_i);
           ++imu_linked_;
         });
   }
