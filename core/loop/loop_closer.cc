@@ -144,7 +144,8 @@ void LoopCloser::process(const Item& item) {
     // ORB-SLAM3 looks for a merge first: a keyframe that joins another map is
     // not also taken as a loop.
     const auto start = std::chrono::steady_clock::now();
-    const PlaceRecognitionStep step = recognizers.merges->process(keyframe, free_scale || merges_in_sim3(map.get()));
+    const bool similarity = map && merges_in_sim3(*map, options_.monocular, options_.settled_inertial_refinements);
+    const PlaceRecognitionStep step = recognizers.merges->process(keyframe, similarity);
     {
       std::lock_guard lock(stats_mutex_);
       stats_.merge_search_ms.add(ms_since(start));
@@ -160,12 +161,6 @@ void LoopCloser::process(const Item& item) {
     if (step.hypothesis) ++stats_.hypotheses;
   }
   if (step.match && step.match->same_map()) close_loop(*step.match);
-}
-
-bool LoopCloser::merges_in_sim3(const Map* map) const {
-  if (!options_.monocular || !map || map->measured_depth()) return false;
-  const auto inertial = map->inertial_state();
-  return inertial && inertial->refinements < options_.settled_inertial_refinements;
 }
 
 void LoopCloser::close_loop(const PlaceMatch& loop) {

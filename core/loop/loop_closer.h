@@ -154,9 +154,6 @@ class LoopCloser {
   Recognizers& recognizers(std::uint64_t stream);  // worker thread
   void process(const Item& item);
   void close_loop(const PlaceMatch& loop);
-  // Whether `map`'s merges are estimated in Sim(3) although it is metric: an
-  // inertial monocular map before its scale settled (settled_inertial_refinements).
-  bool merges_in_sim3(const Map* map) const;
   // True when the active map was merged into the match's map.
   bool merge_live(const PlaceMatch& match);
   void stop_global_adjustment();

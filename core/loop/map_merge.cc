@@ -35,6 +35,14 @@ void MapMergeOptions::check() const {
 
 bool merge_keeps_scale(const Map& source, const Map& target) { return !source.metric_scale() || target.metric_scale(); }
 
+bool merges_in_sim3(const Map& source, bool single_camera, std::size_t settled_refinements) {
+  if (!single_camera) return false;
+  if (!source.metric_scale()) return true;
+  if (source.measured_depth()) return false;
+  const auto inertial = source.inertial_state();
+  return inertial && inertial->refinements < settled_refinements;
+}
+
 MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamera& cam,
                          const MapMergeOptions& options) {
   const auto start = std::chrono::steady_clock::now();

@@ -43,6 +43,13 @@ struct MapMergeStats {
 // one of free scale (a monocular map); that map may join it from its own side.
 bool merge_keeps_scale(const Map& source, const Map& target);
 
+// Whether a merge of `source`, a single camera's map (`single_camera`), is
+// estimated as a similarity taking the target's scale: the map is of free
+// scale, or made metric by its IMU but with fewer than `settled_refinements`
+// inertial refinements (LoopCloserOptions::settled_inertial_refinements) and
+// no measured depth. A stereo or RGB-D session's map: never.
+bool merges_in_sim3(const Map& source, bool single_camera, std::size_t settled_refinements);
+
 // Throws Error when the match is within one map or a map is missing.
 MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamera& cam,
                          const MapMergeOptions& options = {});

@@ -477,16 +477,19 @@ void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
   }
   // The camera shares the context's ownership: it lives while a request holds it.
   const std::shared_ptr<const FrameCamera> cam(context, &context->map_cam);
-  for (const MapId map : maps) merger_->submit(MergeRequest{map, cam, start.first_keyframe, start.inertial});
+  for (const MapId map : maps)
+    merger_->submit(MergeRequest{map, cam, start.first_keyframe, start.inertial, start.rig.monocular});
 }
 
 bool AtlasService::rigs_match(MapId source, MapId target) const {
-  // The merging worker's transforms are rigid: maps of monocular sessions
-  // (their own scale) are left to live merging.
+  // Maps of one rig; a single camera's map goes into a stereo one of its rig,
+  // not the other way (merge_maps gives the first the target's scale). Maps
+  // of single-camera sessions have a rig only in the server run that made
+  // them (record_map_rigs).
   std::lock_guard lock(rigs_mutex_);
   const auto a = map_rigs_.find(source);
   const auto b = map_rigs_.find(target);
-  return a != map_rigs_.end() && b != map_rigs_.end() && !a->second.monocular && !b->second.monocular &&
+  return a != map_rigs_.end() && b != map_rigs_.end() && (a->second.monocular || !b->second.monocular) &&
          same_rig(a->second.cameras, b->second.cameras);
 }
 
@@ -631,11 +634,10 @@ SessionStatus AtlasService::finish_session(SessionId id, const std::string& ende
                          "session " + std::to_string(id) + " ended but could not be stored yet: " +
                              checkpointer_->stats().last_error + " (the server keeps retrying)");
     live->release_anchors();  // stored: the database answers for its trajectory from now on
-    // A localising single camera only read the maps it held; a mapping one
-    // made maps of free scale (or, with its IMU, of a scale that may not have
-    // settled), which the merging worker's rigid alignment does not fit: they
-    // merge live only (the loop closer's Sim(3) merges).
-    if (!is_single_camera(live->info().sensor)) submit_merges(id, held);
+    // A localising single camera only read the maps it held; a mapping one's
+    // maps (of free scale, or with its IMU of a scale that may not have
+    // settled) are merged as similarities (MergeRequest::single_camera).
+    if (!is_single_camera(live->info().sensor) || live->mode() == SessionMode::kMap) submit_merges(id, held);
     // The session's SLAM objects (images, pyramids, rectification maps) are
     // gone: give the allocator's idle pages back, so a server that runs
     // session after session keeps a flat resident size.

@@ -91,13 +91,15 @@ void MapMergeWorker::process(const MergeRequest& request) {
   };
   PlaceRecognizer recognizer(atlas_.keyframe_index(), *request.cam, recognition);
 
+  // A single camera's map of free scale is matched as a similarity.
+  const bool similarity = merges_in_sim3(*source, request.single_camera, options_.settled_inertial_refinements);
   std::optional<PlaceMatch> match;
   std::size_t searched = 0;
   for (const auto& kf : source->keyframes()) {
     if (stopping_.load()) return;
     if (kf->id() < request.first_keyframe) continue;
     ++searched;
-    PlaceRecognitionStep step = recognizer.process(kf);
+    PlaceRecognitionStep step = recognizer.process(kf, similarity);
     if (step.match) {
       match = std::move(step.match);
       break;
@@ -125,6 +127,11 @@ void MapMergeWorker::process(const MergeRequest& request) {
   }
   const MapId target_id = match->matched->map_id();
   if (!leases_.claim_exclusive(kMergeWorkerLease, target_id)) return;  // a session entered it just now
+  if (const auto target = atlas_.map(target_id); !target || !merge_keeps_scale(*source, *target)) {
+    log_info("map merging: map " + std::to_string(source_id) + " is metric and map " + std::to_string(target_id) +
+             " is not (or is gone); not merged");
+    return;
+  }
 
   MergeRecord record;
   record.current = match->current->id();

@@ -38,6 +38,7 @@ struct MapMergeWorkerOptions {
   // by one global BA (every constraint the session found, jointly).
   bool refine_unmerged = true;
   GlobalBundleAdjustmentOptions global;
+  std::size_t settled_inertial_refinements = 2;  // as LoopCloserOptions'
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -55,6 +56,10 @@ struct MergeRequest {
   // inertially initialised map keeps the IMU terms of every session's chain
   // (the maps merged are of the same rig). None: visual only.
   std::optional<GlobalBundleAdjustmentOptions::Inertial> inertial;
+  // A single camera's session (mono, mono_inertial): its map of free scale (or
+  // with an IMU scale not settled yet) is matched and merged as a similarity,
+  // taking the target's scale (merges_in_sim3).
+  bool single_camera = false;
 };
 
 struct MergeRecord {

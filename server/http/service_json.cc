@@ -89,6 +89,7 @@ nlohmann::json to_json(const MergesReport& m) {
                              {"points_fused", r.merge.points_fused},
                              {"observations_added", r.merge.observations_fused},
                              {"four_dof", r.merge.four_dof},
+                             {"scale", r.merge.scale},
                              {"merge_ms", r.merge.ms},
                              {"global_ba",
                               {{"keyframes", r.ba_keyframes},
