@@ -119,6 +119,12 @@ void register_stream(CLI::App& app) {
                   "A real-time session: the server skips the frames that arrive more than this many seconds behind "
                   "the sensor's clock (counted as skipped frames) instead of falling further behind")
       ->check(CLI::PositiveNumber);
+  cmd->add_flag("--preload", args->stream.preload,
+                "Read and decode every image before the first frame is sent (memory: the clip's raw pixels), so that "
+                "the client's decoding does not compete with a server on the same machine while it streams");
+  cmd->add_option("--start-at", args->stream.start_at_unix_s,
+                  "Wait until this wall-clock time (seconds since the Unix epoch) before the first frame, after any "
+                  "--preload: clients started together begin together");
   cmd->add_option("--encoding", args->encoding, "Images as 'raw' 8-bit pixels or 'png'")
       ->capture_default_str()
       ->check(CLI::IsMember({"raw", "png"}));

@@ -404,9 +404,12 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
   test::TestServer server(options);
   std::vector<std::future<StreamReport>> running;
   for (const auto& clip : clips) {
-    running.push_back(std::async(std::launch::async, [&server, clip] {
+    // The first client reads and decodes its whole clip before streaming.
+    running.push_back(std::async(std::launch::async, [&server, clip, preload = running.empty()] {
       ServerClient client(server.url());  // one client (connection) per thread
-      return stream_dataset(client, test::stream_options(clip));
+      StreamOptions o = test::stream_options(clip);
+      o.preload = preload;
+      return stream_dataset(client, o);
     }));
   }
   std::set<std::uint64_t> sessions, maps;
@@ -847,6 +850,50 @@ TEST(ServerMerging, ALeftCameraSessionIsMergedIntoTheStereoMapAndBecomesMetric) 
   ServerClient client(server.url());
   const Trajectory stored = parse_tum_trajectory(client.trajectory_tum(session), "stored", nullptr);
   EXPECT_NEAR(camera_eval(stored, AlignMode::kSe3).ate.rmse, ate_live, 1e-4);
+}
+
+// The same two sessions with live merging off: the left camera's map, of its
+// own scale, is merged by the server's merging worker once its session ends,
+// as a similarity, and its frames become metric as with the live merge.
+TEST(ServerMerging, TheMergingWorkerMergesALeftCameraMapIntoTheStereoMapAfterItsSessionEnds) {
+  const std::vector<std::filesystem::path> clips = {test::simulated_clip("MH_01", 46.0, 8.0),
+                                                    test::simulated_clip("MH_02", 38.0, 8.0)};
+  const test::ClipCleanup cleanups[] = {{clips[0]}, {clips[1]}};
+  test::TempDbPath db("mono_left_worker");
+  const EurocDataset dataset = test::stereo_dataset(clips[1]);
+  const auto camera_eval = [&](const Trajectory& trajectory, AlignMode align) {
+    EvalOptions eval;
+    eval.align = align;
+    eval.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;  // its poses are the camera's
+    return evaluate_trajectory(trajectory, from_ground_truth_states(dataset.ground_truth), eval);
+  };
+  AtlasServiceOptions options = test::server_options(db.path);
+  options.start_in_stored_maps = false;
+  options.live_merging = false;
+  test::TestServer server(options);
+  ServerClient client(server.url());
+  const StreamReport a = stream_dataset(client, test::stream_options(clips[0]));
+  ASSERT_FALSE(a.reply_maps.empty());
+  const std::uint64_t stereo_map = a.reply_maps.back();
+  wait_for_merges(client);  // the stereo map's own refinement first
+  StreamOptions o = test::stream_options(clips[1]);
+  o.sensor = "mono";
+  o.mode = "map";
+  const StreamReport b = stream_dataset(client, o);
+  ASSERT_FALSE(b.reply_maps.empty());
+  EXPECT_EQ(std::count(b.reply_maps.begin(), b.reply_maps.end(), stereo_map), 0);  // not merged live
+  const auto merges = wait_for_merges(client);
+  EXPECT_EQ(merges["live_merges"].size(), 0u) << merges.dump(2);
+  ASSERT_EQ(merges["merges"].size(), 1u) << merges.dump(2);
+  EXPECT_EQ(merges["merges"][0]["target_map"].get<std::uint64_t>(), stereo_map) << merges.dump(2);
+  EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
+  const Trajectory trajectory = parse_tum_trajectory(client.trajectory_tum(b.session), "mono", nullptr);
+  const double ate = camera_eval(trajectory, AlignMode::kSe3).ate.rmse;
+  const double scale = camera_eval(trajectory, AlignMode::kSim3).alignment.scale;
+  std::printf("left camera merged by the worker into the stereo map: ATE %.4f m (SE3), Sim3 scale %.4f\n", ate, scale);
+  // Measured over four runs: ATE 0.0042-0.0061 m, scale 0.9985-0.9993.
+  EXPECT_LT(ate, 0.012);
+  EXPECT_NEAR(scale, 1.0, 0.003);
 }
 
 // Local mapping adjusts every keyframe of the map it works in with its own

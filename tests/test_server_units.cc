@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
 #include <future>
 
 #include <opencv2/imgcodecs.hpp>
@@ -240,6 +241,8 @@ TEST(ServerOptions, CheckThemselves) {
       stream, [](auto& o) { o.start_s = -2.0; }, "start_s");
   expect_refused(
       stream, [](auto& o) { o.duration_s = 0.0; }, "duration_s");
+  expect_refused(
+      stream, [](auto& o) { o.start_at_unix_s = std::nan(""); }, "start_at_unix_s");
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 #include "client/api/dataset_streamer.h"
 
 #include <chrono>
+#include <deque>
 #include <cmath>
 #include <fstream>
 #include <optional>
@@ -36,6 +37,8 @@ void StreamOptions::check() const {
   ORBATLAS_CHECK(!max_lag_s || (std::isfinite(*max_lag_s) && *max_lag_s > 0.0),
                  "stream: max_lag_s must be > 0 s, not " << max_lag_s.value_or(0.0));
   ORBATLAS_CHECK(start_s >= 0.0 && std::isfinite(start_s), "stream: start_s must be >= 0 s, not " << start_s);
+  ORBATLAS_CHECK(!start_at_unix_s || (std::isfinite(*start_at_unix_s) && *start_at_unix_s > 0.0),
+                 "stream: start_at_unix_s must be a time after the epoch, not " << start_at_unix_s.value_or(0.0));
   ORBATLAS_CHECK(!duration_s || (*duration_s > 0.0 && std::isfinite(*duration_s)),
                  "stream: duration_s must be > 0 s, not " << duration_s.value_or(0.0));
 }
@@ -90,11 +93,32 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   const TimestampNs first_t = frames.front().t_ns;
 
   Progress progress("stream", static_cast<std::int64_t>(frames.size()), options.show_progress);
-  StereoPairLoader loaded(std::move(frames), 4,
+  const std::size_t count = frames.size();
+  StereoPairLoader loaded(std::move(frames), options.preload ? count : 4,
                           rgbd ? StereoPairLoader::Second::kDepth : StereoPairLoader::Second::kImage);
+  std::deque<LoadedStereoPair> preloaded;
+  if (options.preload) {
+    while (auto pair = loaded.next()) preloaded.push_back(std::move(*pair));
+    log_info("stream: " + std::to_string(preloaded.size()) + " frames read and decoded before streaming");
+  }
+  const auto next_pair = [&]() -> std::optional<LoadedStereoPair> {
+    if (!options.preload) return loaded.next();
+    if (preloaded.empty()) return std::nullopt;
+    LoadedStereoPair pair = std::move(preloaded.front());
+    preloaded.pop_front();
+    return pair;
+  };
+  if (options.start_at_unix_s) {
+    const auto at =
+        std::chrono::system_clock::time_point(std::chrono::duration_cast<std::chrono::system_clock::duration>(
+            std::chrono::duration<double>(*options.start_at_unix_s)));
+    if (std::chrono::system_clock::now() > at)
+      log_warn("stream: the start time had passed when the frames were ready; streaming at once");
+    std::this_thread::sleep_until(at);
+  }
   const auto start = Clock::now();
   std::optional<Clock::time_point> last_reply;  // of the frame before this one
-  while (auto pair = loaded.next()) {
+  while (auto pair = next_pair()) {
     if (options.rate > 0) {
       const auto due = start + std::chrono::nanoseconds(
                                    static_cast<std::int64_t>(static_cast<double>(pair->t_ns - first_t) / options.rate));

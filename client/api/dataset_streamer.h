@@ -28,6 +28,13 @@ struct StreamOptions {
   // frames that arrive more than this behind the sensor's clock.
   std::optional<double> max_lag_s;
   ImageEncoding encoding = ImageEncoding::kRaw;
+  // Read and decode every image before the first frame is sent (instead of a
+  // few ahead while streaming): the clip's raw pixels in memory, and no image
+  // decoding competing with a server on the same machine (bench_capacity.sh).
+  bool preload = false;
+  // Wait until this wall-clock time (seconds since the Unix epoch) before the
+  // first frame, after any preload: clients started together begin together.
+  std::optional<double> start_at_unix_s;
   double start_s = 0.0;
   std::optional<double> duration_s;
   bool show_progress = true;
