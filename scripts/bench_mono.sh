@@ -56,6 +56,11 @@ for look in "${LOOK_LIST[@]}"; do
         ref_src="$DATA/$ref"
         [ "$look" = clean ] || ref_src="$DATA/${ref}_$look"
         base="$OUT/${rig}_${ref}_${look}.db"
+        if [ ! -f "$ref_src/mav0/cam0/data.csv" ]; then
+          echo "== simulating $ref ($look look) into $ref_src"
+          rm -rf "$ref_src"
+          "$OA" sim --sequence "$ref" --look "$look" --out "$ref_src"
+        fi
         if [ ! -f "$base" ]; then
           echo "== the $rig map of $ref ($look look) into $base"
           "$OA" run --config "$ROOT/config/euroc/$rig.yaml" --dataset "$ref_src" --no-progress --atlas "$base" \

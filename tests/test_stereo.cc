@@ -10,6 +10,7 @@
 #include "core/common/error.h"
 #include "core/features/keypoint_geometry.h"
 #include "core/features/orb_extractor.h"
+#include "core/features/patch_sad.h"
 #include "core/features/stereo_rectified.h"
 #include "core/features/stereo_triangulated.h"
 #include "core/sim/renderer.h"
@@ -131,6 +132,28 @@ TEST(RectifiedStereo, FixedPointMapsRectifyAsTheFloatMapsDo) {
   cv::initUndistortRectifyMap(K(right), cv::Mat(right.distortion), R2, P2, size, CV_32F, map_x, map_y);
   cv::remap(image, expected, map_x, map_y, cv::INTER_LINEAR);
   EXPECT_EQ(cv::norm(right_rect, expected, cv::NORM_INF), 0.0);
+}
+
+// The row search's zero-mean SADs (left patch and right sums computed once
+// per row) are exactly those of one zero_mean_sad per offset, on random
+// images and for the window sizes and ranges stereo matching uses.
+TEST(RectifiedStereo, TheRowSadSearchGivesEveryOffsetsZeroMeanSad) {
+  cv::Mat a(60, 120, CV_8UC1), b(60, 120, CV_8UC1);
+  cv::randu(a, 0, 256);
+  cv::randu(b, 0, 256);
+  RowSadSearch search;
+  std::vector<int> sads;
+  std::size_t compared = 0;
+  for (const int w : {1, 3, 5})
+    for (const int range : {0, 2, 7}) {
+      const int ua = 40, va = 30, ub0 = 60;
+      search.run(a, ua, va, b, ub0, range, w, sads);
+      ASSERT_EQ(sads.size(), static_cast<std::size_t>(2 * range + 1));
+      for (int k = -range; k <= range; ++k, ++compared)
+        EXPECT_EQ(sads[static_cast<std::size_t>(k + range)], zero_mean_sad(a, ua, va, b, ub0 + k, va, w))
+            << "w " << w << " offset " << k;
+    }
+  EXPECT_EQ(compared, 3u * (1 + 5 + 15));
 }
 
 TEST(TriangulatedStereo, FisheyeDepthAtFiveMetres) {

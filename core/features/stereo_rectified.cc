@@ -132,6 +132,7 @@ StereoDepths match_stereo_rectified(const ImageFeatures& left, const std::vector
   std::vector<std::pair<int, std::size_t>> costs;  // (SAD, left index)
   costs.reserve(n);
   std::vector<int> sad;
+  RowSadSearch row_search;
 
   for (std::size_t il = 0; il < n; ++il) {
     const Keypoint& kl = left.keypoints[il];
@@ -167,11 +168,10 @@ StereoDepths match_stereo_rectified(const ImageFeatures& left, const std::vector
     const int range = search + static_cast<int>(std::ceil(scale_factors[level]));
     if (vl - w < 0 || vl + w >= il_img.rows || ul - w < 0 || ul + w >= il_img.cols) continue;
     if (ur0 - range - w < 0 || ur0 + range + w >= ir_img.cols || vl + w >= ir_img.rows) continue;
-    sad.assign(static_cast<std::size_t>(2 * range + 1), 0);
+    row_search.run(il_img, ul, vl, ir_img, ur0, range, w, sad);
     int best_sad = std::numeric_limits<int>::max(), best_inc = 0;
     for (int inc = -range; inc <= range; ++inc) {
-      const int s = zero_mean_sad(il_img, ul, vl, ir_img, ur0 + inc, vl, w);
-      sad[static_cast<std::size_t>(inc + range)] = s;
+      const int s = sad[static_cast<std::size_t>(inc + range)];
       if (s < best_sad) {
         best_sad = s;
         best_inc = inc;
