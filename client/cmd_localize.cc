@@ -19,6 +19,7 @@
 #include "wire/pose_json.h"
 #include "core/slam/slam_stats.h"
 #include "core/common/error.h"
+#include "core/io/euroc_trajectory.h"
 #include "core/io/tum_trajectory.h"
 #include "core/slam/dataset_runner.h"
 
@@ -27,7 +28,7 @@ namespace {
 
 struct LocalizeArgs {
   DatasetRunOptions run;
-  std::string config, dataset, out_trajectory, stats, vocabulary, atlas;
+  std::string config, dataset, out_trajectory, stats, vocabulary, atlas, format = "tum";
   double start_s = 0.0, duration_s = 0.0;
   // --server mode
   std::string server, token, image, image_right;
@@ -70,7 +71,8 @@ void localize_dataset_on_server(const LocalizeArgs& args) {
       "%.1f ms)\n",
       poses.size(), asked, 100.0 * static_cast<double>(poses.size()) / static_cast<double>(asked), p.p50, p.p95, ps.p50,
       ps.p95);
-  if (!args.out_trajectory.empty()) write_tum_trajectory(args.out_trajectory, poses, maps);
+  if (!args.out_trajectory.empty())
+    write_trajectory(args.out_trajectory, poses, maps, parse_trajectory_format(args.format));
   if (!args.stats.empty())
     write_stats_file(args.stats, {{"asked", asked},
                                   {"recognised", poses.size()},
@@ -115,7 +117,12 @@ void register_localize_command(CLI::App& app) {
       ->required();
   cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)");
   cmd->add_option("--out-trajectory", args->out_trajectory,
-                  "Localised poses (TUM, body frame, map frame; '# map <id>' lines)");
+                  "Localised poses (body frame, map frame; '# map <id>' lines; --format)");
+  cmd->add_option("--format", args->format,
+                  "Trajectory file format: tum (t tx ty tz qx qy qz qw, seconds) or euroc (the csv of EuRoC's ground "
+                  "truth: ns,px,py,pz,qw,qx,qy,qz; what evo_traj euroc reads)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"tum", "euroc"}));
   cmd->add_option("--server", args->server, "Ask a running map server instead, e.g. http://127.0.0.1:8080");
   cmd->add_option("--token", args->token, "Bearer token of the server")->envname("ORBATLAS_TOKEN");
   cmd->add_option("--image", args->image, "With --server: the (left) image to localise");
@@ -144,7 +151,8 @@ void register_localize_command(CLI::App& app) {
     if (args->duration_s > 0.0) options.duration_s = args->duration_s;
 
     const DatasetRunReport report = run_stereo_dataset(options);
-    write_tum_trajectory(args->out_trajectory, report.trajectory, report.trajectory_maps);
+    write_trajectory(args->out_trajectory, report.trajectory, report.trajectory_maps,
+                     parse_trajectory_format(args->format));
     nlohmann::json j = report.to_json();
     std::map<MapId, std::size_t> per_map;
     for (const MapId m : report.trajectory_maps) ++per_map[m];

@@ -11,6 +11,7 @@
 #include "client/api/dataset_streamer.h"
 #include "client/commands.h"
 #include "core/common/progress.h"
+#include "core/io/euroc_trajectory.h"
 #include "core/io/tum_trajectory.h"
 #include "core/slam/slam_stats.h"
 
@@ -30,7 +31,7 @@ void add_server_options(CLI::App* cmd, ServerArgs& args) {
 struct StreamArgs {
   ServerArgs server;
   StreamOptions stream;
-  std::string dataset, encoding = "raw", out_trajectory, stats;
+  std::string dataset, encoding = "raw", out_trajectory, stats, format = "tum";
   double duration_s = 0.0;
 };
 
@@ -130,7 +131,12 @@ void register_stream(CLI::App& app) {
       ->check(CLI::IsMember({"raw", "png"}));
   cmd->add_option("--start", args->stream.start_s, "Seconds of the sequence to skip")->capture_default_str();
   cmd->add_option("--duration", args->duration_s, "Seconds to stream (default: to the end)");
-  cmd->add_option("--out-trajectory", args->out_trajectory, "Write the session's final trajectory (TUM) here");
+  cmd->add_option("--out-trajectory", args->out_trajectory, "Write the session's final trajectory here (--format)");
+  cmd->add_option("--format", args->format,
+                  "Trajectory file format: tum (t tx ty tz qx qy qz qw, seconds) or euroc (the csv of EuRoC's ground "
+                  "truth: ns,px,py,pz,qw,qx,qy,qz; what evo_traj euroc reads)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"tum", "euroc"}));
   cmd->add_option("--stats", args->stats, "Write the figures as JSON here");
   cmd->add_flag("!--no-progress", args->stream.show_progress, "Do not print progress");
   cmd->callback([args] {
@@ -141,7 +147,8 @@ void register_stream(CLI::App& app) {
     ServerClient client(args->server.server, args->server.token);
     const StreamReport report = stream_dataset(client, options);
     if (!args->out_trajectory.empty())
-      write_tum_trajectory(args->out_trajectory, report.trajectory, report.trajectory_maps);
+      write_trajectory(args->out_trajectory, report.trajectory, report.trajectory_maps,
+                       parse_trajectory_format(args->format));
     const nlohmann::json j = stream_json(report);
     if (!args->stats.empty()) write_stats_file(args->stats, j);
     print_stream_summary(j);
@@ -300,21 +307,32 @@ void register_trajectory(CLI::App& app) {
   auto args = std::make_shared<ServerArgs>();
   auto session = std::make_shared<std::uint64_t>(0);
   auto out = std::make_shared<std::string>();
-  auto* cmd =
-      app.add_subcommand("trajectory", "Download a session's trajectory (TUM; poses as the atlas holds them now)");
+  auto format = std::make_shared<std::string>("tum");
+  auto* cmd = app.add_subcommand("trajectory", "Download a session's trajectory (poses as the atlas holds them now)");
   add_server_options(cmd, *args);
   cmd->add_option("--session", *session, "Session id")->required();
   cmd->add_option("--out", *out, "Write it to this file (default: print it)");
-  cmd->callback([args, session, out] {
+  cmd->add_option("--format", *format,
+                  "Trajectory file format: tum (t tx ty tz qx qy qz qw, seconds) or euroc (the csv of EuRoC's ground "
+                  "truth: ns,px,py,pz,qw,qx,qy,qz; what evo_traj euroc reads)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"tum", "euroc"}));
+  cmd->callback([args, session, out, format] {
     ServerClient client(args->server, args->token);
     const std::string text = client.trajectory_tum(*session);
-    if (out->empty()) {
+    const TrajectoryFormat chosen = parse_trajectory_format(*format);
+    if (out->empty() && chosen == TrajectoryFormat::kTum) {
       std::fwrite(text.data(), 1, text.size(), stdout);
       return;
     }
     std::vector<std::uint64_t> maps;
     const Trajectory t = parse_tum_trajectory(text, "session " + std::to_string(*session), &maps);
-    write_tum_trajectory(*out, t, maps);
+    if (out->empty()) {
+      const std::string csv = format_euroc_trajectory(t, maps);
+      std::fwrite(csv.data(), 1, csv.size(), stdout);
+      return;
+    }
+    write_trajectory(*out, t, maps, chosen);
     const std::set<std::uint64_t> distinct(maps.begin(), maps.end());
     std::string in;
     for (const auto m : distinct) in += (in.empty() ? "" : ", ") + std::to_string(m);

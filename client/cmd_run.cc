@@ -14,6 +14,7 @@
 #include "client/commands.h"
 #include "core/common/error.h"
 #include "core/common/log.h"
+#include "core/io/euroc_trajectory.h"
 #include "core/io/tum_trajectory.h"
 #include "core/slam/dataset_runner.h"
 
@@ -24,6 +25,7 @@ struct RunArgs {
   DatasetRunOptions run;
   std::string config, stats, vocabulary, culling = "incremental", mode = "map", sensor;
   std::vector<std::string> datasets, out_trajectories;
+  std::string format = "tum";
   double start_s = 0.0, duration_s = 0.0;
   bool compare_culling = false;
   std::string black_out;  // FROM:TO seconds
@@ -130,8 +132,13 @@ void register_run_command(CLI::App& app) {
                   "(one session each, mapping shared maps together)")
       ->required();
   cmd->add_option("--out-trajectory", args->out_trajectories,
-                  "Trajectory to write (TUM, body frame, seconds); one per --dataset, in the same order")
+                  "Trajectory to write (body frame; --format); one per --dataset, in the same order")
       ->required();
+  cmd->add_option("--format", args->format,
+                  "Trajectory file format: tum (t tx ty tz qx qy qz qw, seconds) or euroc (the csv of EuRoC's ground "
+                  "truth: ns,px,py,pz,qw,qx,qy,qz; what evo_traj euroc reads)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"tum", "euroc"}));
   cmd->add_option("--stats", args->stats,
                   "Write run figures as JSON here (several recordings: {\"runs\": [one object each]})");
   cmd->add_flag("--realtime", args->run.realtime, "Feed frames at the sensor rate and count late frames");
@@ -193,7 +200,7 @@ void register_run_command(CLI::App& app) {
     std::string failed;
     for (std::size_t i = 0; i < reports.size(); ++i) {
       const DatasetRunReport& report = reports[i];
-      write_tum_trajectory(args->out_trajectories[i], report.trajectory);
+      write_trajectory(args->out_trajectories[i], report.trajectory, {}, parse_trajectory_format(args->format));
       runs.push_back(report.to_json());
       if (reports.size() > 1) std::printf("== %s\n", args->datasets[i].c_str());
       print_run_summary(report);

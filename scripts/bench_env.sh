@@ -11,6 +11,13 @@ else
   "$ROOT/scripts/setup.sh"
   OA="$BUILD_DIR/client/orbatlas"
 fi
+# The benchmarks' figures are computed with Debian's numpy (python3-numpy).
+if ! /usr/bin/python3 -c "import numpy" 2> /dev/null; then
+  echo "== installing python3-numpy (the benchmarks' figures)" >&2
+  SUDO=""
+  [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+  $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -q python3-numpy >&2
+fi
 DATA="${ORBATLAS_BENCH_DATA:-$BUILD_DIR/bench_data}"
 OUT="${ORBATLAS_BENCH_OUT:-$ROOT/out/$BENCH_NAME}"
 mkdir -p "$DATA" "$OUT"

@@ -1,5 +1,5 @@
 // TUM trajectory files: exact round trip, ORB-SLAM3's ns timestamps, errors, gzip,
-// and read_any_ground_truth's three input forms.
+// and read_any_ground_truth's input forms; EuRoC trajectory csv files.
 #include <gtest/gtest.h>
 #include <unistd.h>
 #include <zlib.h>
@@ -10,6 +10,7 @@
 
 #include "core/common/data_paths.h"
 #include "core/common/error.h"
+#include "core/io/euroc_trajectory.h"
 #include "core/io/euroc_writer.h"
 #include "core/io/tum_trajectory.h"
 
@@ -205,6 +206,55 @@ TEST(Tum, ReadAnyGroundTruthTakesTumAslCsvAndDatasetFolders) {
   EXPECT_THROW(read_any_ground_truth(root / "absent.txt"), DataError);
   fs::remove_all(root);
   fs::remove(tum);
+}
+
+// The EuRoC csv (`--format euroc`): every nanosecond and pose back, map
+// comments skipped, read by read_any_ground_truth (what `orbatlas eval --est`
+// and `--gt` use) as the same trajectory as its TUM twin, and bad lines are
+// errors with file and line.
+TEST(EurocTrajectory, WriteThenReadKeepsEveryNanosecondAndPoseAsTumDoes) {
+  const Trajectory want = make_trajectory();
+  std::vector<std::uint64_t> maps(want.size(), 0);
+  for (std::size_t i = 20; i < maps.size(); ++i) maps[i] = 3;
+  const fs::path csv = temp_file("roundtrip.csv"), tum = temp_file("roundtrip.txt");
+  write_trajectory(csv, want, maps, TrajectoryFormat::kEuroc);
+  write_trajectory(tum, want, maps, TrajectoryFormat::kTum);
+  const std::string text = format_euroc_trajectory(want, maps);
+  EXPECT_EQ(text.rfind("#timestamp [ns],p_RS_R_x [m]", 0), 0u);
+  EXPECT_NE(text.find("\n# map 3\n1403636580938560026,"), std::string::npos) << text.substr(0, 400);
+  const Trajectory got = read_euroc_trajectory(csv);
+  const Trajectory any = read_any_ground_truth(csv);
+  const Trajectory from_tum = read_any_ground_truth(tum);
+  fs::remove(csv);
+  fs::remove(tum);
+  ASSERT_EQ(got.size(), want.size());
+  ASSERT_EQ(any.size(), want.size());
+  ASSERT_EQ(from_tum.size(), want.size());
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(got[i].t_ns, want[i].t_ns);
+    EXPECT_EQ(any[i].t_ns, want[i].t_ns);
+    EXPECT_LT((got[i].pose.t - want[i].pose.t).cwiseAbs().maxCoeff(), 1e-9);
+    EXPECT_LT((got[i].pose.q.coeffs() - want[i].pose.q.coeffs()).cwiseAbs().maxCoeff(), 1.5e-9);
+    EXPECT_EQ(any[i].pose.t, from_tum[i].pose.t);  // the same digits in both formats
+    EXPECT_EQ(any[i].pose.q.coeffs(), from_tum[i].pose.q.coeffs());
+  }
+  EXPECT_EQ(parse_trajectory_format("euroc"), TrajectoryFormat::kEuroc);
+  EXPECT_THROW(parse_trajectory_format("kitti"), Error);
+
+  const auto error = [](const std::string& text) {
+    try {
+      parse_euroc_trajectory(text, "t.csv");
+    } catch (const DataError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(error("1,0,0,0,1,0,0\n").find("t.csv:1: expected 8 fields"), std::string::npos);
+  EXPECT_NE(error("# c\n1.5,0,0,0,1,0,0,0\n").find("t.csv:2: the timestamp '1.5' is not an integer"),
+            std::string::npos);
+  EXPECT_NE(error("5,0,0,0,1,0,0,0\n5,0,0,0,1,0,0,0\n").find("t.csv:2: timestamp 5 is not after 5"), std::string::npos);
+  EXPECT_NE(error("5,0,0,0,2,0,0,0\n").find("not unit"), std::string::npos);
+  EXPECT_NE(error("5,nan,0,0,1,0,0,0\n").find("non-finite"), std::string::npos);
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 #include "core/common/error.h"
 #include "core/common/text_file.h"
 #include "core/io/euroc_reader.h"
+#include "core/io/euroc_trajectory.h"
 
 namespace orbatlas {
 namespace {
@@ -169,8 +170,12 @@ Trajectory read_any_ground_truth(const fs::path& path) {
     throw DataError(path.string() + ": folder has no mav0/state_groundtruth_estimate0/data.csv");
   }
   if (!fs::exists(path, ec)) throw DataError(path.string() + ": file not found");
-  // An ASL csv has 17 comma-separated columns; anything else is read as TUM.
-  if (first_csv_fields(path).size() == 17) return from_ground_truth_states(read_asl_ground_truth_csv(path));
+  // An ASL ground-truth csv has 17 comma-separated columns; a EuRoC trajectory
+  // csv (ours, evo's) 8 or more, its first an integer of nanoseconds; anything
+  // else is read as TUM.
+  const std::vector<std::string> fields = first_csv_fields(path);
+  if (fields.size() == 17) return from_ground_truth_states(read_asl_ground_truth_csv(path));
+  if (fields.size() >= 8 && !fields[0].empty() && all_digits(trim(fields[0]))) return read_euroc_trajectory(path);
   return read_tum_trajectory(path);
 }
 

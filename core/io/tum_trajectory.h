@@ -34,7 +34,8 @@ std::string format_tum_trajectory(const Trajectory& trajectory, const std::vecto
 Trajectory from_ground_truth_states(const std::vector<GroundTruthState>& states);
 
 // Reads ground truth in any of the forms `orbatlas eval --gt` takes: a TUM file,
-// an ASL ground-truth csv, or a dataset folder (its state_groundtruth_estimate0).
+// an ASL ground-truth csv, a EuRoC trajectory csv (euroc_trajectory.h), or a
+// dataset folder (its state_groundtruth_estimate0).
 Trajectory read_any_ground_truth(const std::filesystem::path& path);
 
 }  // namespace orbatlas
