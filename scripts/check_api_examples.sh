@@ -71,3 +71,27 @@ for example in "${EXAMPLES[@]}"; do
   fi
 done
 echo "check_api_examples: all $n examples of docs/api.md answered without an error"
+
+# Every metric the Grafana dashboard and docs/monitoring.md name is served.
+command curl -s --max-time 30 "$S/metrics" > "$WORK/metrics.txt"
+/usr/bin/python3 - "$WORK/metrics.txt" "$ROOT/docs/monitoring/grafana-dashboard.json" "$ROOT/docs/monitoring.md" <<'PY'
+import json, re, sys
+served = set()
+for line in open(sys.argv[1]):
+    m = re.match(r"(orbatlas_[a-z_]+)", line)
+    if m:
+        served.add(m.group(1))
+dashboard = json.load(open(sys.argv[2]))
+named = set()
+for panel in dashboard["panels"]:
+    for target in panel["targets"]:
+        named.update(re.findall(r"orbatlas_[a-z_]+", target["expr"]))
+named.update(re.findall(r"orbatlas_[a-z_]+", open(sys.argv[3]).read()))
+# This server runs with --no-merging, which leaves out the merging worker's metrics.
+merging_only = {"orbatlas_map_merges_total", "orbatlas_map_merge_pending"}
+missing = sorted(n for n in named - merging_only
+                 if n not in served and re.sub(r"_(bucket|sum|count)$", "", n) not in served)
+if missing:
+    sys.exit("check_api_examples: the dashboard or docs/monitoring.md name metrics the server does not serve: " + ", ".join(missing))
+print(f"check_api_examples: the dashboard's {len(named)} metric names are all served")
+PY
