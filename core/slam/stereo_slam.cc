@@ -153,9 +153,13 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
               made->set_imu_state(imu);
           }
           if (!previous || previous->is_bad() || previous->map_id() != made->map_id()) return;
+          // At this session's biases (its previous keyframe's), else the map's.
           ImuBias bias;
-          if (const auto map = atlas_.map(made->map_id()))
+          if (const auto own = previous->imu_state()) {
+            bias = own->bias;
+          } else if (const auto map = atlas_.map(made->map_id())) {
             if (const auto state = map->inertial_state()) bias = state->bias;
+          }
           auto increments = imu_.between(previous->timestamp_ns(), made->timestamp_ns(), bias, *imu_noise_);
           if (!increments) return;  // not covered (counted by the buffer)
           made->set_inertial_link(previous, std::make_shared<const Preintegration>(std::move(*increments)), T_c_i);

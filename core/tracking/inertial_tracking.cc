@@ -54,11 +54,13 @@ StateCovariance turn_velocity_block(const StateCovariance& c, const Eigen::Matri
 
 }  // namespace
 
-std::optional<Pose3> InertialTracking::predict(const Map& map, const Frame& last, TimestampNs t_ns) {
+std::optional<Pose3> InertialTracking::predict(const Map& map, const Frame& last, TimestampNs t_ns,
+                                               const std::optional<ImuBias>& own_bias) {
   prediction_.reset();
   if (!last_ || !last.has_pose || last.t_ns != last_->t_ns || t_ns <= last.t_ns) return std::nullopt;
-  const auto state = map.inertial_state();
+  auto state = map.inertial_state();
   if (!state) return std::nullopt;
+  if (own_bias) state->bias = *own_bias;
   std::optional<Preintegration> increments;
   try {
     increments = Preintegration::between(imu_.samples(), last.t_ns, t_ns, state->bias, noise_);

@@ -52,7 +52,13 @@ class InertialTracking {
   // its pose current) by the IMU; none when the map is not inertially
   // initialised, the last frame's state is unknown or the IMU does not cover
   // the time between. Keeps the increments for optimize() and imu_only().
-  std::optional<Pose3> predict(const Map& map, const Frame& last, TimestampNs t_ns);
+  // `own_bias`: this session's IMU biases (its newest keyframe's, as ORB-SLAM3
+  // takes them), which the prediction and the frame's bias prior use; none:
+  // the map's estimate (a session with no keyframe in the map yet). A map
+  // several sessions share holds one estimate, of whichever IMU its newest
+  // keyframe saw, which another device's IMU does not share.
+  std::optional<Pose3> predict(const Map& map, const Frame& last, TimestampNs t_ns,
+                               const std::optional<ImuBias>& own_bias = std::nullopt);
   // The frame's visual-inertial pose optimisation after predict() for it (its
   // map points associated); the inliers, or none without a prediction (the
   // visual optimisation is then the caller's).

@@ -175,7 +175,14 @@ bool Tracker::localize_in_stored_maps(Frame& frame, TrackResult& result) {
 
 bool Tracker::track_from_last_frame(Frame& frame) {
   refresh_last_frame_pose();
-  if (inertial_ && last_) imu_prediction_ = inertial_->predict(*map_, *last_, frame.t_ns);
+  if (inertial_ && last_) {
+    // This session's biases: its newest keyframe's in this map (a map other
+    // sessions share holds the estimate of whichever IMU mapped last).
+    std::optional<ImuBias> own_bias;
+    if (last_keyframe_ && !last_keyframe_->is_bad() && last_keyframe_->map_id() == map_->id())
+      if (const auto imu = last_keyframe_->imu_state()) own_bias = imu->bias;
+    imu_prediction_ = inertial_->predict(*map_, *last_, frame.t_ns, own_bias);
+  }
   bool ok = false;
   if (state_ == TrackingState::kOk) {
     ok = (imu_prediction_ || velocity_) && track_motion_model(frame);
