@@ -10,6 +10,7 @@
 #include <memory>
 
 #include "core/common/error.h"
+#include "core/optimization/pose_levenberg.h"
 #include "core/optimization/pose_parameters.h"
 #include "core/optimization/reprojection_residuals.h"
 
@@ -166,6 +167,24 @@ PoseOptimizerResult optimize_pose(const Camera& camera, const PoseOptimizerInput
 
   for (int round = 0; round < options.rounds; ++round) {
     const bool robust = round < options.robust_rounds;
+    if (!inertial) {
+      // The pose alone: Levenberg-Marquardt written out (pose_levenberg.h).
+      std::vector<PoseTerm> terms;
+      terms.reserve(n);
+      for (std::size_t i = 0; i < n; ++i)
+        if (inlier[i])
+          terms.push_back({costs[i].get(), !robust                            ? 0.0
+                                           : input.correspondences[i].u_right ? options.huber_stereo
+                                                                              : options.huber_mono});
+      if (static_cast<int>(terms.size()) < options.min_round_inliers) break;
+      PoseLevenbergOptions lm;
+      lm.max_iterations = options.iterations_per_round;
+      const PoseLevenbergResult solved = solve_pose_levenberg(terms, pose, lm);
+      ++result.rounds;
+      result.iterations += solved.iterations;
+      classify();  // at the new pose: outliers may come back
+      continue;
+    }
     int in_problem = 0;
     ceres::Problem problem(problem_options);
     problem.AddParameterBlock(pose.q.data(), 4, &quaternion_manifold);
