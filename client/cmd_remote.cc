@@ -123,6 +123,11 @@ void register_stream(CLI::App& app) {
   cmd->add_flag("--preload", args->stream.preload,
                 "Read and decode every image before the first frame is sent (memory: the clip's raw pixels), so that "
                 "the client's decoding does not compete with a server on the same machine while it streams");
+  cmd->add_option("--repeat", args->stream.repeat,
+                  "Stream the clip this many times in one session, each pass's timestamps after the last's (a long "
+                  "run from a short clip; sessions without an IMU)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
   cmd->add_option("--start-at", args->stream.start_at_unix_s,
                   "Wait until this wall-clock time (seconds since the Unix epoch) before the first frame, after any "
                   "--preload: clients started together begin together");

@@ -440,6 +440,36 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
     EXPECT_EQ(client.get_json("/v1/sessions/" + std::to_string(session)).at("worker_errors"), 0u);
 }
 
+// `orbatlas stream --repeat`: a short clip streamed three times is one long
+// session whose passes follow each other in time, every frame tracked (the
+// second and third passes revisit the map the first made).
+TEST(ServerEndToEnd, AClipStreamedThreeTimesIsOneSessionOfThreePasses) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 2.0);
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath db("repeat");
+  AtlasServiceOptions options = test::server_options(db.path);
+  options.merge_maps = false;
+  test::TestServer server(options);
+  ServerClient client(server.url());
+  const std::size_t once = test::stereo_dataset(clip).cameras[0].frames.size();
+  StreamOptions o = test::stream_options(clip);
+  o.repeat = 3;
+  const StreamReport report = stream_dataset(client, o);
+  EXPECT_EQ(report.frames, 3 * once);
+  EXPECT_EQ(report.tracked, report.frames);
+  ASSERT_EQ(report.trajectory.size(), report.frames);
+  for (std::size_t i = 1; i < report.trajectory.size(); ++i)
+    ASSERT_GT(report.trajectory[i].t_ns, report.trajectory[i - 1].t_ns) << "pose " << i;
+  // The third pass is where the first was: the same place, 2 s of frames on.
+  const Pose3& first = report.trajectory[0].pose;
+  const Pose3& third = report.trajectory[2 * once].pose;
+  EXPECT_LT(translation_distance(first, third), 0.02);
+  StreamOptions imu = test::stream_options(clip);
+  imu.config = "euroc/stereo_inertial";
+  imu.repeat = 2;
+  EXPECT_THROW(stream_dataset(client, imu), Error);
+}
+
 // A single camera streams into a server whose stored map (from a restart)
 // covers the place: it localises there, replies carry that map, and the map
 // is left as it was.

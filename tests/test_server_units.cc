@@ -243,6 +243,8 @@ TEST(ServerOptions, CheckThemselves) {
       stream, [](auto& o) { o.duration_s = 0.0; }, "duration_s");
   expect_refused(
       stream, [](auto& o) { o.start_at_unix_s = std::nan(""); }, "start_at_unix_s");
+  expect_refused(
+      stream, [](auto& o) { o.repeat = 0; }, "repeat");
 }
 
 }  // namespace

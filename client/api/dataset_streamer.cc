@@ -37,6 +37,7 @@ void StreamOptions::check() const {
   ORBATLAS_CHECK(!max_lag_s || (std::isfinite(*max_lag_s) && *max_lag_s > 0.0),
                  "stream: max_lag_s must be > 0 s, not " << max_lag_s.value_or(0.0));
   ORBATLAS_CHECK(start_s >= 0.0 && std::isfinite(start_s), "stream: start_s must be >= 0 s, not " << start_s);
+  ORBATLAS_CHECK(repeat >= 1 && repeat <= 1000, "stream: repeat must be in [1, 1000], not " << repeat);
   ORBATLAS_CHECK(!start_at_unix_s || (std::isfinite(*start_at_unix_s) && *start_at_unix_s > 0.0),
                  "stream: start_at_unix_s must be a time after the epoch, not " << start_at_unix_s.value_or(0.0));
   ORBATLAS_CHECK(!duration_s || (*duration_s > 0.0 && std::isfinite(*duration_s)),
@@ -86,6 +87,22 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
       frames = pair_stereo_frames(dataset);
     }
     keep_time_window(frames, options.start_s, options.duration_s, options.dataset);
+    if (options.repeat > 1) {
+      ORBATLAS_CHECK(!send_imu,
+                     "stream: --repeat is for sessions without an IMU (the " << sensor << " session would need it)");
+      ORBATLAS_CHECK(frames.size() >= 2, "stream: --repeat needs at least two frames");
+      // Each pass starts one frame interval after the last one ended.
+      const TimestampNs step = (frames.back().t_ns - frames.front().t_ns) / static_cast<TimestampNs>(frames.size() - 1);
+      const TimestampNs span = frames.back().t_ns - frames.front().t_ns + step;
+      const std::size_t one = frames.size();
+      frames.reserve(one * static_cast<std::size_t>(options.repeat));
+      for (int pass = 1; pass < options.repeat; ++pass)
+        for (std::size_t i = 0; i < one; ++i) {
+          StereoFrame f = frames[i];
+          f.t_ns += span * pass;
+          frames.push_back(std::move(f));
+        }
+    }
   } catch (...) {
     client.finish_session(report.session);  // nothing to stream: do not leave it live
     throw;

@@ -35,6 +35,10 @@ struct StreamOptions {
   // Wait until this wall-clock time (seconds since the Unix epoch) before the
   // first frame, after any preload: clients started together begin together.
   std::optional<double> start_at_unix_s;
+  // Stream the (windowed) clip this many times in one session, each pass's
+  // timestamps after the last one's (a long run from a short clip: memory
+  // over time, bench_memory.sh). Sessions without an IMU only.
+  int repeat = 1;
   double start_s = 0.0;
   std::optional<double> duration_s;
   bool show_progress = true;
