@@ -90,6 +90,10 @@ int main(int argc, char** argv) {
                  "served first on a loaded machine (0: all alike)")
       ->capture_default_str()
       ->check(CLI::Range(0, 19));
+  bool serial_stereo = false;
+  app.add_flag("--serial-stereo-frontend", serial_stereo,
+               "Extract a stereo frame's two images one after the other on the session's thread instead of the right "
+               "one on a second thread (no hand-over between threads when every core is busy)");
   orbatlas::ConnectionLimits limits;
   app.add_option("--header-timeout", limits.header_timeout_s,
                  "Seconds a request's line and headers may take once it started")
@@ -111,6 +115,7 @@ int main(int argc, char** argv) {
   service_options.merge_maps = !no_merging;
   service_options.live_merging = !no_live_merging;
   service_options.start_in_stored_maps = !no_join_at_start;
+  service_options.slam.parallel_stereo_frontend = !serial_stereo;
 
   // Signals go to one thread that asks the server to stop (no handler state).
   sigset_t signals;

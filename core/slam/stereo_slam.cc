@@ -29,7 +29,7 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
                        StereoSlamOptions options, SessionWiring wiring)
     : atlas_(atlas),
       options_(std::move(options)),
-      frontend_(make_frame_frontend(settings)),
+      frontend_(make_frame_frontend(settings, options_.parallel_stereo_frontend)),
       rgbd_(settings.is_rgbd()),
       monocular_(frontend_->baseline() <= 0.0) {
   cam_ = frontend_->frame_camera();
@@ -214,7 +214,7 @@ void StereoSlam::finish() {
   if (options_.final_global_ba && mapping_ && own_mapping_) {
     // Nothing else edits these maps now: mapping and loop closing have stopped.
     std::set<MapId> maps;
-    for (const auto& anchor : tracker_->anchors())
+    for (const auto& anchor : frames_.anchors())
       if (const auto located = atlas_.locate_frame(anchor)) maps.insert(located->first);
     const auto start = std::chrono::steady_clock::now();
     for (const MapId id : maps) {
@@ -234,9 +234,10 @@ void StereoSlam::finish() {
 }
 
 std::vector<TimedPose> StereoSlam::trajectory() const {
+  const std::vector<FrameAnchor> anchors = frames_.anchors();
   std::vector<TimedPose> out;
-  out.reserve(tracker_->anchors().size());
-  for (const auto& anchor : tracker_->anchors())
+  out.reserve(anchors.size());
+  for (const auto& anchor : anchors)
     if (const auto located = atlas_.locate_frame(anchor))  // the map it is in now (merges move frames)
       out.push_back({anchor.t_ns, located->first, located->second});
   return out;

@@ -47,6 +47,11 @@ struct StereoSlamOptions {
   // (gravity, biases; issue 19, first stage). Off: the IMU is ignored.
   bool inertial = true;
   InertialTrackingOptions inertial_tracking;
+  // A stereo front end extracts the right image's features on a second thread
+  // while the left image's are extracted (lower latency on an idle machine).
+  // Off: one after the other on the tracking thread (no hand-over between
+  // threads; a server whose cores are all busy gains nothing from the second).
+  bool parallel_stereo_frontend = true;
   // Wait for local mapping to finish each keyframe before the next frame: slower,
   // but the run is deterministic (tests, comparing culling schemes).
   bool synchronous_mapping = false;

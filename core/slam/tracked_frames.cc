@@ -27,9 +27,9 @@ TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, const Atlas& atl
   }
   tracking_ms_.add(ms_since(started));
   ++frames_;
-  if (result.tracked) {
+  if (result.tracked && tracker.last_anchor()) {
     std::lock_guard lock(anchors_mutex_);
-    anchors_.push_back(tracker.anchors().back());
+    anchors_.push_back(*tracker.last_anchor());
   }
   if (result.tracked) ++(result.by_imu ? tracked_by_imu_ : tracked_);
   return result;

@@ -34,6 +34,6 @@ class FrameFrontend {
 // single-camera one for mono and mono_inertial settings: the rectified left
 // camera of the rig when the settings still hold a second camera (a stereo
 // config used as a single camera), else the camera as it is.
-std::unique_ptr<FrameFrontend> make_frame_frontend(const SlamSettings& settings);
+std::unique_ptr<FrameFrontend> make_frame_frontend(const SlamSettings& settings, bool parallel_stereo = true);
 
 }  // namespace orbatlas

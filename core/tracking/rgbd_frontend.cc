@@ -81,7 +81,7 @@ Frame RgbdFrontend::make_frame(TimestampNs t_ns, const cv::Mat& image, const cv:
 
 FrameCamera RgbdFrontend::frame_camera() const { return make_frame_camera(*camera_, bf(), extractor_); }
 
-std::unique_ptr<FrameFrontend> make_frame_frontend(const SlamSettings& settings) {
+std::unique_ptr<FrameFrontend> make_frame_frontend(const SlamSettings& settings, bool parallel_stereo) {
   if (settings.is_rgbd()) return std::make_unique<RgbdFrontend>(settings);
   if (settings.sensor == SensorType::kMonocular || settings.sensor == SensorType::kMonocularInertial) {
     // The left camera of a stereo rig: rectified as the rig's stereo maps are.
@@ -89,7 +89,7 @@ std::unique_ptr<FrameFrontend> make_frame_frontend(const SlamSettings& settings)
     return std::make_unique<MonoFrontend>(settings);
   }
   ORBATLAS_CHECK(settings.is_stereo(), "no front end for sensor " << sensor_type_name(settings.sensor));
-  return std::make_unique<StereoFrontend>(settings);
+  return std::make_unique<StereoFrontend>(settings, parallel_stereo);
 }
 
 }  // namespace orbatlas

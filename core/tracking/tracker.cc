@@ -260,7 +260,7 @@ void Tracker::finish_frame(Frame frame, bool ok, TrackResult& result) {
     reference_units_ = reference_->units();
     Pose3 T_ref_b = T_ref_last_;
     T_ref_b.t /= reference_units_;  // FrameAnchor: in the keyframe's units
-    anchors_.push_back({frame.t_ns, map_->id(), reference_->id(), T_ref_b});
+    last_anchor_ = FrameAnchor{frame.t_ns, map_->id(), reference_->id(), T_ref_b};
   } else {
     frame.has_pose = false;
     last_reference_.reset();

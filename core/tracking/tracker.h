@@ -88,7 +88,9 @@ class Tracker {
 
   TrackingState state() const { return state_; }
   MapId map_id() const { return map_ ? map_->id() : kInvalidMapId; }  // the map it is in (tracking thread)
-  const std::vector<FrameAnchor>& anchors() const { return anchors_; }
+  // The anchor of the last frame tracked (none before one). The session's
+  // trajectory is kept by its owner (TrackedFrames), once.
+  const std::optional<FrameAnchor>& last_anchor() const { return last_anchor_; }
   std::size_t maps_started() const { return maps_started_; }
   std::size_t maps_followed() const { return maps_followed_; }  // merges tracking followed
   std::size_t relocalizations() const { return relocalizations_; }
@@ -181,7 +183,7 @@ class Tracker {
   TimestampNs lost_since_ns_ = 0;
   int failed_relocalizations_ = 0;  // in a row, while recently lost
   std::size_t maps_started_ = 0, relocalizations_ = 0, maps_followed_ = 0, slot_races_ = 0, monocular_starts_ = 0;
-  std::vector<FrameAnchor> anchors_;
+  std::optional<FrameAnchor> last_anchor_;
 };
 
 }  // namespace orbatlas
