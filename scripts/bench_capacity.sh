@@ -15,6 +15,7 @@
 #   NS="1 2 3 4 5 6" scripts/bench_capacity.sh
 #   SECONDS_PER_SESSION=120 LOOK=clean MAX_LAG=0.1 scripts/bench_capacity.sh
 #   ORBATLAS_BIN=/tmp/orbatlas ORBATLAS_SERVER_BIN=/tmp/orbatlas-server scripts/bench_capacity.sh   # frozen binaries
+#   SERVER_FLAGS="--serial-stereo-frontend" KEEP_ALONE=1 NS=4 scripts/bench_capacity.sh  # server flags
 # The sequences are rendered once into $ORBATLAS_BENCH_DATA (default
 # build/bench_data, shared with the other benchmarks); results in
 # $ORBATLAS_BENCH_OUT (default out/bench_capacity).
@@ -63,7 +64,8 @@ run_sessions() {
   local dir="$OUT/$name"
   rm -rf "$dir"
   mkdir -p "$dir"
-  "$SERVER_BIN" --db "$dir/atlas.db" --listen 127.0.0.1:0 --port-file "$dir/port" 2>"$dir/server.log" &
+  # shellcheck disable=SC2086  # SERVER_FLAGS: several flags, split on spaces
+  "$SERVER_BIN" --db "$dir/atlas.db" --listen 127.0.0.1:0 --port-file "$dir/port" ${SERVER_FLAGS:-} 2>"$dir/server.log" &
   SERVER_PID=$!
   for _ in $(seq 1 300); do [ -s "$dir/port" ] && break; sleep 0.1; done
   [ -s "$dir/port" ] || { cat "$dir/server.log" >&2; echo "bench_capacity: the server did not start" >&2; exit 1; }
