@@ -56,7 +56,8 @@ PinholeRadTan::PinholeRadTan(const CameraCalibration& calibration)
       p1_(calibration.distortion[2]),
       p2_(calibration.distortion[3]),
       k3_(calibration.distortion.size() > 4 ? calibration.distortion[4] : 0.0),
-      max_r2_(first_fold_r2(k1_, k2_, k3_)) {}
+      max_r2_(first_fold_r2(k1_, k2_, k3_)),
+      undistorted_(k1_ == 0.0 && k2_ == 0.0 && p1_ == 0.0 && p2_ == 0.0 && k3_ == 0.0) {}
 
 Eigen::Vector3d PinholeRadTan::unproject(const Eigen::Vector2d& uv) const {
   const double xd = (uv.x() - cx_) / fx_;

@@ -39,6 +39,9 @@ class PinholeRadTan final : public Camera {
   double fx_, fy_, cx_, cy_;
   double k1_, k2_, p1_, p2_, k3_;  // k3_ = 0 with 4 coefficients
   double max_r2_;
+  // No distortion at all (a rectified camera): the projection skips the
+  // polynomial, whose terms would all be zero (the same values).
+  bool undistorted_;
 };
 
 template <typename T>
@@ -47,6 +50,11 @@ bool PinholeRadTan::project_t(const T* p, T* uv) const {
   const T inv_z = T(1.0) / p[2];
   const T x = p[0] * inv_z;
   const T y = p[1] * inv_z;
+  if (undistorted_) {
+    uv[0] = fx_ * x + cx_;
+    uv[1] = fy_ * y + cy_;
+    return true;
+  }
   const T x2 = x * x;
   const T y2 = y * y;
   const T xy = x * y;
