@@ -33,16 +33,7 @@ MAX_LAG="${MAX_LAG:-0.1}"
 PRELOAD_S="${PRELOAD_S:-40}"  # seconds the clients get to read and decode their clips before they begin
 SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05 MH_01)
 
-dataset() {  # the rendered full sequence of the i-th session
-  local seq=$1 dir
-  dir="$DATA/$seq"
-  [ "$LOOK" = clean ] || dir="$DATA/${seq}_$LOOK"
-  if [ ! -d "$dir/mav0" ]; then
-    echo "== rendering $seq ($LOOK look) into $dir" >&2
-    "$OA" sim --sequence "$seq" --look "$LOOK" --out "$dir" --no-progress >&2
-  fi
-  echo "$dir"
-}
+dataset() { bench_dataset "$1" "$LOOK"; }  # the rendered full sequence
 
 SERVER_PID=""
 stop_server() {

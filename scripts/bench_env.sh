@@ -21,3 +21,16 @@ fi
 DATA="${ORBATLAS_BENCH_DATA:-$BUILD_DIR/bench_data}"
 OUT="${ORBATLAS_BENCH_OUT:-$ROOT/out/$BENCH_NAME}"
 mkdir -p "$DATA" "$OUT"
+
+# bench_dataset SEQ LOOK: the folder of the full rendered SEQ in LOOK (clean,
+# real), rendered first when it is missing.
+bench_dataset() {
+  local seq=$1 look=$2 dir
+  dir="$DATA/$seq"
+  [ "$look" = clean ] || dir="$DATA/${seq}_$look"
+  if [ ! -d "$dir/mav0" ]; then
+    echo "== rendering $seq ($look look) into $dir" >&2
+    "$OA" sim --sequence "$seq" --look "$look" --out "$dir" --no-progress >&2
+  fi
+  echo "$dir"
+}

@@ -25,16 +25,7 @@ LOOK="${LOOK:-real}"
 SAMPLE_S="${SAMPLE_S:-10}"
 SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)
 
-dataset() {
-  local seq=$1 dir
-  dir="$DATA/$seq"
-  [ "$LOOK" = clean ] || dir="$DATA/${seq}_$LOOK"
-  if [ ! -d "$dir/mav0" ]; then
-    echo "== rendering $seq ($LOOK look) into $dir" >&2
-    "$OA" sim --sequence "$seq" --look "$LOOK" --out "$dir" --no-progress >&2
-  fi
-  echo "$dir"
-}
+dataset() { bench_dataset "$1" "$LOOK"; }  # the rendered full sequence
 
 rm -rf "$OUT/run"
 mkdir -p "$OUT/run"

@@ -66,6 +66,15 @@ nlohmann::json wait_for_merges(ServerClient& client) {
   return client.get_json("/v1/merges");
 }
 
+// A single camera's trajectory (the left camera's poses) against the
+// dataset's ground truth.
+EvalResult left_camera_eval(const EurocDataset& dataset, const Trajectory& trajectory, AlignMode align) {
+  EvalOptions eval;
+  eval.align = align;
+  eval.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;
+  return evaluate_trajectory(trajectory, from_ground_truth_states(dataset.ground_truth), eval);
+}
+
 std::optional<Pose3> pose_at_time(const Trajectory& t, TimestampNs t_ns) {
   for (const auto& p : t)
     if (p.t_ns == t_ns) return p.pose;
@@ -463,7 +472,9 @@ TEST(ServerEndToEnd, AClipStreamedThreeTimesIsOneSessionOfThreePasses) {
   // The third pass is where the first was: the same place, 2 s of frames on.
   const Pose3& first = report.trajectory[0].pose;
   const Pose3& third = report.trajectory[2 * once].pose;
-  EXPECT_LT(translation_distance(first, third), 0.02);
+  std::printf("three passes: %zu frames, the third pass's first pose %.4f m / %.3f deg from the first's\n",
+              report.frames, translation_distance(first, third), rotation_distance(first, third) * 180.0 / M_PI);
+  EXPECT_LT(translation_distance(first, third), 0.001);  // measured 0.0002 m (three runs)
   StreamOptions imu = test::stream_options(clip);
   imu.config = "euroc/stereo_inertial";
   imu.repeat = 2;
@@ -838,10 +849,7 @@ TEST(ServerMerging, ALeftCameraSessionIsMergedIntoTheStereoMapAndBecomesMetric) 
   test::TempDbPath db("mono_left_merge");
   const EurocDataset dataset = test::stereo_dataset(clips[1]);
   const auto camera_eval = [&](const Trajectory& trajectory, AlignMode align) {
-    EvalOptions eval;
-    eval.align = align;
-    eval.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;  // its poses are the camera's
-    return evaluate_trajectory(trajectory, from_ground_truth_states(dataset.ground_truth), eval);
+    return left_camera_eval(dataset, trajectory, align);
   };
   std::uint64_t session = 0;
   double ate_live = 0.0;
@@ -892,10 +900,7 @@ TEST(ServerMerging, TheMergingWorkerMergesALeftCameraMapIntoTheStereoMapAfterIts
   test::TempDbPath db("mono_left_worker");
   const EurocDataset dataset = test::stereo_dataset(clips[1]);
   const auto camera_eval = [&](const Trajectory& trajectory, AlignMode align) {
-    EvalOptions eval;
-    eval.align = align;
-    eval.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;  // its poses are the camera's
-    return evaluate_trajectory(trajectory, from_ground_truth_states(dataset.ground_truth), eval);
+    return left_camera_eval(dataset, trajectory, align);
   };
   AtlasServiceOptions options = test::server_options(db.path);
   options.start_in_stored_maps = false;

@@ -2,7 +2,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <string_view>
 
 #include "core/common/error.h"
@@ -86,12 +85,7 @@ Trajectory read_euroc_trajectory(const std::filesystem::path& path) {
 void write_trajectory(const std::filesystem::path& path, const Trajectory& trajectory,
                       const std::vector<std::uint64_t>& maps, TrajectoryFormat format) {
   if (format == TrajectoryFormat::kTum) return write_tum_trajectory(path, trajectory, maps);
-  const std::string text = format_euroc_trajectory(trajectory, maps);
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw Error("cannot create " + path.string());
-  out << text;
-  out.close();
-  if (!out) throw Error("cannot write " + path.string());
+  write_trajectory_text(path, format_euroc_trajectory(trajectory, maps));
 }
 
 }  // namespace orbatlas

@@ -149,7 +149,10 @@ std::string format_tum_trajectory(const Trajectory& trajectory, const std::vecto
 }
 
 void write_tum_trajectory(const fs::path& path, const Trajectory& trajectory, const std::vector<std::uint64_t>& maps) {
-  const std::string text = format_tum_trajectory(trajectory, maps);
+  write_trajectory_text(path, format_tum_trajectory(trajectory, maps));
+}
+
+void write_trajectory_text(const fs::path& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) throw Error("cannot create " + path.string());
   out << text;

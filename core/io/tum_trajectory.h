@@ -27,6 +27,10 @@ void write_tum_trajectory(const std::filesystem::path& path, const Trajectory& t
 void write_tum_trajectory(const std::filesystem::path& path, const Trajectory& trajectory,
                           const std::vector<std::uint64_t>& maps);
 
+// Writes `text` to `path` (replaced); throws Error when it cannot. The
+// trajectory writers' (TUM, EuRoC csv) last step.
+void write_trajectory_text(const std::filesystem::path& path, const std::string& text);
+
 // The text write_tum_trajectory writes (the server's trajectory route).
 std::string format_tum_trajectory(const Trajectory& trajectory, const std::vector<std::uint64_t>& maps = {});
 
