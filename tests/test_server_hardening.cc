@@ -84,9 +84,18 @@ TEST(ServerHardening, AFrameNeverReferencesAKeyframeTheCheckpointDidNotStore) {
   info.id = 1;
   info.name = "dangling";
   AtlasCheckpointWriter writer(atlas, AtlasStore::open(db.path, "test"),
-                               CheckpointSession{info, [&] { return frames; }});
+                               CheckpointSession{info, [&](std::size_t first) {
+                                                   return first < frames.size() ? frames : std::vector<FrameAnchor>{};
+                                                 }});
   writer.checkpoint();
   EXPECT_EQ(writer.deferred_frames(), 1u);
+  EXPECT_EQ(writer.dropped_frames(), 0u);
+  // It is tried again by the next checkpoints, then left out for good.
+  for (int i = 1; i < AtlasCheckpointWriter::kDeferrals; ++i) writer.checkpoint();
+  EXPECT_EQ(writer.deferred_frames(), static_cast<std::size_t>(AtlasCheckpointWriter::kDeferrals));
+  EXPECT_EQ(writer.dropped_frames(), 1u);
+  writer.checkpoint();
+  EXPECT_EQ(writer.deferred_frames(), static_cast<std::size_t>(AtlasCheckpointWriter::kDeferrals));
   AtlasStore store = AtlasStore::open(db.path, "test");
   EXPECT_TRUE(store.load_trajectory(1).empty()) << "a frame referencing keyframe 7777, which is stored nowhere";
   ASSERT_EQ(store.load_sessions().size(), 1u);

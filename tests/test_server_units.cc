@@ -144,7 +144,8 @@ class BlockingSlam final : public SessionSlam {
     finishing.set_value();
     release_.wait();
   }
-  std::vector<FrameAnchor> anchors() const override { return {}; }
+  std::vector<FrameAnchor> anchors_from(std::size_t) const override { return {}; }
+  std::optional<FrameAnchor> last_anchor() const override { return std::nullopt; }
   SlamStats stats() const override { return SlamStats(); }
   std::size_t worker_errors() const override { return 0; }
   std::promise<void> finishing;

@@ -102,6 +102,18 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
           f.t_ns += span * pass;
           frames.push_back(std::move(f));
         }
+      // The ground truth repeats with the frames, so each pass is compared with
+      // the part of the recording it replays (not with what followed it).
+      const TimestampNs t0 = frames.front().t_ns;
+      std::vector<GroundTruthState> first_pass;
+      for (const GroundTruthState& s : dataset.ground_truth)
+        if (s.t_ns >= t0 && s.t_ns < t0 + span) first_pass.push_back(s);
+      dataset.ground_truth.clear();
+      for (int pass = 0; pass < options.repeat; ++pass)
+        for (GroundTruthState s : first_pass) {
+          s.t_ns += span * pass;
+          dataset.ground_truth.push_back(s);
+        }
     }
   } catch (...) {
     client.finish_session(report.session);  // nothing to stream: do not leave it live
@@ -192,8 +204,10 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
         if (sensor != "mono_inertial") eval.align = AlignMode::kSim3;
         eval.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;
       }
-      report.ate_rmse_m =
-          evaluate_trajectory(report.trajectory, from_ground_truth_states(dataset.ground_truth), eval).ate.rmse;
+      const EvalResult result =
+          evaluate_trajectory(report.trajectory, from_ground_truth_states(dataset.ground_truth), eval);
+      report.ate_rmse_m = result.ate.rmse;
+      report.ate_poses = result.matched;
       report.ate_sim3 = eval.align == AlignMode::kSim3;
     } catch (const Error& e) {
       log_warn(std::string("no ATE: ") + e.what());

@@ -62,6 +62,7 @@ struct StreamReport {
   std::vector<std::uint64_t> trajectory_maps;
   std::vector<std::uint64_t> reply_maps;  // per tracked frame: the map its reply named then
   std::optional<double> ate_rmse_m;       // when the dataset has ground truth (SE3 alignment)
+  std::size_t ate_poses = 0;              // the trajectory's poses the ATE compares (those with ground truth)
   bool ate_sim3 = false;                  // a single camera that mapped: the camera's poses, Sim3 alignment
   nlohmann::json finish_status;
   double fps() const { return wall_s > 0 ? static_cast<double>(frames) / wall_s : 0.0; }

@@ -4,7 +4,6 @@
 #include <unordered_set>
 
 #include "core/common/error.h"
-#include "core/persistence/row_hash.h"
 #include "core/persistence/session_rows.h"
 #include "core/persistence/wall_clock.h"
 
@@ -30,7 +29,9 @@ void AtlasCheckpointWriter::add_session(CheckpointSession session) {
   for (const SessionState& s : sessions_)
     ORBATLAS_CHECK(s.session.info.id != session.info.id,
                    store_.path().string() << ": session " << session.info.id << " is already checkpointed");
-  sessions_.push_back({std::move(session), false, false, {}});
+  SessionState state;
+  state.session = std::move(session);
+  sessions_.push_back(std::move(state));
 }
 
 void AtlasCheckpointWriter::end_session(SessionId id) {
@@ -49,63 +50,43 @@ std::optional<SessionId> AtlasCheckpointWriter::session_of(KeyframeId id) const 
   return std::nullopt;
 }
 
-std::vector<AtlasCheckpointWriter::TrajectoryRow> AtlasCheckpointWriter::current_trajectory(
-    const CheckpointSession& session) const {
-  std::vector<TrajectoryRow> rows;
-  if (!session.trajectory) return rows;
-  for (const FrameAnchor& a : session.trajectory())
-    rows.push_back({a, RowHash().add(a.map).add(a.reference).add(a.T_ref_b).value()});
-  std::sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) { return a.anchor.t_ns < b.anchor.t_ns; });
-  const auto same_time = [](const auto& a, const auto& b) { return a.anchor.t_ns == b.anchor.t_ns; };
-  const auto repeated = std::adjacent_find(rows.begin(), rows.end(), same_time);
-  ORBATLAS_CHECK(repeated == rows.end(), store_.path().string()
-                                             << ": session " << session.info.id << ": two frames at timestamp "
-                                             << repeated->anchor.t_ns);
-  return rows;
+AtlasCheckpointWriter::NewFrames AtlasCheckpointWriter::new_frames(const SessionState& state) const {
+  NewFrames out;
+  out.frames = state.deferred;
+  out.taken = state.taken;
+  if (!state.session.trajectory) return out;
+  std::optional<TimestampNs> last = state.last_t;
+  for (const FrameAnchor& a : state.session.trajectory(state.taken)) {
+    ORBATLAS_CHECK(!last || a.t_ns > *last,
+                   store_.path().string()
+                       << ": session " << state.session.info.id
+                       << (last && a.t_ns == *last ? ": two frames at timestamp " : ": a frame out of time order at ")
+                       << a.t_ns);
+    last = a.t_ns;
+    out.frames.push_back({a, 0});
+    ++out.taken;
+  }
+  out.last_t = last;
+  return out;
 }
 
-void AtlasCheckpointWriter::keep_stored_references(std::vector<TrajectoryRow>& rows,
-                                                   const std::vector<TrajectoryRow>& committed,
-                                                   const std::unordered_set<KeyframeId>& stored_keyframes) {
-  std::vector<TrajectoryRow> kept;
-  kept.reserve(rows.size());
-  for (TrajectoryRow& row : rows) {
-    if (stored_keyframes.count(row.anchor.reference)) {
-      kept.push_back(std::move(row));
+std::vector<FrameAnchor> AtlasCheckpointWriter::take_storable(std::vector<PendingFrame>& pending,
+                                                              const std::unordered_set<KeyframeId>& stored_keyframes) {
+  std::vector<FrameAnchor> storable;
+  std::vector<PendingFrame> again;
+  for (PendingFrame& f : pending) {
+    if (stored_keyframes.count(f.anchor.reference)) {
+      storable.push_back(f.anchor);
       continue;
     }
-    const auto before = std::lower_bound(committed.begin(), committed.end(), row.anchor.t_ns,
-                                         [](const TrajectoryRow& r, TimestampNs t) { return r.anchor.t_ns < t; });
-    if (before != committed.end() && before->anchor.t_ns == row.anchor.t_ns) kept.push_back(*before);
     ++deferred_frames_;
+    if (++f.tries < kDeferrals)
+      again.push_back(f);
+    else
+      ++dropped_frames_;
   }
-  rows = std::move(kept);
-}
-
-RowCounts AtlasCheckpointWriter::write_trajectory(AtlasRowWriter& writer, SessionId id,
-                                                  const std::vector<TrajectoryRow>& before,
-                                                  const std::vector<TrajectoryRow>& now) {
-  RowCounts counts;
-  auto a = before.begin(), b = now.begin();
-  while (a != before.end() || b != now.end()) {
-    if (b == now.end() || (a != before.end() && a->anchor.t_ns < b->anchor.t_ns)) {
-      writer.delete_trajectory(id, a->anchor.t_ns);
-      ++counts.deleted;
-      ++a;
-    } else if (a == before.end() || b->anchor.t_ns < a->anchor.t_ns) {
-      writer.upsert_trajectory(id, b->anchor);
-      ++counts.inserted;
-      ++b;
-    } else {
-      if (a->hash != b->hash) {
-        writer.upsert_trajectory(id, b->anchor);
-        ++counts.updated;
-      }
-      ++a;
-      ++b;
-    }
-  }
-  return counts;
+  pending = std::move(again);
+  return storable;
 }
 
 CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& before_transaction) {
@@ -118,23 +99,29 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   // writing. The trajectories first: every keyframe their frames reference
   // existed before the atlas rows were collected, so it is in them (or among
   // their culled keyframes) unless a merge or a reset removed it meanwhile.
-  std::vector<std::vector<TrajectoryRow>> trajectories;
-  for (const SessionState& s : sessions_) trajectories.push_back(current_trajectory(s.session));
+  std::vector<NewFrames> frames;
+  for (const SessionState& s : sessions_) frames.push_back(new_frames(s));
   AtlasRows rows = collect_atlas_rows(atlas_, [&](KeyframeId id) { return session_of(id); });
   // Never a stored frame whose keyframe is not stored: it would resolve through
-  // whatever keyframe later gets that id. Such a frame keeps its committed row
-  // (or waits for the next checkpoint).
+  // whatever keyframe later gets that id. Such a frame waits for the next
+  // checkpoint (a few times at most).
   std::unordered_set<KeyframeId> stored_keyframes;
   for (const KeyframeRow& k : rows.keyframes) stored_keyframes.insert(k.id);
   for (const CulledKeyframeRow& c : rows.culled) stored_keyframes.insert(c.anchor.id);
   if (!full)
     for (const CulledKeyframeRow& c : committed_.culled) stored_keyframes.insert(c.anchor.id);
-  for (std::size_t i = 0; i < sessions_.size(); ++i)
-    keep_stored_references(trajectories[i], full ? std::vector<TrajectoryRow>{} : sessions_[i].committed,
-                           stored_keyframes);
+  std::vector<std::vector<FrameAnchor>> storable;
+  for (NewFrames& f : frames) storable.push_back(take_storable(f.frames, stored_keyframes));
+  // What the sessions have taken, once it is in the file (or nothing was written).
+  const auto advance_sessions = [&] {
+    for (std::size_t i = 0; i < sessions_.size(); ++i) {
+      sessions_[i].taken = frames[i].taken;
+      sessions_[i].last_t = frames[i].last_t;
+      sessions_[i].deferred = std::move(frames[i].frames);
+    }
+  };
 
   const AtlasRows nothing;
-  const std::vector<TrajectoryRow> no_frames;
   const AtlasRows& before = full ? nothing : committed_;
   CheckpointResult result;
   result.full = full;
@@ -150,7 +137,8 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
         writer.delete_session_trajectory(s.session.info.id);
         ++result.rows.inserted;
       }
-      result.rows += write_trajectory(writer, s.session.info.id, rewrite ? no_frames : s.committed, trajectories[i]);
+      for (const FrameAnchor& a : storable[i]) writer.upsert_trajectory(s.session.info.id, a);
+      result.rows.inserted += storable[i].size();
     }
     if (full) {
       // Maps merged into others since loading go; other stored maps stay.
@@ -160,6 +148,7 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
     result.rows += write_changed_rows(writer, before, rows, now);
     if (meta_changed(before, rows)) ++result.rows.updated;
     if (result.rows.total() == 0) {
+      advance_sessions();  // their new frames, if any, were all deferred
       std::erase_if(sessions_, [](const SessionState& s) { return s.ending; });  // nothing left to write for them
       return result;  // rolls back an empty transaction: nothing touched the file
     }
@@ -170,10 +159,8 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   result.committed = true;
   rows.drop_objects();
   committed_ = std::move(rows);
-  for (std::size_t i = 0; i < sessions_.size(); ++i) {
-    sessions_[i].written = true;
-    sessions_[i].committed = std::move(trajectories[i]);
-  }
+  for (SessionState& s : sessions_) s.written = true;
+  advance_sessions();
   std::erase_if(sessions_, [](const SessionState& s) { return s.ending; });
   has_committed_ = true;
   return result;

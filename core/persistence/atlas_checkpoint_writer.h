@@ -27,9 +27,13 @@ namespace orbatlas {
 
 struct CheckpointSession {
   SessionInfo info;  // written by the first checkpoint
-  // The session's frames so far; called on the checkpoint thread, so it must be
-  // safe to call while tracking runs (e.g. a copy under a lock). May be empty.
-  std::function<std::vector<FrameAnchor>()> trajectory;
+  // The session's frames from the `first`-th on (0: all of them), in time
+  // order. Frames only ever follow: one returned once is never changed (an
+  // anchor follows its keyframe's corrections by itself), so each checkpoint
+  // asks for the frames after those it has taken and holds none of them.
+  // Called on the checkpoint thread, so it must be safe to call while tracking
+  // runs (e.g. a copy under a lock).
+  std::function<std::vector<FrameAnchor>(std::size_t first)> trajectory;
 };
 
 struct CheckpointResult {
@@ -68,30 +72,44 @@ class AtlasCheckpointWriter {
 
   AtlasStore& store() { return store_; }
   // Frames left out of a checkpoint so far because their reference keyframe
-  // was not in its snapshot (they are written by a later one).
+  // was not in its snapshot. The next checkpoints try them again; after
+  // kDeferrals tries they are left out for good (dropped_frames): their
+  // keyframe went with a reset or a merge, and a frame stored without it would
+  // resolve through whatever keyframe later gets that id.
   std::size_t deferred_frames() const { return deferred_frames_; }
+  std::size_t dropped_frames() const { return dropped_frames_; }
+  static constexpr int kDeferrals = 3;
 
  private:
-  struct TrajectoryRow {
+  struct PendingFrame {
     FrameAnchor anchor;
-    std::uint64_t hash = 0;
+    int tries = 0;  // checkpoints that left it out
+  };
+
+  // A session's frames not yet in the file: those taken from its source and
+  // deferred by earlier checkpoints, then the source's new ones.
+  struct NewFrames {
+    std::vector<PendingFrame> frames;
+    std::size_t taken = 0;              // the source's frames taken so far, these included
+    std::optional<TimestampNs> last_t;  // the newest of them
   };
 
   struct SessionState {
     CheckpointSession session;
-    bool written = false;                  // its row is in the file
-    bool ending = false;                   // forget it after the next successful checkpoint
-    std::vector<TrajectoryRow> committed;  // its trajectory rows in the file
+    bool written = false;                // its row is in the file
+    bool ending = false;                 // forget it after the next successful checkpoint
+    std::size_t taken = 0;               // frames taken from its source (stored, deferred or dropped)
+    std::optional<TimestampNs> last_t;   // the newest of them
+    std::vector<PendingFrame> deferred;  // taken, not yet stored
   };
 
-  std::vector<TrajectoryRow> current_trajectory(const CheckpointSession& session) const;
-  static RowCounts write_trajectory(AtlasRowWriter& writer, SessionId id, const std::vector<TrajectoryRow>& before,
-                                    const std::vector<TrajectoryRow>& now);
+  NewFrames new_frames(const SessionState& state) const;
   std::optional<SessionId> session_of(KeyframeId id) const;
-  // Drops (or puts back the committed version of) every row whose reference
-  // keyframe is not in `stored_keyframes`.
-  void keep_stored_references(std::vector<TrajectoryRow>& rows, const std::vector<TrajectoryRow>& committed,
-                              const std::unordered_set<KeyframeId>& stored_keyframes);
+  // Splits `pending` into the frames whose reference keyframe is in
+  // `stored_keyframes` (returned) and those deferred again (left in
+  // `pending`; those deferred kDeferrals times are dropped).
+  std::vector<FrameAnchor> take_storable(std::vector<PendingFrame>& pending,
+                                         const std::unordered_set<KeyframeId>& stored_keyframes);
 
   const Atlas& atlas_;
   AtlasStore store_;
@@ -104,6 +122,7 @@ class AtlasCheckpointWriter {
   bool has_committed_ = false;
   AtlasRows committed_;  // what the file holds for the atlas (objects dropped)
   std::size_t deferred_frames_ = 0;
+  std::size_t dropped_frames_ = 0;
 };
 
 }  // namespace orbatlas

@@ -381,7 +381,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   }
   idle_wake_.notify_all();
   // The checkpoint thread reads the frames through its own reference.
-  checkpointer_->add_session(CheckpointSession{info, [live] { return live->anchors(); }});
+  checkpointer_->add_session(CheckpointSession{info, [live](std::size_t first) { return live->anchors_from(first); }});
   sessions_created_.Increment();
   log_info("session " + std::to_string(id) + " started (" + info.name + ", config " + loaded.label + ")");
   return id;

@@ -162,9 +162,11 @@ bool LiveSession::finish(const std::string& ended_by) {
   return true;
 }
 
-std::vector<FrameAnchor> LiveSession::anchors() const {
+std::vector<FrameAnchor> LiveSession::anchors_from(std::size_t first) const {
   std::lock_guard lock(mutex_);
-  return slam_ ? slam_->anchors() : final_anchors_;
+  if (slam_) return slam_->anchors_from(first);
+  if (first >= final_anchors_.size()) return {};
+  return {final_anchors_.begin() + static_cast<std::ptrdiff_t>(first), final_anchors_.end()};
 }
 
 bool LiveSession::has_anchors() const {
@@ -175,9 +177,8 @@ bool LiveSession::has_anchors() const {
 std::optional<FrameAnchor> LiveSession::last_anchor() const {
   std::lock_guard lock(mutex_);
   if (anchors_released_) return last_anchor_;
-  const std::vector<FrameAnchor> all = slam_ ? slam_->anchors() : final_anchors_;
-  if (all.empty()) return std::nullopt;
-  return all.back();
+  if (!slam_) return final_anchors_.empty() ? std::nullopt : std::optional<FrameAnchor>(final_anchors_.back());
+  return slam_->last_anchor();
 }
 
 void LiveSession::release_anchors() {

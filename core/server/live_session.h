@@ -71,7 +71,8 @@ class LiveSession {
 
   // The tracked frames' anchors while they are in memory (thread-safe); empty
   // once stored and released (has_anchors() false): read them from the database.
-  std::vector<FrameAnchor> anchors() const;
+  std::vector<FrameAnchor> anchors() const { return anchors_from(0); }
+  std::vector<FrameAnchor> anchors_from(std::size_t first) const;  // the first-th on
   bool has_anchors() const;
   std::optional<FrameAnchor> last_anchor() const;
   // An ended session whose trajectory is stored: drop the anchors from memory,

@@ -379,9 +379,9 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   StereoSlam slam(atlas, in.settings, vocabulary, run_slam_options(options), run_wiring(stored));
   std::unique_ptr<AtlasCheckpointer> checkpointer;
   if (stored.session) {
-    checkpointer =
-        std::make_unique<AtlasCheckpointer>(atlas, options.atlas, vocabulary.hash(), options.checkpoints,
-                                            CheckpointSession{*stored.session, [&slam] { return slam.anchors(); }});
+    checkpointer = std::make_unique<AtlasCheckpointer>(
+        atlas, options.atlas, vocabulary.hash(), options.checkpoints,
+        CheckpointSession{*stored.session, [&slam](std::size_t first) { return slam.anchors_from(first); }});
   }
   const auto wall_start = Clock::now();
   feed_frames(options, in.frames, in.dataset.imu, slam, checkpointer.get(), wall_start, report);
@@ -446,9 +446,11 @@ std::vector<DatasetRunReport> run_stereo_datasets(const DatasetRunOptions& optio
   if (stored.session) {
     checkpointer = std::make_unique<AtlasCheckpointer>(
         atlas, options.atlas, vocabulary.hash(), options.checkpoints,
-        CheckpointSession{*sessions[0], [slam = slams[0].get()] { return slam->anchors(); }});
+        CheckpointSession{*sessions[0],
+                          [slam = slams[0].get()](std::size_t first) { return slam->anchors_from(first); }});
     for (std::size_t i = 1; i < n; ++i)
-      checkpointer->add_session(CheckpointSession{*sessions[i], [slam = slams[i].get()] { return slam->anchors(); }});
+      checkpointer->add_session(CheckpointSession{
+          *sessions[i], [slam = slams[i].get()](std::size_t first) { return slam->anchors_from(first); }});
   }
   // Every recording on a thread of its own, at once.
   const auto wall_start = Clock::now();

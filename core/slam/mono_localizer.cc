@@ -39,7 +39,7 @@ void MonoLocalizer::finish() {
   tracker_->release_frames();
 }
 
-std::vector<FrameAnchor> MonoLocalizer::anchors() const { return frames_.anchors(); }
+std::vector<FrameAnchor> MonoLocalizer::anchors_from(std::size_t first) const { return frames_.anchors_from(first); }
 
 SlamStats MonoLocalizer::stats() const {
   SlamStats s;

@@ -44,7 +44,8 @@ class MonoLocalizer final : public SessionSlam {
   // One image (`right` must be empty).
   TrackResult process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right = cv::Mat()) override;
   void finish() override;
-  std::vector<FrameAnchor> anchors() const override;
+  std::vector<FrameAnchor> anchors_from(std::size_t first) const override;
+  std::optional<FrameAnchor> last_anchor() const override { return frames_.last_anchor(); }
   SlamStats stats() const override;
   std::size_t worker_errors() const override { return frames_.errors().errors; }
 

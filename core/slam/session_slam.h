@@ -2,6 +2,7 @@
 // What a session of the server drives, whatever its camera: stereo SLAM
 // (StereoSlam), or a single camera localising in stored maps (MonoLocalizer).
 #include <opencv2/core/mat.hpp>
+#include <optional>
 #include <vector>
 
 #include "core/map/frame_anchor.h"
@@ -23,8 +24,11 @@ class SessionSlam {
   virtual void add_imu(const std::vector<ImuSample>& samples) { (void)samples; }
   // Stops the session's workers; process() may not be called afterwards. Idempotent.
   virtual void finish() = 0;
-  // The tracked frames' anchors so far; safe from any thread.
-  virtual std::vector<FrameAnchor> anchors() const = 0;
+  // The tracked frames' anchors from the first-th on (they only ever follow);
+  // safe from any thread.
+  virtual std::vector<FrameAnchor> anchors_from(std::size_t first) const = 0;
+  std::vector<FrameAnchor> anchors() const { return anchors_from(0); }
+  virtual std::optional<FrameAnchor> last_anchor() const = 0;  // none before a tracked frame
   virtual SlamStats stats() const = 0;
   // Errors contained by the session's workers so far (cheap; any thread).
   virtual std::size_t worker_errors() const = 0;

@@ -243,7 +243,7 @@ std::vector<TimedPose> StereoSlam::trajectory() const {
   return out;
 }
 
-std::vector<FrameAnchor> StereoSlam::anchors() const { return frames_.anchors(); }
+std::vector<FrameAnchor> StereoSlam::anchors_from(std::size_t first) const { return frames_.anchors_from(first); }
 
 std::size_t StereoSlam::worker_errors() const { return frames_.errors().errors + (mapping_ ? mapping_->errors() : 0); }
 

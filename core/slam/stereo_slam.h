@@ -99,7 +99,8 @@ class StereoSlam final : public SessionSlam {
   std::vector<TimedPose> trajectory() const;
   // The tracked frames' anchors so far; safe to call from any thread while
   // frames are processed (a checkpoint thread storing the trajectory).
-  std::vector<FrameAnchor> anchors() const override;
+  std::vector<FrameAnchor> anchors_from(std::size_t first) const override;
+  std::optional<FrameAnchor> last_anchor() const override { return frames_.last_anchor(); }
   SlamStats stats() const override;
   std::size_t worker_errors() const override;  // tracking's, and its mapping's when its own
   const FrameFrontend& frontend() const { return *frontend_; }

@@ -35,9 +35,10 @@ TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, const Atlas& atl
   return result;
 }
 
-std::vector<FrameAnchor> TrackedFrames::anchors() const {
+std::vector<FrameAnchor> TrackedFrames::anchors_from(std::size_t first) const {
   std::lock_guard lock(anchors_mutex_);
-  return anchors_;
+  if (first >= anchors_.size()) return {};
+  return {anchors_.begin() + static_cast<std::ptrdiff_t>(first), anchors_.end()};
 }
 
 std::optional<FrameAnchor> TrackedFrames::last_anchor() const {

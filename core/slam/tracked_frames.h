@@ -10,6 +10,7 @@
 // frame is tracked as usual. Only a run of such errors, or a worker that gave
 // up on the map (WorkerFailed), fails the session.
 #include <chrono>
+#include <deque>
 #include <cstddef>
 #include <mutex>
 #include <optional>
@@ -33,7 +34,8 @@ class TrackedFrames {
   // makes tracking fail too many times in a row.
   TrackResult track(Tracker& tracker, Frame frame, const Atlas& atlas, std::chrono::steady_clock::time_point started);
 
-  std::vector<FrameAnchor> anchors() const;        // any thread
+  std::vector<FrameAnchor> anchors_from(std::size_t first) const;  // the first-th on; any thread
+  std::vector<FrameAnchor> anchors() const { return anchors_from(0); }
   std::optional<FrameAnchor> last_anchor() const;  // any thread; none before a tracked frame
   std::size_t frames() const { return frames_; }
   std::size_t tracked() const { return tracked_; }                // visually
@@ -46,7 +48,7 @@ class TrackedFrames {
   SampleSummary tracking_ms_;
   std::size_t frames_ = 0, tracked_ = 0, tracked_by_imu_ = 0;
   mutable std::mutex anchors_mutex_;
-  std::vector<FrameAnchor> anchors_;  // copy of the tracker's, for other threads
+  std::deque<FrameAnchor> anchors_;  // one per tracked frame, for other threads (a deque: no copy as it grows)
 };
 
 }  // namespace orbatlas
