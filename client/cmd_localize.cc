@@ -17,6 +17,7 @@
 #include "core/common/text_file.h"
 #include "core/io/euroc_reader.h"
 #include "wire/pose_json.h"
+#include "client/bag_options.h"
 #include "core/slam/slam_stats.h"
 #include "core/common/error.h"
 #include "core/io/euroc_trajectory.h"
@@ -34,6 +35,7 @@ struct LocalizeArgs {
   std::string server, token, image, image_right;
   std::optional<std::uint64_t> map;
   std::size_t every = 10;
+  BagArgs bag;
 };
 
 // --server with --dataset: every N-th frame's left image (a single image, as a
@@ -116,6 +118,7 @@ void register_localize_command(CLI::App& app) {
                   "e.g. euroc/stereo)")
       ->required();
   cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)");
+  add_bag_options(cmd, args->bag, false);
   cmd->add_option("--out-trajectory", args->out_trajectory,
                   "Localised poses (body frame, map frame; '# map <id>' lines; --format)");
   cmd->add_option("--format", args->format,
@@ -136,10 +139,12 @@ void register_localize_command(CLI::App& app) {
   cmd->add_option("--every", args->every, "With --server and --dataset: localise every N-th frame")
       ->capture_default_str();
   cmd->callback([args, cmd]() {
+    std::unique_ptr<UnpackedBags> bag;
+    if (!args->bag.bags.empty()) args->dataset = dataset_or_bag(args->dataset, args->bag, bag, args->run.show_progress);
     if (!args->server.empty() && !args->dataset.empty()) return localize_dataset_on_server(*args);
     if (!args->server.empty()) return localize_on_server(*args);
     ORBATLAS_CHECK(!args->atlas.empty() && !args->dataset.empty() && !args->out_trajectory.empty(),
-                   "localize needs --atlas, --dataset and --out-trajectory (or --server and --image)");
+                   "localize needs --atlas, --dataset (or --bag) and --out-trajectory (or --server and --image)");
     log_effective_options(*cmd);
     DatasetRunOptions options = args->run;
     options.settings = args->config;

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "client/api/dataset_streamer.h"
+#include "client/bag_options.h"
 #include "client/commands.h"
 #include "core/common/progress.h"
 #include "core/io/euroc_trajectory.h"
@@ -33,6 +34,7 @@ struct StreamArgs {
   StreamOptions stream;
   std::string dataset, encoding = "raw", out_trajectory, stats, format = "tum";
   double duration_s = 0.0;
+  BagArgs bag;
 };
 
 nlohmann::json stream_json(const StreamReport& r) {
@@ -65,6 +67,7 @@ nlohmann::json stream_json(const StreamReport& r) {
   if (r.ate_rmse_m) {
     j["ate_rmse_m"] = *r.ate_rmse_m;
     j["ate_align"] = r.ate_sim3 ? "sim3" : "se3";
+    j["ate_poses"] = r.ate_poses;
   }
   return j;
 }
@@ -88,7 +91,8 @@ void print_stream_summary(const nlohmann::json& j) {
   for (const auto& m : j["maps"]) maps += (maps.empty() ? "" : ", ") + std::to_string(m.get<std::uint64_t>());
   std::printf("  maps: %s\n", maps.empty() ? "none" : maps.c_str());
   if (j.contains("ate_rmse_m"))
-    std::printf("  ATE %.4f m (RMSE, %s to the ground truth)\n", j["ate_rmse_m"].get<double>(),
+    std::printf("  ATE %.4f m (RMSE over %zu poses, %s to the ground truth)\n", j["ate_rmse_m"].get<double>(),
+                j.value("ate_poses", std::size_t{0}),
                 j.value("ate_align", "se3") == "sim3" ? "the camera's, Sim3-aligned" : "SE3-aligned");
 }
 
@@ -99,8 +103,8 @@ void register_stream(CLI::App& app) {
   cmd->add_option("--dataset", args->dataset,
                   "Folder holding mav0/ (cam0, cam1), or an RGB-D recording in the TUM layout (rgb.txt, depth.txt) "
                   "for an rgbd config")
-      ->required()
       ->check(CLI::ExistingDirectory);
+  add_bag_options(cmd, args->bag, false);
   cmd->add_option("--config", args->stream.config,
                   "Settings: a config name the server knows, or a settings file here (sent as its text)")
       ->capture_default_str();
@@ -146,7 +150,9 @@ void register_stream(CLI::App& app) {
   cmd->add_flag("!--no-progress", args->stream.show_progress, "Do not print progress");
   cmd->callback([args] {
     StreamOptions options = args->stream;
-    options.dataset = args->dataset;
+    std::unique_ptr<UnpackedBags> bag;
+    options.dataset = dataset_or_bag(args->dataset, args->bag, bag, options.show_progress);
+    if (options.name.empty() && bag) options.name = std::filesystem::path(args->bag.bags.front()).stem().string();
     options.encoding = args->encoding == "png" ? ImageEncoding::kPng : ImageEncoding::kRaw;
     if (args->duration_s > 0) options.duration_s = args->duration_s;
     ServerClient client(args->server.server, args->server.token);
@@ -164,6 +170,7 @@ struct UploadArgs {
   ServerArgs server;
   std::string dataset, config = "euroc/stereo", name;
   bool wait = true, progress = true;
+  BagArgs bag;
 };
 
 void register_upload(CLI::App& app) {
@@ -173,8 +180,8 @@ void register_upload(CLI::App& app) {
                                  "server runs it as a stored session");
   add_server_options(cmd, args->server);
   cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (or rgb.txt and depth.txt)")
-      ->required()
       ->check(CLI::ExistingDirectory);
+  add_bag_options(cmd, args->bag, false);
   cmd->add_option("--config", args->config, "Config name the server knows (an upload cannot carry a settings file)")
       ->capture_default_str();
   cmd->add_option("--name", args->name, "Session name");
@@ -191,7 +198,11 @@ void register_upload(CLI::App& app) {
       sending->advance(mb - sent_mb);
       sent_mb = mb;
     };
-    const std::uint64_t job = client.upload(args->dataset, args->config, args->name, show);
+    std::unique_ptr<UnpackedBags> bag;
+    const std::filesystem::path dataset = dataset_or_bag(args->dataset, args->bag, bag, args->progress);
+    const std::string name =
+        args->name.empty() && bag ? std::filesystem::path(args->bag.bags.front()).stem().string() : args->name;
+    const std::uint64_t job = client.upload(dataset, args->config, name, show);
     if (sending) sending->finish();
     std::printf("job %llu queued\n", static_cast<unsigned long long>(job));
     if (!args->wait) return;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "cli/effective_options.h"
+#include "client/bag_options.h"
 #include "client/commands.h"
 #include "core/common/error.h"
 #include "core/common/log.h"
@@ -29,6 +30,7 @@ struct RunArgs {
   double start_s = 0.0, duration_s = 0.0;
   bool compare_culling = false;
   std::string black_out;  // FROM:TO seconds
+  BagArgs bag;
 };
 
 std::pair<double, double> parse_black_out(const std::string& text) {
@@ -129,10 +131,10 @@ void register_run_command(CLI::App& app) {
   cmd->add_option("--dataset", args->datasets,
                   "Folder holding mav0/ (cam0, cam1), or rgb.txt and depth.txt for an rgbd config; repeat it to run "
                   "several recordings at once into one atlas "
-                  "(one session each, mapping shared maps together)")
-      ->required();
+                  "(one session each, mapping shared maps together)");
+  add_bag_options(cmd, args->bag, true);
   cmd->add_option("--out-trajectory", args->out_trajectories,
-                  "Trajectory to write (body frame; --format); one per --dataset, in the same order")
+                  "Trajectory to write (body frame; --format); one per --dataset, then one per --bag, in that order")
       ->required();
   cmd->add_option("--format", args->format,
                   "Trajectory file format: tum (t tx ty tz qx qy qz qw, seconds) or euroc (the csv of EuRoC's ground "
@@ -190,10 +192,16 @@ void register_run_command(CLI::App& app) {
     options.localize_only = args->mode == "localize";  // DatasetRunOptions::check: needs --atlas
     if (!args->black_out.empty()) options.black_out_s = parse_black_out(args->black_out);
 
-    if (args->out_trajectories.size() != args->datasets.size())
-      throw Error("give one --out-trajectory per --dataset (" + std::to_string(args->datasets.size()) + " datasets, " +
+    const std::size_t recordings = args->datasets.size() + args->bag.bags.size();
+    if (recordings == 0) throw Error("give a recording: --dataset FOLDER or --bag FILE");
+    if (args->out_trajectories.size() != recordings)
+      throw Error("give one --out-trajectory per --dataset and --bag (" + std::to_string(recordings) + " recordings, " +
                   std::to_string(args->out_trajectories.size()) + " trajectories)");
+    const UnpackedBags bags(args->bag, options.show_progress);
     std::vector<std::filesystem::path> datasets(args->datasets.begin(), args->datasets.end());
+    std::vector<std::string> names = args->datasets;
+    for (const auto& dir : bags.datasets()) datasets.push_back(dir);
+    names.insert(names.end(), args->bag.bags.begin(), args->bag.bags.end());
     options.dataset = datasets.front();
     const std::vector<DatasetRunReport> reports = run_stereo_datasets(options, datasets);
     nlohmann::json runs = nlohmann::json::array();
@@ -202,15 +210,15 @@ void register_run_command(CLI::App& app) {
       const DatasetRunReport& report = reports[i];
       write_trajectory(args->out_trajectories[i], report.trajectory, {}, parse_trajectory_format(args->format));
       runs.push_back(report.to_json());
-      if (reports.size() > 1) std::printf("== %s\n", args->datasets[i].c_str());
+      if (reports.size() > 1) std::printf("== %s\n", names[i].c_str());
       print_run_summary(report);
       if (reports.size() == 1 && report.stats.maps > report.loaded_maps + 1)
         std::printf("note: tracking was lost and %zu maps were made; the trajectory mixes their frames\n",
                     report.stats.maps - report.loaded_maps);
       std::printf("trajectory: %zu poses -> %s\n", report.trajectory.size(), args->out_trajectories[i].c_str());
       if (!report.failed.empty() && failed.empty())
-        failed = "the session of " + args->datasets[i] + " failed after " + std::to_string(report.stats.frames) +
-                 " frames (" + report.failed + ")";
+        failed = "the session of " + names[i] + " failed after " + std::to_string(report.stats.frames) + " frames (" +
+                 report.failed + ")";
     }
     if (reports.size() > 1) {
       std::set<MapId> maps;

@@ -3,6 +3,8 @@
 
 #include "client/commands.h"
 #include "core/common/error.h"
+#include "core/io/bag_dataset.h"
+#include "core/io/euroc_reader.h"
 #include "core/sim/sequence_simulator.h"
 
 namespace orbatlas::cli {
@@ -15,6 +17,7 @@ void register_sim_command(CLI::App& app) {
   auto illumination = std::make_shared<double>(-1.0);
   auto depth = std::make_shared<bool>(false);
   auto depth_options = std::make_shared<sim::DepthSensorOptions>();
+  auto bag = std::make_shared<std::string>();
   auto* cmd = app.add_subcommand(
       "sim", "Render an EuRoC ASL dataset (stereo, IMU, ground truth) along a real EuRoC trajectory");
   cmd->add_option("--sequence", opts->sequence, "MH_01..MH_05 (one shared Machine Hall) or V1_01")
@@ -55,9 +58,12 @@ void register_sim_command(CLI::App& app) {
                   "With --depth: depth noise sigma per squared metre (0: exact)")
       ->check(CLI::Range(0.0, 0.1))
       ->capture_default_str();
+  cmd->add_option("--bag", *bag,
+                  "Also write the recording as a ROS 1 bag here (/cam0/image_raw, /cam1/image_raw: sensor_msgs/Image "
+                  "mono8; /imu0: sensor_msgs/Imu), as EuRoC distributes its sequences");
   cmd->add_option("--threads", opts->threads, "Render threads (default: all cores)");
   cmd->add_flag("!--no-progress", opts->show_progress, "Do not print progress");
-  cmd->callback([opts, imu, look, calib_error, illumination, depth, depth_options]() {
+  cmd->callback([opts, imu, look, calib_error, illumination, depth, depth_options, bag]() {
     if (*depth) opts->depth = *depth_options;
     opts->imu = *imu == "real" ? sim::ImuSource::kReal : sim::ImuSource::kSynthetic;
     opts->look = sim::parse_look(*look);
@@ -80,6 +86,10 @@ void register_sim_command(CLI::App& app) {
       std::printf("and %zu depth images (TUM RGB-D layout: rgb.txt, depth.txt)\n", r.depth_images);
     if (r.frames_outside_gt > 0)
       std::printf("skipped %zu camera timestamps outside the ground truth\n", r.frames_outside_gt);
+    if (!bag->empty()) {
+      write_bag(read_euroc_dataset(opts->out_dir), BagTopics{}, *bag);
+      std::printf("and the bag %s (the same images and IMU)\n", bag->c_str());
+    }
   });
 }
 

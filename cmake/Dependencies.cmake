@@ -15,3 +15,20 @@ find_package(PkgConfig REQUIRED)
 # Debian's cpp-httplib is a compiled library without a CMake config: pkg-config carries
 # the SSL/zlib/brotli defines it was built with, which must match ours.
 pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
+# ROS 1 bags (`--bag`, `orbatlas sim --bag`): Debian's rosbag_storage (librosbag-dev)
+# reads and writes them, sensor_msgs (libsensor-msgs-dev) defines Image and Imu.
+# Their pkg-config files name packages Debian ships without one (pluginlib), so
+# the headers and libraries are found directly. Used by one C++17 translation
+# unit only (core/io/rosbag_raw.cc).
+find_path(ROSBAG_INCLUDE_DIR rosbag/bag.h REQUIRED)
+find_path(ROSBAG_SENSOR_MSGS_INCLUDE_DIR sensor_msgs/Imu.h REQUIRED)
+find_path(ROSBAG_PLUGINLIB_INCLUDE_DIR pluginlib/class_loader.hpp PATH_SUFFIXES pluginlib REQUIRED)
+find_path(ROSBAG_CLASS_LOADER_INCLUDE_DIR class_loader/class_loader.hpp PATH_SUFFIXES class_loader REQUIRED)
+find_path(ROSBAG_RCPPUTILS_INCLUDE_DIR rcpputils/shared_library.hpp PATH_SUFFIXES rcpputils REQUIRED)
+find_path(ROSBAG_RCUTILS_INCLUDE_DIR rcutils/shared_library.h PATH_SUFFIXES rcutils REQUIRED)
+find_path(ROSBAG_AMENT_INCLUDE_DIR ament_index_cpp/get_package_prefix.hpp PATH_SUFFIXES ament_index_cpp REQUIRED)
+set(ROSBAG_LIBRARIES "")
+foreach(lib rosbag_storage roscpp_serialization rostime cpp_common console_bridge class_loader boost_filesystem)
+  find_library(ROSBAG_LIB_${lib} ${lib} REQUIRED)
+  list(APPEND ROSBAG_LIBRARIES ${ROSBAG_LIB_${lib}})
+endforeach()
