@@ -113,6 +113,13 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
   // Maps
   EXPECT_REPLY(http.Get("/v1/maps/999"), 404, "not_found");
   EXPECT_REPLY(http.Get("/v1/maps/999/points.ply"), 404, "not_found");
+  // The viewer's data routes
+  EXPECT_REPLY(http.Get("/v1/maps/999/keyframes"), 404, "not_found");
+  EXPECT_REPLY(http.Get("/v1/maps/999/points.bin"), 404, "not_found");
+  for (const char* max : {"0", "-1", "x", "12x", "5000001", ""})
+    EXPECT_REPLY(http.Get(std::string("/v1/maps/0/points.bin?max=") + max), 400, "bad_request");
+  EXPECT_REPLY(http.Post("/v1/live", "{}", "application/json"), 405, "method_not_allowed");
+  EXPECT_REPLY(http.Get("/viewer/missing.js"), 404, "not_found");
   // Merges: read-only
   EXPECT_REPLY(http.Post("/v1/merges", "{}", "application/json"), 405, "method_not_allowed");
   EXPECT_REPLY(http.Delete("/v1/merges"), 405, "method_not_allowed");
@@ -198,6 +205,13 @@ TEST(ServerErrors, TokenIsRequiredAndChecked) {
     EXPECT_REPLY(anonymous.http().Get("/metrics"), 401, "unauthorized");
     EXPECT_REPLY(anonymous.http().Get("/v1/merges"), 401, "unauthorized");
     EXPECT_REPLY(anonymous.http().Get("/healthz"), 200, "");  // health checks need no token
+    // The viewer's page and scripts hold no data: no token; its data routes need it.
+    EXPECT_REPLY(anonymous.http().Get("/"), 200, "");
+    EXPECT_REPLY(anonymous.http().Get("/viewer/app.js"), 200, "");
+    EXPECT_REPLY(anonymous.http().Get("/viewer/three.min.js"), 200, "");
+    EXPECT_REPLY(anonymous.http().Get("/v1/live"), 401, "unauthorized");
+    EXPECT_REPLY(anonymous.http().Get("/v1/maps/0/keyframes"), 401, "unauthorized");
+    EXPECT_REPLY(anonymous.http().Get("/v1/maps/0/points.bin"), 401, "unauthorized");
   }
   ServerClient wrong(server.url(), "s3cres");
   EXPECT_REPLY(wrong.http().Get("/v1/maps"), 401, "unauthorized");

@@ -14,6 +14,10 @@ std::filesystem::path shipped_data_dir() { return from_env_or("ORBATLAS_DATA_DIR
 
 std::filesystem::path shipped_config_dir() { return from_env_or("ORBATLAS_CONFIG_DIR", ORBATLAS_DEFAULT_CONFIG_DIR); }
 
+std::filesystem::path shipped_viewer_dir() { return from_env_or("ORBATLAS_VIEWER_DIR", ORBATLAS_DEFAULT_VIEWER_DIR); }
+
+std::filesystem::path three_js_dir() { return from_env_or("ORBATLAS_THREE_JS_DIR", ORBATLAS_DEFAULT_THREE_JS_DIR); }
+
 std::optional<std::filesystem::path> shared_euroc_dir() {
   std::error_code ec;
   if (const char* v = std::getenv("ORBATLAS_SHARED_EUROC"); v != nullptr && *v != '\0') {

@@ -10,6 +10,10 @@ namespace orbatlas {
 
 std::filesystem::path shipped_data_dir();
 std::filesystem::path shipped_config_dir();
+// The map viewer's page (viewer/; ORBATLAS_VIEWER_DIR overrides) and three.js
+// (Debian's libjs-three, /usr/share/javascript/three; ORBATLAS_THREE_JS_DIR).
+std::filesystem::path shipped_viewer_dir();
+std::filesystem::path three_js_dir();
 
 // The optional folder of real EuRoC data (../shared/data/euroc); empty if absent.
 std::optional<std::filesystem::path> shared_euroc_dir();

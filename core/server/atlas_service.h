@@ -177,6 +177,7 @@ class AtlasService {
   void shutdown();
 
   Atlas& atlas() { return atlas_; }
+  const Atlas& atlas() const { return atlas_; }
   const Vocabulary& vocabulary() const { return vocabulary_; }
   const std::filesystem::path& db_path() const { return options_.db; }
   std::filesystem::path config_dir() const;  // where named configs are read (the shipped ones by default)

@@ -4,11 +4,14 @@
 // {"error": {"code": "...", "message": "..."}}.
 #include <cstddef>
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <prometheus/metric_family.h>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "core/common/data_paths.h"
 
 namespace httplib {
 class Server;
@@ -33,6 +36,10 @@ struct HttpApiOptions {
   std::function<void()> on_request_end;
   // More metrics for /metrics (the HTTP server's connection figures).
   std::function<std::vector<prometheus::MetricFamily>()> extra_metrics;
+
+  // The map viewer's page (GET /) and three.js (libjs-three), served from here.
+  std::filesystem::path viewer_dir = shipped_viewer_dir();
+  std::filesystem::path three_js_dir = ::orbatlas::three_js_dir();
 
   // Throws Error naming the first value out of range.
   void check() const;

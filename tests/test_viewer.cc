@@ -1,0 +1,168 @@
+// The map viewer (viewer/, docs/viewer.md) in a real browser: headless
+// Chromium loads the page from a test server holding a stored map while a live
+// session streams, and the test checks what a person would see: the map list,
+// a 3D canvas with the map drawn, pixels that change as the session moves, and
+// no errors on the page. Skipped, saying so, where Chromium is missing
+// (scripts/setup.sh installs it). The screenshots are kept beside the test
+// binary (viewer_first.png, viewer_second.png).
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <regex>
+#include <thread>
+
+#include "client/api/dataset_streamer.h"
+#include "client/api/server_client.h"
+#include "tests/server_test_fixture.h"
+#include "tests/slam_test_clip.h"
+
+namespace orbatlas {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::optional<std::string> chromium_binary() {
+  for (const char* path : {"/usr/bin/chromium", "/usr/bin/chromium-browser", "/usr/bin/google-chrome"})
+    if (fs::exists(path)) return std::string(path);
+  return std::nullopt;
+}
+
+std::string run_command(const std::string& command) {
+  std::string out;
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (!pipe) return out;
+  char buffer[4096];
+  std::size_t n = 0;
+  while ((n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) out.append(buffer, n);
+  ::pclose(pipe);
+  return out;
+}
+
+std::string unescape_html(std::string text) {
+  for (const auto& [from, to] : {std::pair<std::string, std::string>{"&lt;", "<"},
+                                 {"&gt;", ">"},
+                                 {"&quot;", "\""},
+                                 {"&#39;", "'"},
+                                 {"&amp;", "&"}}) {
+    for (std::size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size()))
+      text.replace(at, from.size(), to);
+  }
+  return text;
+}
+
+struct Capture {
+  nlohmann::json status;  // what the page reports (window.orbatlasViewer)
+  cv::Mat screenshot;
+};
+
+// One look at the page: its DOM (the status the page writes) and a screenshot,
+// each after a few seconds of the page's (virtual) time.
+Capture capture(const std::string& chromium, const std::string& url, const fs::path& png, const fs::path& profile) {
+  const std::string flags =
+      " --headless --no-sandbox --use-angle=swiftshader --enable-unsafe-swiftshader"
+      " --window-size=1200,800 --virtual-time-budget=3000 --user-data-dir=" +
+      profile.string();
+  Capture c;
+  const std::string dom = run_command(chromium + flags + " --dump-dom '" + url + "' 2>/dev/null");
+  std::smatch m;
+  if (std::regex_search(dom, m, std::regex(R"(<pre id="status"[^>]*>([^<]*)</pre>)")))
+    c.status = nlohmann::json::parse(unescape_html(m[1].str()), nullptr, false);
+  run_command(chromium + flags + " --screenshot=" + png.string() + " '" + url + "' > /dev/null 2>&1");
+  c.screenshot = cv::imread(png.string(), cv::IMREAD_COLOR);
+  return c;
+}
+
+// Pixels of the 3D view (right of the side panel) brighter than the grid.
+int bright_pixels(const cv::Mat& shot) {
+  cv::Mat grey;
+  cv::cvtColor(shot(cv::Rect(380, 0, shot.cols - 380, shot.rows - 20)), grey, cv::COLOR_BGR2GRAY);
+  return cv::countNonZero(grey > 90);
+}
+
+TEST(Viewer, AHeadlessBrowserShowsTheStoredMapAndALiveSessionMoving) {
+  const auto chromium = chromium_binary();
+  if (!chromium) GTEST_SKIP() << "chromium is not installed (scripts/setup.sh installs it): the viewer is not tested";
+  const auto stored_clip = test::simulated_clip("MH_01", 60.0, 6.0);
+  const auto live_clip = test::simulated_clip("MH_01", 62.0, 14.0);
+  test::ClipCleanup c1{stored_clip}, c2{live_clip};
+  test::TempDbPath db("viewer");
+  const fs::path profile = fs::temp_directory_path() / ("orbatlas_test_viewer_profile_" + std::to_string(::getpid()));
+  HttpApiOptions api;
+  api.token = "viewer-token";  // the page sends it on its data routes
+  AtlasServiceOptions options = test::server_options(db.path);
+  test::TestServer server(options, api);
+  ServerClient client(server.url(), api.token);
+  StreamOptions first = test::stream_options(stored_clip);
+  first.rate = 0.0;
+  ASSERT_GT(stream_dataset(client, first).tracked, 100u);
+
+  // A live session at the camera's rate while the browser looks.
+  std::atomic<bool> streamed{false};
+  StreamReport live_report;
+  std::thread live([&] {
+    StreamOptions o = test::stream_options(live_clip);
+    o.rate = 1.0;
+    o.name = "live <walk>";  // shown escaped
+    live_report = stream_dataset(client, o);
+    streamed = true;
+  });
+  // Its map, once it has one.
+  std::optional<std::uint64_t> live_map;
+  for (int i = 0; i < 100 && !live_map; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    const nlohmann::json sessions = client.get_json("/v1/sessions");
+    for (const auto& s : sessions.at("sessions"))
+      if (s.at("state") == "active" && s.contains("map") && !s.at("map").is_null()) live_map = s.at("map");
+  }
+  ASSERT_TRUE(live_map.has_value()) << "the live session never tracked a frame";
+  const std::string url = server.url() + "/?token=" + api.token + "&map=" + std::to_string(*live_map);
+  const Capture a = capture(*chromium, url, "viewer_first.png", profile);
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+  const Capture b = capture(*chromium, url, "viewer_second.png", profile);
+  live.join();
+  std::error_code ec;
+  fs::remove_all(profile, ec);
+  ASSERT_TRUE(streamed);
+
+  for (const Capture* c : {&a, &b}) {
+    ASSERT_TRUE(c->status.is_object()) << "the page wrote no status";
+    std::printf("viewer status: %s\n", c->status.dump().c_str());
+    EXPECT_TRUE(c->status.at("webgl").get<bool>());
+    EXPECT_TRUE(c->status.at("errors").empty()) << c->status.at("errors").dump();
+    EXPECT_FALSE(c->status.at("maps").empty()) << "no map listed";
+    EXPECT_EQ(c->status.at("map"), *live_map);
+    EXPECT_GT(c->status.at("points").get<int>(), 100);
+    EXPECT_GT(c->status.at("keyframes").get<int>(), 0);
+    ASSERT_FALSE(c->screenshot.empty());
+    EXPECT_GT(bright_pixels(c->screenshot), 300) << "the 3D view is empty";
+  }
+  // The live session is drawn where it is, and it moved between the two looks.
+  const auto pose_of = [](const Capture& c) {
+    for (const auto& s : c.status.at("live"))
+      if (!s.at("pose").is_null()) return s.at("pose").get<std::vector<double>>();
+    return std::vector<double>{};
+  };
+  const std::vector<double> pa = pose_of(a), pb = pose_of(b);
+  ASSERT_EQ(pa.size(), 3u);
+  ASSERT_EQ(pb.size(), 3u);
+  const double moved = std::hypot(pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]);
+  cv::Mat diff;
+  cv::absdiff(a.screenshot, b.screenshot, diff);
+  cv::cvtColor(diff, diff, cv::COLOR_BGR2GRAY);
+  const int changed = cv::countNonZero(diff(cv::Rect(380, 0, diff.cols - 380, diff.rows - 20)) > 30);
+  std::printf(
+      "viewer: the live camera moved %.2f m between the looks; %d pixels of the 3D view changed; "
+      "screenshots %s, %s\n",
+      moved, changed, fs::absolute("viewer_first.png").c_str(), fs::absolute("viewer_second.png").c_str());
+  EXPECT_GT(moved, 0.05);
+  EXPECT_GT(changed, 50);
+}
+
+}  // namespace
+}  // namespace orbatlas
