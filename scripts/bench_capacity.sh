@@ -16,6 +16,11 @@
 #   SECONDS_PER_SESSION=120 LOOK=clean MAX_LAG=0.1 scripts/bench_capacity.sh
 #   ORBATLAS_BIN=/tmp/orbatlas ORBATLAS_SERVER_BIN=/tmp/orbatlas-server scripts/bench_capacity.sh   # frozen binaries
 #   SERVER_FLAGS="--serial-stereo-frontend" KEEP_ALONE=1 NS=4 scripts/bench_capacity.sh  # server flags
+#   PHASES=spread NS=4 scripts/bench_capacity.sh   # the cameras' frames out of step (see below)
+# PHASES: 'together' (default) starts every client at one instant, so the N
+# cameras' frames arrive at the same moments (the worst case: N frames at once,
+# then nothing for 50 ms); 'spread' starts client i of N i/N of a frame interval
+# later, as independent devices' cameras are out of step with each other.
 # The sequences are rendered once into $ORBATLAS_BENCH_DATA (default
 # build/bench_data, shared with the other benchmarks); results in
 # $ORBATLAS_BENCH_OUT (default out/bench_capacity).
@@ -30,6 +35,8 @@ SECONDS_PER_SESSION="${SECONDS_PER_SESSION:-60}"
 START_S="${START_S:-20}"
 LOOK="${LOOK:-real}"
 MAX_LAG="${MAX_LAG:-0.1}"
+PHASES="${PHASES:-together}"
+[ "$PHASES" = together ] || [ "$PHASES" = spread ] || { echo "bench_capacity: PHASES is together or spread" >&2; exit 1; }
 PRELOAD_S="${PRELOAD_S:-40}"  # seconds the clients get to read and decode their clips before they begin
 SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05 MH_01)
 
@@ -67,10 +74,14 @@ run_sessions() {
   local pids=() i=0 start_at wait_s
   for seq in "$@"; do dataset "$seq" > /dev/null; done  # rendered before the clock starts
   start_at=$(( $(date +%s) + PRELOAD_S ))
+  local client_start
   for seq in "$@"; do
     i=$((i + 1))
+    client_start=$start_at
+    # spread: the sequences' frames are 50 ms apart (20 Hz); client i of N starts (i-1)/N of that later.
+    [ "$PHASES" = spread ] && client_start=$(awk -v t="$start_at" -v i="$i" -v n="$#" 'BEGIN { printf "%.4f", t + (i - 1) * 0.05 / n }')
     "$OA" stream --server "$url" --dataset "$(dataset "$seq")" --start "$START_S" --duration "$SECONDS_PER_SESSION" \
-        --rate 1 --max-lag "$MAX_LAG" --preload --start-at "$start_at" --name "$name-$i-$seq" --no-progress \
+        --rate 1 --max-lag "$MAX_LAG" --preload --start-at "$client_start" --name "$name-$i-$seq" --no-progress \
         --stats "$dir/${i}_$seq.json" > "$dir/${i}_$seq.txt" 2>&1 &
     pids+=($!)
   done
