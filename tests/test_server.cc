@@ -8,6 +8,7 @@
 #include <array>
 #include <fstream>
 #include <future>
+#include <regex>
 #include <thread>
 #include <set>
 #include <opencv2/imgcodecs.hpp>
@@ -445,6 +446,10 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
   EXPECT_NE(metrics.find("orbatlas_sessions_created_total 3"), std::string::npos) << metrics;
   // Errors contained by the workers are reported (none expected here).
   EXPECT_NE(metrics.find("orbatlas_worker_errors_total 0"), std::string::npos) << metrics;
+  // The rows the checkpoints wrote: three sessions' frames at least.
+  std::smatch rows;
+  ASSERT_TRUE(std::regex_search(metrics, rows, std::regex(R"(\norbatlas_checkpoint_rows_total ([0-9.e+]+))"))) << metrics;
+  EXPECT_GT(std::stod(rows[1].str()), 3.0 * 80.0);
   for (const auto session : sessions)
     EXPECT_EQ(client.get_json("/v1/sessions/" + std::to_string(session)).at("worker_errors"), 0u);
 }

@@ -108,6 +108,10 @@ std::vector<prometheus::MetricFamily> AtlasService::metrics() const {
   total("orbatlas_checkpoints_total", "Checkpoints completed.", static_cast<double>(checkpoints.checkpoints));
   total("orbatlas_checkpoint_failures_total", "Checkpoints that failed (retried).",
         static_cast<double>(checkpoints.failures));
+  total("orbatlas_checkpoint_rows_total",
+        "Database rows the checkpoints inserted, updated or deleted (maps, keyframes, points, observations, "
+        "trajectories, sessions).",
+        static_cast<double>(checkpoints.total_rows.total()));
   if (merger_) {
     const MapMergeWorkerStats merging = merger_->stats();
     std::size_t live_merged = 0;
