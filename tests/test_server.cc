@@ -448,7 +448,8 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
   EXPECT_NE(metrics.find("orbatlas_worker_errors_total 0"), std::string::npos) << metrics;
   // The rows the checkpoints wrote: three sessions' frames at least.
   std::smatch rows;
-  ASSERT_TRUE(std::regex_search(metrics, rows, std::regex(R"(\norbatlas_checkpoint_rows_total ([0-9.e+]+))"))) << metrics;
+  ASSERT_TRUE(std::regex_search(metrics, rows, std::regex(R"(\norbatlas_checkpoint_rows_total ([0-9.e+]+))")))
+      << metrics;
   EXPECT_GT(std::stod(rows[1].str()), 3.0 * 80.0);
   for (const auto session : sessions)
     EXPECT_EQ(client.get_json("/v1/sessions/" + std::to_string(session)).at("worker_errors"), 0u);

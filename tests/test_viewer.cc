@@ -65,15 +65,15 @@ struct Capture {
 // each after a few seconds of the page's (virtual) time.
 Capture capture(const std::string& chromium, const std::string& url, const fs::path& png, const fs::path& profile) {
   const std::string flags =
-      " --headless --no-sandbox --use-angle=swiftshader --enable-unsafe-swiftshader"
+      " --headless --no-sandbox --disable-dev-shm-usage --use-angle=swiftshader --enable-unsafe-swiftshader"
       " --window-size=1200,800 --virtual-time-budget=3000 --user-data-dir=" +
       profile.string();
   Capture c;
-  const std::string dom = run_command(chromium + flags + " --dump-dom '" + url + "' 2>/dev/null");
+  const std::string dom = run_command("timeout 90 " + chromium + flags + " --dump-dom '" + url + "' 2>/dev/null");
   std::smatch m;
   if (std::regex_search(dom, m, std::regex(R"(<pre id="status"[^>]*>([^<]*)</pre>)")))
     c.status = nlohmann::json::parse(unescape_html(m[1].str()), nullptr, false);
-  run_command(chromium + flags + " --screenshot=" + png.string() + " '" + url + "' > /dev/null 2>&1");
+  run_command("timeout 90 " + chromium + flags + " --screenshot=" + png.string() + " '" + url + "' > /dev/null 2>&1");
   c.screenshot = cv::imread(png.string(), cv::IMREAD_COLOR);
   return c;
 }
