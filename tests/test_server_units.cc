@@ -18,6 +18,7 @@
 #include "core/server/metrics_registry.h"
 #include "core/server/live_session.h"
 #include "core/server/map_leases.h"
+#include "core/server/viewer_data.h"
 #include "wire/pose_json.h"
 
 namespace orbatlas {
@@ -65,6 +66,24 @@ TEST(MapLeases, SessionsShareMapsTheMergingWorkerTakesAlone) {
   leases.release_all(10);
   EXPECT_TRUE(leases.is_free(1));
   EXPECT_TRUE(leases.is_free(2));
+}
+
+// The viewer's level-of-detail cap: every k-th point, k as small as the cap allows.
+TEST(ViewerData, ThePointBufferKeepsEveryKthPointUnderTheCap) {
+  MapPointCloud cloud;
+  for (int i = 0; i < 10; ++i) cloud.points.emplace_back(i, 10 + i, 20 + i);
+  const auto xs = [](const std::vector<float>& xyz) {
+    std::vector<float> out;
+    for (std::size_t i = 0; i < xyz.size(); i += 3) out.push_back(xyz[i]);
+    return out;
+  };
+  EXPECT_EQ(xs(point_buffer(cloud, 10)), (std::vector<float>{0, 1, 2, 3, 4, 5, 6, 7, 8, 9}));  // all fit
+  EXPECT_EQ(xs(point_buffer(cloud, 5)), (std::vector<float>{0, 2, 4, 6, 8}));
+  EXPECT_EQ(xs(point_buffer(cloud, 4)), (std::vector<float>{0, 3, 6, 9}));
+  EXPECT_EQ(xs(point_buffer(cloud, 1)), (std::vector<float>{0}));
+  const std::vector<float> one = point_buffer(cloud, 4);
+  EXPECT_EQ(std::vector<float>(one.begin() + 3, one.begin() + 6), (std::vector<float>{3, 13, 23}));  // x, y, z
+  EXPECT_TRUE(point_buffer(MapPointCloud{}, 100).empty());
 }
 
 TEST(RequestImage, DecodesPngAndRawAndRefusesTheRest) {

@@ -187,9 +187,7 @@ void write_bag(const EurocDataset& dataset, const BagTopics& topics, const fs::p
         m.height = static_cast<std::uint32_t>(grey.rows);
         m.step = m.width;
         m.encoding = "mono8";
-        m.data.resize(static_cast<std::size_t>(grey.cols) * static_cast<std::size_t>(grey.rows));
-        for (int r = 0; r < grey.rows; ++r)
-          std::copy(grey.ptr(r), grey.ptr(r) + grey.cols, m.data.begin() + static_cast<std::ptrdiff_t>(r) * grey.cols);
+        m.data.assign(grey.datastart, grey.dataend);  // a decoded image is continuous: rows of `width` bytes
         writer.write_image(m);
       }
     };

@@ -25,9 +25,9 @@ MapKeyframesView map_keyframes_view(const Atlas& atlas, MapId id) {
 
 std::vector<float> point_buffer(const MapPointCloud& cloud, std::size_t max_points) {
   const std::size_t n = cloud.points.size();
-  const std::size_t step = max_points == 0 ? n + 1 : (n + max_points - 1) / max_points;
   std::vector<float> out;
   if (n == 0 || max_points == 0) return out;
+  const std::size_t step = (n + max_points - 1) / max_points;
   out.reserve(3 * (n / step + 1));
   for (std::size_t i = 0; i < n; i += step)
     for (int k = 0; k < 3; ++k) out.push_back(static_cast<float>(cloud.points[i][k]));
