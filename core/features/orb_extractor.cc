@@ -1,8 +1,8 @@
 // ORB extraction the ORB-SLAM way. Per level: FAST on a grid of ~35 px cells
 // (ini_th_fast, then min_th_fast where a cell gives nothing), a quadtree that keeps
 // the strongest corner of each node until the level's share of the features is
-// reached, orientation by intensity centroid, and rotated BRIEF from OpenCV on
-// the Gaussian-blurred level image. docs/features.md describes the design.
+// reached, orientation by intensity centroid, and rotated BRIEF (OpenCV's, bit
+// for bit: rotated_brief.h) on the Gaussian-blurred level image. docs/features.md describes the design.
 #include "core/features/orb_extractor.h"
 
 #include <algorithm>
@@ -16,18 +16,16 @@
 #include <immintrin.h>
 #define ORBATLAS_FAST_AVX2 1
 #endif
-#include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/common/error.h"
+#include "core/features/cpu_features.h"
 
 namespace orbatlas {
 namespace {
 
 constexpr int kBorder = OrbExtractor::kPyramidBorder;
 constexpr int kFastRadius = 3;  // FAST's circle; cv::FAST detects nothing closer to a window's edge
-constexpr int kHalfPatch = 15;  // orientation patch radius (patch of 31 px)
-constexpr int kPatchSize = 2 * kHalfPatch + 1;
 
 // OpenCV's BORDER_REFLECT_101 for an index just outside [0, n).
 int reflect101(int i, int n) { return cv::borderInterpolate(i, n, cv::BORDER_REFLECT_101); }
@@ -179,10 +177,6 @@ __attribute__((target("avx2"))) void fast_score_row_avx2(const std::uint8_t* row
   }
 }
 
-bool cpu_has_avx2() {
-  static const bool avx2 = __builtin_cpu_supports("avx2");  // set once, never changed
-  return avx2;
-}
 #endif
 
 // Scores of row[x_begin, x_end) into out[x_begin, x_end). Pixels that cannot be
@@ -296,25 +290,9 @@ OrbExtractor::OrbExtractor(const OrbExtractorOptions& options) : options_(option
   }
   features_per_level_[levels - 1] = std::max(options_.n_features - assigned, 0);
 
-  // Row half-widths of the circular patch, symmetric in u and v (as OpenCV's ORB).
-  umax_.resize(kHalfPatch + 2);
-  const int vmax = static_cast<int>(std::floor(kHalfPatch * std::sqrt(2.0) / 2 + 1));
-  const int vmin = static_cast<int>(std::ceil(kHalfPatch * std::sqrt(2.0) / 2));
-  for (int v = 0; v <= vmax; ++v)
-    umax_[static_cast<std::size_t>(v)] =
-        static_cast<int>(std::lround(std::sqrt(double(kHalfPatch * kHalfPatch - v * v))));
-  for (int v = kHalfPatch, v0 = 0; v >= vmin; --v) {
-    while (umax_[static_cast<std::size_t>(v0)] == umax_[static_cast<std::size_t>(v0) + 1]) ++v0;
-    umax_[static_cast<std::size_t>(v)] = v0;
-    ++v0;
-  }
-
-  // Only compute() is used: one level at a time, keypoints at octave 0, patch 31,
-  // WTA_K 2. edgeThreshold only filters keypoints near the image edge, and ours
-  // are never closer than kBorder.
-  orb_ = cv::ORB::create(options_.n_features, 1.2f, 1, kBorder, 0, 2, cv::ORB::HARRIS_SCORE, kPatchSize);
   pyramid_.resize(levels);
   bordered_.resize(levels);
+  blurred_.resize(levels);
 }
 
 void OrbExtractor::build_pyramid(const cv::Mat& image) {
@@ -351,7 +329,11 @@ void OrbExtractor::detect_level(int level) {
   const int width = max_x - min_x, height = max_y - min_y;
   if (width < 2 * kFastRadius + 1 || height < 2 * kFastRadius + 1) return;
 
-  // Scores of the whole detection area once; the cells then only threshold them.
+  // Scores of the whole detection area once, at ini_th_fast: 32-pixel blocks
+  // where no pixel passes FAST's quick test at that threshold are skipped, and
+  // at 20 most are. The cells then only threshold them; a cell with no corner
+  // at ini_th_fast has its own area scored again at min_th_fast. Scores at or
+  // above ini_th_fast are the same either way, so the cells around see the same.
   scores_.resize(static_cast<std::size_t>(img.rows) * static_cast<std::size_t>(img.cols));
   const auto stride = static_cast<std::size_t>(img.cols);
   std::ptrdiff_t offsets[16];
@@ -359,7 +341,12 @@ void OrbExtractor::detect_level(int level) {
     offsets[k] = static_cast<std::ptrdiff_t>(kCircle[k][1]) * static_cast<std::ptrdiff_t>(img.step1()) + kCircle[k][0];
   for (int y = kBorder; y < img.rows - kBorder; ++y)
     fast_score_row(img.ptr<std::uint8_t>(y), offsets, kBorder, img.cols - kBorder, scores_.data() + y * stride,
-                   options_.min_th_fast, options_.use_avx2);
+                   options_.ini_th_fast, options_.use_avx2);
+  const auto rescore = [&](const cv::Rect& area) {
+    for (int y = area.y; y < area.y + area.height; ++y)
+      fast_score_row(img.ptr<std::uint8_t>(y), offsets, area.x, area.x + area.width, scores_.data() + y * stride,
+                     options_.min_th_fast, options_.use_avx2);
+  };
 
   const int n_cols = std::max(1, width / options_.cell_size), n_rows = std::max(1, height / options_.cell_size);
   const int cell_w = (width + n_cols - 1) / n_cols, cell_h = (height + n_rows - 1) / n_rows;
@@ -373,8 +360,10 @@ void OrbExtractor::detect_level(int level) {
       const int x1 = std::min(x0 + cell_w + 2 * kFastRadius, max_x);
       // The window [x0, x1) x [y0, y1) detects in its interior, 3 px in.
       const cv::Rect area(x0 + kFastRadius, y0 + kFastRadius, x1 - x0 - 2 * kFastRadius, y1 - y0 - 2 * kFastRadius);
-      if (!cell_corners(area, stride, options_.ini_th_fast, min_x, min_y))
+      if (!cell_corners(area, stride, options_.ini_th_fast, min_x, min_y)) {
+        rescore(area);
         cell_corners(area, stride, options_.min_th_fast, min_x, min_y);
+      }
     }
   }
 }
@@ -515,29 +504,6 @@ void OrbExtractor::distribute(int width, int height, int target) {
   }
 }
 
-// Intensity centroid of the circular patch of radius 15: the angle of (m10, m01)
-// in degrees, image axes (x right, y down).
-float OrbExtractor::orientation(const cv::Mat& level_image, int x, int y) const {
-  const std::uint8_t* center = level_image.ptr<std::uint8_t>(y) + x;
-  const auto step = static_cast<std::ptrdiff_t>(level_image.step1());
-  int m01 = 0, m10 = 0;
-  for (int u = -kHalfPatch; u <= kHalfPatch; ++u) m10 += u * center[u];
-  for (int v = 1; v <= kHalfPatch; ++v) {
-    int v_sum = 0;
-    const int d = umax_[static_cast<std::size_t>(v)];
-    const std::uint8_t* below = center + v * step;
-    const std::uint8_t* above = center - v * step;
-    for (int u = -d; u <= d; ++u) {
-      const int plus = below[u], minus = above[u];
-      v_sum += plus - minus;
-      m10 += u * (plus + minus);
-    }
-    m01 += v * v_sum;
-  }
-  const float angle = cv::fastAtan2(static_cast<float>(m01), static_cast<float>(m10));
-  return angle >= 360.0f ? angle - 360.0f : angle;
-}
-
 ImageFeatures OrbExtractor::extract(const cv::Mat& image) {
   ORBATLAS_CHECK(!image.empty() && image.type() == CV_8UC1, "ORB: the image must be a non-empty CV_8UC1 image, got "
                                                                 << image.cols << "x" << image.rows << " of type "
@@ -558,31 +524,20 @@ ImageFeatures OrbExtractor::extract(const cv::Mat& image) {
     if (selected_.empty()) continue;
 
     const auto scale = static_cast<float>(scale_factors_[level]);
-    level_keys_.clear();
+    // Rotated BRIEF on the blurred level, as cv::ORB computes it (bit for bit).
+    cv::Mat& blurred = blurred_[level];
+    RotatedBrief::blur(img, blurred);
     for (const std::uint32_t c : selected_) {
       const Candidate& cand = candidates_[c];
       const int x = static_cast<int>(cand.x) + min_x, y = static_cast<int>(cand.y) + min_y;
-      const float angle = orientation(img, x, y);
-      level_keys_.emplace_back(static_cast<float>(x), static_cast<float>(y), static_cast<float>(kPatchSize), angle,
-                               cand.response, 0);
+      const float angle = centroid_.angle(img, x, y, options_.use_avx2);
       Keypoint kp;
       kp.uv = Eigen::Vector2f(static_cast<float>(x) * scale, static_cast<float>(y) * scale);
       kp.level = static_cast<int>(level);
       kp.angle_deg = angle;
       kp.response = cand.response;
       out.keypoints.push_back(kp);
-    }
-    // Rotated BRIEF on the level image (OpenCV blurs it 7x7, sigma 2, and reads the
-    // pairs of its 31x31 pattern turned by each keypoint's angle).
-    const std::size_t expected = level_keys_.size();
-    orb_->compute(img, level_keys_, level_descriptors_);
-    ORBATLAS_CHECK(level_keys_.size() == expected && level_descriptors_.rows == static_cast<int>(expected),
-                   "ORB: OpenCV dropped keypoints of level " << level << " (" << level_keys_.size() << " of "
-                                                             << expected << " kept)");
-    for (int r = 0; r < level_descriptors_.rows; ++r) {
-      Descriptor d;
-      std::memcpy(d.data(), level_descriptors_.ptr(r), sizeof(Descriptor));
-      out.descriptors.push_back(d);
+      out.descriptors.push_back(brief_.describe(blurred, x, y, angle, options_.use_avx2));
     }
   }
   return out;

@@ -2,19 +2,17 @@
 // ORB features the ORB-SLAM way: a scale pyramid, FAST per grid cell with a
 // high threshold and a low fallback, a quadtree that spreads the keypoints over
 // the image down to the requested count, orientation by intensity centroid and
-// 256-bit rotated BRIEF. OpenCV does the pyramid resize and the descriptor bits;
-// FAST (a SIMD score map giving exactly cv::FAST's corners per cell) and the
-// distribution logic are ours. One extractor per thread (scratch buffers).
+// 256-bit rotated BRIEF. OpenCV does the pyramid resize and the blur; FAST (a
+// SIMD score map giving exactly cv::FAST's corners per cell), the distribution
+// logic and the BRIEF tests (OpenCV's bits, eight at a time) are ours. One extractor per thread (scratch buffers).
 #include <cstdint>
 #include <opencv2/core/mat.hpp>
 #include <utility>
 #include <vector>
 
+#include "core/features/intensity_centroid.h"
 #include "core/features/keypoint.h"
-
-namespace cv {
-class ORB;
-}
+#include "core/features/rotated_brief.h"
 
 namespace orbatlas {
 
@@ -25,8 +23,10 @@ struct OrbExtractorOptions {
   int ini_th_fast = 20;
   int min_th_fast = 7;
   int cell_size = 35;  // FAST grid cell, pixels
-  // FAST scores 32 pixels at a time where the CPU has AVX2 (else 16, SSE2):
-  // the same corners; false forces the 16-pixel path (tests compare the two).
+  // FAST scores 32 pixels at a time, orientation a row of the patch at a time
+  // and BRIEF tests 8 at a time where the CPU has AVX2 (else FAST 16 at a
+  // time, SSE2, the rest one pixel at a time): the same features; false forces
+  // the narrower paths (tests compare the two).
   bool use_avx2 = true;
   void check() const;  // throws Error on invalid values
 };
@@ -84,7 +84,6 @@ class OrbExtractor {
   // Quadtree over candidates_ in a width x height area, down to `target` nodes -> selected_.
   void distribute(int width, int height, int target);
   void split(std::uint32_t node);  // children with candidates replace the node
-  float orientation(const cv::Mat& level_image, int x, int y) const;
 
   OrbExtractorOptions options_;
   std::vector<double> scale_factors_, level_sigma2_;
@@ -93,11 +92,10 @@ class OrbExtractor {
   // Scratch kept between calls so that extraction does not allocate.
   std::vector<cv::Mat> bordered_;  // level buffers; pyramid_[l] views their interior
   cv::Size pyramid_size_;
-  std::vector<int> umax_;                    // half-width of each row of the circular orientation patch
-  cv::Ptr<cv::ORB> orb_;                     // descriptor bits on a level image
+  IntensityCentroid centroid_;  // orientation
+  RotatedBrief brief_{opencv_brief_pattern()};
+  std::vector<cv::Mat> blurred_;             // each level blurred for the BRIEF tests
   std::vector<std::uint8_t> scores_, tile_;  // FAST scores of a level; one cell's thresholded scores
-  std::vector<cv::KeyPoint> level_keys_;
-  cv::Mat level_descriptors_;
   std::vector<Candidate> candidates_;
   std::vector<std::uint32_t> order_, selected_, initial_begin_;
   std::vector<QuadNode> nodes_;
