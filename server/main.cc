@@ -87,7 +87,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--background-nice", service_options.background_nice,
                  "Nice value (0-19) of local mapping, loop closing and map merging; above 0 the sessions' tracking is "
-                 "served first on a loaded machine (0: all alike)")
+                 "served first on a loaded machine, mapping takes the rest (0: all alike)")
       ->capture_default_str()
       ->check(CLI::Range(0, 19));
   bool serial_stereo = false;

@@ -94,6 +94,16 @@ class KeyFrame : public std::enable_shared_from_this<KeyFrame> {
   std::shared_ptr<MapPoint> map_point(std::size_t slot) const;
   std::vector<std::shared_ptr<MapPoint>> slots() const;       // index-aligned, nulls included
   std::vector<std::shared_ptr<MapPoint>> map_points() const;  // non-null slots
+  // Calls f(const std::shared_ptr<MapPoint>&) for each non-null slot under this
+  // keyframe's mutex, without copying the slots (tracking's hot loops). f may
+  // lock a map point (the lock order's next step) but no keyframe, and must not
+  // change this keyframe's slots.
+  template <typename F>
+  void for_each_map_point(F&& f) const {
+    std::lock_guard lock(mutex_);
+    for (const auto& mp : slots_)
+      if (mp) f(mp);
+  }
   int map_point_count() const { return map_point_count_.load(); }
   // Incremental redundancy (redundancy_tracker.h): points of this keyframe that
   // kRedundancyMinObservers other keyframes see at the same or a finer level.

@@ -58,6 +58,11 @@ float MapPoint::max_distance() const {
   return data_.max_distance;
 }
 
+MapPoint::Geometry MapPoint::geometry() const {
+  std::lock_guard lock(mutex_);
+  return {data_.p_w, data_.normal, data_.min_distance, data_.max_distance};
+}
+
 void MapPoint::set_distances(float min_distance, float max_distance) {
   ORBATLAS_CHECK(min_distance <= max_distance,
                  "map point " << id_ << ": min distance " << min_distance << " > max distance " << max_distance);

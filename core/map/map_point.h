@@ -68,6 +68,13 @@ class MapPoint {
   float min_distance() const;
   float max_distance() const;
   void set_distances(float min_distance, float max_distance);
+  // Position, normal and distances read together under one lock (projecting a
+  // point into a frame needs all four).
+  struct Geometry {
+    Eigen::Vector3d p_w, normal;
+    float min_distance, max_distance;
+  };
+  Geometry geometry() const;
 
   // Reference keyframe (weak); when it stops observing the point, the first
   // remaining observer (lowest id) takes over. Null when none is left.

@@ -66,10 +66,12 @@ struct AtlasServiceOptions {
   MapMergeWorkerOptions merging;
   // The nice value (0..19) of every background thread: local mapping, loop
   // closing and its global BAs, map merging (thread_priority.h); above 0 the
-  // sessions' tracking is served first on a loaded machine. 0 (all alike) by
-  // default: at 10, four sessions on two cores starved their mapping and
-  // ended 0.02-0.19 m off instead of 0.009-0.015 m (docs/benchmarks.md).
-  int background_nice = 0;
+  // sessions' tracking is served first on a loaded machine, mapping takes the
+  // cores' rest. 10 by default since tracking got cheaper: four sessions on two
+  // cores (1.4 of them busy) were late 4.7 % of the time at 0, 1.4-1.6 % at 10,
+  // their error varying as much from run to run either way (0.006-0.019 m); on a machine already saturated (stop 37) it
+  // starved mapping instead (docs/benchmarks.md, "Capacity"). 0: all alike.
+  int background_nice = 10;
 
   // Throws Error naming the first value out of range (also of the parts).
   void check() const;

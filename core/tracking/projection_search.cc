@@ -24,7 +24,8 @@ void apply_rotation_check(const ImageFeatures& a, const ImageFeatures& b, std::v
 }  // namespace
 
 bool project_into_frame(const MapPoint& point, const Pose3& T_c_w, const FrameCamera& cam, ProjectedPoint* out) {
-  const Eigen::Vector3d p_w = point.p_w();
+  const MapPoint::Geometry g = point.geometry();
+  const Eigen::Vector3d& p_w = g.p_w;
   const Eigen::Vector3d p_c = T_c_w * p_w;
   if (p_c.z() <= 0.0) return false;
   Eigen::Vector2d uv;
@@ -32,14 +33,14 @@ bool project_into_frame(const MapPoint& point, const Pose3& T_c_w, const FrameCa
   const Eigen::Vector3d center = T_c_w.inverse().t;
   const Eigen::Vector3d ray = p_w - center;
   const double distance = ray.norm();
-  const double min_d = 0.8 * point.min_distance(), max_d = 1.2 * point.max_distance();
+  const double min_d = 0.8 * g.min_distance, max_d = 1.2 * g.max_distance;
   if (distance < min_d || distance > max_d) return false;
-  const Eigen::Vector3d normal = point.normal();
+  const Eigen::Vector3d& normal = g.normal;
   const double view_cos = normal.squaredNorm() > 0.0 ? ray.dot(normal) / distance : 1.0;
   if (view_cos < 0.5) return false;
   out->uv = uv.cast<float>();
   out->u_right = cam.bf > 0.0 ? static_cast<float>(uv.x() - cam.bf / p_c.z()) : -1.0f;
-  out->level = cam.pyramid.predict_level(distance, point.max_distance());
+  out->level = cam.pyramid.predict_level(distance, g.max_distance);
   out->view_cos = static_cast<float>(view_cos);
   return true;
 }

@@ -472,6 +472,7 @@ bool Tracker::track_local_map(Frame& frame) {
   // mapping; a localisation changes nothing in the map, these counts included.
   const bool count = !options_.localization_only;
   std::unordered_set<MapPointId> seen;
+  seen.reserve(frame.size() + local_keyframes_.size() * 256);
   for (std::size_t i = 0; i < frame.size(); ++i) {
     const auto& mp = frame.map_points[i];
     if (!mp || mp->is_bad()) continue;
@@ -481,14 +482,14 @@ bool Tracker::track_local_map(Frame& frame) {
   const Pose3 T_c_w = (frame.T_w_b * T_b_c_).inverse();
   std::vector<ProjectedPoint> candidates;
   for (const auto& kf : local_keyframes_) {
-    for (const auto& mp : kf->map_points()) {
-      if (mp->is_bad() || !seen.insert(mp->id()).second) continue;
+    kf->for_each_map_point([&](const std::shared_ptr<MapPoint>& mp) {
+      if (mp->is_bad() || !seen.insert(mp->id()).second) return;
       ProjectedPoint pp;
-      if (!project_into_frame(*mp, T_c_w, cam_, &pp)) continue;
+      if (!project_into_frame(*mp, T_c_w, cam_, &pp)) return;
       if (count) mp->increase_visible();
       pp.point = mp;
       candidates.push_back(std::move(pp));
-    }
+    });
   }
   float th = 1.0f;
   if (frame_index_ < last_recovery_index_ + 2) th = 5.0f;
@@ -520,8 +521,9 @@ bool Tracker::need_new_keyframe(const Frame& frame, int inliers) const {
   // 2 in a map of two keyframes).
   const int min_obs = monocular_ ? (n_kfs <= 2 ? 2 : 3) : (n_kfs <= 2 ? 1 : 2);
   int ref_matches = 0;
-  for (const auto& mp : reference_->map_points())
+  reference_->for_each_map_point([&](const std::shared_ptr<MapPoint>& mp) {
     if (!mp->is_bad() && mp->observation_count() >= static_cast<std::size_t>(min_obs)) ++ref_matches;
+  });
 
   int tracked_close = 0, untracked_close = 0;
   for (std::size_t i = 0; i < frame.size(); ++i) {
