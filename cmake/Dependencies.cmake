@@ -15,6 +15,8 @@ find_package(PkgConfig REQUIRED)
 # Debian's cpp-httplib is a compiled library without a CMake config: pkg-config carries
 # the SSL/zlib/brotli defines it was built with, which must match ours.
 pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
+# PostgreSQL's client library (libpq-dev), for an atlas in PostgreSQL (issue 23).
+pkg_check_modules(LIBPQ REQUIRED IMPORTED_TARGET libpq)
 # ROS 1 bags (`--bag`, `orbatlas sim --bag`): Debian's rosbag_storage (librosbag-dev)
 # reads and writes them, sensor_msgs (libsensor-msgs-dev) defines Image and Imu.
 # Their pkg-config files name packages Debian ships without one (pluginlib), so

@@ -17,6 +17,8 @@
 #   ORBATLAS_BIN=/tmp/orbatlas ORBATLAS_SERVER_BIN=/tmp/orbatlas-server scripts/bench_capacity.sh   # frozen binaries
 #   SERVER_FLAGS="--serial-stereo-frontend" KEEP_ALONE=1 NS=4 scripts/bench_capacity.sh  # server flags
 #   PHASES=spread NS=4 scripts/bench_capacity.sh   # the cameras' frames out of step (see below)
+#   RATE=0.25 NS=4 scripts/bench_capacity.sh       # slower than the sensor (no core ever busy)
+#   SERVER_CPUS=1 CLIENT_CPUS=0 NS=1 scripts/bench_capacity.sh  # the server on one core (taskset -c)
 # PHASES: 'together' (default) starts every client at one instant, so the N
 # cameras' frames arrive at the same moments (the worst case: N frames at once,
 # then nothing for 50 ms); 'spread' starts client i of N i/N of a frame interval
@@ -36,6 +38,10 @@ START_S="${START_S:-20}"
 LOOK="${LOOK:-real}"
 MAX_LAG="${MAX_LAG:-0.1}"
 PHASES="${PHASES:-together}"
+RATE="${RATE:-1}"
+# taskset prefixes: the server's and the clients' CPUs (empty: any)
+SERVER_TASKSET=(); [ -n "${SERVER_CPUS:-}" ] && SERVER_TASKSET=(taskset -c "$SERVER_CPUS")
+CLIENT_TASKSET=(); [ -n "${CLIENT_CPUS:-}" ] && CLIENT_TASKSET=(taskset -c "$CLIENT_CPUS")
 [ "$PHASES" = together ] || [ "$PHASES" = spread ] || { echo "bench_capacity: PHASES is together or spread" >&2; exit 1; }
 PRELOAD_S="${PRELOAD_S:-40}"  # seconds the clients get to read and decode their clips before they begin
 SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05 MH_01)
@@ -63,7 +69,7 @@ run_sessions() {
   rm -rf "$dir"
   mkdir -p "$dir"
   # shellcheck disable=SC2086  # SERVER_FLAGS: several flags, split on spaces
-  "$SERVER_BIN" --db "$dir/atlas.db" --listen 127.0.0.1:0 --port-file "$dir/port" ${SERVER_FLAGS:-} 2>"$dir/server.log" &
+  "${SERVER_TASKSET[@]}" "$SERVER_BIN" --db "$dir/atlas.db" --listen 127.0.0.1:0 --port-file "$dir/port" ${SERVER_FLAGS:-} 2>"$dir/server.log" &
   SERVER_PID=$!
   for _ in $(seq 1 300); do [ -s "$dir/port" ] && break; sleep 0.1; done
   [ -s "$dir/port" ] || { cat "$dir/server.log" >&2; echo "bench_capacity: the server did not start" >&2; exit 1; }
@@ -80,8 +86,8 @@ run_sessions() {
     client_start=$start_at
     # spread: the sequences' frames are 50 ms apart (20 Hz); client i of N starts (i-1)/N of that later.
     [ "$PHASES" = spread ] && client_start=$(awk -v t="$start_at" -v i="$i" -v n="$#" 'BEGIN { printf "%.4f", t + (i - 1) * 0.05 / n }')
-    "$OA" stream --server "$url" --dataset "$(dataset "$seq")" --start "$START_S" --duration "$SECONDS_PER_SESSION" \
-        --rate 1 --max-lag "$MAX_LAG" --preload --start-at "$client_start" --name "$name-$i-$seq" --no-progress \
+    "${CLIENT_TASKSET[@]}" "$OA" stream --server "$url" --dataset "$(dataset "$seq")" --start "$START_S" \
+        --duration "$SECONDS_PER_SESSION" --rate "$RATE" --max-lag "$MAX_LAG" --preload --start-at "$client_start" --name "$name-$i-$seq" --no-progress \
         --stats "$dir/${i}_$seq.json" > "$dir/${i}_$seq.txt" 2>&1 &
     pids+=($!)
   done

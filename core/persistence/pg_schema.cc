@@ -1,0 +1,59 @@
+#include "core/persistence/pg_schema.h"
+
+#include "core/common/error.h"
+#include "persistence_generated/embedded_pg_schema.h"
+
+namespace orbatlas {
+namespace {
+
+// pg_advisory_xact_lock's key for migrations (any constant the atlas owns).
+constexpr std::int64_t kMigrationLockKey = 0x6f72626174;  // "orbat"
+
+}  // namespace
+
+std::span<const SchemaMigration> postgres_schema_migrations() {
+  return persistence_detail::kEmbeddedPostgresMigrations;
+}
+
+int latest_postgres_schema_version() { return postgres_schema_migrations().back().version; }
+
+int read_postgres_schema_version(PgDb& db) {
+  if (db.query_int64("SELECT to_regclass('schema_migrations') IS NOT NULL") == 0) return 0;
+  const std::int64_t version = db.query_int64("SELECT coalesce(max(version), 0) FROM schema_migrations");
+  ORBATLAS_DATA_CHECK(version >= 0, db.description() << ": negative schema version " << version);
+  return static_cast<int>(version);
+}
+
+void check_postgres_schema_supported(PgDb& db) {
+  const int version = read_postgres_schema_version(db);
+  ORBATLAS_DATA_CHECK(version <= latest_postgres_schema_version(),
+                      db.description() << ": atlas schema version " << version
+                                       << " is newer than this build understands (up to "
+                                       << latest_postgres_schema_version() << "); use a newer orbatlas");
+  if (version == 0) {
+    const std::int64_t tables =
+        db.query_int64("SELECT count(*) FROM information_schema.tables WHERE table_schema = current_schema()");
+    ORBATLAS_DATA_CHECK(tables == 0, db.description() << ": a PostgreSQL database that is not an orbatlas atlas ("
+                                                      << tables << " tables but no schema_migrations)");
+  }
+}
+
+void migrate_postgres_schema(PgDb& db, TimestampNs now_ns) {
+  check_postgres_schema_supported(db);
+  for (const SchemaMigration& migration : postgres_schema_migrations()) {
+    if (read_postgres_schema_version(db) >= migration.version) continue;
+    PgTransaction transaction(db);
+    db.prepare("SELECT pg_advisory_xact_lock(?1)").bind_int64(1, kMigrationLockKey).run();
+    // Re-read under the lock: another replica may have migrated meanwhile.
+    if (read_postgres_schema_version(db) >= migration.version) continue;
+    db.exec(migration.sql);
+    db.prepare("INSERT INTO schema_migrations(version, name, applied_ns) VALUES (?1, ?2, ?3)")
+        .bind_int64(1, migration.version)
+        .bind_text(2, migration.name)
+        .bind_int64(3, now_ns)
+        .run();
+    transaction.commit();
+  }
+}
+
+}  // namespace orbatlas
