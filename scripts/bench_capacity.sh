@@ -39,6 +39,9 @@ LOOK="${LOOK:-real}"
 MAX_LAG="${MAX_LAG:-0.1}"
 PHASES="${PHASES:-together}"
 RATE="${RATE:-1}"
+# Background threads (mapping, loop closing, merging) at this nice value: 10
+# serves live sessions' tracking first (docs/api.md, --background-nice).
+BACKGROUND_NICE="${BACKGROUND_NICE:-10}"
 # taskset prefixes: the server's and the clients' CPUs (empty: any)
 SERVER_TASKSET=(); [ -n "${SERVER_CPUS:-}" ] && SERVER_TASKSET=(taskset -c "$SERVER_CPUS")
 CLIENT_TASKSET=(); [ -n "${CLIENT_CPUS:-}" ] && CLIENT_TASKSET=(taskset -c "$CLIENT_CPUS")
@@ -69,7 +72,8 @@ run_sessions() {
   rm -rf "$dir"
   mkdir -p "$dir"
   # shellcheck disable=SC2086  # SERVER_FLAGS: several flags, split on spaces
-  "${SERVER_TASKSET[@]}" "$SERVER_BIN" --db "$dir/atlas.db" --listen 127.0.0.1:0 --port-file "$dir/port" ${SERVER_FLAGS:-} 2>"$dir/server.log" &
+  "${SERVER_TASKSET[@]}" "$SERVER_BIN" --db "$dir/atlas.db" --listen 127.0.0.1:0 --port-file "$dir/port" \
+      --background-nice "$BACKGROUND_NICE" ${SERVER_FLAGS:-} 2>"$dir/server.log" &
   SERVER_PID=$!
   for _ in $(seq 1 300); do [ -s "$dir/port" ] && break; sleep 0.1; done
   [ -s "$dir/port" ] || { cat "$dir/server.log" >&2; echo "bench_capacity: the server did not start" >&2; exit 1; }

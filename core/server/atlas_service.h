@@ -67,11 +67,13 @@ struct AtlasServiceOptions {
   // The nice value (0..19) of every background thread: local mapping, loop
   // closing and its global BAs, map merging (thread_priority.h); above 0 the
   // sessions' tracking is served first on a loaded machine, mapping takes the
-  // cores' rest. 10 by default since tracking got cheaper: four sessions on two
-  // cores (1.4 of them busy) were late 4.7 % of the time at 0, 1.4-1.6 % at 10,
-  // their error varying as much from run to run either way (0.006-0.019 m); on a machine already saturated (stop 37) it
-  // starved mapping instead (docs/benchmarks.md, "Capacity"). 0: all alike.
-  int background_nice = 10;
+  // cores' rest. For live sessions at the camera's rate, 10 measured best: four
+  // sessions on two cores were late 4.7 % of the time at 0, 1.4-1.6 % at 10
+  // (docs/benchmarks.md, "Capacity"). 0 by default because a stream sent as
+  // fast as the server takes it (an upload, a test) keeps tracking busy and
+  // starves mapping at 10: a single camera's map then ended with scale errors of
+  // 0.13-0.46 % instead of 0-0.18 % (ServerMerging.TheMergingWorkerMerges...).
+  int background_nice = 0;
 
   // Throws Error naming the first value out of range (also of the parts).
   void check() const;
