@@ -679,8 +679,11 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
       const StreamReport report = stream_dataset(client, test::stream_options(clip));
       EXPECT_EQ(report.tracked, report.frames);
       sessions.push_back(report.session);
-      ASSERT_FALSE(report.trajectory_maps.empty());
-      stream_maps.push_back(report.trajectory_maps.front());
+      // The map the replies named while it streamed: the trajectory, fetched
+      // after the session finished, may already be in the merged map (the
+      // merge starts when the session finishes and has once won that race).
+      ASSERT_FALSE(report.reply_maps.empty());
+      stream_maps.push_back(report.reply_maps.front());
     }
     const auto merges = wait_for_merges(client);
     ASSERT_EQ(merges["merges"].size(), 1u) << merges.dump(2);
