@@ -6,7 +6,6 @@
 
 #include <cmath>
 #include <limits>
-#include <sstream>
 #include <string>
 
 #include "core/common/error.h"
@@ -25,35 +24,7 @@ TEST(SqliteParamsToPostgres, NumbersBareMarksAndQuotes) {
   EXPECT_EQ(sqlite_params_to_postgres("SELECT 1"), "SELECT 1");
 }
 
-class PgDbTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    std::string why;
-    cluster_ = test::ThrowawayPostgres::start(&why).release();
-    if (!cluster_) skip_reason_ = new std::string(why);
-  }
-  static void TearDownTestSuite() {
-    delete cluster_;
-    cluster_ = nullptr;
-    delete skip_reason_;
-    skip_reason_ = nullptr;
-  }
-  void SetUp() override {
-    if (!cluster_) GTEST_SKIP() << *skip_reason_;
-    static int n = 0;
-    std::ostringstream name;  // (a chain of string + here makes GCC 12 warn falsely, -Wrestrict)
-    name << "t" << ++n;
-    name_ = name.str();
-    cluster_->create_database(name_);
-    db_ = std::make_unique<PgDb>(cluster_->conninfo(name_));
-  }
-  static test::ThrowawayPostgres* cluster_;
-  static std::string* skip_reason_;
-  std::string name_;
-  std::unique_ptr<PgDb> db_;
-};
-test::ThrowawayPostgres* PgDbTest::cluster_ = nullptr;
-std::string* PgDbTest::skip_reason_ = nullptr;
+using PgDbTest = test::PostgresDatabaseTest;
 
 TEST_F(PgDbTest, ValuesRoundTripExactly) {
   db_->exec("CREATE TABLE v (id bigint PRIMARY KEY, r double precision, t text, b bytea, i int, s smallint)");
@@ -124,7 +95,7 @@ TEST_F(PgDbTest, TransactionsCommitAndRollBack) {
 
   // A read transaction sees one snapshot: another connection's commit stays
   // invisible until it ends.
-  PgDb other(cluster_->conninfo(name_));
+  PgDb other(cluster().conninfo(name_));
   {
     PgTransaction read(*db_, PgTransaction::Mode::kRead);
     EXPECT_EQ(db_->query_int64("SELECT count(*) FROM k"), 1);

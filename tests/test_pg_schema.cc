@@ -68,33 +68,7 @@ Schema postgres_schema(PgDb& db) {
   return schema;
 }
 
-class PgSchemaTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    std::string why;
-    cluster_ = test::ThrowawayPostgres::start(&why).release();
-    if (!cluster_) skip_reason_ = new std::string(why);
-  }
-  static void TearDownTestSuite() {
-    delete cluster_;
-    cluster_ = nullptr;
-    delete skip_reason_;
-    skip_reason_ = nullptr;
-  }
-  void SetUp() override {
-    if (!cluster_) GTEST_SKIP() << *skip_reason_;
-    static int n = 0;
-    std::ostringstream name;  // (a chain of string + here makes GCC 12 warn falsely, -Wrestrict)
-    name << "s" << ++n;
-    cluster_->create_database(name.str());
-    db_ = std::make_unique<PgDb>(cluster_->conninfo(name.str()));
-  }
-  static test::ThrowawayPostgres* cluster_;
-  static std::string* skip_reason_;
-  std::unique_ptr<PgDb> db_;
-};
-test::ThrowawayPostgres* PgSchemaTest::cluster_ = nullptr;
-std::string* PgSchemaTest::skip_reason_ = nullptr;
+using PgSchemaTest = test::PostgresDatabaseTest;
 
 TEST_F(PgSchemaTest, TheTablesAndColumnsAreSqlitesInPostgresqlsDialect) {
   EXPECT_EQ(read_postgres_schema_version(*db_), 0);

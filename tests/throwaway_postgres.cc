@@ -103,4 +103,21 @@ void ThrowawayPostgres::create_database(const std::string& name) {
   db.exec("CREATE DATABASE \"" + name + "\"");
 }
 
+std::unique_ptr<ThrowawayPostgres> PostgresDatabaseTest::cluster_;
+std::string PostgresDatabaseTest::skip_reason_;
+
+void PostgresDatabaseTest::SetUpTestSuite() { cluster_ = ThrowawayPostgres::start(&skip_reason_); }
+
+void PostgresDatabaseTest::TearDownTestSuite() { cluster_.reset(); }
+
+void PostgresDatabaseTest::SetUp() {
+  if (!cluster_) GTEST_SKIP() << skip_reason_;
+  static int n = 0;
+  std::ostringstream name;  // (a chain of string + here makes GCC 12 warn falsely, -Wrestrict)
+  name << "t" << ++n;
+  name_ = name.str();
+  cluster_->create_database(name_);
+  db_ = std::make_unique<PgDb>(cluster_->conninfo(name_));
+}
+
 }  // namespace orbatlas::test

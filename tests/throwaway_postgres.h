@@ -5,9 +5,13 @@
 // binaries are Debian's (`postgresql`, installed by scripts/setup.sh); as root,
 // initdb and the server run as the `postgres` user, since PostgreSQL refuses
 // to run as root.
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <memory>
 #include <string>
+
+#include "core/persistence/pg_db.h"
 
 namespace orbatlas::test {
 
@@ -35,6 +39,24 @@ class ThrowawayPostgres {
   std::filesystem::path dir_, bin_;
   bool as_postgres_ = false;
   bool running_ = false;
+};
+
+// A test with a fresh database of its own (db_, named name_) in a cluster that
+// the test suite starts once and stops at its end; skipped, with the reason,
+// where PostgreSQL cannot run.
+class PostgresDatabaseTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite();
+  static void TearDownTestSuite();
+  void SetUp() override;
+
+  static ThrowawayPostgres& cluster() { return *cluster_; }
+  std::string name_;
+  std::unique_ptr<PgDb> db_;
+
+ private:
+  static std::unique_ptr<ThrowawayPostgres> cluster_;
+  static std::string skip_reason_;
 };
 
 }  // namespace orbatlas::test

@@ -93,42 +93,38 @@ void PgStatement::Clearer::operator()(pg_result* result) const { PQclear(result)
 PgStatement::PgStatement(pg_conn* conn, std::string description, std::string sql)
     : conn_(conn), description_(std::move(description)), sql_(std::move(sql)) {}
 
-PgStatement& PgStatement::bind_int64(int index, std::int64_t value) {
+PgStatement::Param& PgStatement::param(int index) {
   ORBATLAS_CHECK(index >= 1, description_ << ": parameter index " << index << " (they start at 1)");
   if (params_.size() < static_cast<std::size_t>(index)) params_.resize(static_cast<std::size_t>(index));
+  return params_[static_cast<std::size_t>(index - 1)];
+}
+
+PgStatement& PgStatement::bind_int64(int index, std::int64_t value) {
   const std::uint64_t be = htobe64(static_cast<std::uint64_t>(value));
-  params_[static_cast<std::size_t>(index - 1)] = {std::string(reinterpret_cast<const char*>(&be), 8), kInt8Oid, 1};
+  param(index) = {std::string(reinterpret_cast<const char*>(&be), 8), kInt8Oid};
   return *this;
 }
 
 PgStatement& PgStatement::bind_real(int index, double value) {
-  ORBATLAS_CHECK(index >= 1, description_ << ": parameter index " << index << " (they start at 1)");
-  if (params_.size() < static_cast<std::size_t>(index)) params_.resize(static_cast<std::size_t>(index));
   std::uint64_t bits;
   std::memcpy(&bits, &value, 8);
   const std::uint64_t be = htobe64(bits);
-  params_[static_cast<std::size_t>(index - 1)] = {std::string(reinterpret_cast<const char*>(&be), 8), kFloat8Oid, 1};
+  param(index) = {std::string(reinterpret_cast<const char*>(&be), 8), kFloat8Oid};
   return *this;
 }
 
 PgStatement& PgStatement::bind_text(int index, std::string_view text) {
-  ORBATLAS_CHECK(index >= 1, description_ << ": parameter index " << index << " (they start at 1)");
-  if (params_.size() < static_cast<std::size_t>(index)) params_.resize(static_cast<std::size_t>(index));
-  params_[static_cast<std::size_t>(index - 1)] = {std::string(text), kTextOid, 1};  // text's binary form: its bytes
+  param(index) = {std::string(text), kTextOid};  // text's binary form: its bytes
   return *this;
 }
 
 PgStatement& PgStatement::bind_blob(int index, std::string_view bytes) {
-  ORBATLAS_CHECK(index >= 1, description_ << ": parameter index " << index << " (they start at 1)");
-  if (params_.size() < static_cast<std::size_t>(index)) params_.resize(static_cast<std::size_t>(index));
-  params_[static_cast<std::size_t>(index - 1)] = {std::string(bytes), kByteaOid, 1};
+  param(index) = {std::string(bytes), kByteaOid};
   return *this;
 }
 
 PgStatement& PgStatement::bind_null(int index) {
-  ORBATLAS_CHECK(index >= 1, description_ << ": parameter index " << index << " (they start at 1)");
-  if (params_.size() < static_cast<std::size_t>(index)) params_.resize(static_cast<std::size_t>(index));
-  params_[static_cast<std::size_t>(index - 1)] = Param{};
+  param(index) = Param{};
   return *this;
 }
 
@@ -136,13 +132,13 @@ bool PgStatement::step() {
   if (!ran_) {
     std::vector<unsigned> oids;
     std::vector<const char*> values;
-    std::vector<int> lengths, formats;
+    std::vector<int> lengths;
     for (const Param& p : params_) {
       oids.push_back(p.oid);
       values.push_back(p.bytes ? p.bytes->data() : nullptr);
       lengths.push_back(p.bytes ? static_cast<int>(p.bytes->size()) : 0);
-      formats.push_back(p.format);
     }
+    const std::vector<int> formats(params_.size(), 1);  // every parameter in binary
     result_.reset(PQexecParams(conn_, sql_.c_str(), static_cast<int>(params_.size()), oids.data(), values.data(),
                                lengths.data(), formats.data(), 1));
     const ExecStatusType status = result_ ? PQresultStatus(result_.get()) : PGRES_FATAL_ERROR;

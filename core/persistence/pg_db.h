@@ -61,14 +61,16 @@ class PgStatement {
   void check_row(int column) const;
   [[noreturn]] void fail_type(int column, const char* expected) const;
   struct Param {
-    std::optional<std::string> bytes;  // network byte order for numbers; nullopt: NULL
+    std::optional<std::string> bytes;  // binary form (numbers in network byte order); nullopt: NULL
     unsigned oid = 0;
-    int format = 1;  // 1 binary, 0 text
   };
 
   pg_conn* conn_ = nullptr;  // borrowed from the PgDb that prepared it
   std::string description_;  // the server, for messages
   std::string sql_;
+  // Parameter `index` (1-based), the ones before it NULL until bound.
+  Param& param(int index);
+
   std::vector<Param> params_;
   struct Clearer {
     void operator()(pg_result* result) const;

@@ -472,7 +472,6 @@ bool Tracker::track_local_map(Frame& frame) {
   // mapping; a localisation changes nothing in the map, these counts included.
   const bool count = !options_.localization_only;
   std::unordered_set<MapPointId> seen;
-  seen.reserve(frame.size() + local_keyframes_.size() * 256);
   for (std::size_t i = 0; i < frame.size(); ++i) {
     const auto& mp = frame.map_points[i];
     if (!mp || mp->is_bad()) continue;
