@@ -18,6 +18,7 @@
 #include "core/map/atlas.h"
 #include "core/persistence/atlas_checkpointer.h"
 #include "core/persistence/atlas_store.h"
+#include "core/persistence/sqlite_db.h"
 #include "core/vocabulary/default_vocabulary.h"
 #include "core/vocabulary/vocabulary.h"
 

@@ -1,5 +1,6 @@
-// Persistent atlas: SQLite schema, Cereal blobs, save / load round trips, and the
-// refusals that must leave a file untouched.
+// Persistent atlas: SQLite schema, Cereal blobs, save / load round trips (on
+// SQLite and on PostgreSQL: PersistenceBackends), and the refusals that must
+// leave a file untouched.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -19,6 +20,7 @@
 #include "core/persistence/blob_codec.h"
 #include "core/persistence/schema_migrations.h"
 #include "core/persistence/sqlite_db.h"
+#include "tests/persistence_backends.h"
 #include "tests/test_persistence_expect.h"
 #include "tests/test_persistence_random_atlas.h"
 
@@ -54,6 +56,10 @@ std::string data_error_message(F&& f) {
   ADD_FAILURE() << "expected DataError, nothing thrown";
   return {};
 }
+
+// The tests whose bodies run on both backends (tests/persistence_backends.h).
+using PersistenceBackends = AtlasBackendTest;
+ORBATLAS_PERSISTENCE_BACKENDS(PersistenceBackends);
 
 // --- tests ---
 
@@ -121,8 +127,7 @@ TEST(Persistence, VersionOneAtlasMigratesForward) {
   expect_atlas_eq(atlas, again, false);
 }
 
-TEST(Persistence, AtlasRoundTripKeepsEveryField) {
-  TempDb db("roundtrip");
+TEST_P(PersistenceBackends, AtlasRoundTripKeepsEveryField) {
   const Vocabulary& vocabulary = test_vocabulary();
   Atlas original;
   build_atlas(original, vocabulary, 11);
@@ -140,10 +145,10 @@ TEST(Persistence, AtlasRoundTripKeepsEveryField) {
   EXPECT_GT(asymmetric, 0);
   EXPECT_GT(redundant, 0);
   {
-    AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+    AtlasStore store = open_store(vocabulary.hash());
     store.save_atlas(original);
   }
-  AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+  AtlasStore store = open_store(vocabulary.hash());
   EXPECT_EQ(store.stored_map_ids().size(), 3u);
   Atlas loaded;
   const AtlasLoadReport report = store.load_atlas(loaded, &vocabulary);
@@ -213,23 +218,21 @@ TEST(Persistence, AtlasRoundTripKeepsEveryField) {
   EXPECT_TRUE(other.maps().empty());
 }
 
-TEST(Persistence, LoadingWithoutVocabularyLeavesBowEmpty) {
-  TempDb db("nobow");
+TEST_P(PersistenceBackends, LoadingWithoutVocabularyLeavesBowEmpty) {
   Atlas original;
   build_atlas(original, test_vocabulary(), 12);
-  AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+  AtlasStore store = open_store(test_vocabulary().hash());
   store.save_atlas(original);
   Atlas loaded;
   store.load_atlas(loaded, nullptr);
   expect_atlas_eq(original, loaded, false);
 }
 
-TEST(Persistence, SavingAgainReplacesTheStoredMaps) {
-  TempDb db("resave");
+TEST_P(PersistenceBackends, SavingAgainReplacesTheStoredMaps) {
   const Vocabulary& vocabulary = test_vocabulary();
   Atlas atlas;
   build_atlas(atlas, vocabulary, 13);
-  AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+  AtlasStore store = open_store(vocabulary.hash());
   SessionInfo session;
   session.id = 7;
   session.name = "MH_01";
@@ -365,9 +368,8 @@ TEST(Persistence, VersionFiveSessionsSurviveTheRebuildForRgbd) {
   EXPECT_THROW(store.save_trajectory(99, {FrameAnchor{1, 0, 1, Pose3()}}), Error);
 }
 
-TEST(Persistence, SessionsRoundTrip) {
-  TempDb db("sessions");
-  AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+TEST_P(PersistenceBackends, SessionsRoundTrip) {
+  AtlasStore store = open_store(test_vocabulary().hash());
   SessionInfo stereo;
   stereo.id = 3;
   stereo.name = "MH_01_easy stereo";
@@ -413,9 +415,8 @@ TEST(Persistence, SessionsRoundTrip) {
   expect_session_eq(*store.load_session(3), stereo);
 }
 
-TEST(Persistence, TrajectoryRoundTrip) {
-  TempDb db("trajectory");
-  AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+TEST_P(PersistenceBackends, TrajectoryRoundTrip) {
+  AtlasStore store = open_store(test_vocabulary().hash());
   SessionInfo session;
   session.id = 2;
   store.save_session(session);
@@ -449,6 +450,24 @@ TEST(Persistence, TrajectoryRoundTrip) {
   EXPECT_EQ(store.load_trajectory(2)[0].t_ns, anchors[7].t_ns);
   // Unknown session.
   EXPECT_THROW(store.save_trajectory(6, anchors), Error);
+}
+
+// Opening refuses, before writing anything, another application's database and
+// an atlas of another vocabulary (the file-level refusals are SQLite's, below).
+TEST_P(PersistenceBackends, OpeningRefusesAnotherApplicationsDatabaseAndAnotherVocabulary) {
+  const std::unique_ptr<SqlConnection> raw = raw_connection();
+  raw->exec("CREATE TABLE notes (id bigint PRIMARY KEY)");
+  std::string message = data_error_message([&] { open_store(test_vocabulary().hash()); });
+  EXPECT_NE(message.find("not an orbatlas atlas"), std::string::npos) << message;
+  EXPECT_THROW(raw->query_int64("SELECT count(*) FROM atlas"), Error);  // nothing created
+  raw->exec("DROP TABLE notes");
+
+  { open_store(test_vocabulary().hash()).save_session(SessionInfo{}); }
+  message = data_error_message([&] { open_store(kOtherHash); });
+  EXPECT_NE(message.find("vocabulary"), std::string::npos) << message;
+  EXPECT_NE(message.find(test_vocabulary().hash()), std::string::npos) << message;
+  EXPECT_NE(message.find(kOtherHash), std::string::npos) << message;
+  EXPECT_EQ(open_store(test_vocabulary().hash()).load_sessions().size(), 1u);
 }
 
 TEST(Persistence, ForeignVocabularyIsRefusedAndTheFileIsUntouched) {

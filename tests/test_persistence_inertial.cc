@@ -2,15 +2,16 @@
 // inertial links (the IMU increments between them), their IMU states
 // (velocity, biases) and the map's inertial state are stored and loaded equal;
 // a save after culling stores the joined increments, a checkpoint a refined
-// IMU state; a corrupt increments blob is a DataError.
+// IMU state; a corrupt increments blob is a DataError. On SQLite and on
+// PostgreSQL (tests/persistence_backends.h).
 #include <gtest/gtest.h>
 
 #include <random>
 
 #include "core/common/error.h"
-#include "core/persistence/atlas_checkpointer.h"
+#include "core/persistence/atlas_checkpoint_writer.h"
 #include "core/persistence/atlas_store.h"
-#include "core/persistence/sqlite_db.h"
+#include "tests/persistence_backends.h"
 #include "tests/test_persistence_expect.h"
 #include "tests/test_persistence_random_atlas.h"
 
@@ -60,8 +61,10 @@ std::shared_ptr<Map> inertial_map(Atlas& atlas, std::mt19937_64& rng, const Voca
   return map;
 }
 
-TEST(Persistence, InertialLinksAndStatesRoundTripAndFollowCulling) {
-  TempDb db("inertial");
+using PersistenceInertial = AtlasBackendTest;
+ORBATLAS_PERSISTENCE_BACKENDS(PersistenceInertial);
+
+TEST_P(PersistenceInertial, LinksAndStatesRoundTripAndFollowCulling) {
   const Vocabulary& vocabulary = test_vocabulary();
   std::mt19937_64 rng(23);
   Atlas original;
@@ -69,11 +72,11 @@ TEST(Persistence, InertialLinksAndStatesRoundTripAndFollowCulling) {
   auto map = inertial_map(original, rng, vocabulary, kfs);
   original.create_map();  // a visual map next to it: no state, no links
   {
-    AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+    AtlasStore store = open_store(vocabulary.hash());
     store.save_atlas(original);
   }
   {
-    AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+    AtlasStore store = open_store(vocabulary.hash());
     Atlas loaded;
     const AtlasLoadReport report = store.load_atlas(loaded, &vocabulary);
     EXPECT_EQ(report.inertial_links, 4u);
@@ -95,7 +98,7 @@ TEST(Persistence, InertialLinksAndStatesRoundTripAndFollowCulling) {
   moved.bias.gyro.z() -= 1e-4;
   kfs[4]->set_imu_state(moved);
   {
-    AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+    AtlasStore store = open_store(vocabulary.hash());
     store.save_atlas(original);
     Atlas loaded;
     const AtlasLoadReport report = store.load_atlas(loaded, &vocabulary);
@@ -106,32 +109,31 @@ TEST(Persistence, InertialLinksAndStatesRoundTripAndFollowCulling) {
               kfs[3]->inertial_link()->from_previous->dt());
   }
 
-  // A checkpoint writes a refined IMU state, and only that row.
+  // A checkpoint writes a refined IMU state, and only that row (the first
+  // checkpoint rewrites every map, as save_atlas does).
   {
-    TempDb checkpoints("inertial_checkpoints");
-    CheckpointOptions manual;
-    manual.every_keyframes = 0;
-    manual.every_seconds = 0;
-    AtlasCheckpointer checkpointer(original, checkpoints.path(), vocabulary.hash(), manual);
-    ASSERT_TRUE(checkpointer.checkpoint_now());
+    AtlasCheckpointWriter writer(original, open_store(vocabulary.hash()), std::nullopt);
+    writer.set_durable(false);  // as AtlasCheckpointer's connection between its final checkpoints
+    ASSERT_TRUE(writer.checkpoint().committed);
     KeyFrame::ImuState again = *kfs[1]->imu_state();
     again.v_i.z() -= 0.02;
     again.bias.accel.y() += 0.001;
     kfs[1]->set_imu_state(again);
-    ASSERT_TRUE(checkpointer.checkpoint_now());
-    EXPECT_EQ(checkpointer.stats().last_rows.updated, 1u);
-    EXPECT_EQ(checkpointer.stats().last_rows.total(), 1u);
-    AtlasStore store = AtlasStore::open(checkpoints.path(), vocabulary.hash());
+    const CheckpointResult result = writer.checkpoint();
+    ASSERT_TRUE(result.committed);
+    EXPECT_EQ(result.rows.updated, 1u);
+    EXPECT_EQ(result.rows.total(), 1u);
+    AtlasStore store = open_store(vocabulary.hash());
     Atlas loaded;
     store.load_atlas(loaded, &vocabulary);
     expect_atlas_eq(original, loaded, true);
   }
 
   // The IMU in the camera stored in part: the load fails with a DataError naming the link.
+  const std::unique_ptr<SqlConnection> raw = raw_connection();
   {
-    SqliteDb raw(db.path());
-    raw.exec("UPDATE keyframe_inertial_links SET c_i_tx = NULL WHERE keyframe_id = " + std::to_string(kfs[4]->id()));
-    AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+    raw->exec("UPDATE keyframe_inertial_links SET c_i_tx = NULL WHERE keyframe_id = " + std::to_string(kfs[4]->id()));
+    AtlasStore store = open_store(vocabulary.hash());
     Atlas broken;
     try {
       store.load_atlas(broken, &vocabulary);
@@ -139,15 +141,14 @@ TEST(Persistence, InertialLinksAndStatesRoundTripAndFollowCulling) {
     } catch (const DataError& e) {
       EXPECT_NE(std::string(e.what()).find("IMU in the camera is stored in part"), std::string::npos) << e.what();
     }
-    raw.exec("UPDATE keyframe_inertial_links SET c_i_tx = 0.02 WHERE keyframe_id = " + std::to_string(kfs[4]->id()));
+    raw->exec("UPDATE keyframe_inertial_links SET c_i_tx = 0.02 WHERE keyframe_id = " + std::to_string(kfs[4]->id()));
   }
   // A corrupt increments blob: the load fails with a DataError naming the link.
-  {
-    SqliteDb raw(db.path());
-    raw.exec("UPDATE keyframe_inertial_links SET increments = x'0000803f' WHERE keyframe_id = " +
-             std::to_string(kfs[4]->id()));
-  }
-  AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+  raw->prepare_statement("UPDATE keyframe_inertial_links SET increments = ?1 WHERE keyframe_id = ?2")
+      ->bind_blob(1, std::string("\x00\x00\x80\x3f", 4))
+      .bind_int64(2, static_cast<std::int64_t>(kfs[4]->id()))
+      .run();
+  AtlasStore store = open_store(vocabulary.hash());
   Atlas broken;
   try {
     store.load_atlas(broken, &vocabulary);

@@ -22,6 +22,13 @@ TEST(SqliteParamsToPostgres, NumbersBareMarksAndQuotes) {
   EXPECT_EQ(sqlite_params_to_postgres("SELECT '?', \"a?\" WHERE x = ?"), "SELECT '?', \"a?\" WHERE x = $1");
   EXPECT_EQ(sqlite_params_to_postgres("SELECT 'it''s ?' || ?"), "SELECT 'it''s ?' || $1");
   EXPECT_EQ(sqlite_params_to_postgres("SELECT 1"), "SELECT 1");
+  int count = -1;  // the statement's parameters: the largest number
+  sqlite_params_to_postgres("VALUES (?3, ?)", &count);
+  EXPECT_EQ(count, 4);
+  sqlite_params_to_postgres("VALUES (?2, ?7, ?1)", &count);
+  EXPECT_EQ(count, 7);
+  sqlite_params_to_postgres("SELECT '?5'", &count);
+  EXPECT_EQ(count, 0);
 }
 
 using PgDbTest = test::PostgresDatabaseTest;
@@ -77,6 +84,20 @@ TEST_F(PgDbTest, ValuesRoundTripExactly) {
   update.reset();
   update.bind_int64(1, 9).run();  // reset: runs again with new bindings
   EXPECT_EQ(update.changes(), 0);
+
+  // Parameters left unbound are NULL, the last ones too (as in SQLite), also
+  // after a reset; an index past the statement's parameters is refused.
+  PgStatement partial = db_->prepare("SELECT ?1::bigint IS NULL, ?2::bigint IS NULL");
+  partial.bind_int64(1, 5);
+  ASSERT_TRUE(partial.step());
+  EXPECT_EQ(partial.int64(0), 0);
+  EXPECT_EQ(partial.int64(1), 1);
+  partial.reset();
+  ASSERT_TRUE(partial.step());
+  EXPECT_EQ(partial.int64(0), 1);
+  partial.reset();
+  EXPECT_THROW(partial.bind_int64(3, 1), Error);
+  EXPECT_THROW(partial.bind_int64(0, 1), Error);
 }
 
 TEST_F(PgDbTest, TransactionsCommitAndRollBack) {

@@ -22,13 +22,20 @@ AtlasCheckpointWriter::AtlasCheckpointWriter(const Atlas& atlas, AtlasStore stor
 }
 
 void AtlasCheckpointWriter::set_durable(bool durable) {
-  store_.db_.exec(durable ? "PRAGMA synchronous = FULL" : "PRAGMA synchronous = NORMAL");
+  SqlConnection& db = *store_.db_;
+  if (db.dialect() == SqlDialect::kSqlite) {
+    db.exec(durable ? "PRAGMA synchronous = FULL" : "PRAGMA synchronous = NORMAL");
+  } else {
+    // The same trade on PostgreSQL: off, a commit returns before its WAL
+    // record is flushed (a server crash may lose the last ones, never consistency).
+    db.exec(durable ? "SET synchronous_commit = on" : "SET synchronous_commit = off");
+  }
 }
 
 void AtlasCheckpointWriter::add_session(CheckpointSession session) {
   for (const SessionState& s : sessions_)
     ORBATLAS_CHECK(s.session.info.id != session.info.id,
-                   store_.path().string() << ": session " << session.info.id << " is already checkpointed");
+                   store_.location() << ": session " << session.info.id << " is already checkpointed");
   SessionState state;
   state.session = std::move(session);
   sessions_.push_back(std::move(state));
@@ -57,11 +64,11 @@ AtlasCheckpointWriter::NewFrames AtlasCheckpointWriter::new_frames(const Session
   if (!state.session.trajectory) return out;
   std::optional<TimestampNs> last = state.last_t;
   for (const FrameAnchor& a : state.session.trajectory(state.taken)) {
-    ORBATLAS_CHECK(!last || a.t_ns > *last,
-                   store_.path().string()
-                       << ": session " << state.session.info.id
-                       << (last && a.t_ns == *last ? ": two frames at timestamp " : ": a frame out of time order at ")
-                       << a.t_ns);
+    ORBATLAS_CHECK(!last || a.t_ns > *last, store_.location()
+                                                << ": session " << state.session.info.id
+                                                << (last && a.t_ns == *last ? ": two frames at timestamp "
+                                                                            : ": a frame out of time order at ")
+                                                << a.t_ns);
     last = a.t_ns;
     out.frames.push_back({a, 0});
     ++out.taken;
@@ -90,7 +97,7 @@ std::vector<FrameAnchor> AtlasCheckpointWriter::take_storable(std::vector<Pendin
 }
 
 CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& before_transaction) {
-  SqliteDb& db = store_.db_;
+  SqlConnection& db = *store_.db_;
   const TimestampNs now = unix_time_ns();
   const bool full = !has_committed_;
   if (full) stored_sessions_ = AtlasRowWriter(db).stored_keyframe_sessions();
@@ -126,7 +133,7 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   CheckpointResult result;
   result.full = full;
   if (before_transaction) before_transaction();
-  SqliteTransaction transaction(db);
+  SqlTransaction transaction(db);
   {
     AtlasRowWriter writer(db);  // its statements are finalized before COMMIT
     for (std::size_t i = 0; i < sessions_.size(); ++i) {

@@ -67,7 +67,8 @@ class AtlasCheckpointWriter {
   CheckpointResult checkpoint(const std::function<void()>& before_transaction = {});
 
   // PRAGMA synchronous: FULL (a commit survives power loss) or NORMAL (a commit
-  // survives a crash of the process; see docs/schema.md).
+  // survives a crash of the process; see docs/schema.md). On PostgreSQL:
+  // synchronous_commit on / off (off: a server crash may lose the last commits).
   void set_durable(bool durable);
 
   AtlasStore& store() { return store_; }

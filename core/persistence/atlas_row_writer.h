@@ -4,20 +4,23 @@
 // inside a write transaction; destroy it before COMMIT (it finalizes its
 // statements). Upserts are INSERT ... ON CONFLICT DO UPDATE, never INSERT OR
 // REPLACE, which would delete the old row and cascade to what references it.
+// The SQL is what SQLite and PostgreSQL both accept (sql_dialect.h for the one
+// difference), so the writer runs on either connection (sql_connection.h).
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <unordered_map>
 
 #include "core/map/frame_anchor.h"
 #include "core/persistence/atlas_rows.h"
-#include "core/persistence/sqlite_db.h"
+#include "core/persistence/sql_connection.h"
 
 namespace orbatlas {
 
 class AtlasRowWriter {
  public:
-  explicit AtlasRowWriter(SqliteDb& db);
+  explicit AtlasRowWriter(SqlConnection& db);
 
   // The session stored for each keyframe that has one.
   std::unordered_map<KeyframeId, SessionId> stored_keyframe_sessions();
@@ -59,8 +62,9 @@ class AtlasRowWriter {
   std::int64_t write_meta(const AtlasMetaRow& meta, TimestampNs saved_ns);
 
  private:
-  const std::string file_;
-  SqliteStatement stored_sessions_, delete_culled_of_map_, delete_points_of_map_, delete_keyframes_of_map_, delete_map_,
+  using Statement = std::unique_ptr<SqlStatement>;
+  const std::string database_;
+  Statement stored_sessions_, delete_culled_of_map_, delete_points_of_map_, delete_keyframes_of_map_, delete_map_,
       upsert_map_, insert_keyframe_, update_keyframe_, delete_keyframe_, upsert_point_, delete_point_, upsert_culled_,
       upsert_inertial_link_, delete_inertial_link_, upsert_imu_state_, delete_imu_state_, upsert_map_inertial_,
       delete_map_inertial_, delete_culled_, insert_observation_, delete_observation_, upsert_covisibility_,

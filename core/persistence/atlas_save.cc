@@ -11,9 +11,9 @@ namespace orbatlas {
 
 void AtlasStore::save_atlas(const Atlas& atlas, const AtlasSaveOptions& options) {
   const TimestampNs now = unix_time_ns();
-  SqliteTransaction transaction(db_);
+  SqlTransaction transaction(*db_);
   {
-    AtlasRowWriter writer(db_);  // its statements are finalized before COMMIT
+    AtlasRowWriter writer(*db_);  // its statements are finalized before COMMIT
     // A keyframe not listed keeps the session stored for it.
     const std::unordered_map<KeyframeId, SessionId> stored = writer.stored_keyframe_sessions();
     const AtlasRows rows = collect_atlas_rows(atlas, [&](KeyframeId id) -> std::optional<SessionId> {

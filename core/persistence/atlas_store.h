@@ -1,8 +1,10 @@
 #pragma once
-// The persistent atlas: one SQLite database (schema/*.sql, docs/schema.md) holding
-// an Atlas — maps, keyframes, map points, observations, the covisibility graph,
-// spanning tree and loop edges — with the sessions that built it and their
-// per-frame trajectories. Blobs are Cereal binary (blob_codec.h).
+// The persistent atlas: one database holding an Atlas — maps, keyframes, map
+// points, observations, the covisibility graph, spanning tree and loop edges —
+// with the sessions that built it and their per-frame trajectories. Blobs are
+// Cereal binary (blob_codec.h). The database is an SQLite file (schema/*.sql,
+// docs/schema.md), or a PostgreSQL database (schema/postgres/*.sql) through
+// the same row code (sql_connection.h; issue 23).
 //
 // One store is one connection, for one thread at a time. Saving reads the atlas
 // through its snapshots; it is exact when no other thread edits the atlas
@@ -10,6 +12,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <unordered_map>
@@ -18,7 +21,7 @@
 #include "core/map/atlas.h"
 #include "core/persistence/job_rows.h"
 #include "core/persistence/session_info.h"
-#include "core/persistence/sqlite_db.h"
+#include "core/persistence/sql_connection.h"
 #include "core/map/frame_anchor.h"
 #include "core/vocabulary/vocabulary.h"
 
@@ -44,14 +47,21 @@ class AtlasStore {
   // an SQLite database, an SQLite database that is not an atlas, a schema newer
   // than this build, and an atlas built with another vocabulary (hash differs).
   static AtlasStore open(const std::filesystem::path& path, const std::string& vocabulary_hash);
+  // The same on PostgreSQL (a libpq connection string or postgresql:// URI):
+  // refuses (DataError, nothing written) a database holding other tables, a
+  // newer schema, and another vocabulary; then migrates (schema/postgres) and
+  // creates the atlas row if missing.
+  static AtlasStore open_postgres(const std::string& conninfo, const std::string& vocabulary_hash);
 
   AtlasStore(AtlasStore&&) noexcept = default;
   AtlasStore& operator=(AtlasStore&&) noexcept = default;
 
-  const std::filesystem::path& path() const { return db_.path(); }
+  SqlDialect dialect() const { return db_->dialect(); }
+  // The database, for messages: the SQLite file's path or "postgresql host:port/db".
+  const std::string& location() const { return db_->description(); }
   const std::string& vocabulary_hash() const { return vocabulary_hash_; }
   TimestampNs created_ns() const { return created_ns_; }
-  int schema_version();
+  int schema_version();  // SQLite: PRAGMA user_version; PostgreSQL: schema_migrations' largest
   // atlas.checkpoint_seq: incremented by every committed save_atlas or checkpoint.
   std::int64_t checkpoint_sequence();
 
@@ -85,16 +95,16 @@ class AtlasStore {
   std::vector<FrameAnchor> load_trajectory(SessionId session);  // by timestamp
 
   // --- upload jobs (job_rows.h) ---
-  void save_job(const StoredJob& job) { write_job(db_, job); }
-  std::vector<StoredJob> load_jobs() { return read_jobs(db_); }
+  void save_job(const StoredJob& job) { write_job(*db_, job); }
+  std::vector<StoredJob> load_jobs() { return read_jobs(*db_); }
 
  private:
   friend class AtlasCheckpointWriter;  // writes through this connection, in its own transactions
 
-  explicit AtlasStore(SqliteDb db) : db_(std::move(db)) {}
+  explicit AtlasStore(std::unique_ptr<SqlConnection> db) : db_(std::move(db)) {}
   void read_metadata();
 
-  SqliteDb db_;
+  std::unique_ptr<SqlConnection> db_;  // never null
   std::string vocabulary_hash_;
   TimestampNs created_ns_ = 0;
 };

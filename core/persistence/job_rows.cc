@@ -4,14 +4,15 @@
 
 namespace orbatlas {
 
-void write_job(SqliteDb& db, const StoredJob& job) {
-  SqliteStatement upsert = db.prepare(
+void write_job(SqlConnection& db, const StoredJob& job) {
+  const std::unique_ptr<SqlStatement> statement = db.prepare_statement(
       "INSERT INTO upload_jobs(id, name, state, session_id, created_ns, archive_bytes, frames_total, frames_done, "
       "tracked, rejected, ate_rmse_m, error) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12) "
       "ON CONFLICT(id) DO UPDATE SET name = excluded.name, state = excluded.state, session_id = excluded.session_id, "
       "archive_bytes = excluded.archive_bytes, frames_total = excluded.frames_total, "
       "frames_done = excluded.frames_done, tracked = excluded.tracked, rejected = excluded.rejected, "
       "ate_rmse_m = excluded.ate_rmse_m, error = excluded.error");
+  SqlStatement& upsert = *statement;
   upsert.bind_int64(1, sql_id(job.id)).bind_text(2, job.name).bind_text(3, job.state);
   if (job.session) {
     upsert.bind_int64(4, sql_id(*job.session));
@@ -32,11 +33,12 @@ void write_job(SqliteDb& db, const StoredJob& job) {
   upsert.bind_text(12, job.error).run();
 }
 
-std::vector<StoredJob> read_jobs(SqliteDb& db) {
+std::vector<StoredJob> read_jobs(SqlConnection& db) {
   std::vector<StoredJob> jobs;
-  SqliteStatement rows = db.prepare(
+  const std::unique_ptr<SqlStatement> statement = db.prepare_statement(
       "SELECT id, name, state, session_id, created_ns, archive_bytes, frames_total, frames_done, tracked, rejected, "
       "ate_rmse_m, error FROM upload_jobs ORDER BY id");
+  SqlStatement& rows = *statement;
   while (rows.step()) {
     StoredJob j;
     j.id = id_column(rows, 0);

@@ -9,7 +9,7 @@
 
 #include "core/common/timestamp.h"
 #include "core/persistence/session_info.h"
-#include "core/persistence/sqlite_db.h"
+#include "core/persistence/sql_connection.h"
 
 namespace orbatlas {
 
@@ -27,7 +27,7 @@ struct StoredJob {
 };
 
 // Inserts or replaces the job's row (one statement: its own transaction).
-void write_job(SqliteDb& db, const StoredJob& job);
-std::vector<StoredJob> read_jobs(SqliteDb& db);  // by id
+void write_job(SqlConnection& db, const StoredJob& job);
+std::vector<StoredJob> read_jobs(SqlConnection& db);  // by id
 
 }  // namespace orbatlas

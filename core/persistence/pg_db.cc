@@ -49,7 +49,7 @@ std::uint64_t load_be64(const char* p) {
 
 }  // namespace
 
-std::string sqlite_params_to_postgres(std::string_view sql) {
+std::string sqlite_params_to_postgres(std::string_view sql, int* parameter_count) {
   std::string out;
   out.reserve(sql.size() + 8);
   long next = 0;  // a bare '?' is one more than the largest number so far, as in SQLite
@@ -83,6 +83,7 @@ std::string sqlite_params_to_postgres(std::string_view sql) {
       out += std::to_string(++next);
     }
   }
+  if (parameter_count) *parameter_count = static_cast<int>(next);
   return out;
 }
 
@@ -90,12 +91,16 @@ std::string sqlite_params_to_postgres(std::string_view sql) {
 
 void PgStatement::Clearer::operator()(pg_result* result) const { PQclear(result); }
 
-PgStatement::PgStatement(pg_conn* conn, std::string description, std::string sql)
-    : conn_(conn), description_(std::move(description)), sql_(std::move(sql)) {}
+PgStatement::PgStatement(pg_conn* conn, std::string description, std::string sql, int parameter_count)
+    : conn_(conn),
+      description_(std::move(description)),
+      sql_(std::move(sql)),
+      params_(static_cast<std::size_t>(parameter_count)) {}
 
 PgStatement::Param& PgStatement::param(int index) {
-  ORBATLAS_CHECK(index >= 1, description_ << ": parameter index " << index << " (they start at 1)");
-  if (params_.size() < static_cast<std::size_t>(index)) params_.resize(static_cast<std::size_t>(index));
+  ORBATLAS_CHECK(index >= 1 && static_cast<std::size_t>(index) <= params_.size(),
+                 description_ << ": parameter index " << index << " out of range (the statement has " << params_.size()
+                              << ", numbered from 1; in \"" << sql_ << "\")");
   return params_[static_cast<std::size_t>(index - 1)];
 }
 
@@ -158,7 +163,7 @@ void PgStatement::run() {
 
 void PgStatement::reset() {
   result_.reset();
-  params_.clear();
+  for (Param& p : params_) p = Param{};
   ran_ = false;
   row_ = -1;
 }
@@ -279,33 +284,23 @@ void PgDb::exec(std::string_view sql) {
 }
 
 PgStatement PgDb::prepare(std::string_view sql) {
-  return PgStatement(conn_.get(), description_, sqlite_params_to_postgres(sql));
+  int parameters = 0;
+  std::string translated = sqlite_params_to_postgres(sql, &parameters);
+  return PgStatement(conn_.get(), description_, std::move(translated), parameters);
+}
+
+std::unique_ptr<SqlStatement> PgDb::prepare_statement(std::string_view sql) {
+  return std::make_unique<PgStatement>(prepare(sql));
+}
+
+void PgDb::begin_transaction(SqlTransactionMode mode) {
+  exec(mode == SqlTransactionMode::kRead ? "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY" : "BEGIN");
 }
 
 std::int64_t PgDb::query_int64(std::string_view sql) {
   PgStatement statement = prepare(sql);
   ORBATLAS_CHECK(statement.step(), description_ << ": \"" << sql << "\" returned no row");
   return statement.int64(0);
-}
-
-// --- PgTransaction ---
-
-PgTransaction::PgTransaction(PgDb& db, Mode mode) : db_(db) {
-  db_.exec(mode == Mode::kRead ? "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY" : "BEGIN");
-}
-
-PgTransaction::~PgTransaction() {
-  if (!open_) return;
-  try {
-    db_.exec("ROLLBACK");
-  } catch (const Error&) {
-    // The connection may be gone; the server rolls back what it never saw committed.
-  }
-}
-
-void PgTransaction::commit() {
-  db_.exec("COMMIT");
-  open_ = false;
 }
 
 }  // namespace orbatlas

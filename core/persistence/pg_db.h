@@ -1,17 +1,19 @@
 #pragma once
 // RAII over one PostgreSQL connection (libpq), its statements and transactions,
-// with the same shape as sqlite_db.h so that the atlas's row code can run on
-// either database (issue 23). Every failure becomes an exception naming the
-// server (host, port, database) and carrying PostgreSQL's message: Error for
-// connection, constraint and syntax failures, DataError for a value of an
-// unexpected type or NULL read by a typed reader, and for data the server
-// reports corrupt (SQLSTATE class XX001/XX002). libpq-fe.h stays out of this
-// header. A connection is used by one thread at a time.
+// implementing the storage interface (sql_connection.h) as sqlite_db.h does,
+// so that the atlas's row code runs on either database (issue 23). Every
+// failure becomes an exception naming the server (host, port, database) and
+// carrying PostgreSQL's message: Error for connection, constraint and syntax
+// failures, DataError for a value of an unexpected type or NULL read by a
+// typed reader, and for data the server reports corrupt (SQLSTATE class
+// XX001/XX002). libpq-fe.h stays out of this header. A connection is used by
+// one thread at a time.
 //
 // SQL is written as for SQLite: parameters `?NNN` (or bare `?`, numbered in
 // order) become PostgreSQL's `$NNN`; nothing inside quotes is touched. Values
 // travel in binary (integers as int8, reals as float8, blobs as bytea), so
-// doubles and blobs round-trip exactly.
+// doubles and blobs round-trip exactly. A statement has as many parameters as
+// its SQL numbers (the largest `?NNN`); those left unbound are NULL, as in SQLite.
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -19,45 +21,49 @@
 #include <string_view>
 #include <vector>
 
+#include "core/persistence/sql_connection.h"
+
 struct pg_conn;
 struct pg_result;
 
 namespace orbatlas {
 
 // `?NNN` and `?` -> `$NNN` outside quoted strings and identifiers (tested).
-std::string sqlite_params_to_postgres(std::string_view sql);
+// `parameter_count`, when given, receives the largest parameter number (0 for none).
+std::string sqlite_params_to_postgres(std::string_view sql, int* parameter_count = nullptr);
 
-class PgStatement {
+class PgStatement final : public SqlStatement {
  public:
   PgStatement(PgStatement&&) noexcept = default;
   PgStatement& operator=(PgStatement&&) noexcept = default;
 
-  // Parameters are 1-based, as in SQLite.
-  PgStatement& bind_int64(int index, std::int64_t value);
-  PgStatement& bind_real(int index, double value);
-  PgStatement& bind_text(int index, std::string_view text);
-  PgStatement& bind_blob(int index, std::string_view bytes);  // empty binds a zero-length bytea, not NULL
-  PgStatement& bind_null(int index);
+  // Parameters are 1-based, as in SQLite; an index above the statement's
+  // parameters throws Error (SQLite: SQLITE_RANGE).
+  PgStatement& bind_int64(int index, std::int64_t value) override;
+  PgStatement& bind_real(int index, double value) override;
+  PgStatement& bind_text(int index, std::string_view text) override;
+  PgStatement& bind_blob(int index, std::string_view bytes) override;  // empty: a zero-length bytea, not NULL
+  PgStatement& bind_null(int index) override;
 
   // The first call runs the statement; true while a row is available.
-  bool step();
+  bool step() override;
   // Runs a statement that returns no row to completion.
-  void run();
-  // Ready to run again: forgets the result and the bindings.
-  void reset();
+  void run() override;
+  // Ready to run again: forgets the result; every parameter NULL again.
+  void reset() override;
   // Rows changed by the last run (INSERT, UPDATE, DELETE).
   std::int64_t changes() const;
 
   // Columns are 0-based. Strict, as SqliteStatement: NULL or another type throws DataError.
-  bool is_null(int column) const;
-  std::int64_t int64(int column) const;  // int2, int4, int8
-  double real(int column) const;         // float4, float8, and integers
-  std::string text(int column) const;    // text, varchar, name
-  std::string blob(int column) const;    // bytea
+  bool is_null(int column) const override;
+  std::int64_t int64(int column) const override;  // int2, int4, int8
+  double real(int column) const override;         // float4, float8, and integers
+  std::string text(int column) const override;    // text, varchar, name
+  std::string blob(int column) const override;    // bytea
 
  private:
   friend class PgDb;
-  PgStatement(pg_conn* conn, std::string description, std::string sql);
+  PgStatement(pg_conn* conn, std::string description, std::string sql, int parameter_count);
   void check_row(int column) const;
   [[noreturn]] void fail_type(int column, const char* expected) const;
   struct Param {
@@ -68,7 +74,7 @@ class PgStatement {
   pg_conn* conn_ = nullptr;  // borrowed from the PgDb that prepared it
   std::string description_;  // the server, for messages
   std::string sql_;
-  // Parameter `index` (1-based), the ones before it NULL until bound.
+  // Parameter `index` (1-based).
   Param& param(int index);
 
   std::vector<Param> params_;
@@ -80,7 +86,7 @@ class PgStatement {
   bool ran_ = false;
 };
 
-class PgDb {
+class PgDb final : public SqlConnection {
  public:
   // Connects with a libpq connection string (`host=/tmp/x port=5432
   // dbname=atlas user=orbatlas`) or URI (`postgresql://user@host/db`).
@@ -88,14 +94,19 @@ class PgDb {
   PgDb(PgDb&&) noexcept = default;
   PgDb& operator=(PgDb&&) noexcept = default;
 
-  // One or more statements without parameters or results (a migration script).
-  void exec(std::string_view sql);
-  PgStatement prepare(std::string_view sql);
-  // The single integer a query returns.
-  std::int64_t query_int64(std::string_view sql);
+  SqlDialect dialect() const override { return SqlDialect::kPostgres; }
+  // "postgresql host:port/database", for messages.
+  const std::string& description() const override { return description_; }
 
-  // host:port/database, for messages.
-  const std::string& description() const { return description_; }
+  // One or more statements without parameters or results (a migration script).
+  void exec(std::string_view sql) override;
+  PgStatement prepare(std::string_view sql);
+  std::unique_ptr<SqlStatement> prepare_statement(std::string_view sql) override;
+  // The single integer a query returns.
+  std::int64_t query_int64(std::string_view sql) override;
+  // kRead: REPEATABLE READ, READ ONLY (one snapshot for every statement);
+  // kWrite: READ COMMITTED (PostgreSQL's default; writers lock the rows they touch).
+  void begin_transaction(SqlTransactionMode mode) override;
 
  private:
   struct Closer {
@@ -105,23 +116,8 @@ class PgDb {
   std::string description_;
 };
 
-// BEGIN on construction; ROLLBACK on destruction unless commit() ran.
-class PgTransaction {
- public:
-  enum class Mode {
-    kRead,   // REPEATABLE READ, READ ONLY: one snapshot for every statement
-    kWrite,  // READ COMMITTED (PostgreSQL's default); writers lock the rows they touch
-  };
-  explicit PgTransaction(PgDb& db, Mode mode = Mode::kWrite);
-  ~PgTransaction();
-  PgTransaction(const PgTransaction&) = delete;
-  PgTransaction& operator=(const PgTransaction&) = delete;
-
-  void commit();
-
- private:
-  PgDb& db_;
-  bool open_ = true;
-};
+// BEGIN (see PgDb::begin_transaction) on construction; ROLLBACK on destruction
+// unless commit() ran.
+using PgTransaction = SqlTransaction;
 
 }  // namespace orbatlas

@@ -18,7 +18,7 @@ CameraModel parse_camera_model(const std::string& name, const std::string& who) 
 
 constexpr const char* kSessionColumns = "SELECT id, name, sensor, created_ns FROM sessions";
 
-SessionInfo session_from_row(const SqliteStatement& row, const std::string& file) {
+SessionInfo session_from_row(const SqlStatement& row, const std::string& file) {
   SessionInfo s;
   s.id = id_column(row, 0);
   s.name = row.text(1);
@@ -31,16 +31,16 @@ SessionInfo session_from_row(const SqliteStatement& row, const std::string& file
 }
 
 // Cameras of the listed sessions, in camera_index order.
-void read_cameras(SqliteDb& db, std::map<SessionId, SessionInfo>& sessions) {
-  SqliteStatement row = db.prepare(
+void read_cameras(SqlConnection& db, std::map<SessionId, SessionInfo>& sessions) {
+  const std::unique_ptr<SqlStatement> statement = db.prepare_statement(
       "SELECT session_id, camera_index, model, fx, fy, cx, cy, distortion, width, height, rate_hz, "
       "qw, qx, qy, qz, tx, ty, tz FROM cameras WHERE session_id = ?1 ORDER BY camera_index");
+  SqlStatement& row = *statement;
   for (auto& [id, session] : sessions) {
     row.bind_int64(1, sql_id(id));
     while (row.step()) {
       const std::int64_t index = row.int64(1);
-      const std::string who =
-          db.path().string() + ": session " + std::to_string(id) + " camera " + std::to_string(index);
+      const std::string who = db.description() + ": session " + std::to_string(id) + " camera " + std::to_string(index);
       ORBATLAS_DATA_CHECK(index == static_cast<std::int64_t>(session.cameras.size()),
                           who << ": camera indices are not 0, 1, ...");
       CameraCalibration c;
@@ -62,23 +62,24 @@ void read_cameras(SqliteDb& db, std::map<SessionId, SessionInfo>& sessions) {
 
 }  // namespace
 
-void write_session_rows(SqliteDb& db, const SessionInfo& session) {
+void write_session_rows(SqlConnection& db, const SessionInfo& session) {
   const std::int64_t id = sql_id(session.id);
   // An upsert, not INSERT OR REPLACE, which would cascade-delete the trajectory.
-  db.prepare(
+  db.prepare_statement(
         "INSERT INTO sessions(id, name, sensor, created_ns) VALUES (?1, ?2, ?3, ?4) "
         "ON CONFLICT(id) DO UPDATE SET name = excluded.name, sensor = excluded.sensor, "
         "created_ns = excluded.created_ns")
-      .bind_int64(1, id)
+      ->bind_int64(1, id)
       .bind_text(2, session.name)
       .bind_text(3, sensor_type_name(session.sensor))
       .bind_int64(4, session.created_ns)
       .run();
-  db.prepare("DELETE FROM cameras WHERE session_id = ?1").bind_int64(1, id).run();
-  SqliteStatement insert = db.prepare(
+  db.prepare_statement("DELETE FROM cameras WHERE session_id = ?1")->bind_int64(1, id).run();
+  const std::unique_ptr<SqlStatement> statement = db.prepare_statement(
       "INSERT INTO cameras(session_id, camera_index, model, fx, fy, cx, cy, distortion, width, height, rate_hz, "
       "qw, qx, qy, qz, tx, ty, tz) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, "
       "?18)");
+  SqlStatement& insert = *statement;
   for (std::size_t i = 0; i < session.cameras.size(); ++i) {
     const CameraCalibration& c = session.cameras[i];
     insert.bind_int64(1, id)
@@ -99,36 +100,36 @@ void write_session_rows(SqliteDb& db, const SessionInfo& session) {
 }
 
 void AtlasStore::save_session(const SessionInfo& session) {
-  SqliteTransaction transaction(db_);
-  write_session_rows(db_, session);
+  SqlTransaction transaction(*db_);
+  write_session_rows(*db_, session);
   transaction.commit();
 }
 
 std::optional<SessionInfo> AtlasStore::load_session(SessionId id) {
-  SqliteTransaction transaction(db_, SqliteTransaction::Mode::kRead);
+  SqlTransaction transaction(*db_, SqlTransaction::Mode::kRead);
   std::map<SessionId, SessionInfo> sessions;
   {
-    SqliteStatement row = db_.prepare(std::string(kSessionColumns) + " WHERE id = ?1");
-    row.bind_int64(1, sql_id(id));
-    if (!row.step()) return std::nullopt;
-    sessions.emplace(id, session_from_row(row, path().string()));
+    const std::unique_ptr<SqlStatement> row = db_->prepare_statement(std::string(kSessionColumns) + " WHERE id = ?1");
+    row->bind_int64(1, sql_id(id));
+    if (!row->step()) return std::nullopt;
+    sessions.emplace(id, session_from_row(*row, location()));
   }
-  read_cameras(db_, sessions);
+  read_cameras(*db_, sessions);
   transaction.commit();
   return std::move(sessions.begin()->second);
 }
 
 std::vector<SessionInfo> AtlasStore::load_sessions() {
-  SqliteTransaction transaction(db_, SqliteTransaction::Mode::kRead);
+  SqlTransaction transaction(*db_, SqlTransaction::Mode::kRead);
   std::map<SessionId, SessionInfo> sessions;
   {
-    SqliteStatement row = db_.prepare(std::string(kSessionColumns) + " ORDER BY id");
-    while (row.step()) {
-      SessionInfo s = session_from_row(row, path().string());
+    const std::unique_ptr<SqlStatement> row = db_->prepare_statement(std::string(kSessionColumns) + " ORDER BY id");
+    while (row->step()) {
+      SessionInfo s = session_from_row(*row, location());
       sessions.emplace(s.id, std::move(s));
     }
   }
-  read_cameras(db_, sessions);
+  read_cameras(*db_, sessions);
   transaction.commit();
   std::vector<SessionInfo> out;
   for (auto& [id, s] : sessions) out.push_back(std::move(s));

@@ -126,7 +126,7 @@ std::string SqliteStatement::blob(int column) const {
 
 void SqliteDb::Closer::operator()(sqlite3* db) const { sqlite3_close_v2(db); }
 
-SqliteDb::SqliteDb(const std::filesystem::path& path) : path_(path) {
+SqliteDb::SqliteDb(const std::filesystem::path& path) : path_(path), description_(path.string()) {
   sqlite3* handle = nullptr;
   const int rc = sqlite3_open_v2(path.c_str(), &handle, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr);
   db_.reset(handle);  // owned at once: even a failed open returns a handle to close
@@ -162,31 +162,18 @@ SqliteStatement SqliteDb::prepare(std::string_view sql) {
   return statement;
 }
 
+std::unique_ptr<SqlStatement> SqliteDb::prepare_statement(std::string_view sql) {
+  return std::make_unique<SqliteStatement>(prepare(sql));
+}
+
+void SqliteDb::begin_transaction(SqlTransactionMode mode) {
+  exec(mode == SqlTransactionMode::kWrite ? "BEGIN IMMEDIATE" : "BEGIN DEFERRED");
+}
+
 std::int64_t SqliteDb::query_int64(std::string_view sql) {
   SqliteStatement statement = prepare(sql);
   ORBATLAS_CHECK(statement.step(), path_.string() << ": \"" << sql << "\" returned no row");
   return statement.int64(0);
-}
-
-// --- SqliteTransaction ---
-
-SqliteTransaction::SqliteTransaction(SqliteDb& db, Mode mode) : db_(db) {
-  db_.exec(mode == Mode::kWrite ? "BEGIN IMMEDIATE" : "BEGIN DEFERRED");
-}
-
-SqliteTransaction::~SqliteTransaction() {
-  if (!open_) return;
-  try {
-    db_.exec("ROLLBACK");
-  } catch (const Error&) {
-    // SQLite may already have rolled back (e.g. after SQLITE_FULL); nothing else to undo.
-  }
-}
-
-void SqliteTransaction::commit() {
-  ORBATLAS_CHECK(open_, db_.path().string() << ": transaction committed twice");
-  db_.exec("COMMIT");
-  open_ = false;
 }
 
 }  // namespace orbatlas

@@ -3,44 +3,47 @@
 // Every failure becomes an exception naming the database file and carrying
 // SQLite's message: DataError when the file is not a database or is corrupt,
 // Error otherwise (constraint violations, I/O, busy). sqlite3.h stays out of
-// this header. A connection is used by one thread at a time.
+// this header. A connection is used by one thread at a time. Implements the
+// storage interface (sql_connection.h) that the atlas's row code is written to.
 #include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <string>
 #include <string_view>
 
+#include "core/persistence/sql_connection.h"
+
 struct sqlite3;
 struct sqlite3_stmt;
 
 namespace orbatlas {
 
-class SqliteStatement {
+class SqliteStatement final : public SqlStatement {
  public:
   SqliteStatement(SqliteStatement&&) noexcept = default;
   SqliteStatement& operator=(SqliteStatement&&) noexcept = default;
 
   // Parameters are 1-based, as in SQLite. Text and blobs are copied by SQLite.
-  SqliteStatement& bind_int64(int index, std::int64_t value);
-  SqliteStatement& bind_real(int index, double value);
-  SqliteStatement& bind_text(int index, std::string_view text);
-  SqliteStatement& bind_blob(int index, std::string_view bytes);  // empty binds a zero-length blob, not NULL
-  SqliteStatement& bind_null(int index);
+  SqliteStatement& bind_int64(int index, std::int64_t value) override;
+  SqliteStatement& bind_real(int index, double value) override;
+  SqliteStatement& bind_text(int index, std::string_view text) override;
+  SqliteStatement& bind_blob(int index, std::string_view bytes) override;  // empty: a zero-length blob, not NULL
+  SqliteStatement& bind_null(int index) override;
 
   // True when a row is available, false when the statement is done.
-  bool step();
+  bool step() override;
   // Runs a statement that returns no row (INSERT, UPDATE, DELETE) to completion.
-  void run();
+  void run() override;
   // Ready to run again: resets and clears the bindings.
-  void reset();
+  void reset() override;
 
   // Columns are 0-based. The typed readers are strict: a stored value of another
   // type (e.g. TEXT where an INTEGER belongs) throws DataError, as does NULL.
-  bool is_null(int column) const;
-  std::int64_t int64(int column) const;
-  double real(int column) const;  // INTEGER values are accepted and converted
-  std::string text(int column) const;
-  std::string blob(int column) const;
+  bool is_null(int column) const override;
+  std::int64_t int64(int column) const override;
+  double real(int column) const override;  // INTEGER values are accepted and converted
+  std::string text(int column) const override;
+  std::string blob(int column) const override;
 
  private:
   friend class SqliteDb;
@@ -55,7 +58,7 @@ class SqliteStatement {
   std::unique_ptr<sqlite3_stmt, Finalizer> stmt_;
 };
 
-class SqliteDb {
+class SqliteDb final : public SqlConnection {
  public:
   // Opens the file read-write, creating an empty one when missing. Nothing is
   // read yet: a file that is not an SQLite database is only noticed (DataError)
@@ -64,11 +67,18 @@ class SqliteDb {
   SqliteDb(SqliteDb&&) noexcept = default;
   SqliteDb& operator=(SqliteDb&&) noexcept = default;
 
+  SqlDialect dialect() const override { return SqlDialect::kSqlite; }
+  const std::string& description() const override { return description_; }  // the path
+
   // One or more statements without results (a migration script).
-  void exec(std::string_view sql);
+  void exec(std::string_view sql) override;
   SqliteStatement prepare(std::string_view sql);
+  std::unique_ptr<SqlStatement> prepare_statement(std::string_view sql) override;
   // The single integer a query returns (e.g. "PRAGMA user_version").
-  std::int64_t query_int64(std::string_view sql);
+  std::int64_t query_int64(std::string_view sql) override;
+  // kRead: BEGIN DEFERRED (a consistent snapshot for reading); kWrite: BEGIN
+  // IMMEDIATE (takes the write lock at once: no upgrade deadlock).
+  void begin_transaction(SqlTransactionMode mode) override;
 
   const std::filesystem::path& path() const { return path_; }
 
@@ -79,27 +89,12 @@ class SqliteDb {
   [[noreturn]] void fail(int rc, std::string_view context) const;
 
   std::filesystem::path path_;
+  std::string description_;
   std::unique_ptr<sqlite3, Closer> db_;  // the owning handle
 };
 
-// BEGIN on construction; ROLLBACK on destruction unless commit() ran, so an
-// exception leaves the database as it was.
-class SqliteTransaction {
- public:
-  enum class Mode {
-    kRead,   // BEGIN DEFERRED: a consistent snapshot for reading
-    kWrite,  // BEGIN IMMEDIATE: takes the write lock at once (no upgrade deadlock)
-  };
-  explicit SqliteTransaction(SqliteDb& db, Mode mode = Mode::kWrite);
-  ~SqliteTransaction();
-  SqliteTransaction(const SqliteTransaction&) = delete;
-  SqliteTransaction& operator=(const SqliteTransaction&) = delete;
-
-  void commit();
-
- private:
-  SqliteDb& db_;
-  bool open_ = true;
-};
+// BEGIN (DEFERRED for kRead, IMMEDIATE for kWrite) on construction; ROLLBACK on
+// destruction unless commit() ran.
+using SqliteTransaction = SqlTransaction;
 
 }  // namespace orbatlas
