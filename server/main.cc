@@ -13,6 +13,7 @@
 #include "cli/effective_options.h"
 #include "core/common/error.h"
 #include "core/common/log.h"
+#include "core/persistence/atlas_location.h"
 #include "core/server/atlas_service.h"
 #include "server/http/guarded_http_server.h"
 #include "server/http/http_api.h"
@@ -44,6 +45,16 @@ Listen parse_listen(const std::string& text) {
   return l;
 }
 
+// The folder for uploads: --work-dir, or "<db>.work" beside an SQLite file.
+std::filesystem::path upload_work_dir(const std::string& db, const std::string& work_dir) {
+  if (!work_dir.empty()) return work_dir;
+  if (orbatlas::is_postgres_location(db))
+    throw orbatlas::Error("--db " + orbatlas::location_for_messages(db) +
+                          " is a PostgreSQL database: give --work-dir, a folder of this machine for uploads being "
+                          "processed (emptied at start)");
+  return db + ".work";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -57,7 +68,14 @@ int main(int argc, char** argv) {
   orbatlas::UploadJobOptions job_options;
   int threads = 0;  // 0: from --max-sessions (below)
   bool log_requests = false;
-  app.add_option("--db", service_options.db, "Atlas database (SQLite; created when missing)")->required();
+  std::string work_dir;
+  app.add_option("--db", service_options.db,
+                 "Atlas database: an SQLite file (created when missing) or a PostgreSQL database given as "
+                 "postgresql://[user[:password]@]host[:port]/dbname (migrated when empty)")
+      ->required();
+  app.add_option("--work-dir", work_dir,
+                 "Folder for uploads being processed, emptied at start (default: <db>.work beside an SQLite file; "
+                 "required with a PostgreSQL --db)");
   app.add_option("--listen", listen_text, "HOST:PORT to listen on (port 0: any free port)")->capture_default_str();
   app.add_option("--token", token, "Require 'Authorization: Bearer TOKEN' on every route but /healthz");
   app.add_option("--workers", job_options.workers, "Background workers processing uploaded recordings")
@@ -136,8 +154,8 @@ int main(int argc, char** argv) {
     ORBATLAS_CHECK(threads >= 2, "--threads must be 0 (automatic) or at least 2");
     orbatlas::log_info("options in effect:\n" + orbatlas::effective_options_text(app) +
                        "  (HTTP threads in use: " + std::to_string(threads) + ")");
+    job_options.work_dir = upload_work_dir(service_options.db.string(), work_dir);  // before the database is touched
     orbatlas::AtlasService service(service_options);
-    job_options.work_dir = service_options.db.string() + ".work";
     orbatlas::UploadJobs jobs(service, job_options);
     // At most half the HTTP threads wait for slow or idle clients: the others
     // stay free for requests that arrive whole (health checks, frames).

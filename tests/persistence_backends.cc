@@ -23,6 +23,7 @@ void AtlasBackendTest::SetUp() {
   std::string unique = name.str();
   for (char& c : unique)
     if (c == '/') c = '_';
+  unique_ = unique;
   if (backend() == SqlDialect::kSqlite) {
     file_ = std::make_unique<TempDb>(unique);
     return;
@@ -33,6 +34,22 @@ void AtlasBackendTest::SetUp() {
   db << "atlas" << ++databases_;
   cluster_->create_database(db.str());
   conninfo_ = cluster_->conninfo(db.str());
+  uri_ = cluster_->uri(db.str());
+}
+
+std::string AtlasBackendTest::location() const {
+  return backend() == SqlDialect::kSqlite ? file_->path().string() : uri_;
+}
+
+std::string AtlasBackendTest::another_location(const std::string& name) {
+  if (backend() == SqlDialect::kSqlite) {
+    other_files_.push_back(std::make_unique<TempDb>(unique_ + "_" + name));
+    return other_files_.back()->path().string();
+  }
+  std::ostringstream db;
+  db << "atlas" << ++databases_;
+  cluster_->create_database(db.str());
+  return cluster_->uri(db.str());
 }
 
 AtlasStore AtlasBackendTest::open_store(const std::string& vocabulary_hash) const {

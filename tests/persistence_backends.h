@@ -10,6 +10,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/sql_connection.h"
@@ -26,6 +27,11 @@ class AtlasBackendTest : public ::testing::TestWithParam<SqlDialect> {
   SqlDialect backend() const { return GetParam(); }
   // A new connection to this test's database each call, as reopening the file.
   AtlasStore open_store(const std::string& vocabulary_hash) const;
+  // Where it is, as AtlasStore::open, AtlasCheckpointer and `--db` take it:
+  // the SQLite file's path or a postgresql:// URI.
+  std::string location() const;
+  // Another empty database of this test's backend (kept until the test ends).
+  std::string another_location(const std::string& name);
   // A plain connection to it (no atlas checks, no migrations), to inspect or tamper.
   std::unique_ptr<SqlConnection> raw_connection() const;
 
@@ -35,7 +41,9 @@ class AtlasBackendTest : public ::testing::TestWithParam<SqlDialect> {
   static int databases_;                               // created in the cluster so far
 
   std::unique_ptr<TempDb> file_;  // SQLite
-  std::string conninfo_;          // PostgreSQL
+  std::string conninfo_, uri_;    // PostgreSQL
+  std::string unique_;            // the test's name, for further databases
+  std::vector<std::unique_ptr<TempDb>> other_files_;
 };
 
 // "sqlite" / "postgresql": the instances' names.

@@ -12,7 +12,7 @@
 #include "core/common/error.h"
 #include "core/persistence/atlas_checkpointer.h"
 #include "core/persistence/atlas_store.h"
-#include "core/persistence/sqlite_db.h"
+#include "tests/persistence_backends.h"
 #include "tests/test_persistence_expect.h"
 #include "tests/test_persistence_random_atlas.h"
 
@@ -87,11 +87,15 @@ void random_edits(Atlas& atlas, std::mt19937_64& rng) {
   if (keyframes.size() > 4) map->cull_keyframe(pick(keyframes, rng)->id());
 }
 
-TEST(Checkpoint, WritesOnlyChangedRowsAndLoadsEqual) {
-  TempDb db("checkpoint_rows");
+// Every test runs on SQLite and on PostgreSQL (AtlasCheckpointer opening a
+// file or a postgresql:// URI).
+class CheckpointTest : public AtlasBackendTest {};
+ORBATLAS_PERSISTENCE_BACKENDS(CheckpointTest);
+
+TEST_P(CheckpointTest, WritesOnlyChangedRowsAndLoadsEqual) {
   Atlas atlas;
   build_atlas(atlas, test_vocabulary(), 21);
-  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), manual_only());
+  AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), manual_only());
 
   // The first checkpoint writes everything.
   ASSERT_TRUE(checkpointer.checkpoint_now());
@@ -99,7 +103,7 @@ TEST(Checkpoint, WritesOnlyChangedRowsAndLoadsEqual) {
   EXPECT_EQ(stats.commits, 1u);
   EXPECT_EQ(stats.sequence, 1);
   EXPECT_GT(stats.last_rows.inserted, count_keyframes(atlas) + count_points(atlas));
-  expect_file_holds(db.path(), atlas);
+  expect_file_holds(location(), atlas);
 
   // Nothing changed: nothing written, the sequence stays.
   ASSERT_TRUE(checkpointer.checkpoint_now());
@@ -107,7 +111,7 @@ TEST(Checkpoint, WritesOnlyChangedRowsAndLoadsEqual) {
   EXPECT_EQ(stats.checkpoints, 2u);
   EXPECT_EQ(stats.commits, 1u);
   EXPECT_EQ(stats.last_rows.total(), 0u);
-  EXPECT_EQ(AtlasStore::open(db.path(), test_vocabulary().hash()).checkpoint_sequence(), 1);
+  EXPECT_EQ(AtlasStore::open(location(), test_vocabulary().hash()).checkpoint_sequence(), 1);
 
   // One keyframe moved: exactly its row.
   const auto kf = atlas.maps()[0]->keyframes()[1];
@@ -118,7 +122,7 @@ TEST(Checkpoint, WritesOnlyChangedRowsAndLoadsEqual) {
   EXPECT_EQ(stats.last_rows.inserted, 0u);
   EXPECT_EQ(stats.last_rows.deleted, 0u);
   EXPECT_EQ(stats.sequence, 2);
-  expect_file_holds(db.path(), atlas);
+  expect_file_holds(location(), atlas);
 
   // One point's statistics: its row.
   atlas.maps()[1]->map_points()[3]->increase_found();
@@ -138,7 +142,7 @@ TEST(Checkpoint, WritesOnlyChangedRowsAndLoadsEqual) {
     EXPECT_GT(stats.last_rows.total(), 0u) << "round " << round;
     EXPECT_LT(stats.last_rows.total(), full_rows / 2) << "round " << round;
     deleted += stats.last_rows.deleted;
-    expect_file_holds(db.path(), atlas);
+    expect_file_holds(location(), atlas);
     if (HasFailure()) return;
   }
   EXPECT_GT(deleted, 8u);
@@ -151,19 +155,27 @@ TEST(Checkpoint, WritesOnlyChangedRowsAndLoadsEqual) {
   EXPECT_EQ(checkpointer.stats().commits, 11u);  // the final checkpoint had nothing to write
 }
 
-TEST(Checkpoint, FailedCheckpointKeepsTheLastGoodStateAndRetries) {
-  TempDb db("checkpoint_failure");
+TEST_P(CheckpointTest, FailedCheckpointKeepsTheLastGoodStateAndRetries) {
   Atlas atlas;
   build_atlas(atlas, test_vocabulary(), 23);
-  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), manual_only());
+  AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), manual_only());
   ASSERT_TRUE(checkpointer.checkpoint_now());
 
   // Another connection makes every keyframe update fail (as a full disk or an
   // I/O error would, in the middle of the transaction).
-  SqliteDb raw(db.path());
-  raw.exec(
-      "CREATE TRIGGER injected_failure BEFORE UPDATE ON keyframes "
-      "BEGIN SELECT RAISE(ABORT, 'injected failure'); END");
+  const std::unique_ptr<SqlConnection> raw_db = raw_connection();
+  SqlConnection& raw = *raw_db;
+  if (backend() == SqlDialect::kSqlite) {
+    raw.exec(
+        "CREATE TRIGGER injected_failure BEFORE UPDATE ON keyframes "
+        "BEGIN SELECT RAISE(ABORT, 'injected failure'); END");
+  } else {
+    raw.exec(
+        "CREATE FUNCTION injected_failure() RETURNS trigger LANGUAGE plpgsql AS "
+        "$$ BEGIN RAISE EXCEPTION 'injected failure'; END $$; "
+        "CREATE TRIGGER injected_failure BEFORE UPDATE ON keyframes "
+        "FOR EACH ROW EXECUTE FUNCTION injected_failure()");
+  }
   Atlas before;
   build_atlas(before, test_vocabulary(), 23);  // the same content, as committed
   const auto kfs = atlas.maps()[0]->keyframes();
@@ -176,21 +188,21 @@ TEST(Checkpoint, FailedCheckpointKeepsTheLastGoodStateAndRetries) {
   EXPECT_NE(stats.last_error.find("injected failure"), std::string::npos) << stats.last_error;
   EXPECT_EQ(stats.commits, 1u);
   EXPECT_EQ(raw.query_int64("SELECT checkpoint_seq FROM atlas"), 1);
-  expect_file_holds(db.path(), before);  // all or nothing: the new point is not there either
+  expect_file_holds(location(), before);  // all or nothing: the new point is not there either
 
   // The cause goes away; the next checkpoint writes everything changed since the last commit.
-  raw.exec("DROP TRIGGER injected_failure");
+  raw.exec(backend() == SqlDialect::kSqlite ? "DROP TRIGGER injected_failure"
+                                            : "DROP TRIGGER injected_failure ON keyframes");
   kfs[1]->set_T_w_b(random_pose(rng));
   ASSERT_TRUE(checkpointer.checkpoint_now());
   stats = checkpointer.stats();
   EXPECT_EQ(stats.last_rows.updated, 3u);  // two keyframes, the atlas row (allocator)
   EXPECT_EQ(stats.last_rows.inserted, 1u);
   EXPECT_EQ(stats.sequence, 2);
-  expect_file_holds(db.path(), atlas);
+  expect_file_holds(location(), atlas);
 }
 
-TEST(Checkpoint, SessionTrajectoryAndKeyframeSessions) {
-  TempDb db("checkpoint_session");
+TEST_P(CheckpointTest, SessionTrajectoryAndKeyframeSessions) {
   Atlas atlas;
   build_atlas(atlas, test_vocabulary(), 24);
   const std::size_t old_keyframes = count_keyframes(atlas);
@@ -206,7 +218,7 @@ TEST(Checkpoint, SessionTrajectoryAndKeyframeSessions) {
     return std::vector<FrameAnchor>(frames.begin() + static_cast<std::ptrdiff_t>(std::min(first, frames.size())),
                                     frames.end());
   };
-  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), manual_only(), session);
+  AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), manual_only(), session);
   std::mt19937_64 rng(25);
   const auto map = atlas.active_map();
   const auto add_frames = [&](int n) {
@@ -231,7 +243,7 @@ TEST(Checkpoint, SessionTrajectoryAndKeyframeSessions) {
   }
   checkpointer.stop();
 
-  AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+  AtlasStore store = AtlasStore::open(location(), test_vocabulary().hash());
   const auto stored_session = store.load_session(5);
   ASSERT_TRUE(stored_session.has_value());
   EXPECT_EQ(stored_session->name, "live");
@@ -255,7 +267,7 @@ TEST(Checkpoint, SessionTrajectoryAndKeyframeSessions) {
   twice.trajectory = [](std::size_t) {
     return std::vector<FrameAnchor>{FrameAnchor{7, 0, 0, Pose3()}, FrameAnchor{7, 0, 1, Pose3()}};
   };
-  AtlasCheckpointer failing(empty, db.path(), test_vocabulary().hash(), manual_only(), twice);
+  AtlasCheckpointer failing(empty, location(), test_vocabulary().hash(), manual_only(), twice);
   EXPECT_FALSE(failing.checkpoint_now());
   EXPECT_NE(failing.stats().last_error.find("two frames at timestamp 7"), std::string::npos)
       << failing.stats().last_error;
@@ -263,11 +275,10 @@ TEST(Checkpoint, SessionTrajectoryAndKeyframeSessions) {
 
 // The server's case: sessions join and leave a running checkpointer, their
 // keyframes interleave, each keeps its own trajectory.
-TEST(Checkpoint, SessionsJoinAndLeaveWithInterleavedKeyframes) {
-  TempDb db("checkpoint_sessions");
+TEST_P(CheckpointTest, SessionsJoinAndLeaveWithInterleavedKeyframes) {
   Atlas atlas;
   build_atlas(atlas, test_vocabulary(), 12);
-  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), manual_only());
+  AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), manual_only());
   ASSERT_TRUE(checkpointer.checkpoint_now());  // the atlas alone, no session
   std::mt19937_64 rng(31);
   const auto map = atlas.active_map();
@@ -307,7 +318,7 @@ TEST(Checkpoint, SessionsJoinAndLeaveWithInterleavedKeyframes) {
   EXPECT_EQ(checkpointer.stats().last_rows.total(), 0u);
   checkpointer.stop();
 
-  AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+  AtlasStore store = AtlasStore::open(location(), test_vocabulary().hash());
   ASSERT_EQ(store.load_sessions().size(), 2u);
   EXPECT_EQ(store.load_session(12)->name, "client 12");
   EXPECT_EQ(store.load_trajectory(11).size(), 7u);
@@ -318,8 +329,7 @@ TEST(Checkpoint, SessionsJoinAndLeaveWithInterleavedKeyframes) {
   for (const auto& [kf, session] : made) EXPECT_EQ(report.keyframe_sessions.at(kf), session) << "keyframe " << kf;
 }
 
-TEST(Checkpoint, KeyframeCountAndTimerTriggerCheckpoints) {
-  TempDb db("checkpoint_triggers");
+TEST_P(CheckpointTest, KeyframeCountAndTimerTriggerCheckpoints) {
   Atlas atlas;
   const auto map = atlas.create_map();
   std::mt19937_64 rng(26);
@@ -332,7 +342,7 @@ TEST(Checkpoint, KeyframeCountAndTimerTriggerCheckpoints) {
   options.every_seconds = 0;
   options.before_transaction = [&] { std::call_once(once, [&] { started.set_value(); }); };
   {
-    AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), options);
+    AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), options);
     auto future = started.get_future();
     for (int i = 0; i < 2; ++i) {
       add_random_keyframe(*map, rng, nullptr, 10, true);
@@ -350,7 +360,7 @@ TEST(Checkpoint, KeyframeCountAndTimerTriggerCheckpoints) {
   options.every_keyframes = 0;
   options.every_seconds = 0.05;
   options.before_transaction = [&] { std::call_once(timed_once, [&] { timed.set_value(); }); };
-  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), options);
+  AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), options);
   EXPECT_EQ(timed.get_future().wait_for(std::chrono::seconds(10)), std::future_status::ready);
 
   // stop(): a final checkpoint, idempotent; nothing afterwards.
@@ -360,21 +370,20 @@ TEST(Checkpoint, KeyframeCountAndTimerTriggerCheckpoints) {
   EXPECT_FALSE(checkpointer.checkpoint_now());
   EXPECT_EQ(checkpointer.stats().failures, 0u);
   Atlas loaded;
-  AtlasStore::open(db.path(), test_vocabulary().hash()).load_atlas(loaded, nullptr);
+  AtlasStore::open(location(), test_vocabulary().hash()).load_atlas(loaded, nullptr);
   EXPECT_EQ(count_keyframes(loaded), 4u);
 }
 
 // Checkpoints while another thread edits the atlas: every checkpoint commits
 // (a snapshot consistent per object satisfies every constraint), and once the
 // edits stop, the file equals the atlas.
-TEST(Checkpoint, ConcurrentEditsNeverBreakACheckpoint) {
-  TempDb db("checkpoint_concurrent");
+TEST_P(CheckpointTest, ConcurrentEditsNeverBreakACheckpoint) {
   Atlas atlas;
   build_atlas(atlas, test_vocabulary(), 27);
   CheckpointOptions options;
   options.every_keyframes = 2;
   options.every_seconds = 0.01;
-  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), options);
+  AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), options);
   std::thread editor([&] {
     std::mt19937_64 rng(28);
     for (int round = 0; round < 60; ++round) {
@@ -389,18 +398,17 @@ TEST(Checkpoint, ConcurrentEditsNeverBreakACheckpoint) {
   const CheckpointStats stats = checkpointer.stats();
   EXPECT_EQ(stats.failures, 0u) << stats.last_error;
   EXPECT_GT(stats.commits, 3u);
-  expect_file_holds(db.path(), atlas);
+  expect_file_holds(location(), atlas);
 }
 
 // A merge (Map::absorb + Atlas::remove_map): the source map's objects move into
 // the target with their poses transformed; an incremental checkpoint moves
 // their rows and deletes the source map, a full save of a merged atlas deletes
 // the stored rows of the map it no longer has; both load equal.
-TEST(Checkpoint, MergedMapMovesItsRowsAndLeavesTheFile) {
-  TempDb db("checkpoint_merge");
+TEST_P(CheckpointTest, MergedMapMovesItsRowsAndLeavesTheFile) {
   Atlas atlas;
   build_atlas(atlas, test_vocabulary(), 33);
-  AtlasCheckpointer checkpointer(atlas, db.path(), test_vocabulary().hash(), manual_only());
+  AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), manual_only());
   ASSERT_TRUE(checkpointer.checkpoint_now());
 
   const auto maps = atlas.maps();
@@ -447,20 +455,20 @@ TEST(Checkpoint, MergedMapMovesItsRowsAndLeavesTheFile) {
   }
 
   ASSERT_TRUE(checkpointer.checkpoint_now());
-  expect_file_holds(db.path(), atlas);
-  EXPECT_EQ(AtlasStore::open(db.path(), test_vocabulary().hash()).stored_map_ids().size(), atlas.maps().size());
+  expect_file_holds(location(), atlas);
+  EXPECT_EQ(AtlasStore::open(location(), test_vocabulary().hash()).stored_map_ids().size(), atlas.maps().size());
 
   // A full save of the merged atlas into a file that still has both maps.
-  TempDb other("checkpoint_merge_full");
+  const std::string other = another_location("merge_full");
   {
     Atlas before;
     build_atlas(before, test_vocabulary(), 33);
-    AtlasStore::open(other.path(), test_vocabulary().hash()).save_atlas(before);
+    AtlasStore::open(other, test_vocabulary().hash()).save_atlas(before);
   }
-  AtlasStore store = AtlasStore::open(other.path(), test_vocabulary().hash());
+  AtlasStore store = AtlasStore::open(other, test_vocabulary().hash());
   store.save_atlas(atlas);
   EXPECT_EQ(store.stored_map_ids().size(), atlas.maps().size());
-  expect_file_holds(other.path(), atlas);
+  expect_file_holds(other, atlas);
 }
 
 }  // namespace

@@ -25,6 +25,7 @@
 #include "core/persistence/sqlite_db.h"
 #include "tests/server_test_fixture.h"
 #include "tests/slam_test_clip.h"
+#include "tests/throwaway_postgres.h"
 
 extern char** environ;
 
@@ -43,13 +44,14 @@ int iterations() {
 // orbatlas-server as a child process, its log appended to a file.
 class ServerProcess {
  public:
-  ServerProcess(const std::filesystem::path& db, const std::filesystem::path& log,
+  // `db`: an SQLite file or a postgresql:// URI.
+  ServerProcess(const std::string& db, const std::filesystem::path& log,
                 const std::vector<std::string>& extra_args = {}) {
-    port_file_ = db.string() + ".port";
+    port_file_ = log.string() + ".port";
     std::filesystem::remove(port_file_);
     std::vector<std::string> args = {ORBATLAS_SERVER_BINARY,
                                      "--db",
-                                     db.string(),
+                                     db,
                                      "--listen",
                                      "127.0.0.1:0",
                                      "--port-file",
@@ -69,7 +71,10 @@ class ServerProcess {
     posix_spawn_file_actions_destroy(&actions);
     if (rc != 0) throw std::runtime_error("cannot start " + args[0]);
   }
-  ~ServerProcess() { kill(); }
+  ~ServerProcess() {
+    kill();
+    std::filesystem::remove(port_file_);
+  }
 
   // The URL once listening; empty when the server exited or took too long.
   std::string wait_until_listening() {
@@ -99,6 +104,11 @@ class ServerProcess {
   pid_t pid_ = -1;
   std::filesystem::path port_file_;
 };
+
+std::string log_text(const std::filesystem::path& log) {
+  std::ifstream in(log);
+  return std::string((std::istreambuf_iterator<char>(in)), {});
+}
 
 std::string tar_without_mav0() {
   std::string tar;
@@ -268,6 +278,72 @@ TEST(ServerProcess, ConfigFileIsReadFlagsOverrideItAndTheEffectiveOptionsAreLogg
   EXPECT_TRUE(std::regex_search(text, std::regex("idle-timeout\\s*=\\s*77\\b"))) << "the flag did not win: " << text;
   EXPECT_EQ(text.find("s3cret-token"), std::string::npos) << "the token was logged";
   std::filesystem::remove(config);
+  std::filesystem::remove(log);
+}
+
+// `--db postgresql://...` (issue 23): a session streamed into a server whose
+// atlas is a PostgreSQL database (a throwaway cluster), a second server on that
+// database refused, the first killed with SIGKILL and started again: the map is
+// there, and new ids continue past any the killed one may have handed out.
+TEST(ServerProcess, PostgresDatabaseKeepsTheMapAcrossARestart) {
+  std::string why_not;
+  const auto cluster = test::ThrowawayPostgres::start(&why_not);
+  if (!cluster) GTEST_SKIP() << "PostgreSQL backend skipped: " << why_not;
+  cluster->create_database("server_atlas");
+  const std::string uri = cluster->uri("server_atlas");
+  const auto clip = test::simulated_clip("MH_01", 40.0, 2.0);
+  test::ClipCleanup cleanup{clip};
+  const auto frames = test::stereo_frames(clip);
+  test::TempDbPath files("postgres_server");  // its log, port file and upload folder
+  const std::filesystem::path log = files.path.string() + ".log", work = files.path.string() + ".work";
+  std::filesystem::remove(log);
+  const std::vector<std::string> args = {"--work-dir", work.string()};
+
+  std::uint64_t session = 0;
+  json maps_before;
+  {
+    ServerProcess server(uri, log, args);
+    const std::string url = server.wait_until_listening();
+    ASSERT_FALSE(url.empty()) << "the server did not start; its log: " << log_text(log);
+    ServerClient client(url);
+    session = client.create_session("euroc/stereo", "postgres");
+    for (const auto& f : frames)
+      client.post_frame(session, f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                        cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+    client.finish_session(session);  // stored: a durable checkpoint
+    maps_before = client.get_json("/v1/maps")["maps"];
+    ASSERT_EQ(maps_before.size(), 1u) << maps_before.dump();
+    EXPECT_GE(maps_before[0]["keyframes"].get<int>(), 1) << maps_before.dump();
+    EXPECT_GT(maps_before[0]["map_points"].get<int>(), 100) << maps_before.dump();
+
+    // One writer per database: a second server on it stops at start, naming the first.
+    const std::filesystem::path second_log = files.path.string() + ".second.log";
+    std::filesystem::remove(second_log);
+    ServerProcess second(uri, second_log, {"--work-dir", work.string() + "2"});
+    EXPECT_TRUE(second.wait_until_listening().empty());
+    const std::string refused = log_text(second_log);
+    EXPECT_NE(refused.find("in use by another writer"), std::string::npos) << refused;
+    std::filesystem::remove(second_log);
+    std::filesystem::remove_all(work.string() + "2");
+    server.kill();  // SIGKILL: its connections die, PostgreSQL drops its advisory lock
+  }
+
+  ServerProcess server(uri, log, args);
+  const std::string url = server.wait_until_listening();
+  ASSERT_FALSE(url.empty()) << "the server did not start again; its log: " << log_text(log);
+  ServerClient client(url);
+  const json maps_after = client.get_json("/v1/maps")["maps"];
+  ASSERT_EQ(maps_after.size(), 1u) << maps_after.dump();
+  EXPECT_EQ(maps_after[0]["id"], maps_before[0]["id"]);
+  EXPECT_EQ(maps_after[0]["keyframes"], maps_before[0]["keyframes"]);
+  EXPECT_EQ(maps_after[0]["map_points"], maps_before[0]["map_points"]);
+  EXPECT_FALSE(client.trajectory_tum(session).empty());
+  EXPECT_NE(log_text(log).find("the previous server stopped without its final checkpoint"), std::string::npos)
+      << "the restart did not see the crash: " << log_text(log);
+  const std::uint64_t next = client.create_session("euroc/stereo", "after the restart");
+  EXPECT_GT(next, session);
+  client.finish_session(next);
+  server.kill();
   std::filesystem::remove(log);
 }
 

@@ -98,6 +98,10 @@ std::string ThrowawayPostgres::conninfo(const std::string& db) const {
   return "host=" + dir_.string() + " dbname=" + db + " user=orbatlas";
 }
 
+std::string ThrowawayPostgres::uri(const std::string& db) const {
+  return "postgresql://orbatlas@/" + db + "?host=" + dir_.string();  // the socket folder: no characters to escape
+}
+
 void ThrowawayPostgres::create_database(const std::string& name) {
   PgDb db(conninfo());
   db.exec("CREATE DATABASE \"" + name + "\"");

@@ -26,6 +26,8 @@ class ThrowawayPostgres {
 
   // A libpq connection string for database `db` as the cluster's superuser.
   std::string conninfo(const std::string& db = "postgres") const;
+  // The same as a postgresql:// URI, as `--db` and AtlasStore::open take it.
+  std::string uri(const std::string& db = "postgres") const;
   // CREATE DATABASE name (a fresh database per test).
   void create_database(const std::string& name);
   const std::filesystem::path& folder() const { return dir_; }

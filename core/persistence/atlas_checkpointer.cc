@@ -7,6 +7,7 @@
 
 #include "core/common/error.h"
 #include "core/common/log.h"
+#include "core/persistence/atlas_location.h"
 
 namespace orbatlas {
 
@@ -150,7 +151,7 @@ bool AtlasCheckpointer::checkpoint_once(bool final) {
     stats_.last_error = error;
     stats_.last_failed = true;
     std::ostringstream line;
-    line << "atlas checkpoint into " << path_.string()
+    line << "atlas checkpoint into " << location_for_messages(path_.string())
          << " failed (the file keeps the last committed state; the next checkpoint retries): " << error;
     lock.unlock();  // no I/O under the mutex notify_keyframe may take
     log_warn(line.str());

@@ -50,9 +50,10 @@ struct CheckpointStats {
 class AtlasCheckpointer {
  public:
   // Opens (or creates) the database on the calling thread, so that a refused
-  // file throws here (AtlasStore::open), then starts the worker. The checkpoint
-  // connection uses synchronous = NORMAL (the final checkpoint FULL). `atlas`
-  // must outlive the checkpointer.
+  // file throws here (AtlasStore::open), then starts the worker. `path` is the
+  // SQLite file or a postgresql:// URI (atlas_location.h). The checkpoint
+  // connection uses synchronous = NORMAL (PostgreSQL: synchronous_commit = off;
+  // the final checkpoint FULL / on). `atlas` must outlive the checkpointer.
   AtlasCheckpointer(const Atlas& atlas, const std::filesystem::path& path, const std::string& vocabulary_hash,
                     CheckpointOptions options = {}, std::optional<CheckpointSession> session = std::nullopt);
   ~AtlasCheckpointer();  // stop()

@@ -5,6 +5,7 @@
 #include "core/persistence/atlas_store.h"
 
 #include "core/common/error.h"
+#include "core/persistence/atlas_location.h"
 #include "core/persistence/pg_db.h"
 #include "core/persistence/pg_schema.h"
 #include "core/persistence/schema_migrations.h"
@@ -47,6 +48,10 @@ void create_atlas_row(SqlConnection& db, const std::string& vocabulary_hash, Tim
 }  // namespace
 
 AtlasStore AtlasStore::open(const std::filesystem::path& path, const std::string& vocabulary_hash) {
+  if (is_postgres_location(path.string())) {
+    check_postgres_uri(path.string());
+    return open_postgres(path.string(), vocabulary_hash);
+  }
   ORBATLAS_CHECK(!vocabulary_hash.empty(), path.string() << ": opening an atlas needs the vocabulary hash");
   auto db = std::make_unique<SqliteDb>(path);
   // 1. Read-only checks: a file we refuse is left exactly as it was. Every

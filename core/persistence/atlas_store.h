@@ -46,6 +46,8 @@ class AtlasStore {
   // anything is written, refuses (DataError, file untouched) a file that is not
   // an SQLite database, an SQLite database that is not an atlas, a schema newer
   // than this build, and an atlas built with another vocabulary (hash differs).
+  // A `path` that is a postgresql:// or postgres:// URI (atlas_location.h)
+  // opens that PostgreSQL database instead (open_postgres; a malformed URI: Error).
   static AtlasStore open(const std::filesystem::path& path, const std::string& vocabulary_hash);
   // The same on PostgreSQL (a libpq connection string or postgresql:// URI):
   // refuses (DataError, nothing written) a database holding other tables, a

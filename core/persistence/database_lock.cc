@@ -9,6 +9,8 @@
 
 #include "core/common/error.h"
 #include "core/map/atlas.h"
+#include "core/persistence/atlas_location.h"
+#include "core/persistence/pg_writer_lock.h"
 
 namespace orbatlas {
 namespace {
@@ -23,7 +25,14 @@ std::string read_all(int fd) {
 
 }  // namespace
 
-DatabaseLock::DatabaseLock(const std::filesystem::path& db) : path_(db.string() + ".lock") {
+DatabaseLock::DatabaseLock(const std::filesystem::path& db) {
+  if (is_postgres_location(db.string())) {
+    check_postgres_uri(db.string());
+    pg_ = std::make_unique<PgWriterLock>(db.string());
+    previous_crashed_ = pg_->previous_holder_crashed();
+    return;
+  }
+  path_ = db.string() + ".lock";
   fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
   if (fd_ < 0) throw Error("cannot open the lock file " + path_.string() + ": " + std::strerror(errno));
   if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
@@ -45,7 +54,13 @@ DatabaseLock::~DatabaseLock() {
   if (fd_ >= 0) ::close(fd_);  // closing releases the flock
 }
 
-void DatabaseLock::mark_stopped() { write_state("stopped\n"); }
+void DatabaseLock::mark_stopped() {
+  if (pg_) {
+    pg_->mark_stopped();
+    return;
+  }
+  write_state("stopped\n");
+}
 
 void DatabaseLock::write_state(const std::string& text) {
   if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, text.data(), text.size(), 0) != static_cast<ssize_t>(text.size()) ||

@@ -17,6 +17,7 @@
 namespace orbatlas {
 
 class Atlas;
+class PgWriterLock;
 
 // Larger than any number of ids one process can hand out between two
 // checkpoints (2^32 keyframes: one per frame at 1 kHz for 48 days; 2^40 map
@@ -29,6 +30,7 @@ inline constexpr std::uint64_t kMapIdGapAfterCrash = std::uint64_t{1} << 24;
 class DatabaseLock {
  public:
   // Takes the lock (Error naming the holder when another process has it).
+  // `db`: the SQLite file, or a postgresql:// URI.
   explicit DatabaseLock(const std::filesystem::path& db);
   ~DatabaseLock();  // releases the lock; the file keeps saying "running" unless mark_stopped()
   DatabaseLock(const DatabaseLock&) = delete;
@@ -44,6 +46,7 @@ class DatabaseLock {
 
   std::filesystem::path path_;
   int fd_ = -1;
+  std::unique_ptr<PgWriterLock> pg_;  // PostgreSQL: instead of the file
   bool previous_crashed_ = false;
 };
 

@@ -5,8 +5,10 @@
 
 #include <cctype>
 #include <cstring>
+#include <unordered_map>
 
 #include "core/common/error.h"
+#include "core/persistence/atlas_location.h"
 
 namespace orbatlas {
 namespace {
@@ -87,12 +89,19 @@ std::string sqlite_params_to_postgres(std::string_view sql, int* parameter_count
   return out;
 }
 
+struct PgPreparedStatements {
+  // Key: the parameter types' bytes, then the SQL text. Value: the statement's name on the server.
+  std::unordered_map<std::string, std::string> names;
+};
+
 // --- PgStatement ---
 
 void PgStatement::Clearer::operator()(pg_result* result) const { PQclear(result); }
 
-PgStatement::PgStatement(pg_conn* conn, std::string description, std::string sql, int parameter_count)
+PgStatement::PgStatement(pg_conn* conn, PgPreparedStatements* prepared, std::string description, std::string sql,
+                         int parameter_count)
     : conn_(conn),
+      prepared_(prepared),
       description_(std::move(description)),
       sql_(std::move(sql)),
       params_(static_cast<std::size_t>(parameter_count)) {}
@@ -133,6 +142,21 @@ PgStatement& PgStatement::bind_null(int index) {
   return *this;
 }
 
+const std::string& PgStatement::prepared_name(const std::vector<unsigned>& types) {
+  // The types are part of the key: a parameter bound as int8 once and as NULL
+  // (type left to the server) another time gets two statements, each with
+  // exactly the types PQexecParams would have sent.
+  std::string key(reinterpret_cast<const char*>(types.data()), types.size() * sizeof(unsigned));
+  key += sql_;
+  if (const auto it = prepared_->names.find(key); it != prepared_->names.end()) return it->second;
+  std::string name = "orbatlas_" + std::to_string(prepared_->names.size() + 1);
+  const std::unique_ptr<PGresult, decltype(&PQclear)> result(
+      PQprepare(conn_, name.c_str(), sql_.c_str(), static_cast<int>(types.size()), types.data()), &PQclear);
+  if (!result || PQresultStatus(result.get()) != PGRES_COMMAND_OK)
+    throw_result(result.get(), conn_, "preparing \"" + sql_ + "\"");
+  return prepared_->names.emplace(std::move(key), std::move(name)).first->second;
+}
+
 bool PgStatement::step() {
   if (!ran_) {
     std::vector<unsigned> oids;
@@ -144,8 +168,9 @@ bool PgStatement::step() {
       lengths.push_back(p.bytes ? static_cast<int>(p.bytes->size()) : 0);
     }
     const std::vector<int> formats(params_.size(), 1);  // every parameter in binary
-    result_.reset(PQexecParams(conn_, sql_.c_str(), static_cast<int>(params_.size()), oids.data(), values.data(),
-                               lengths.data(), formats.data(), 1));
+    const std::string& name = prepared_name(oids);
+    result_.reset(PQexecPrepared(conn_, name.c_str(), static_cast<int>(params_.size()), values.data(), lengths.data(),
+                                 formats.data(), 1));
     const ExecStatusType status = result_ ? PQresultStatus(result_.get()) : PGRES_FATAL_ERROR;
     if (status != PGRES_TUPLES_OK && status != PGRES_COMMAND_OK)
       throw_result(result_.get(), conn_, "executing \"" + sql_ + "\"");
@@ -267,10 +292,14 @@ std::string PgStatement::blob(int column) const {
 
 void PgDb::Closer::operator()(pg_conn* conn) const { PQfinish(conn); }
 
-PgDb::PgDb(const std::string& conninfo) : conn_(PQconnectdb(conninfo.c_str())) {
+void PgDb::PreparedDeleter::operator()(PgPreparedStatements* prepared) const { delete prepared; }
+
+PgDb::PgDb(const std::string& conninfo) : conn_(PQconnectdb(conninfo.c_str())), prepared_(new PgPreparedStatements) {
   ORBATLAS_CHECK(conn_, "postgresql: cannot connect: out of memory");
   if (PQstatus(conn_.get()) != CONNECTION_OK)
-    throw Error("postgresql: cannot connect (" + trimmed(PQerrorMessage(conn_.get())) + ")");
+    throw Error("postgresql: cannot connect" +
+                (is_postgres_location(conninfo) ? " to " + location_for_messages(conninfo) : std::string()) + " (" +
+                trimmed(PQerrorMessage(conn_.get())) + ")");
   description_ = describe(conn_.get());
   PQsetNoticeProcessor(conn_.get(), ignore_notice, nullptr);
 }
@@ -286,7 +315,7 @@ void PgDb::exec(std::string_view sql) {
 PgStatement PgDb::prepare(std::string_view sql) {
   int parameters = 0;
   std::string translated = sqlite_params_to_postgres(sql, &parameters);
-  return PgStatement(conn_.get(), description_, std::move(translated), parameters);
+  return PgStatement(conn_.get(), prepared_.get(), description_, std::move(translated), parameters);
 }
 
 std::unique_ptr<SqlStatement> PgDb::prepare_statement(std::string_view sql) {

@@ -14,6 +14,13 @@
 // travel in binary (integers as int8, reals as float8, blobs as bytea), so
 // doubles and blobs round-trip exactly. A statement has as many parameters as
 // its SQL numbers (the largest `?NNN`); those left unbound are NULL, as in SQLite.
+//
+// Statements are prepared on the server (PQprepare) the first time a
+// connection runs a given SQL text with given parameter types, and executed
+// from then on by name (PQexecPrepared): a statement made again with the same
+// SQL (each checkpoint makes its AtlasRowWriter anew) reuses the server's
+// plan. The connection keeps its prepared statements until it closes (one per
+// distinct SQL text and types the program runs: a few dozen).
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -27,6 +34,9 @@ struct pg_conn;
 struct pg_result;
 
 namespace orbatlas {
+
+// A connection's server-side prepared statements, by SQL text and parameter types (pg_db.cc).
+struct PgPreparedStatements;
 
 // `?NNN` and `?` -> `$NNN` outside quoted strings and identifiers (tested).
 // `parameter_count`, when given, receives the largest parameter number (0 for none).
@@ -63,7 +73,10 @@ class PgStatement final : public SqlStatement {
 
  private:
   friend class PgDb;
-  PgStatement(pg_conn* conn, std::string description, std::string sql, int parameter_count);
+  PgStatement(pg_conn* conn, PgPreparedStatements* prepared, std::string description, std::string sql,
+              int parameter_count);
+  // The server-side statement for the current parameter types, prepared on first use.
+  const std::string& prepared_name(const std::vector<unsigned>& types);
   void check_row(int column) const;
   [[noreturn]] void fail_type(int column, const char* expected) const;
   struct Param {
@@ -71,8 +84,9 @@ class PgStatement final : public SqlStatement {
     unsigned oid = 0;
   };
 
-  pg_conn* conn_ = nullptr;  // borrowed from the PgDb that prepared it
-  std::string description_;  // the server, for messages
+  pg_conn* conn_ = nullptr;                   // borrowed from the PgDb that prepared it
+  PgPreparedStatements* prepared_ = nullptr;  // likewise
+  std::string description_;                   // the server, for messages
   std::string sql_;
   // Parameter `index` (1-based).
   Param& param(int index);
@@ -112,7 +126,11 @@ class PgDb final : public SqlConnection {
   struct Closer {
     void operator()(pg_conn* conn) const;
   };
+  struct PreparedDeleter {
+    void operator()(PgPreparedStatements* prepared) const;
+  };
   std::unique_ptr<pg_conn, Closer> conn_;
+  std::unique_ptr<PgPreparedStatements, PreparedDeleter> prepared_;  // never null; a stable address
   std::string description_;
 };
 

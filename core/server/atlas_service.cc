@@ -110,7 +110,7 @@ AtlasService::AtlasService(AtlasServiceOptions options)
     atlas_.index_all_keyframes();
     if (db_lock_->previous_holder_crashed()) {
       skip_ids_after_crash(atlas_);
-      log_warn("atlas " + options_.db.string() +
+      log_warn("atlas " + store.location() +
                ": the previous server stopped without its final checkpoint (killed?); what it did after its last "
                "checkpoint is lost, and new ids continue past any it may have handed out");
     }
@@ -125,7 +125,7 @@ AtlasService::AtlasService(AtlasServiceOptions options)
           info, anchors.size(), anchors.empty() ? std::nullopt : std::optional<FrameAnchor>(anchors.back()));
       next_session_ = std::max(next_session_, info.id + 1);
     }
-    log_info("atlas " + options_.db.string() + ": " + std::to_string(loaded.maps) + " maps, " +
+    log_info("atlas " + store.location() + ": " + std::to_string(loaded.maps) + " maps, " +
              std::to_string(loaded.keyframes) + " keyframes, " + std::to_string(loaded.map_points) + " map points, " +
              std::to_string(sessions_.size()) + " sessions loaded in " +
              std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()) + " s");

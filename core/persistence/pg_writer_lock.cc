@@ -1,0 +1,57 @@
+#include "core/persistence/pg_writer_lock.h"
+
+#include <unistd.h>
+
+#include <climits>
+
+#include "core/common/error.h"
+#include "core/persistence/pg_db.h"
+#include "core/persistence/pg_schema.h"
+#include "core/persistence/wall_clock.h"
+
+namespace orbatlas {
+namespace {
+
+// pg_try_advisory_lock's key for the atlas's writer (advisory locks are per
+// database, and a database holds one atlas): "orbatlaw".
+constexpr std::int64_t kWriterLockKey = 0x6f726261746c6177;
+
+std::string this_holder() {
+  char host[HOST_NAME_MAX + 1] = {};
+  if (::gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+  return "pid " + std::to_string(::getpid()) + " on host " + (host[0] ? host : "?");
+}
+
+}  // namespace
+
+PgWriterLock::PgWriterLock(const std::string& conninfo) : db_(std::make_unique<PgDb>(conninfo)) {
+  migrate_postgres_schema(*db_, unix_time_ns());
+  PgStatement take = db_->prepare("SELECT pg_try_advisory_lock(?1)");
+  take.bind_int64(1, kWriterLockKey);
+  ORBATLAS_CHECK(take.step(), db_->description() << ": pg_try_advisory_lock returned no row");
+  if (take.int64(0) == 0) {
+    PgStatement holder = db_->prepare("SELECT holder FROM atlas_writer WHERE id = 1");
+    const std::string who = holder.step() ? holder.text(0) : std::string("unknown holder");
+    throw Error("the atlas " + db_->description() + " is in use by another writer (" + who +
+                "); one writer per database");
+  }
+  PgStatement state = db_->prepare("SELECT state FROM atlas_writer WHERE id = 1");
+  previous_crashed_ = state.step() && state.text(0) == "running";
+  db_->prepare(
+         "INSERT INTO atlas_writer(id, state, holder, changed_ns) VALUES (1, 'running', ?1, ?2) "
+         "ON CONFLICT (id) DO UPDATE SET state = excluded.state, holder = excluded.holder, "
+         "changed_ns = excluded.changed_ns")
+      .bind_text(1, this_holder())
+      .bind_int64(2, unix_time_ns())
+      .run();
+}
+
+PgWriterLock::~PgWriterLock() = default;
+
+void PgWriterLock::mark_stopped() {
+  db_->prepare("UPDATE atlas_writer SET state = 'stopped', changed_ns = ?1 WHERE id = 1")
+      .bind_int64(1, unix_time_ns())
+      .run();
+}
+
+}  // namespace orbatlas

@@ -1,0 +1,37 @@
+#pragma once
+// The single-writer guarantee of an atlas in PostgreSQL (issue 23): what the
+// lock file is for SQLite (database_lock.h). The writer holds a session-level
+// advisory lock (pg_try_advisory_lock) on a connection of its own for its
+// whole life; PostgreSQL releases it when that connection ends, however the
+// process ended (exit, SIGKILL, a crash: the server sees the socket close). A
+// second writer fails at start with the first one's "pid N on host H". The row
+// of `atlas_writer` (schema/postgres/002) says how the last holder ended,
+// 'running' when it died without mark_stopped(), as the lock file does.
+//
+// Brings the schema up to date first (the table must exist); refuses, as
+// AtlasStore::open_postgres does, a database of another application or a newer
+// schema before writing anything.
+#include <memory>
+#include <string>
+
+namespace orbatlas {
+
+class PgDb;
+
+class PgWriterLock {
+ public:
+  // Error naming the holder when another writer has the lock.
+  explicit PgWriterLock(const std::string& conninfo);
+  ~PgWriterLock();  // closes the connection, which releases the lock
+  PgWriterLock(const PgWriterLock&) = delete;
+  PgWriterLock& operator=(const PgWriterLock&) = delete;
+
+  bool previous_holder_crashed() const { return previous_crashed_; }
+  void mark_stopped();
+
+ private:
+  std::unique_ptr<PgDb> db_;
+  bool previous_crashed_ = false;
+};
+
+}  // namespace orbatlas
