@@ -3,6 +3,7 @@
 // projection and bag-of-words search, poses of culled keyframes, the bounded queue.
 #include <gtest/gtest.h>
 
+#include <future>
 #include <random>
 #include <thread>
 
@@ -427,6 +428,44 @@ TEST(LocalMapping, AnErrorInOneKeyframeIsCountedAndMappingGoesOn) {
       EXPECT_LT(kfs[k]->parent()->id(), kfs[k]->id());
     }
   }
+}
+
+// Sessions sharing a mapper (sources): a keyframe of one in processing makes
+// the mapper busy for that session only, so another session still makes its
+// keyframes as it would alone (ORB-SLAM's AcceptKeyFrames, per session).
+TEST(LocalMapping, IdleIsPerSourceWhenSessionsShareAMapper) {
+  const Scene s = make_scene(200, 23);
+  Atlas atlas;
+  auto map = atlas.create_map();
+  LocalMapperOptions o;
+  o.run_bundle_adjustment = false;
+  o.run_culling = false;
+  LocalMapper mapper(atlas, s.cam(), o);
+  std::promise<void> entered, release;
+  std::shared_future<void> released = release.get_future().share();
+  bool first = true;
+  mapper.set_processed_listener([&](const std::shared_ptr<KeyFrame>&) {
+    if (!std::exchange(first, false)) return;
+    entered.set_value();
+    released.wait();  // the first keyframe stays in processing until released
+  });
+  std::vector<std::size_t> idx;
+  EXPECT_TRUE(mapper.idle(1));
+  EXPECT_TRUE(mapper.insert(map->new_keyframe(keyframe_data(s, at(0.0, 0, 0), &idx)), 1));
+  entered.get_future().wait();
+  EXPECT_FALSE(mapper.idle());   // the mapper is working
+  EXPECT_FALSE(mapper.idle(1));  // on source 1's keyframe
+  EXPECT_TRUE(mapper.idle(2));   // source 2 has nothing pending
+  EXPECT_TRUE(mapper.insert(map->new_keyframe(keyframe_data(s, at(0.05, 0, 0), &idx)), 2));
+  EXPECT_FALSE(mapper.idle(2));  // queued behind source 1's
+  EXPECT_EQ(mapper.queued(), 1u);
+  release.set_value();
+  mapper.wait_until_idle();
+  EXPECT_TRUE(mapper.idle(1));
+  EXPECT_TRUE(mapper.idle(2));
+  EXPECT_TRUE(mapper.idle());
+  mapper.finish();
+  EXPECT_EQ(mapper.stats().keyframes, 2u);
 }
 
 TEST(LocalMapping, FailingOnEveryKeyframeFailsTheSessionAtLast) {

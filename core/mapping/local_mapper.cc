@@ -54,8 +54,8 @@ LocalMapper::LocalMapper(Atlas& atlas, FrameCamera cam, LocalMapperOptions optio
       board_(board ? std::move(board) : std::make_shared<LocalMapperStatsBoard>()),
       worker_(
           QueueWorkerOptions::own_thread("local mapping", options_.queue_capacity, 20, options_.worker_nice),
-          [this](std::shared_ptr<KeyFrame>& keyframe) { run_one(keyframe); },
-          [](const std::shared_ptr<KeyFrame>& keyframe) { return "keyframe " + std::to_string(keyframe->id()); }) {
+          [this](Item& item) { run_one(item); },
+          [](const Item& item) { return "keyframe " + std::to_string(item.keyframe->id()); }) {
   ORBATLAS_CHECK(cam_.camera != nullptr, "local mapper needs a camera");
 }
 
@@ -67,7 +67,32 @@ LocalMapper::~LocalMapper() {
   }
 }
 
-bool LocalMapper::insert(std::shared_ptr<KeyFrame> keyframe) { return worker_.push(std::move(keyframe)); }
+bool LocalMapper::insert(std::shared_ptr<KeyFrame> keyframe, std::uint64_t source) {
+  {
+    std::lock_guard lock(pending_mutex_);
+    ++pending_[source];
+  }
+  if (worker_.push(Item{std::move(keyframe), source})) return true;
+  std::lock_guard lock(pending_mutex_);
+  if (--pending_[source] == 0) pending_.erase(source);
+  return false;
+}
+
+bool LocalMapper::idle(std::uint64_t source) const {
+  std::lock_guard lock(pending_mutex_);
+  return !pending_.contains(source);
+}
+
+void LocalMapper::interrupt_optimization(std::uint64_t source) {
+  if (processing_source_.load() == source) abort_ba_.store(true);
+}
+
+bool LocalMapper::hurry(std::uint64_t source) const {
+  if (2 * worker_.queued() >= options_.queue_capacity) return true;
+  std::lock_guard lock(pending_mutex_);
+  const auto it = pending_.find(source);
+  return it != pending_.end() && it->second > 1;  // the one being processed counts itself
+}
 
 LocalMapperStats LocalMapper::stats() const {
   LocalMapperStats out;
@@ -83,15 +108,24 @@ void LocalMapper::set_processed_listener(std::function<void(const std::shared_pt
   processed_listener_ = std::move(listener);
 }
 
-void LocalMapper::run_one(std::shared_ptr<KeyFrame>& keyframe) {
+void LocalMapper::run_one(Item& item) {
   // A failure leaves the keyframe as far as it was processed (every edit is a
   // whole step of the map model); the worker counts it and goes on.
+  struct Done {
+    LocalMapper& mapper;
+    std::uint64_t source;
+    ~Done() {
+      std::lock_guard lock(mapper.pending_mutex_);
+      if (--mapper.pending_[source] == 0) mapper.pending_.erase(source);
+    }
+  } done{*this, item.source};
+  processing_source_.store(item.source);
   abort_ba_.store(false);
-  process(keyframe);
-  if (processed_listener_ && !keyframe->is_bad()) processed_listener_(keyframe);
+  process(item.keyframe, item.source);
+  if (processed_listener_ && !item.keyframe->is_bad()) processed_listener_(item.keyframe);
 }
 
-void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
+void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64_t source) {
   const auto start = std::chrono::steady_clock::now();
   const auto map = atlas_.map(keyframe->map_id());
   if (!map || keyframe->is_bad()) return;
@@ -100,16 +134,17 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   complete_keyframe(keyframe);
   if (index_) index_->add(keyframe);
   cull_recent_points(*map);
-  triangulate(*map, keyframe);
-  if (worker_.queued() == 0) fuse_with_neighbours(*map, keyframe);
+  triangulate(*map, keyframe, source);
+  if (!hurry(source)) fuse_with_neighbours(*map, keyframe);
 
   double ba_ms = -1.0;
+  std::size_t ba_window = 0, ba_fixed = 0;
   KeyframeCullingResult culling;
   bool culling_ran = false;
   bool interrupted = false;
   std::size_t inertial_bas = 0, inertial_refinements = 0;
   std::optional<GlobalBundleAdjustmentResult> full_ba;
-  if (worker_.queued() == 0 && !abort_ba_.load()) {
+  if (!hurry(source) && !abort_ba_.load()) {
     if (options_.run_bundle_adjustment && map->keyframe_count() > 2) {
       LocalBundleAdjustmentOptions ba = options_.bundle_adjustment;
       ba.origin = origins_.at(map->id());
@@ -123,6 +158,8 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
       if (ba.inertial) ba.max_covisibles = std::min(ba.max_covisibles, options_.inertial_covisible_keyframes);
       const auto stats = local_bundle_adjustment(*map, keyframe, *cam_.camera, cam_.bf, ba, &abort_ba_);
       ba_ms = stats.time_ms;
+      ba_window = stats.window_keyframes;
+      ba_fixed = stats.fixed_keyframes;
       interrupted = stats.stopped;
       if (stats.inertial_edges > 0) {
         ++inertial_bas;
@@ -162,7 +199,11 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe) {
   std::lock_guard lock(board_->mutex);
   ++board_->stats.keyframes;
   board_->stats.keyframe_ms.add(ms_since(start));
-  if (ba_ms >= 0.0) board_->stats.bundle_adjustment_ms.add(ba_ms);
+  if (ba_ms >= 0.0) {
+    board_->stats.bundle_adjustment_ms.add(ba_ms);
+    board_->stats.bundle_adjustment_window.add(static_cast<double>(ba_window));
+    board_->stats.bundle_adjustment_fixed.add(static_cast<double>(ba_fixed));
+  }
   if (interrupted) ++board_->stats.bundle_adjustments_interrupted;
   board_->stats.inertial_bundle_adjustments += inertial_bas;
   board_->stats.inertial_refinements += inertial_refinements;
@@ -272,11 +313,11 @@ void LocalMapper::cull_recent_points(Map& map) {
   board_->stats.recent_points_culled += culled;
 }
 
-void LocalMapper::triangulate(Map& map, const std::shared_ptr<KeyFrame>& keyframe) {
+void LocalMapper::triangulate(Map& map, const std::shared_ptr<KeyFrame>& keyframe, std::uint64_t source) {
   std::vector<std::shared_ptr<MapPoint>> created;
   std::size_t n = 0;
   for (const auto& neighbour : keyframe->best_covisibles(options_.triangulation_neighbours)) {
-    if (n++ > 0 && worker_.queued() > 0) break;  // a keyframe is waiting: tracking needs us
+    if (n++ > 0 && hurry(source)) break;  // the session's next keyframe is waiting: tracking needs us
     triangulate_pair(map, keyframe, neighbour, cam_, &created);
   }
   for (auto& mp : created) recent_.push_back({mp, sequence_});

@@ -40,7 +40,7 @@ class MappingWorkers::Sink final : public KeyframeSink {
 
   bool idle(MapId map) const override {
     const auto mapper = workers_.mapper_for(map, false);
-    return !mapper || mapper->idle();
+    return !mapper || mapper->idle(stream_);  // per session: see LocalMapper::idle
   }
   std::size_t queued(MapId map) const override {
     const auto mapper = workers_.mapper_for(map, false);
@@ -59,7 +59,7 @@ class MappingWorkers::Sink final : public KeyframeSink {
       throw Error("local mapping has finished; no keyframe can be inserted");
   }
   void interrupt_optimization(MapId map) override {
-    if (const auto mapper = workers_.mapper_for(map, false)) mapper->interrupt_optimization();
+    if (const auto mapper = workers_.mapper_for(map, false)) mapper->interrupt_optimization(stream_);
   }
 
  private:
@@ -120,7 +120,7 @@ bool MappingWorkers::insert(std::shared_ptr<KeyFrame> keyframe, std::uint64_t st
   for (int attempt = 0; attempt < 3; ++attempt) {
     const auto mapper = mapper_for(keyframe->map_id(), true);
     if (!mapper) break;  // finished
-    if (mapper->insert(keyframe)) return true;
+    if (mapper->insert(keyframe, stream)) return true;
   }
   std::lock_guard lock(mutex_);
   streams_.erase(keyframe->id());

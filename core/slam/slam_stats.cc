@@ -89,6 +89,8 @@ nlohmann::json to_json(const SlamStats& s) {
   j["local_mapping_ms_per_kf"] = summary(s.mapping.keyframe_ms);
   j["local_ba_ms"] = summary(s.mapping.bundle_adjustment_ms);
   j["local_ba_interrupted"] = s.mapping.bundle_adjustments_interrupted;
+  j["local_ba_window_keyframes"] = summary(s.mapping.bundle_adjustment_window);
+  j["local_ba_fixed_keyframes"] = summary(s.mapping.bundle_adjustment_fixed);
   j["culling_scheme"] = culling_scheme_name(s.culling_scheme);
   const double scan = mean(s.mapping.culling_scan_ms), incremental = mean(s.mapping.culling_incremental_ms);
   j["culling_ms_per_kf"] = s.culling_scheme == CullingScheme::kScan ? scan : incremental;

@@ -15,7 +15,8 @@ namespace orbatlas {
 class KeyframeSink {
  public:
   virtual ~KeyframeSink() = default;
-  // True when the map's mapping has nothing queued and is not processing (ORB-SLAM's AcceptKeyFrames).
+  // True when the map's mapping has none of this session's keyframes queued or
+  // in processing (ORB-SLAM's AcceptKeyFrames, per session when several map one map).
   virtual bool idle(MapId map) const = 0;
   virtual std::size_t queued(MapId map) const = 0;
   // False while the map's mapping is paused (a loop correction or a merge is
@@ -24,7 +25,8 @@ class KeyframeSink {
   virtual bool accepting(MapId map) const = 0;
   // To the mapping of the keyframe's map. Blocks while its queue is full.
   virtual void insert(std::shared_ptr<KeyFrame> keyframe) = 0;
-  // Asks the map's running local bundle adjustment to finish early (a keyframe is waiting).
+  // Asks the map's running local bundle adjustment to finish early when it is
+  // of this session's keyframe (the session's next keyframe is waiting).
   virtual void interrupt_optimization(MapId map) = 0;
 };
 
