@@ -29,6 +29,12 @@ void AlignmentBenchOptions::check() const {
   ORBATLAS_CHECK(problems >= 1, "bench alignment: problems (--problems) must be >= 1, not " << problems);
 }
 
+void StereoBenchOptions::check() const {
+  ORBATLAS_CHECK(frames >= 1, "bench stereo: frames (--frames) must be >= 1, not " << frames);
+  ORBATLAS_CHECK(std::isfinite(depth_map_factor) && depth_map_factor > 0.0,
+                 "bench stereo: depth_map_factor (--depth-map-factor) must be > 0, not " << depth_map_factor);
+}
+
 void PlaceBenchOptions::check() const {
   ORBATLAS_CHECK(every >= 1, "bench place: every (--every) must be >= 1, not " << every);
   ORBATLAS_CHECK(std::isfinite(revisit_m) && revisit_m > 0.0,

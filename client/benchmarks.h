@@ -51,6 +51,20 @@ struct AlignmentBenchOptions {
 };
 void run_alignment_bench(const AlignmentBenchOptions& options);
 
+struct StereoBenchOptions {
+  // Rendered with `orbatlas sim --depth --depth-noise 0`: the exact depth of
+  // cam0's pixels beside the stereo images.
+  std::filesystem::path dataset;
+  std::filesystem::path config;  // default: config/euroc/stereo.yaml
+  int frames = 40;               // spread over the dataset
+  double depth_map_factor = 5000.0;
+  bool json = false;
+
+  // Throws Error naming the first value out of range.
+  void check() const;
+};
+void run_stereo_bench(const StereoBenchOptions& options);
+
 struct PlaceBenchOptions {
   std::filesystem::path map, queries;           // EuRoC ASL stereo datasets with ground truth in one world frame
   std::filesystem::path config;                 // default: config/euroc/stereo.yaml

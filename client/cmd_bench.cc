@@ -42,6 +42,20 @@ void register_bench_command(CLI::App& app) {
   s->add_flag("--json", store->json, "Print one JSON object");
   s->callback([store]() { run_atlas_store_bench(*store); });
 
+  auto stereo = std::make_shared<StereoBenchOptions>();
+  auto* st =
+      bench->add_subcommand("stereo", "Stereo depth against exact rendered depth: disparity bias and spread by depth");
+  st->add_option("--dataset", stereo->dataset,
+                 "A stereo dataset rendered with `orbatlas sim --depth --depth-noise 0` (exact depth of cam0)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  st->add_option("--config", stereo->config, "Settings (default: config/euroc/stereo.yaml)");
+  st->add_option("--frames", stereo->frames, "Stereo frames to measure (spread over the dataset)")
+      ->capture_default_str();
+  st->add_option("--depth-map-factor", stereo->depth_map_factor, "Depth image value per metre")->capture_default_str();
+  st->add_flag("--json", stereo->json, "Print one JSON object");
+  st->callback([stereo]() { run_stereo_bench(*stereo); });
+
   auto alignment = std::make_shared<AlignmentBenchOptions>();
   auto* a =
       bench->add_subcommand("alignment", "Horn's absolute orientation against Eigen::umeyama (microseconds, errors)");
