@@ -15,6 +15,8 @@ namespace {
 // pg_try_advisory_lock's key for the atlas's writer (advisory locks are per
 // database, and a database holds one atlas): "orbatlaw".
 constexpr std::int64_t kWriterLockKey = 0x6f726261746c6177;
+// How long a new writer waits for the previous writer's lock to go.
+constexpr int kWaitMs = 3000;
 
 std::string this_holder() {
   char host[HOST_NAME_MAX + 1] = {};
@@ -26,10 +28,21 @@ std::string this_holder() {
 
 PgWriterLock::PgWriterLock(const std::string& conninfo) : db_(std::make_unique<PgDb>(conninfo)) {
   migrate_postgres_schema(*db_, unix_time_ns());
-  PgStatement take = db_->prepare("SELECT pg_try_advisory_lock(?1)");
-  take.bind_int64(1, kWriterLockKey);
-  ORBATLAS_CHECK(take.step(), db_->description() << ": pg_try_advisory_lock returned no row");
-  if (take.int64(0) == 0) {
+  // The lock of a writer that just stopped or died goes when the server has
+  // ended its connection, which libpq does not wait for: the server waits for
+  // the lock (kWaitMs at most) rather than refusing a restart that came first.
+  bool taken = false;
+  db_->exec("SET lock_timeout = " + std::to_string(kWaitMs));
+  try {
+    PgStatement take = db_->prepare("SELECT pg_advisory_lock(?1)");
+    take.bind_int64(1, kWriterLockKey);
+    take.step();
+    taken = true;
+  } catch (const Error& e) {
+    if (std::string(e.what()).find("SQLSTATE 55P03") == std::string::npos) throw;  // not the timeout
+  }
+  db_->exec("SET lock_timeout = 0");
+  if (!taken) {
     PgStatement holder = db_->prepare("SELECT holder FROM atlas_writer WHERE id = 1");
     const std::string who = holder.step() ? holder.text(0) : std::string("unknown holder");
     throw Error("the atlas " + db_->description() + " is in use by another writer (" + who +
@@ -46,7 +59,13 @@ PgWriterLock::PgWriterLock(const std::string& conninfo) : db_(std::make_unique<P
       .run();
 }
 
-PgWriterLock::~PgWriterLock() = default;
+PgWriterLock::~PgWriterLock() {
+  // Released at once on a clean drop (a crash leaves it to the server).
+  try {
+    db_->prepare("SELECT pg_advisory_unlock(?1)").bind_int64(1, kWriterLockKey).step();
+  } catch (const std::exception&) {  // the connection is gone: so is the lock
+  }
+}
 
 void PgWriterLock::mark_stopped() {
   db_->prepare("UPDATE atlas_writer SET state = 'stopped', changed_ns = ?1 WHERE id = 1")

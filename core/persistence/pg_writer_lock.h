@@ -1,10 +1,13 @@
 #pragma once
 // The single-writer guarantee of an atlas in PostgreSQL (issue 23): what the
 // lock file is for SQLite (database_lock.h). The writer holds a session-level
-// advisory lock (pg_try_advisory_lock) on a connection of its own for its
-// whole life; PostgreSQL releases it when that connection ends, however the
-// process ended (exit, SIGKILL, a crash: the server sees the socket close). A
-// second writer fails at start with the first one's "pid N on host H". The row
+// advisory lock (pg_advisory_lock) on a connection of its own for its whole
+// life; PostgreSQL releases it when that connection ends, however the process
+// ended (exit, SIGKILL, a crash: the server sees the socket close). That
+// happens shortly after, not when libpq returns, so a new writer waits up to
+// 3 s for the lock (the server's lock_timeout; measured: under ctest -j2 a
+// writer opened right after the last one's drop was refused once). A second
+// writer fails then with the first one's "pid N on host H". The row
 // of `atlas_writer` (schema/postgres/002) says how the last holder ended,
 // 'running' when it died without mark_stopped(), as the lock file does.
 //
@@ -22,7 +25,7 @@ class PgWriterLock {
  public:
   // Error naming the holder when another writer has the lock.
   explicit PgWriterLock(const std::string& conninfo);
-  ~PgWriterLock();  // closes the connection, which releases the lock
+  ~PgWriterLock();  // releases the lock, then closes the connection
   PgWriterLock(const PgWriterLock&) = delete;
   PgWriterLock& operator=(const PgWriterLock&) = delete;
 
