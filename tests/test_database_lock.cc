@@ -10,6 +10,7 @@
 #include <memory>
 #include <string>
 
+#include "cli/effective_options.h"
 #include "core/common/error.h"
 #include "core/persistence/atlas_location.h"
 #include "core/persistence/atlas_store.h"
@@ -80,6 +81,25 @@ TEST(AtlasLocation, PostgresUrisAreToldApartAndCheckedBeforeConnecting) {
       error_of([] { AtlasStore::open("postgresql://me:secret@/atlas?host=/nonexistent-orbatlas-test", "v"); });
   EXPECT_NE(unreachable.find("cannot connect to postgresql://me:***@/atlas"), std::string::npos) << unreachable;
   EXPECT_EQ(unreachable.find("secret"), std::string::npos) << unreachable;
+}
+
+// The options a program logs at start (orbatlas-server, orbatlas run) show a
+// database URI without its password.
+TEST(AtlasLocation, TheLoggedOptionsHideAUrisPassword) {
+  EXPECT_EQ(without_uri_passwords("db=\"postgresql://me:secret@db.example:5433/atlas\""),
+            "db=\"postgresql://me:***@db.example:5433/atlas\"");
+  EXPECT_EQ(without_uri_passwords("db=postgresql://me@db.example/atlas"), "db=postgresql://me@db.example/atlas");
+  EXPECT_EQ(without_uri_passwords("db=atlas.db"), "db=atlas.db");
+  EXPECT_EQ(without_uri_passwords("a=postgres://u:p1@h/x b=postgres://v:p2@/y?host=/tmp"),
+            "a=postgres://u:***@h/x b=postgres://v:***@/y?host=/tmp");
+  CLI::App app("test");
+  std::string db;
+  app.add_option("--db", db);
+  const char* argv[] = {"test", "--db", "postgresql://me:secret@/atlas?host=/tmp/pg"};
+  app.parse(3, argv);
+  const std::string text = effective_options_text(app);
+  EXPECT_EQ(text.find("secret"), std::string::npos) << text;
+  EXPECT_NE(text.find("postgresql://me:***@/atlas?host=/tmp/pg"), std::string::npos) << text;
 }
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include "core/io/stereo_pair_loader.h"
 #include "core/io/tum_rgbd.h"
 #include "core/io/tum_trajectory.h"
+#include "core/persistence/atlas_location.h"
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/database_lock.h"
 #include "core/persistence/map_rigs.h"
@@ -156,26 +157,29 @@ StoredAtlas open_atlas(const DatasetRunOptions& options, const SlamSettings& set
                        Atlas& atlas, DatasetRunReport& report) {
   StoredAtlas stored;
   if (options.atlas.empty()) return stored;
+  // For messages: a PostgreSQL URI's password is never printed.
+  const std::string shown = location_for_messages(options.atlas.string());
   if (!options.localize_only) stored.lock = std::make_unique<DatabaseLock>(options.atlas);
   const auto load_start = Clock::now();
-  if (options.localize_only) ORBATLAS_CHECK(std::filesystem::exists(options.atlas), options.atlas << " does not exist");
+  if (options.localize_only && !is_postgres_location(options.atlas.string()))
+    ORBATLAS_CHECK(std::filesystem::exists(options.atlas), shown << " does not exist");
   AtlasStore store = AtlasStore::open(options.atlas, vocabulary.hash());
   const AtlasLoadReport loaded = store.load_atlas(atlas, &vocabulary);
   atlas.index_all_keyframes();
   if (stored.lock && stored.lock->previous_holder_crashed()) {
     skip_ids_after_crash(atlas);
-    log_warn(options.atlas.string() +
+    log_warn(shown +
              ": its previous writer stopped without a final checkpoint; new ids continue "
              "past any it may have handed out");
   }
   report.loaded_maps = loaded.maps;
   report.loaded_keyframes = loaded.keyframes;
   report.atlas_load_s = std::chrono::duration<double>(Clock::now() - load_start).count();
-  log_info("atlas " + options.atlas.string() + ": " + std::to_string(loaded.maps) + " maps, " +
-           std::to_string(loaded.keyframes) + " keyframes, " + std::to_string(loaded.map_points) +
-           " map points loaded in " + std::to_string(report.atlas_load_s) + " s");
+  log_info("atlas " + shown + ": " + std::to_string(loaded.maps) + " maps, " + std::to_string(loaded.keyframes) +
+           " keyframes, " + std::to_string(loaded.map_points) + " map points loaded in " +
+           std::to_string(report.atlas_load_s) + " s");
   if (options.localize_only) {
-    ORBATLAS_DATA_CHECK(loaded.keyframes > 0, options.atlas << " holds no keyframe to localise against");
+    ORBATLAS_DATA_CHECK(loaded.keyframes > 0, shown << " holds no keyframe to localise against");
   } else {
     stored.session = new_session(options, settings, store, atlas, stored.rigs);
     report.session = stored.session->id;
