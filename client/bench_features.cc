@@ -27,12 +27,6 @@ using Clock = std::chrono::steady_clock;
 
 double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
-cv::Mat read_gray(const std::filesystem::path& path) {
-  cv::Mat img = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
-  if (img.empty()) throw DataError("cannot read image " + path.string());
-  return img;
-}
-
 }  // namespace
 
 void run_feature_bench(const FeatureBenchOptions& o) {

@@ -34,12 +34,6 @@ double axis_angle_deg(const Pose3& a, const Pose3& b) {
   return std::acos(std::clamp(c, -1.0, 1.0)) * 180.0 / M_PI;
 }
 
-cv::Mat read_gray(const std::filesystem::path& path) {
-  cv::Mat img = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
-  if (img.empty()) throw DataError("cannot read image " + path.string());
-  return img;
-}
-
 Trajectory ground_truth_of(const EurocDataset& ds, const std::filesystem::path& dir) {
   ORBATLAS_CHECK(!ds.ground_truth.empty(), dir.string() << " has no ground truth (mav0/state_groundtruth_estimate0)");
   return from_ground_truth_states(ds.ground_truth);

@@ -24,12 +24,6 @@
 namespace orbatlas::cli {
 namespace {
 
-cv::Mat read_gray(const std::filesystem::path& path) {
-  cv::Mat img = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
-  if (img.empty()) throw DataError("cannot read image " + path.string());
-  return img;
-}
-
 // mav0/cam0/data/<t>.png -> mav0/cam1/data/<t>.png
 std::filesystem::path right_image_of(const std::filesystem::path& left) {
   const auto data = left.parent_path();

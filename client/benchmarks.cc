@@ -3,9 +3,17 @@
 
 #include <cmath>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include "core/common/error.h"
 
 namespace orbatlas::cli {
+
+cv::Mat read_gray(const std::filesystem::path& path) {
+  cv::Mat img = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
+  if (img.empty()) throw DataError("cannot read image " + path.string());
+  return img;
+}
 
 void RenderBenchOptions::check() const {
   ORBATLAS_CHECK(frames >= 1, "bench render: frames (--frames) must be >= 1, not " << frames);

@@ -1,10 +1,15 @@
 #pragma once
 // Benchmarks behind `orbatlas bench`: each prints figures (text or one JSON object).
 #include <filesystem>
+#include <opencv2/core/mat.hpp>
 #include <string>
 #include <vector>
 
 namespace orbatlas::cli {
+
+// An image of a benchmark's dataset as 8-bit grey; DataError naming the file
+// when it cannot be read.
+cv::Mat read_gray(const std::filesystem::path& path);
 
 struct RenderBenchOptions {
   std::string sequence = "MH_01";

@@ -326,10 +326,4 @@ void PgDb::begin_transaction(SqlTransactionMode mode) {
   exec(mode == SqlTransactionMode::kRead ? "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY" : "BEGIN");
 }
 
-std::int64_t PgDb::query_int64(std::string_view sql) {
-  PgStatement statement = prepare(sql);
-  ORBATLAS_CHECK(statement.step(), description_ << ": \"" << sql << "\" returned no row");
-  return statement.int64(0);
-}
-
 }  // namespace orbatlas

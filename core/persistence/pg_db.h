@@ -116,8 +116,6 @@ class PgDb final : public SqlConnection {
   void exec(std::string_view sql) override;
   PgStatement prepare(std::string_view sql);
   std::unique_ptr<SqlStatement> prepare_statement(std::string_view sql) override;
-  // The single integer a query returns.
-  std::int64_t query_int64(std::string_view sql) override;
   // kRead: REPEATABLE READ, READ ONLY (one snapshot for every statement);
   // kWrite: READ COMMITTED (PostgreSQL's default; writers lock the rows they touch).
   void begin_transaction(SqlTransactionMode mode) override;

@@ -4,6 +4,12 @@
 
 namespace orbatlas {
 
+std::int64_t SqlConnection::query_int64(std::string_view sql) {
+  const std::unique_ptr<SqlStatement> statement = prepare_statement(sql);
+  ORBATLAS_CHECK(statement->step(), description() << ": \"" << sql << "\" returned no row");
+  return statement->int64(0);
+}
+
 SqlTransaction::SqlTransaction(SqlConnection& db, Mode mode) : db_(db) { db_.begin_transaction(mode); }
 
 SqlTransaction::~SqlTransaction() {

@@ -66,8 +66,9 @@ class SqlConnection {
   // One or more statements without parameters or results (a migration script).
   virtual void exec(std::string_view sql) = 0;
   virtual std::unique_ptr<SqlStatement> prepare_statement(std::string_view sql) = 0;
-  // The single integer a query returns; Error when it returns no row.
-  virtual std::int64_t query_int64(std::string_view sql) = 0;
+  // The single integer a query returns (e.g. "PRAGMA user_version"); Error
+  // when it returns no row.
+  std::int64_t query_int64(std::string_view sql);
 
   // BEGIN in the backend's form of `mode`; use SqlTransaction rather than this.
   virtual void begin_transaction(SqlTransactionMode mode) = 0;

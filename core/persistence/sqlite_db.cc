@@ -170,10 +170,4 @@ void SqliteDb::begin_transaction(SqlTransactionMode mode) {
   exec(mode == SqlTransactionMode::kWrite ? "BEGIN IMMEDIATE" : "BEGIN DEFERRED");
 }
 
-std::int64_t SqliteDb::query_int64(std::string_view sql) {
-  SqliteStatement statement = prepare(sql);
-  ORBATLAS_CHECK(statement.step(), path_.string() << ": \"" << sql << "\" returned no row");
-  return statement.int64(0);
-}
-
 }  // namespace orbatlas

@@ -74,8 +74,6 @@ class SqliteDb final : public SqlConnection {
   void exec(std::string_view sql) override;
   SqliteStatement prepare(std::string_view sql);
   std::unique_ptr<SqlStatement> prepare_statement(std::string_view sql) override;
-  // The single integer a query returns (e.g. "PRAGMA user_version").
-  std::int64_t query_int64(std::string_view sql) override;
   // kRead: BEGIN DEFERRED (a consistent snapshot for reading); kWrite: BEGIN
   // IMMEDIATE (takes the write lock at once: no upgrade deadlock).
   void begin_transaction(SqlTransactionMode mode) override;
