@@ -122,6 +122,13 @@ int main(int argc, char** argv) {
   bool insecure = false;
   app.add_flag("--insecure", insecure, "Allow listening on a non-loopback address without --token");
   bool no_merging = false, no_live_merging = false, no_join_at_start = false;
+  app.add_option("--replica-url", service_options.replica.url,
+                 "Where other replicas of a shared PostgreSQL atlas reach this server's API (listed by GET "
+                 "/v1/replicas; default: http://HOST:PORT of --listen)");
+  app.add_option("--lease-s", service_options.replica.lease_s,
+                 "Seconds after which replicas of a shared PostgreSQL atlas count this server dead when it has not "
+                 "renewed its lease (it renews every third of it)")
+      ->capture_default_str();
   app.add_flag("--no-merging", no_merging, "Never merge maps (not live, not when a session finishes)");
   app.add_flag("--no-live-merging", no_live_merging, "Merge a session's maps only when it finishes, not while it runs");
   app.add_flag("--no-join-at-start", no_join_at_start,
@@ -183,6 +190,13 @@ int main(int argc, char** argv) {
     }
     orbatlas::log_info("listening on http://" + listen.host + ":" + std::to_string(port) +
                        (token.empty() ? "" : " (bearer token required)"));
+    if (service_options.replica.url.empty()) {
+      try {
+        service.replica_url("http://" + listen.host + ":" + std::to_string(port));
+      } catch (const std::exception& e) {
+        orbatlas::log_warn(std::string("cannot record this replica's URL: ") + e.what());
+      }
+    }
 
     std::thread signal_thread([&] {
       int received = 0;

@@ -457,6 +457,15 @@ TEST(ServerEndToEnd, ThreeSessionsStreamConcurrently) {
   EXPECT_GT(std::stod(rows[1].str()), 3.0 * 80.0);
   for (const auto session : sessions)
     EXPECT_EQ(client.get_json("/v1/sessions/" + std::to_string(session)).at("worker_errors"), 0u);
+  // An SQLite atlas has one server: it is the only replica, without a lease.
+  EXPECT_NE(metrics.find("orbatlas_replica_id 1"), std::string::npos) << metrics;
+  const nlohmann::json replicas = client.get_json("/v1/replicas");
+  EXPECT_EQ(replicas["backend"], "sqlite") << replicas.dump();
+  EXPECT_EQ(replicas["self"], 1u) << replicas.dump();
+  ASSERT_EQ(replicas["replicas"].size(), 1u) << replicas.dump();
+  EXPECT_TRUE(replicas["replicas"][0]["alive"].get<bool>()) << replicas.dump();
+  EXPECT_TRUE(replicas["replicas"][0]["self"].get<bool>()) << replicas.dump();
+  EXPECT_TRUE(replicas["replicas"][0]["lease_left_s"].is_null()) << replicas.dump();
 }
 
 // `orbatlas stream --repeat`: a short clip streamed three times is one long

@@ -123,6 +123,9 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
   // Merges: read-only
   EXPECT_REPLY(http.Post("/v1/merges", "{}", "application/json"), 405, "method_not_allowed");
   EXPECT_REPLY(http.Delete("/v1/merges"), 405, "method_not_allowed");
+  // Replicas: read-only, one list
+  EXPECT_REPLY(http.Post("/v1/replicas", "{}", "application/json"), 405, "method_not_allowed");
+  EXPECT_REPLY(http.Get("/v1/replicas/1"), 404, "not_found");
   // POST /v1/localize
   EXPECT_REPLY(http.Post("/v1/localize", "{}", "application/json"), 400, "bad_request");
   EXPECT_REPLY(http.Post("/v1/localize", httplib::MultipartFormDataItems{{"config", "euroc/stereo", "", ""}}), 400,

@@ -297,15 +297,24 @@ TEST(ServerProcess, PostgresDatabaseKeepsTheMapAcrossARestart) {
   test::TempDbPath files("postgres_server");  // its log, port file and upload folder
   const std::filesystem::path log = files.path.string() + ".log", work = files.path.string() + ".work";
   std::filesystem::remove(log);
-  const std::vector<std::string> args = {"--work-dir", work.string()};
+  // A short lease: the killed server is seen dead soon after the restart.
+  const std::vector<std::string> args = {"--work-dir", work.string(), "--lease-s", "1"};
 
-  std::uint64_t session = 0;
+  std::uint64_t session = 0, first_replica = 0;
   json maps_before;
   {
     ServerProcess server(uri, log, args);
     const std::string url = server.wait_until_listening();
     ASSERT_FALSE(url.empty()) << "the server did not start; its log: " << log_text(log);
     ServerClient client(url);
+    // The server is a replica of the database, reachable where it listens.
+    const json replicas = client.get_json("/v1/replicas");
+    EXPECT_EQ(replicas["backend"], "postgresql") << replicas.dump();
+    ASSERT_EQ(replicas["replicas"].size(), 1u) << replicas.dump();
+    EXPECT_TRUE(replicas["replicas"][0]["alive"].get<bool>()) << replicas.dump();
+    EXPECT_EQ(replicas["replicas"][0]["url"], url) << replicas.dump();
+    EXPECT_GT(replicas["replicas"][0]["lease_left_s"].get<double>(), 0.0) << replicas.dump();
+    first_replica = replicas["self"].get<std::uint64_t>();
     session = client.create_session("euroc/stereo", "postgres");
     for (const auto& f : frames)
       client.post_frame(session, f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
@@ -343,6 +352,22 @@ TEST(ServerProcess, PostgresDatabaseKeepsTheMapAcrossARestart) {
   const std::uint64_t next = client.create_session("euroc/stereo", "after the restart");
   EXPECT_GT(next, session);
   client.finish_session(next);
+  // The killed server is still listed, running by its row, but dead: its
+  // 1-s lease passed without a renewal.
+  json replicas;
+  for (int attempt = 0; attempt < 50; ++attempt) {
+    replicas = client.get_json("/v1/replicas");
+    if (replicas["replicas"].size() == 2 && !replicas["replicas"][0]["alive"].get<bool>()) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_EQ(replicas["replicas"].size(), 2u) << replicas.dump();
+  EXPECT_EQ(replicas["replicas"][0]["id"], first_replica) << replicas.dump();
+  EXPECT_EQ(replicas["replicas"][0]["state"], "running") << replicas.dump();
+  EXPECT_FALSE(replicas["replicas"][0]["alive"].get<bool>()) << replicas.dump();
+  EXPECT_LT(replicas["replicas"][0]["lease_left_s"].get<double>(), 0.0) << replicas.dump();
+  EXPECT_TRUE(replicas["replicas"][1]["alive"].get<bool>()) << replicas.dump();
+  EXPECT_TRUE(replicas["replicas"][1]["self"].get<bool>()) << replicas.dump();
+  EXPECT_EQ(replicas["self"], replicas["replicas"][1]["id"]) << replicas.dump();
   server.kill();
   std::filesystem::remove(log);
 }

@@ -83,6 +83,7 @@ void AtlasServiceOptions::check() const {
   slam.check();
   merging.check();
   checkpoints.check();
+  replica.check();
 }
 
 namespace {
@@ -101,6 +102,7 @@ AtlasServiceOptions with_background_nice(AtlasServiceOptions options) {
 AtlasService::AtlasService(AtlasServiceOptions options)
     : options_((options.check(), with_background_nice(std::move(options)))),
       db_lock_(options_.db.empty() ? nullptr : std::make_unique<DatabaseLock>(options_.db)),
+      replica_(std::make_unique<ReplicaRegistry>(options_.db, options_.replica)),
       vocabulary_(Vocabulary::load(options_.vocabulary.empty() ? default_vocabulary_path() : options_.vocabulary)),
       loop_worker_(std::make_shared<SerialWorker>(options_.loop_queue, options_.background_nice)) {
   const auto start = std::chrono::steady_clock::now();
@@ -834,6 +836,7 @@ void AtlasService::shutdown() {
       log_warn(e.what());
     }
   }
+  replica_->stop();
 }
 
 }  // namespace orbatlas

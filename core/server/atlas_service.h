@@ -26,6 +26,7 @@
 #include "core/server/live_session.h"
 #include "core/server/map_leases.h"
 #include "core/server/map_merge_worker.h"
+#include "core/server/replica_registry.h"
 #include "core/server/service_results.h"
 #include "core/server/session_rules.h"
 #include "core/slam/stereo_slam.h"
@@ -74,6 +75,8 @@ struct AtlasServiceOptions {
   // starves mapping at 10: a single camera's map then ended with scale errors of
   // 0.13-0.46 % instead of 0-0.18 % (ServerMerging.TheMergingWorkerMerges...).
   int background_nice = 0;
+  // This server as one replica of the atlas's database (replica_registry.h).
+  ReplicaOptions replica;
 
   // Throws Error naming the first value out of range (also of the parts).
   void check() const;
@@ -184,6 +187,12 @@ class AtlasService {
   const Atlas& atlas() const { return atlas_; }
   const Vocabulary& vocabulary() const { return vocabulary_; }
   const std::filesystem::path& db_path() const { return options_.db; }
+  const ReplicaRegistry& replica() const { return *replica_; }
+  // Where this server's API is reached (ReplicaRegistry::set_url).
+  void replica_url(const std::string& url) { replica_->set_url(url); }
+  // GET /v1/replicas: the replicas of the atlas's database, by id
+  // (ServiceError kUnavailable when the database cannot be reached).
+  std::vector<ReplicaInfo> replicas() const;
   std::filesystem::path config_dir() const;  // where named configs are read (the shipped ones by default)
 
  private:
@@ -226,6 +235,8 @@ class AtlasService {
   const AtlasServiceOptions options_;
   // First: held while anything below may write the database; destroyed last.
   std::unique_ptr<DatabaseLock> db_lock_;
+  // This server's row among the database's replicas (after db_lock_, which migrates the schema).
+  std::unique_ptr<ReplicaRegistry> replica_;
   const Vocabulary vocabulary_;
   Atlas atlas_;
   MapLeases leases_;

@@ -7,6 +7,7 @@
 
 #include "core/common/process_memory.h"
 #include "core/server/atlas_service.h"
+#include "core/server/service_error.h"
 
 namespace orbatlas {
 namespace {
@@ -27,6 +28,15 @@ HealthReport AtlasService::health() const {
   out.maps = atlas_.maps().size();
   out.merges_pending = merger_ ? merger_->stats().pending : 0;
   return out;
+}
+
+std::vector<ReplicaInfo> AtlasService::replicas() const {
+  try {
+    return replica_->replicas();
+  } catch (const std::exception& e) {
+    throw ServiceError(ServiceErrorKind::kUnavailable, "database_unavailable",
+                       std::string("cannot read the replicas from the atlas's database: ") + e.what());
+  }
 }
 
 std::vector<prometheus::MetricFamily> AtlasService::metrics() const {
@@ -112,6 +122,17 @@ std::vector<prometheus::MetricFamily> AtlasService::metrics() const {
         "Database rows the checkpoints inserted, updated or deleted (maps, keyframes, points, observations, "
         "trajectories, sessions).",
         static_cast<double>(checkpoints.total_rows.total()));
+  set("orbatlas_replica_id",
+      "This server's id among the replicas of the atlas's database (GET /v1/replicas; 1 for an SQLite atlas).",
+      static_cast<double>(replica_->id()));
+  total("orbatlas_replica_lease_renewals_total", "Renewals of this replica's lease in a PostgreSQL atlas.",
+        static_cast<double>(replica_->renewals()));
+  total("orbatlas_replica_lease_renewal_failures_total",
+        "Renewals of this replica's lease that failed (the database unreachable; retried).",
+        static_cast<double>(replica_->failed_renewals()));
+  set("orbatlas_replica_lease_lost",
+      "1 when this replica's lease passed before it was renewed (others may hold what it held).",
+      replica_->lease_lost() ? 1.0 : 0.0);
   if (merger_) {
     const MapMergeWorkerStats merging = merger_->stats();
     std::size_t live_merged = 0;

@@ -328,6 +328,9 @@ void install_map_routes(Router& router, AtlasService& service) {
                reply_json(res, to_json(service.map(id_from(req, 1, "map"))));
              }));
   router.get("/v1/merges", ([&service](const Request&, Response& res) { reply_json(res, to_json(service.merges())); }));
+  router.get("/v1/replicas", ([&service](const Request&, Response& res) {
+               reply_json(res, replicas_json(service.replicas(), service.replica()));
+             }));
   router.get(R"(/v1/maps/(\d+)/points\.ply)", ([&service](const Request& req, Response& res) {
                res.set_content(to_ply(service.map_points(id_from(req, 1, "map"))), "application/ply");
              }));

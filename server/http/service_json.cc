@@ -106,6 +106,25 @@ nlohmann::json to_json(const HealthReport& h) {
           {"merges_pending", h.merges_pending}};
 }
 
+nlohmann::json replicas_json(const std::vector<ReplicaInfo>& replicas, const ReplicaRegistry& self) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const ReplicaInfo& r : replicas) {
+    list.push_back({{"id", r.id},
+                    {"holder", r.holder},
+                    {"url", r.url},
+                    {"started_ns", r.started_ns},
+                    {"state", r.state},
+                    {"alive", r.alive},
+                    {"lease_left_s", r.lease_left_s ? nlohmann::json(*r.lease_left_s) : nlohmann::json(nullptr)},
+                    {"self", r.self}});
+  }
+  return {{"backend", self.shared() ? "postgresql" : "sqlite"},
+          {"self", self.id()},
+          {"lease_s", self.shared() ? nlohmann::json(self.options().lease_s) : nlohmann::json(nullptr)},
+          {"lease_lost", self.lease_lost()},
+          {"replicas", list}};
+}
+
 nlohmann::json to_json(const StoredJob& job) {
   nlohmann::json j = {{"id", job.id},
                       {"state", job.state},
