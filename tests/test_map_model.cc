@@ -61,6 +61,27 @@ TEST(MapModel, IdAllocatorCanBeReseeded) {
   EXPECT_EQ(ids.peek(IdKind::map), 1u);
 }
 
+// Replicas of one database (issue 23): each hands out ids from its own range,
+// and ids it loads from the others' ranges never move its counter.
+TEST(MapModel, AConfinedAllocatorStaysInItsRange) {
+  IdAllocator ids;
+  ids.ensure_above(IdKind::map, 5);  // loaded before confining
+  ids.confine(IdKind::map, 100, 103);
+  EXPECT_EQ(ids.peek(IdKind::map), 100u);
+  ids.ensure_above(IdKind::map, 500);  // another writer's, above the range
+  ids.ensure_above(IdKind::map, 7);    // and below it
+  EXPECT_EQ(ids.next_map_id(), 100u);
+  ids.ensure_above(IdKind::map, 101);  // its own, loaded again
+  EXPECT_EQ(ids.next_map_id(), 102u);
+  EXPECT_THROW(ids.next_map_id(), Error);  // the range is used up
+  EXPECT_EQ(ids.next_keyframe_id(), 0u);   // other kinds are not confined
+  IdAllocator again;
+  again.ensure_above(IdKind::keyframe, 150);  // ids of its range already handed out
+  again.confine(IdKind::keyframe, 100, 200);
+  EXPECT_EQ(again.next_keyframe_id(), 151u);
+  EXPECT_THROW(again.confine(IdKind::keyframe, 5, 5), Error);
+}
+
 TEST(MapModel, TwoAtlasesInOneProcessAreIndependent) {
   struct Result {
     std::vector<KeyframeId> kf_ids;

@@ -7,7 +7,9 @@
 #include <future>
 #include <mutex>
 #include <random>
+#include <set>
 #include <thread>
+#include <unordered_set>
 
 #include "core/common/error.h"
 #include "core/persistence/atlas_checkpointer.h"
@@ -469,6 +471,98 @@ TEST_P(CheckpointTest, MergedMapMovesItsRowsAndLeavesTheFile) {
   store.save_atlas(atlas);
   EXPECT_EQ(store.stored_map_ids().size(), atlas.maps().size());
   expect_file_holds(other, atlas);
+}
+
+// Several writers of one database (replicas, issue 23): each writes only the
+// maps it may write (its ids from a range of its own), and neither writes nor
+// deletes the others' rows; a map it may write again after a time it could not
+// is rewritten whole, so the file then holds its version exactly.
+TEST_P(CheckpointTest, TwoWritersEachWriteOnlyTheirOwnMaps) {
+  Atlas a, b;
+  build_atlas(a, test_vocabulary(), 41);
+  // b's ids come from ranges a never uses.
+  b.ids().confine(IdKind::map, 1000, 2000);
+  b.ids().confine(IdKind::keyframe, std::uint64_t{1} << 32, std::uint64_t{2} << 32);
+  b.ids().confine(IdKind::map_point, std::uint64_t{1} << 40, std::uint64_t{2} << 40);
+  build_atlas(b, test_vocabulary(), 42);
+  ASSERT_GE(a.maps().size(), 2u);
+  const MapId a_own = a.maps()[0]->id(), a_other = a.maps()[1]->id();  // a may not write a_other
+  const std::size_t a_maps_at_start = a.maps().size();
+  std::mutex ownership_mutex;
+  std::set<MapId> a_writes = {a_own};
+  std::vector<std::vector<MapId>> a_candidates;
+  CheckpointOptions a_options = manual_only();
+  a_options.writable_maps = [&](SqlConnection&, const std::vector<MapId>& candidates) {
+    std::lock_guard lock(ownership_mutex);
+    a_candidates.push_back(candidates);
+    std::unordered_set<MapId> out;
+    for (const MapId m : candidates)
+      if (a_writes.count(m)) out.insert(m);
+    return out;
+  };
+  AtlasCheckpointer ca(a, location(), test_vocabulary().hash(), a_options);
+  AtlasCheckpointer cb(b, location(), test_vocabulary().hash(), manual_only());  // every map of its own
+
+  // The file holds a's own map and every map of b, each as its writer has it.
+  const auto expect_file = [&](const std::vector<std::pair<const Atlas*, MapId>>& expected) {
+    Atlas loaded;
+    AtlasStore::open(location(), test_vocabulary().hash()).load_atlas(loaded, &test_vocabulary());
+    std::string ids;
+    for (const auto& m : loaded.maps()) ids += std::to_string(m->id()) + " ";
+    ids += "| expected ";
+    for (const auto& [atlas, id] : expected) ids += std::to_string(id) + " ";
+    ASSERT_EQ(loaded.maps().size(), expected.size()) << ids;
+    for (const auto& [atlas, id] : expected) {
+      ASSERT_NE(loaded.map(id), nullptr) << "map " << id;
+      expect_map_eq(*atlas->map(id), *loaded.map(id), true);
+    }
+  };
+  std::vector<std::pair<const Atlas*, MapId>> expected = {{&a, a_own}};
+  for (const auto& m : b.maps()) expected.push_back({&b, m->id()});
+  std::mt19937_64 rng(43);
+  for (int round = 0; round < 4; ++round) {
+    ASSERT_TRUE(ca.checkpoint_now()) << ca.stats().last_error;
+    ASSERT_TRUE(cb.checkpoint_now()) << cb.stats().last_error;
+    expect_file(expected);
+    if (HasFailure()) return;
+    // Edits in every map of both (a's map it may not write included).
+    for (Atlas* atlas : {&a, &b}) {
+      for (const auto& m : atlas->maps()) {
+        atlas->set_active(m->id());
+        random_edits(*atlas, rng);
+      }
+    }
+    // random_edits may make new maps: a writes none of them, b all of its own.
+    expected.assign({{&a, a_own}});
+    for (const auto& m : b.maps()) expected.push_back({&b, m->id()});
+  }
+  EXPECT_FALSE(a_candidates.empty());
+  EXPECT_EQ(a_candidates.front().size(), a_maps_at_start);  // asked about every map it had
+
+  ASSERT_TRUE(cb.checkpoint_now()) << cb.stats().last_error;  // b's last edits
+  // a may write a_other now (it took it over): rewritten whole, as a has it.
+  {
+    std::lock_guard lock(ownership_mutex);
+    a_writes.insert(a_other);
+  }
+  ASSERT_TRUE(ca.checkpoint_now()) << ca.stats().last_error;
+  expected.push_back({&a, a_other});
+  expect_file(expected);
+  // ... and an edit of it afterwards is an ordinary incremental write.
+  a.map(a_other)->map_points()[0]->increase_found();
+  ASSERT_TRUE(ca.checkpoint_now());
+  EXPECT_EQ(ca.stats().last_rows.total(), 1u);
+  // a may no longer write a_own (another writer took it): a's edits stay out of the file.
+  {
+    std::lock_guard lock(ownership_mutex);
+    a_writes.erase(a_own);
+  }
+  const auto kept = ca.stats().commits;
+  a.map(a_own)->map_points()[0]->increase_found();
+  ASSERT_TRUE(ca.checkpoint_now());
+  EXPECT_EQ(ca.stats().commits, kept);  // nothing of it written
+  EXPECT_EQ(ca.stats().failures, 0u);
+  EXPECT_EQ(cb.stats().failures, 0u);
 }
 
 }  // namespace

@@ -161,6 +161,18 @@ void expect_inertial_eq(const Map& a, const Map& b) {
   }
 }
 
+void expect_map_eq(const Map& a, const Map& b, bool same_bow) {
+  ASSERT_EQ(a.id(), b.id());
+  const auto ka = a.keyframes(), kb = b.keyframes();
+  ASSERT_EQ(ka.size(), kb.size()) << "map " << a.id();
+  for (std::size_t i = 0; i < ka.size(); ++i) expect_keyframe_eq(a, *ka[i], *kb[i], same_bow);
+  const auto pa = a.map_points(), pb = b.map_points();
+  ASSERT_EQ(pa.size(), pb.size()) << "map " << a.id();
+  for (std::size_t i = 0; i < pa.size(); ++i) expect_point_eq(*pa[i], *pb[i]);
+  expect_culled_eq(a, b);
+  expect_inertial_eq(a, b);
+}
+
 void expect_atlas_eq(const Atlas& a, const Atlas& b, bool same_bow) {
   const auto ma = a.maps(), mb = b.maps();
   ASSERT_EQ(ma.size(), mb.size());
@@ -169,15 +181,8 @@ void expect_atlas_eq(const Atlas& a, const Atlas& b, bool same_bow) {
     EXPECT_EQ(a.active_map()->id(), b.active_map()->id());
   }
   for (std::size_t m = 0; m < ma.size(); ++m) {
-    ASSERT_EQ(ma[m]->id(), mb[m]->id());
-    const auto ka = ma[m]->keyframes(), kb = mb[m]->keyframes();
-    ASSERT_EQ(ka.size(), kb.size()) << "map " << ma[m]->id();
-    for (std::size_t i = 0; i < ka.size(); ++i) expect_keyframe_eq(*ma[m], *ka[i], *kb[i], same_bow);
-    const auto pa = ma[m]->map_points(), pb = mb[m]->map_points();
-    ASSERT_EQ(pa.size(), pb.size()) << "map " << ma[m]->id();
-    for (std::size_t i = 0; i < pa.size(); ++i) expect_point_eq(*pa[i], *pb[i]);
-    expect_culled_eq(*ma[m], *mb[m]);
-    expect_inertial_eq(*ma[m], *mb[m]);
+    expect_map_eq(*ma[m], *mb[m], same_bow);
+    if (::testing::Test::HasFatalFailure()) return;
   }
   for (const IdKind kind : {IdKind::keyframe, IdKind::map_point, IdKind::map})
     EXPECT_EQ(a.ids().peek(kind), b.ids().peek(kind)) << "id kind " << static_cast<int>(kind);

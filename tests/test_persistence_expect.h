@@ -17,6 +17,8 @@ void expect_culled_eq(const Map& a, const Map& b);
 // Maps, keyframes, points, culled anchors, active map and id allocator.
 // Inertial state and every keyframe's inertial link (maps with the same keyframes).
 void expect_inertial_eq(const Map& a, const Map& b);
+// One map: its keyframes, points, culled keyframes and inertial state.
+void expect_map_eq(const Map& a, const Map& b, bool same_bow);
 void expect_atlas_eq(const Atlas& a, const Atlas& b, bool same_bow);
 
 std::size_t count_keyframes(const Atlas& atlas);

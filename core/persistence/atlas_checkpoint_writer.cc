@@ -128,12 +128,31 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
     }
   };
 
-  const AtlasRows nothing;
-  const AtlasRows& before = full ? nothing : committed_;
   CheckpointResult result;
   result.full = full;
   if (before_transaction) before_transaction();
   SqlTransaction transaction(db);
+  // The maps this writer writes now: every one, or (several writers) those it
+  // may write inside this transaction. A map written for the first time, or
+  // again after a time it could not be, is rewritten whole.
+  std::vector<MapId> candidates = rows.maps;
+  for (const MapId map : atlas_.removed_maps())
+    if (!deleted_maps_.count(map)) candidates.push_back(map);
+  const std::unordered_set<MapId> writable =
+      writable_maps_ ? writable_maps_(db, candidates) : std::unordered_set<MapId>(candidates.begin(), candidates.end());
+  const bool every_map = writable.size() == candidates.size();
+  const auto is_writable = [&](MapId m) { return writable.count(m) > 0; };
+  const auto written_before = [&](MapId m) { return !full && written_maps_.count(m) > 0; };
+  if (!every_map) rows = rows_of_maps(std::move(rows), is_writable);
+  const AtlasRows nothing;
+  const bool before_is_committed =
+      !full && std::all_of(rows.maps.begin(), rows.maps.end(), written_before) &&
+      std::all_of(written_maps_.begin(), written_maps_.end(), [&](MapId m) { return writable.count(m) > 0; });
+  // What the file holds of the maps written now (rows of maps rewritten whole are deleted first).
+  const AtlasRows restricted = full || before_is_committed ? AtlasRows{} : rows_of_maps(committed_, [&](MapId m) {
+    return is_writable(m) && written_before(m);
+  });
+  const AtlasRows& before = full ? nothing : before_is_committed ? committed_ : restricted;
   {
     AtlasRowWriter writer(db);  // its statements are finalized before COMMIT
     for (std::size_t i = 0; i < sessions_.size(); ++i) {
@@ -147,14 +166,20 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
       for (const FrameAnchor& a : storable[i]) writer.upsert_trajectory(s.session.info.id, a);
       result.rows.inserted += storable[i].size();
     }
-    if (full) {
-      // Maps merged into others since loading go; other stored maps stay.
-      for (const MapId map : atlas_.removed_maps()) writer.delete_map(map);
-      for (const MapId map : rows.maps) writer.delete_map_contents(map);
-    }
+    // Maps merged into others since loading go (unless their rows are in
+    // `before`: then the diff deletes them); other stored maps stay.
+    for (const MapId map : atlas_.removed_maps())
+      if (is_writable(map) && !deleted_maps_.count(map) && !written_before(map)) writer.delete_map(map);
+    for (const MapId map : rows.maps)
+      if (!written_before(map)) writer.delete_map_contents(map);
     result.rows += write_changed_rows(writer, before, rows, now);
     if (meta_changed(before, rows)) ++result.rows.updated;
     if (result.rows.total() == 0) {
+      // A map this writer may not write now is rewritten whole when it may again.
+      if (!every_map) {
+        std::erase_if(written_maps_, [&](MapId m) { return !is_writable(m); });
+        committed_ = rows_of_maps(std::move(committed_), [&](MapId m) { return written_maps_.count(m) > 0; });
+      }
       advance_sessions();  // their new frames, if any, were all deferred
       std::erase_if(sessions_, [](const SessionState& s) { return s.ending; });  // nothing left to write for them
       return result;  // rolls back an empty transaction: nothing touched the file
@@ -165,6 +190,9 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   // Only now: a failure anywhere above leaves the cache describing the file.
   result.committed = true;
   rows.drop_objects();
+  written_maps_ = std::unordered_set<MapId>(rows.maps.begin(), rows.maps.end());
+  for (const MapId map : atlas_.removed_maps())
+    if (is_writable(map)) deleted_maps_.insert(map);
   committed_ = std::move(rows);
   for (SessionState& s : sessions_) s.written = true;
   advance_sessions();

@@ -9,6 +9,13 @@
 // writer does not know yet what the file holds. It assumes that nobody else
 // writes the atlas's maps into the file meanwhile.
 //
+// Several writers of one database (replicas, issue 23) each write their own
+// maps: `writable_maps` (set_writable_maps) says, inside each checkpoint's
+// transaction, which maps this writer may write now; the rows of the others are
+// neither written nor deleted. A map it writes for the first time (or again
+// after it could not) is rewritten whole, as every map is by the first
+// checkpoint.
+//
 // Not thread-safe: AtlasCheckpointer runs one on its own thread.
 #include <functional>
 #include <unordered_map>
@@ -36,6 +43,11 @@ struct CheckpointSession {
   std::function<std::vector<FrameAnchor>(std::size_t first)> trajectory;
 };
 
+// Of `candidates` (the atlas's maps, and the maps merged away since it was
+// loaded), the maps this writer may write in the checkpoint whose transaction
+// is open on `db` (e.g. those whose ownership rows it could lock).
+using WritableMaps = std::function<std::unordered_set<MapId>(SqlConnection& db, const std::vector<MapId>& candidates)>;
+
 struct CheckpointResult {
   bool committed = false;     // false: nothing had changed and nothing was written
   bool full = false;          // the first checkpoint: every map rewritten
@@ -59,6 +71,10 @@ class AtlasCheckpointWriter {
   void end_session(SessionId id);
   // Records that a keyframe was made by a session (several sessions at once).
   void attribute_keyframe(KeyframeId keyframe, SessionId session);
+  // Several writers of one database: only these maps are written (unset: every map).
+  void set_writable_maps(WritableMaps writable) { writable_maps_ = std::move(writable); }
+  // The maps the last committed checkpoint wrote (what the database holds of them is committed_).
+  const std::unordered_set<MapId>& written_maps() const { return written_maps_; }
   std::size_t session_count() const { return sessions_.size(); }
 
   // Throws Error / DataError on any failure; the database then holds the last
@@ -121,7 +137,10 @@ class AtlasCheckpointWriter {
   std::unordered_map<KeyframeId, SessionId> stored_sessions_;    // read by the first checkpoint
 
   bool has_committed_ = false;
-  AtlasRows committed_;  // what the file holds for the atlas (objects dropped)
+  AtlasRows committed_;  // what the file holds for the maps of written_maps_ (objects dropped)
+  WritableMaps writable_maps_;
+  std::unordered_set<MapId> written_maps_;  // maps whose rows in committed_ are the file's
+  std::unordered_set<MapId> deleted_maps_;  // maps merged away whose rows this writer deleted
   std::size_t deferred_frames_ = 0;
   std::size_t dropped_frames_ = 0;
 };

@@ -28,6 +28,7 @@ AtlasCheckpointer::AtlasCheckpointer(const Atlas& atlas, const std::filesystem::
   // A checkpoint is superseded by the next one within seconds: a commit that
   // survives a crash of the process is enough (docs/schema.md).
   writer_.set_durable(false);
+  if (options_.writable_maps) writer_.set_writable_maps(options_.writable_maps);
   worker_ = std::thread([this] { run(); });
 }
 

@@ -29,6 +29,10 @@ struct CheckpointOptions {
   // Called on the checkpoint thread just before a checkpoint opens its write
   // transaction (instrumentation; the crash-safety test marks it in a pipe).
   std::function<void()> before_transaction;
+  // Several writers of one database (replicas, issue 23): which maps this one
+  // writes, asked inside each checkpoint's transaction (atlas_checkpoint_writer.h).
+  // Unset: every map.
+  WritableMaps writable_maps;
 
   // Throws Error naming the first value out of range.
   void check() const;

@@ -1,6 +1,7 @@
 #include "core/persistence/atlas_rows.h"
 
 #include <algorithm>
+#include <unordered_map>
 
 #include "core/persistence/row_hash.h"
 
@@ -166,6 +167,22 @@ AtlasRows collect_atlas_rows(const Atlas& atlas, const KeyframeSessionOf& sessio
   meta.next_map_id = ids.peek(IdKind::map);
   if (active) meta.active_map = active->id();
   rows.meta = meta;
+  return rows;
+}
+
+AtlasRows rows_of_maps(AtlasRows rows, const std::function<bool(MapId)>& keep) {
+  std::unordered_map<KeyframeId, MapId> keyframe_maps;
+  for (const KeyframeRow& k : rows.keyframes) keyframe_maps.emplace(k.id, k.map);
+  std::erase_if(rows.maps, [&](MapId m) { return !keep(m); });
+  if (rows.meta && rows.meta->active_map && !keep(*rows.meta->active_map)) rows.meta->active_map.reset();
+  std::erase_if(rows.keyframes, [&](const KeyframeRow& r) { return !keep(r.map); });
+  std::erase_if(rows.points, [&](const MapPointRow& r) { return !keep(r.map); });
+  std::erase_if(rows.culled, [&](const CulledKeyframeRow& r) { return !keep(r.map); });
+  std::erase_if(rows.inertial, [&](const MapInertialRow& r) { return !keep(r.map); });
+  std::erase_if(rows.loop_edges, [&](const LoopEdge& e) {
+    const auto it = keyframe_maps.find(e.first);
+    return it == keyframe_maps.end() || !keep(it->second);
+  });
   return rows;
 }
 

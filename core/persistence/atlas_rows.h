@@ -100,4 +100,9 @@ using KeyframeSessionOf = std::function<std::optional<SessionId>(KeyframeId)>;
 // allocator is read last: every id in the rows is below its next ids.
 AtlasRows collect_atlas_rows(const Atlas& atlas, const KeyframeSessionOf& session_of);
 
+// The rows of the maps `keep` says yes to (a loop edge goes with its first
+// keyframe's map); the atlas row stays, its active map only when kept. Several writers of one database each
+// write only their own maps (AtlasCheckpointWriter).
+AtlasRows rows_of_maps(AtlasRows rows, const std::function<bool(MapId)>& keep);
+
 }  // namespace orbatlas
