@@ -21,6 +21,28 @@
 // SQL (each checkpoint makes its AtlasRowWriter anew) reuses the server's
 // plan. The connection keeps its prepared statements until it closes (one per
 // distinct SQL text and types the program runs: a few dozen).
+//
+// Writes are batched inside a write transaction (SqlTransaction in kWrite
+// mode, i.e. PgDb::begin_transaction(kWrite)): there, run() does not wait for
+// the server. It queues the execution in libpq's pipeline mode and returns;
+// the server executes the queued statements in order while the program sends
+// more, and their replies are read later, so a checkpoint or a full save costs
+// a round trip per batch instead of one per row. The replies are read
+//   - before anything that needs the server's answer: a step() that reads
+//     rows (it sees every queued write, as without batching), exec() (COMMIT
+//     among others), changes(), the first use of a new SQL text or types (its
+//     PQprepare), and flush();
+//   - and every kPipelineBatch queued statements, the batch before the last
+//     (memory stays bounded; the server never waits for the program to read).
+// A queued statement's failure therefore surfaces later than its run(): as an
+// Error / DataError naming the server and the statement's SQL, thrown by a
+// later run(), step(), flush() or at the latest by the COMMIT, never lost.
+// PostgreSQL has then aborted the whole transaction, which the SqlTransaction
+// destructor rolls back (exec("ROLLBACK") reads what is still queued and
+// ignores its errors); the connection stays usable. Outside a write
+// transaction (autocommit, read transactions) every statement runs at once,
+// as before. The environment variable ORBATLAS_PG_BATCHING=0 turns batching
+// off for the connections opened after it is set (to measure or compare).
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -35,8 +57,10 @@ struct pg_result;
 
 namespace orbatlas {
 
-// A connection's server-side prepared statements, by SQL text and parameter types (pg_db.cc).
-struct PgPreparedStatements;
+// A connection's state its statements share (pg_db.cc): the libpq connection,
+// the server-side prepared statements by SQL text and parameter types, and the
+// queue of batched executions whose replies are not read yet.
+struct PgConnectionState;
 
 // `?NNN` and `?` -> `$NNN` outside quoted strings and identifiers (tested).
 // `parameter_count`, when given, receives the largest parameter number (0 for none).
@@ -55,13 +79,16 @@ class PgStatement final : public SqlStatement {
   PgStatement& bind_blob(int index, std::string_view bytes) override;  // empty: a zero-length bytea, not NULL
   PgStatement& bind_null(int index) override;
 
-  // The first call runs the statement; true while a row is available.
+  // The first call runs the statement (after reading the replies of any
+  // batched writes: a failure among them throws here); true while a row is available.
   bool step() override;
-  // Runs a statement that returns no row to completion.
+  // Runs a statement to completion, its rows discarded. In a write
+  // transaction: queued (see above), its failure thrown later.
   void run() override;
   // Ready to run again: forgets the result; every parameter NULL again.
   void reset() override;
-  // Rows changed by the last run (INSERT, UPDATE, DELETE).
+  // Rows changed by the last run (INSERT, UPDATE, DELETE) since reset(); after a
+  // queued run, reads the batched replies first (so it may throw their failure).
   std::int64_t changes() const;
 
   // Columns are 0-based. Strict, as SqliteStatement: NULL or another type throws DataError.
@@ -73,10 +100,19 @@ class PgStatement final : public SqlStatement {
 
  private:
   friend class PgDb;
-  PgStatement(pg_conn* conn, PgPreparedStatements* prepared, std::string description, std::string sql,
-              int parameter_count);
+  friend struct PgConnectionState;
+  // What a statement's queued executions share with the connection's queue:
+  // the SQL for messages, and the rows the last execution changed.
+  struct Runs {
+    std::string sql;
+    std::int64_t changes = 0;
+    int unread = 0;  // queued executions whose reply is not read yet
+  };
+  PgStatement(PgConnectionState* state, std::string sql, int parameter_count);
   // The server-side statement for the current parameter types, prepared on first use.
   const std::string& prepared_name(const std::vector<unsigned>& types);
+  // Queues the execution in the connection's pipeline (in a write transaction).
+  void queue();
   void check_row(int column) const;
   [[noreturn]] void fail_type(int column, const char* expected) const;
   struct Param {
@@ -84,10 +120,11 @@ class PgStatement final : public SqlStatement {
     unsigned oid = 0;
   };
 
-  pg_conn* conn_ = nullptr;                   // borrowed from the PgDb that prepared it
-  PgPreparedStatements* prepared_ = nullptr;  // likewise
-  std::string description_;                   // the server, for messages
+  PgConnectionState* state_ = nullptr;  // borrowed from the PgDb that prepared it
+  pg_conn* conn_ = nullptr;             // likewise
+  std::string description_;             // the server, for messages
   std::string sql_;
+  std::shared_ptr<Runs> runs_;
   // Parameter `index` (1-based).
   Param& param(int index);
 
@@ -113,22 +150,35 @@ class PgDb final : public SqlConnection {
   const std::string& description() const override { return description_; }
 
   // One or more statements without parameters or results (a migration script).
+  // Reads the batched writes' replies first and throws their failure, except
+  // for "ROLLBACK", which then rolls back all the same.
   void exec(std::string_view sql) override;
+  // Reads the replies of every batched write: throws the first failure among
+  // them (the transaction is then aborted; roll it back). Nothing to do outside
+  // a write transaction.
+  void flush();
+  // Statements queued and not read yet (0 outside a write transaction); for tests.
+  int queued() const;
   PgStatement prepare(std::string_view sql);
   std::unique_ptr<SqlStatement> prepare_statement(std::string_view sql) override;
   // kRead: REPEATABLE READ, READ ONLY (one snapshot for every statement);
-  // kWrite: READ COMMITTED (PostgreSQL's default; writers lock the rows they touch).
+  // kWrite: READ COMMITTED (PostgreSQL's default; writers lock the rows they
+  // touch), with run() batched until COMMIT or ROLLBACK.
   void begin_transaction(SqlTransactionMode mode) override;
+
+  // Statements queued per pipeline sync; the replies of the batch before the
+  // last are read when a batch is full.
+  static constexpr int kPipelineBatch = 1000;
 
  private:
   struct Closer {
     void operator()(pg_conn* conn) const;
   };
-  struct PreparedDeleter {
-    void operator()(PgPreparedStatements* prepared) const;
+  struct StateDeleter {
+    void operator()(PgConnectionState* state) const;
   };
   std::unique_ptr<pg_conn, Closer> conn_;
-  std::unique_ptr<PgPreparedStatements, PreparedDeleter> prepared_;  // never null; a stable address
+  std::unique_ptr<PgConnectionState, StateDeleter> state_;  // never null; a stable address
   std::string description_;
 };
 

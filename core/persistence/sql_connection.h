@@ -10,8 +10,12 @@
 // both): parameters are 1-based and an unbound one is NULL; columns are 0-based
 // and the typed readers are strict (NULL, or a value of another type, throws
 // DataError; real() also reads integers); doubles and blobs round-trip exactly;
-// failures are Error / DataError naming the database. A connection is used by
-// one thread at a time; a statement lives no longer than its connection.
+// failures are Error / DataError naming the database. Inside a write
+// transaction a statement's failure may be thrown later than its run() (PgDb
+// batches a write transaction's statements, pg_db.h), at the latest by
+// commit(); let the SqlTransaction roll back then (PostgreSQL has aborted the
+// whole transaction and refuses to commit it). A connection is used by one
+// thread at a time; a statement lives no longer than its connection.
 #include <cstdint>
 #include <memory>
 #include <string>
