@@ -4,12 +4,17 @@
 // N keyframes of 1200 ORB keypoints (descriptors, stereo depth), 60 new map
 // points per keyframe each seen by ~5 consecutive keyframes, covisibility and a
 // spanning tree. `--database postgresql://...` runs it on an empty PostgreSQL
-// database instead of a temporary SQLite file (issue 23).
+// database instead of a temporary SQLite file (issue 23). `--from-atlas DB`
+// takes a stored atlas (e.g. a full `orbatlas run --atlas`) instead of the
+// synthetic one: its load from DB, then the same save, loads and checkpoints
+// (without the 10 new keyframes) in the database measured.
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <random>
+#include <tuple>
 #include <unistd.h>
 
 #include "client/benchmarks.h"
@@ -161,28 +166,35 @@ void run_atlas_store_bench(const AtlasStoreBenchOptions& o) {
   if (fs::exists(vocab_path)) vocabulary.emplace(Vocabulary::load(vocab_path));
   const std::string hash = vocabulary ? vocabulary->hash() : "bench-without-vocabulary";
 
-  // 1. The synthetic atlas.
+  // 1. The synthetic atlas, or the stored one.
   auto t0 = Clock::now();
   auto atlas = std::make_unique<Atlas>();
-  SyntheticAtlas synthetic(*atlas, o);
-  {
+  std::optional<SyntheticAtlas> synthetic;
+  const bool stored = !o.from_atlas.empty();
+  if (stored) {
+    ORBATLAS_CHECK(o.from_atlas != db.string(), "bench atlas-store: --from-atlas and --database are the same");
+    AtlasStore source = AtlasStore::open(o.from_atlas, hash);
+    source.load_atlas(*atlas, nullptr);
+  } else {
+    synthetic.emplace(*atlas, o);
     Progress progress("building the synthetic atlas", 2 * static_cast<std::int64_t>(o.keyframes));
     for (int i = 0; i < o.keyframes; ++i) {
-      synthetic.add_keyframe();
+      synthetic->add_keyframe();
       progress.advance();
     }
-    for (std::size_t i = 0; i < synthetic.size(); ++i) {
-      synthetic.add_points_of(i);
+    for (std::size_t i = 0; i < synthetic->size(); ++i) {
+      synthetic->add_points_of(i);
       progress.advance();
     }
-    for (std::size_t i = 0; i < synthetic.size(); ++i) synthetic.keyframe(i)->update_connections();
+    for (std::size_t i = 0; i < synthetic->size(); ++i) synthetic->keyframe(i)->update_connections();
     progress.finish();
   }
-  const double build_s = seconds_since(t0);
-  std::size_t points = 0, observations = 0, links = 0;
+  const double build_s = seconds_since(t0);  // or the stored atlas's load, without BoW
+  std::size_t keyframes = 0, points = 0, observations = 0, links = 0;
   for (const auto& map : atlas->maps()) {
     points += map->map_point_count();
     for (const auto& kf : map->keyframes()) {
+      ++keyframes;
       observations += static_cast<std::size_t>(kf->map_point_count());
       links += kf->connections().size();
     }
@@ -226,42 +238,49 @@ void run_atlas_store_bench(const AtlasStoreBenchOptions& o) {
   };
   const auto [first_ms, first_rows] = checkpoint();
   const auto [unchanged_ms, unchanged_rows] = checkpoint();
-  const std::size_t before = synthetic.size();
-  for (int i = 0; i < 10; ++i) synthetic.add_keyframe();
-  for (std::size_t i = before - SyntheticAtlas::kObservers + 1; i < synthetic.size(); ++i) synthetic.add_points_of(i);
-  for (std::size_t i = before; i < synthetic.size(); ++i) synthetic.keyframe(i)->update_connections();
-  const auto [new_ms, new_rows] = checkpoint();
+  double new_ms = 0.0;
+  RowCounts new_rows;
+  if (synthetic) {
+    const std::size_t before = synthetic->size();
+    for (int i = 0; i < 10; ++i) synthetic->add_keyframe();
+    for (std::size_t i = before - SyntheticAtlas::kObservers + 1; i < synthetic->size(); ++i)
+      synthetic->add_points_of(i);
+    for (std::size_t i = before; i < synthetic->size(); ++i) synthetic->keyframe(i)->update_connections();
+    std::tie(new_ms, new_rows) = checkpoint();
+  }
   checkpointer.stop();
   const double peak_mb = peak_rss_mb();
   if (o.database.empty()) remove_database(db);
 
-  const double per_1000 = size_mb * 1000.0 / o.keyframes;
+  const double per_1000 = size_mb * 1000.0 / static_cast<double>(std::max<std::size_t>(keyframes, 1));
   const auto rows_json = [](const RowCounts& r) {
     return nlohmann::json{{"inserted", r.inserted}, {"updated", r.updated}, {"deleted", r.deleted}};
   };
   if (o.json) {
-    nlohmann::json j = {{"benchmark", "atlas-store"},
-                        {"backend", is_postgres_location(db.string()) ? "postgresql" : "sqlite"},
-                        {"keyframes", o.keyframes},
-                        {"keypoints_per_keyframe", o.keypoints},
-                        {"map_points", points},
-                        {"observations", observations},
-                        {"covisibility_links", links},
-                        {"build_s", build_s},
-                        {"database_mb", size_mb},
-                        {"database_mb_per_1000_keyframes", per_1000},
-                        {"features_blobs_mb", blob_mb},
-                        {"save_s", save_s},
-                        {"load_s", load_s},
-                        {"load_with_bow_s", vocabulary ? nlohmann::json(load_bow_s) : nlohmann::json(nullptr)},
-                        {"vocabulary", vocabulary ? vocab_path.string() : std::string()},
-                        {"first_checkpoint_ms", first_ms},
-                        {"first_checkpoint_rows", rows_json(first_rows)},
-                        {"unchanged_checkpoint_ms", unchanged_ms},
-                        {"unchanged_checkpoint_rows", rows_json(unchanged_rows)},
-                        {"checkpoint_10_keyframes_ms", new_ms},
-                        {"checkpoint_10_keyframes_rows", rows_json(new_rows)},
-                        {"peak_rss_mb", peak_mb}};
+    nlohmann::json j = {
+        {"benchmark", "atlas-store"},
+        {"backend", is_postgres_location(db.string()) ? "postgresql" : "sqlite"},
+        {"from_atlas", stored ? nlohmann::json(location_for_messages(o.from_atlas)) : nlohmann::json(nullptr)},
+        {"keyframes", keyframes},
+        {"keypoints_per_keyframe", stored ? nlohmann::json(nullptr) : nlohmann::json(o.keypoints)},
+        {"map_points", points},
+        {"observations", observations},
+        {"covisibility_links", links},
+        {stored ? "source_load_s" : "build_s", build_s},
+        {"database_mb", size_mb},
+        {"database_mb_per_1000_keyframes", per_1000},
+        {"features_blobs_mb", blob_mb},
+        {"save_s", save_s},
+        {"load_s", load_s},
+        {"load_with_bow_s", vocabulary ? nlohmann::json(load_bow_s) : nlohmann::json(nullptr)},
+        {"vocabulary", vocabulary ? vocab_path.string() : std::string()},
+        {"first_checkpoint_ms", first_ms},
+        {"first_checkpoint_rows", rows_json(first_rows)},
+        {"unchanged_checkpoint_ms", unchanged_ms},
+        {"unchanged_checkpoint_rows", rows_json(unchanged_rows)},
+        {"checkpoint_10_keyframes_ms", synthetic ? nlohmann::json(new_ms) : nlohmann::json(nullptr)},
+        {"checkpoint_10_keyframes_rows", synthetic ? rows_json(new_rows) : nlohmann::json(nullptr)},
+        {"peak_rss_mb", peak_mb}};
     std::printf("%s\n", j.dump(2).c_str());
     return;
   }
@@ -269,12 +288,22 @@ void run_atlas_store_bench(const AtlasStoreBenchOptions& o) {
     return std::to_string(r.inserted) + " inserted, " + std::to_string(r.updated) + " updated, " +
            std::to_string(r.deleted) + " deleted";
   };
-  std::printf(
-      "atlas store benchmark: %d keyframes x %d keypoints (stereo, descriptors), %zu map points,\n"
-      "  %.1f observations per point, %.1f covisibility links per keyframe (database %s)\n",
-      o.keyframes, o.keypoints, points, static_cast<double>(observations) / static_cast<double>(points),
-      static_cast<double>(links) / o.keyframes, location_for_messages(db.string()).c_str());
-  std::printf("  %-38s %10.2f s\n", "build in memory", build_s);
+  const double per_keyframe = static_cast<double>(links) / static_cast<double>(std::max<std::size_t>(keyframes, 1));
+  const double per_point = static_cast<double>(observations) / static_cast<double>(std::max<std::size_t>(points, 1));
+  if (stored) {
+    std::printf(
+        "atlas store benchmark: the atlas %s, %zu keyframes, %zu map points,\n"
+        "  %.1f observations per point, %.1f covisibility links per keyframe (database %s)\n",
+        location_for_messages(o.from_atlas).c_str(), keyframes, points, per_point, per_keyframe,
+        location_for_messages(db.string()).c_str());
+    std::printf("  %-38s %10.2f s\n", "load from it, without BoW", build_s);
+  } else {
+    std::printf(
+        "atlas store benchmark: %zu keyframes x %d keypoints (stereo, descriptors), %zu map points,\n"
+        "  %.1f observations per point, %.1f covisibility links per keyframe (database %s)\n",
+        keyframes, o.keypoints, points, per_point, per_keyframe, location_for_messages(db.string()).c_str());
+    std::printf("  %-38s %10.2f s\n", "build in memory", build_s);
+  }
   std::printf("  %-38s %10.1f MB   (%.1f MB per 1000 keyframes; features blobs %.1f MB)\n", "database size", size_mb,
               per_1000, blob_mb);
   std::printf("  %-38s %10.2f s\n", "full save (one transaction)", save_s);
@@ -287,7 +316,8 @@ void run_atlas_store_bench(const AtlasStoreBenchOptions& o) {
   std::printf("  %-38s %10.1f ms   (%s)\n", "first checkpoint (full rewrite)", first_ms, rows_text(first_rows).c_str());
   std::printf("  %-38s %10.1f ms   (%s)\n", "checkpoint, nothing changed", unchanged_ms,
               rows_text(unchanged_rows).c_str());
-  std::printf("  %-38s %10.1f ms   (%s)\n", "checkpoint, 10 new keyframes", new_ms, rows_text(new_rows).c_str());
+  if (synthetic)
+    std::printf("  %-38s %10.1f ms   (%s)\n", "checkpoint, 10 new keyframes", new_ms, rows_text(new_rows).c_str());
   std::printf("  %-38s %10.0f MB\n", "peak RSS", peak_mb);
 }
 

@@ -40,6 +40,9 @@ struct AtlasStoreBenchOptions {
   int points_per_keyframe = 60;      // new map points per keyframe, each seen by ~5 keyframes
   std::filesystem::path vocabulary;  // default: the shipped vocabulary (loading recomputes BoW with it)
   std::filesystem::path database;    // default: a temporary file, removed at the end
+  // Instead of the synthetic atlas: the atlas stored here (a file or a
+  // postgresql:// URI), loaded and saved into `database` (e.g. SQLite -> PostgreSQL).
+  std::string from_atlas;
   bool json = false;
 
   // Throws Error naming the first value out of range.

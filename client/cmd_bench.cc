@@ -39,6 +39,9 @@ void register_bench_command(CLI::App& app) {
       ->capture_default_str();
   s->add_option("--vocabulary", store->vocabulary, "Vocabulary file (default: the shipped one)");
   s->add_option("--database", store->database, "Keep the database at this path (default: a removed temporary file)");
+  s->add_option("--from-atlas", store->from_atlas,
+                "Measure the atlas stored here (a file or postgresql:// URI) instead of a synthetic one: "
+                "load it, save it into --database, load that back");
   s->add_flag("--json", store->json, "Print one JSON object");
   s->callback([store]() { run_atlas_store_bench(*store); });
 
