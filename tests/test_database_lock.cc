@@ -48,6 +48,31 @@ TEST_P(DatabaseLockTest, ASecondWriterIsRefusedNamingTheFirst) {
   DatabaseLock again(location());
 }
 
+// Server replicas of one PostgreSQL atlas (issue 23) hold the lock together; a
+// single writer (orbatlas run) is refused while they do, and they while it
+// does. An SQLite atlas has one writer: shared is exclusive there.
+TEST_P(DatabaseLockTest, ServerReplicasShareTheLockASingleWriterDoesNot) {
+  auto a = std::make_unique<DatabaseLock>(location(), DatabaseLockMode::kShared);
+  if (backend() == SqlDialect::kSqlite) {
+    const std::string refused = error_of([&] { DatabaseLock b(location(), DatabaseLockMode::kShared); });
+    EXPECT_NE(refused.find("in use by another"), std::string::npos) << refused;
+    return;
+  }
+  {
+    DatabaseLock b(location(), DatabaseLockMode::kShared);
+    EXPECT_FALSE(b.previous_holder_crashed());
+    const std::string refused = error_of([&] { DatabaseLock single(location()); });
+    EXPECT_NE(refused.find("in use by another writer"), std::string::npos) << refused;
+  }
+  a.reset();
+  {
+    DatabaseLock single(location());  // the replicas are gone
+    const std::string refused = error_of([&] { DatabaseLock replica(location(), DatabaseLockMode::kShared); });
+    EXPECT_NE(refused.find("a server replica cannot start while a single writer has it"), std::string::npos) << refused;
+  }
+  DatabaseLock replica(location(), DatabaseLockMode::kShared);
+}
+
 TEST_P(DatabaseLockTest, TheNextHolderKnowsWhetherThePreviousOneStoppedCleanly) {
   {
     DatabaseLock clean(location());

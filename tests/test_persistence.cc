@@ -228,6 +228,32 @@ TEST_P(PersistenceBackends, LoadingWithoutVocabularyLeavesBowEmpty) {
   expect_atlas_eq(original, loaded, false);
 }
 
+// One map read again (a replica taking over another's map, issue 23): the
+// stored version, into a detached map the atlas then takes in place of its own
+// copy, not recorded as removed.
+TEST_P(PersistenceBackends, OneMapIsReadAgainAsStored) {
+  Atlas original;
+  build_atlas(original, test_vocabulary(), 14);
+  AtlasStore store = open_store(test_vocabulary().hash());
+  store.save_atlas(original);
+  Atlas stored;
+  store.load_atlas(stored, &test_vocabulary());
+  const auto map = original.maps()[1];
+  map->map_points()[0]->set_p_w({4, 5, 6});  // edited after the save: not what is read
+  const auto fresh = store.load_map(original, map->id(), &test_vocabulary());
+  ASSERT_NE(fresh, nullptr);
+  EXPECT_EQ(original.map(map->id()), map);  // not in the atlas yet
+  expect_map_eq(*stored.map(map->id()), *fresh, true);
+  EXPECT_EQ(store.load_map(original, 424242, &test_vocabulary()), nullptr);
+  {
+    const auto whole = original.lock_maps_exclusive();
+    EXPECT_EQ(original.replace_map(fresh), map);
+  }
+  EXPECT_EQ(original.map(map->id()), fresh);
+  EXPECT_TRUE(original.removed_maps().empty());
+  expect_atlas_eq(stored, original, true);
+}
+
 TEST_P(PersistenceBackends, SavingAgainReplacesTheStoredMaps) {
   const Vocabulary& vocabulary = test_vocabulary();
   Atlas atlas;

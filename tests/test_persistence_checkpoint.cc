@@ -565,5 +565,45 @@ TEST_P(CheckpointTest, TwoWritersEachWriteOnlyTheirOwnMaps) {
   EXPECT_EQ(cb.stats().failures, 0u);
 }
 
+// Replicas watch the maps others change: a checkpoint says, inside its
+// transaction, which maps' rows it changed (and only those).
+TEST_P(CheckpointTest, ACheckpointSaysWhichMapsItChanged) {
+  Atlas atlas;
+  build_atlas(atlas, test_vocabulary(), 51);
+  const auto maps = atlas.maps();
+  ASSERT_GE(maps.size(), 2u);
+  std::mutex mutex;
+  std::vector<std::vector<MapId>> told;
+  CheckpointOptions options = manual_only();
+  options.maps_changed = [&](SqlConnection&, const std::vector<MapId>& changed) {
+    std::lock_guard lock(mutex);
+    told.push_back(changed);
+  };
+  AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), options);
+  const auto last = [&] {
+    std::lock_guard lock(mutex);
+    return told.empty() ? std::vector<MapId>{} : told.back();
+  };
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  std::vector<MapId> all;
+  for (const auto& m : maps) all.push_back(m->id());
+  EXPECT_EQ(last(), all);  // the first checkpoint writes every map
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  EXPECT_EQ(told.size(), 1u);  // nothing changed: not told
+  maps[1]->map_points()[2]->increase_found();
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  EXPECT_EQ(last(), std::vector<MapId>{maps[1]->id()});
+  maps[0]->keyframes()[1]->set_T_w_b(Pose3(Eigen::Quaterniond(0.5, 0.5, -0.5, 0.5), Eigen::Vector3d(1, 2, 3)));
+  const auto kf = maps[1]->keyframes()[0];
+  for (std::size_t slot = 0; slot < kf->slot_count(); ++slot)
+    if (kf->map_point(slot)) {
+      kf->erase_slot(slot);  // an observation
+      break;
+    }
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  EXPECT_EQ(last(), (std::vector<MapId>{maps[0]->id(), maps[1]->id()}));
+  EXPECT_EQ(told.size(), 3u);
+}
+
 }  // namespace
 }  // namespace orbatlas

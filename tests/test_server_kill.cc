@@ -23,6 +23,7 @@
 #include "client/api/server_client.h"
 #include "core/archive/tar_writer.h"
 #include "core/persistence/sqlite_db.h"
+#include "core/server/replica_registry.h"
 #include "tests/server_test_fixture.h"
 #include "tests/slam_test_clip.h"
 #include "tests/throwaway_postgres.h"
@@ -90,6 +91,15 @@ class ServerProcess {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
     return {};
+  }
+
+  // SIGTERM: a clean stop (the final checkpoint); waits for the exit.
+  void terminate() {
+    if (pid_ <= 0) return;
+    ::kill(pid_, SIGTERM);
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    pid_ = -1;
   }
 
   void kill() {
@@ -282,9 +292,9 @@ TEST(ServerProcess, ConfigFileIsReadFlagsOverrideItAndTheEffectiveOptionsAreLogg
 }
 
 // `--db postgresql://...` (issue 23): a session streamed into a server whose
-// atlas is a PostgreSQL database (a throwaway cluster), a second server on that
-// database refused, the first killed with SIGKILL and started again: the map is
-// there, and new ids continue past any the killed one may have handed out.
+// atlas is a PostgreSQL database (a throwaway cluster), the server killed with
+// SIGKILL and started again: the map is there, written by the new replica, and
+// new ids continue past any the killed one may have handed out.
 TEST(ServerProcess, PostgresDatabaseKeepsTheMapAcrossARestart) {
   std::string why_not;
   const auto cluster = test::ThrowawayPostgres::start(&why_not);
@@ -325,15 +335,6 @@ TEST(ServerProcess, PostgresDatabaseKeepsTheMapAcrossARestart) {
     EXPECT_GE(maps_before[0]["keyframes"].get<int>(), 1) << maps_before.dump();
     EXPECT_GT(maps_before[0]["map_points"].get<int>(), 100) << maps_before.dump();
 
-    // One writer per database: a second server on it stops at start, naming the first.
-    const std::filesystem::path second_log = files.path.string() + ".second.log";
-    std::filesystem::remove(second_log);
-    ServerProcess second(uri, second_log, {"--work-dir", work.string() + "2"});
-    EXPECT_TRUE(second.wait_until_listening().empty());
-    const std::string refused = log_text(second_log);
-    EXPECT_NE(refused.find("in use by another writer"), std::string::npos) << refused;
-    std::filesystem::remove(second_log);
-    std::filesystem::remove_all(work.string() + "2");
     server.kill();  // SIGKILL: its connections die, PostgreSQL drops its advisory lock
   }
 
@@ -347,8 +348,17 @@ TEST(ServerProcess, PostgresDatabaseKeepsTheMapAcrossARestart) {
   EXPECT_EQ(maps_after[0]["keyframes"], maps_before[0]["keyframes"]);
   EXPECT_EQ(maps_after[0]["map_points"], maps_before[0]["map_points"]);
   EXPECT_FALSE(client.trajectory_tum(session).empty());
-  EXPECT_NE(log_text(log).find("the previous server stopped without its final checkpoint"), std::string::npos)
-      << "the restart did not see the crash: " << log_text(log);
+  // The restarted server is a new replica: it writes the killed one's map from
+  // now on, taken at its start or, when the killed one's 1-s lease had not
+  // passed yet, by its takeover a lease later.
+  const auto taken = [&] {
+    const std::string text = log_text(log);
+    return text.find("stored map(s) that no live replica writes") != std::string::npos ||
+           text.find("took over map(s)") != std::string::npos;
+  };
+  for (const auto until = Clock::now() + std::chrono::seconds(10); !taken() && Clock::now() < until;)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_TRUE(taken()) << "the restart did not take the map over: " << log_text(log);
   const std::uint64_t next = client.create_session("euroc/stereo", "after the restart");
   EXPECT_GT(next, session);
   client.finish_session(next);
@@ -370,6 +380,126 @@ TEST(ServerProcess, PostgresDatabaseKeepsTheMapAcrossARestart) {
   EXPECT_EQ(replicas["self"], replicas["replicas"][1]["id"]) << replicas.dump();
   server.kill();
   std::filesystem::remove(log);
+}
+
+// Two replicas over one PostgreSQL atlas (issue 23): each maps its own session
+// into a map of its own (ids from its own ranges), each reads and localises in
+// the map the other made, one is killed with SIGKILL,
+// the other takes its map over once its lease has passed (reading it again:
+// what the killed one last committed) with its session, maps in it, and a
+// server started afterwards finds both maps as the survivor left them.
+TEST(ServerProcess, TwoReplicasMapTheirOwnMapsAndOneTakesOverWhenTheOtherDies) {
+  std::string why_not;
+  const auto cluster = test::ThrowawayPostgres::start(&why_not);
+  if (!cluster) GTEST_SKIP() << "PostgreSQL backend skipped: " << why_not;
+  cluster->create_database("replicas");
+  const std::string uri = cluster->uri("replicas");
+  const auto clip_a = test::simulated_clip("MH_01", 40.0, 2.0);
+  const auto clip_b = test::simulated_clip("MH_03", 40.0, 2.0);
+  test::ClipCleanup cleanup_a{clip_a}, cleanup_b{clip_b};
+  test::TempDbPath files("replicas_server");
+  const auto log = [&](const std::string& who) {
+    return std::filesystem::path(files.path.string() + "." + who + ".log");
+  };
+  const auto args = [&](const std::string& who) {
+    return std::vector<std::string>{"--work-dir", files.path.string() + "." + who + ".work", "--lease-s", "1"};
+  };
+  const auto stream = [](ServerClient& client, const std::filesystem::path& clip, const std::string& name) {
+    const std::uint64_t id = client.create_session("euroc/stereo", name);
+    for (const auto& f : test::stereo_frames(clip))
+      client.post_frame(id, f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                        cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+    client.finish_session(id);
+    return id;
+  };
+  const auto map_of = [](ServerClient& client, std::uint64_t session) {
+    return client.get_json("/v1/sessions/" + std::to_string(session))["map"].get<std::uint64_t>();
+  };
+  const auto keyframes_of = [](const json& maps, std::uint64_t map) {
+    for (const auto& m : maps)
+      if (m["id"].get<std::uint64_t>() == map) return m["keyframes"].get<int>();
+    return -1;
+  };
+
+  ServerProcess a(uri, log("a"), args("a"));
+  const std::string url_a = a.wait_until_listening();
+  ASSERT_FALSE(url_a.empty()) << log_text(log("a"));
+  ServerProcess b(uri, log("b"), args("b"));  // a second replica starts: the lock is shared
+  const std::string url_b = b.wait_until_listening();
+  ASSERT_FALSE(url_b.empty()) << log_text(log("b"));
+  ServerClient client_a(url_a), client_b(url_b);
+  const json replicas = client_b.get_json("/v1/replicas")["replicas"];
+  ASSERT_EQ(replicas.size(), 2u) << replicas.dump();
+  const std::uint64_t replica_a = replicas[0]["id"], replica_b = replicas[1]["id"];
+  EXPECT_TRUE(replicas[0]["alive"].get<bool>() && replicas[1]["alive"].get<bool>()) << replicas.dump();
+
+  // Each maps a session of its own, at the same time, into a map of its own.
+  std::uint64_t session_a = 0, session_b = 0;
+  std::thread streaming_a([&] { session_a = stream(client_a, clip_a, "on a"); });
+  session_b = stream(client_b, clip_b, "on b");
+  streaming_a.join();
+  const std::uint64_t map_a = map_of(client_a, session_a), map_b = map_of(client_b, session_b);
+  EXPECT_EQ(map_a >> kReplicaMapIdShift, replica_a);  // ids from each replica's own range
+  EXPECT_EQ(map_b >> kReplicaMapIdShift, replica_b);
+  EXPECT_EQ(session_a >> kReplicaMapIdShift, replica_a);
+  EXPECT_EQ(session_b >> kReplicaMapIdShift, replica_b);
+  const int keyframes_a = keyframes_of(client_a.get_json("/v1/maps")["maps"], map_a);
+  EXPECT_GE(keyframes_a, 1);
+  // a's map was made after b started: b reads it once a's checkpoint changed
+  // its version (within a lease), and localises in it (but does not write it).
+  const auto until_read = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (keyframes_of(client_b.get_json("/v1/maps")["maps"], map_a) != keyframes_a &&
+         std::chrono::steady_clock::now() < until_read)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  ASSERT_EQ(keyframes_of(client_b.get_json("/v1/maps")["maps"], map_a), keyframes_a) << log_text(log("b"));
+  const auto frames_a = test::stereo_frames(clip_a);
+  const auto& probe = frames_a[frames_a.size() / 2];
+  const json located = client_b.localize("euroc/stereo", cv::imread(probe.left.string(), cv::IMREAD_GRAYSCALE),
+                                         cv::imread(probe.right.string(), cv::IMREAD_GRAYSCALE));
+  EXPECT_TRUE(located["recognised"].get<bool>()) << located.dump();
+  if (located["recognised"].get<bool>()) EXPECT_EQ(located["map"].get<std::uint64_t>(), map_a) << located.dump();
+
+  // And a reads b's map the same way.
+  const int keyframes_b_then = keyframes_of(client_b.get_json("/v1/maps")["maps"], map_b);
+  while (keyframes_of(client_a.get_json("/v1/maps")["maps"], map_b) != keyframes_b_then &&
+         std::chrono::steady_clock::now() < until_read + std::chrono::seconds(5))
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(keyframes_of(client_a.get_json("/v1/maps")["maps"], map_b), keyframes_b_then) << log_text(log("a"));
+  const auto writable_on = [](ServerClient& client, std::uint64_t map) {
+    return client.get_json("/v1/maps/" + std::to_string(map))["writable"].get<bool>();
+  };
+  EXPECT_FALSE(writable_on(client_b, map_a));
+  EXPECT_TRUE(writable_on(client_b, map_b));
+  a.kill();  // SIGKILL mid-life: its map is nobody's until b takes it over
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (!writable_on(client_b, map_a) && std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  ASSERT_TRUE(writable_on(client_b, map_a)) << "b did not take a's map over: " << log_text(log("b"));
+  const json maps_b = client_b.get_json("/v1/maps")["maps"];
+  ASSERT_EQ(keyframes_of(maps_b, map_a), keyframes_a) << "b did not take a's map over: " << maps_b.dump() << "\n"
+                                                      << log_text(log("b"));
+  EXPECT_NE(log_text(log("b")).find("took over map(s) " + std::to_string(map_a)), std::string::npos)
+      << log_text(log("b"));
+  // a's session too: listed by b, its trajectory read from the database.
+  EXPECT_FALSE(client_b.trajectory_tum(session_a).empty());
+  // b maps in a's map now: a session over a's place joins it.
+  const std::uint64_t again = stream(client_b, clip_a, "a's place, on b");
+  EXPECT_EQ(map_of(client_b, again), map_a);
+  const int extended = keyframes_of(client_b.get_json("/v1/maps")["maps"], map_a);
+  const int keyframes_b = keyframes_of(client_b.get_json("/v1/maps")["maps"], map_b);
+  b.terminate();
+
+  // A server started now finds both maps as b left them.
+  ServerProcess c(uri, log("c"), args("c"));
+  const std::string url_c = c.wait_until_listening();
+  ASSERT_FALSE(url_c.empty()) << log_text(log("c"));
+  ServerClient client_c(url_c);
+  const json maps_c = client_c.get_json("/v1/maps")["maps"];
+  EXPECT_EQ(keyframes_of(maps_c, map_a), extended) << maps_c.dump();
+  EXPECT_EQ(keyframes_of(maps_c, map_b), keyframes_b) << maps_c.dump();
+  EXPECT_EQ(client_c.get_json("/v1/sessions")["sessions"].size(), 3u);
+  c.kill();
+  for (const char* who : {"a", "b", "c"}) std::filesystem::remove(log(who));
 }
 
 }  // namespace

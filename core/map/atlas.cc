@@ -1,5 +1,7 @@
 #include "core/map/atlas.h"
 
+#include <utility>
+
 #include "core/common/error.h"
 
 namespace orbatlas {
@@ -90,6 +92,17 @@ std::shared_ptr<Map> Atlas::remove_map(MapId id) {
   removed_.push_back(id);
   if (active_ == removed) active_.reset();
   return removed;
+}
+
+std::shared_ptr<Map> Atlas::detached_map(MapId id) const { return std::make_shared<Map>(id, ids_, counters_); }
+
+std::shared_ptr<Map> Atlas::replace_map(std::shared_ptr<Map> map) {
+  ORBATLAS_CHECK(map != nullptr, "atlas: replace_map needs a map");
+  std::lock_guard lock(mutex_);
+  std::shared_ptr<Map>& slot = maps_[map->id()];
+  std::shared_ptr<Map> old = std::exchange(slot, map);
+  if (old && active_ == old) active_ = std::move(map);
+  return old;
 }
 
 std::vector<MapId> Atlas::removed_maps() const {

@@ -38,6 +38,14 @@ class Atlas {
   std::shared_ptr<Map> remove_map(MapId id);
   // Every map removed so far (a full save deletes their stored rows).
   std::vector<MapId> removed_maps() const;
+  // A new empty map with a given id that is not (yet) in the atlas: a newer
+  // copy of a map read from the database, for replace_map. The allocator is
+  // not moved (the id is another writer's, or already known).
+  std::shared_ptr<Map> detached_map(MapId id) const;
+  // Puts `map` in the atlas in place of the map with its id (or as a new one),
+  // not recording the old one as removed: it is the same map, read again.
+  // Returns the old one (null if none). Hold lock_maps_exclusive().
+  std::shared_ptr<Map> replace_map(std::shared_ptr<Map> map);
   // The map now holding a keyframe id, alive or culled (merges move keyframes
   // between maps); none when no map knows it.
   std::optional<MapId> map_holding(KeyframeId keyframe) const;

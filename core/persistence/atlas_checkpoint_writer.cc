@@ -153,6 +153,7 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
     return is_writable(m) && written_before(m);
   });
   const AtlasRows& before = full ? nothing : before_is_committed ? committed_ : restricted;
+  std::unordered_map<MapId, std::uint64_t> digests;  // of `rows`, with maps_changed_
   {
     AtlasRowWriter writer(db);  // its statements are finalized before COMMIT
     for (std::size_t i = 0; i < sessions_.size(); ++i) {
@@ -173,6 +174,15 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
     for (const MapId map : rows.maps)
       if (!written_before(map)) writer.delete_map_contents(map);
     result.rows += write_changed_rows(writer, before, rows, now);
+    if (maps_changed_) {
+      digests = map_digests(rows);
+      std::vector<MapId> changed;
+      for (const MapId map : rows.maps) {
+        const auto it = committed_digests_.find(map);
+        if (it == committed_digests_.end() || it->second != digests.at(map)) changed.push_back(map);
+      }
+      if (!changed.empty()) maps_changed_(db, changed);
+    }
     if (meta_changed(before, rows)) ++result.rows.updated;
     if (result.rows.total() == 0) {
       // A map this writer may not write now is rewritten whole when it may again.
@@ -194,6 +204,7 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   for (const MapId map : atlas_.removed_maps())
     if (is_writable(map)) deleted_maps_.insert(map);
   committed_ = std::move(rows);
+  if (maps_changed_) committed_digests_ = std::move(digests);
   for (SessionState& s : sessions_) s.written = true;
   advance_sessions();
   std::erase_if(sessions_, [](const SessionState& s) { return s.ending; });

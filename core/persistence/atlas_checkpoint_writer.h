@@ -48,6 +48,10 @@ struct CheckpointSession {
 // is open on `db` (e.g. those whose ownership rows it could lock).
 using WritableMaps = std::function<std::unordered_set<MapId>(SqlConnection& db, const std::vector<MapId>& candidates)>;
 
+// The maps whose rows the checkpoint whose transaction is open on `db` has
+// changed (replicas of one database: a version the others watch).
+using MapsChanged = std::function<void(SqlConnection& db, const std::vector<MapId>& maps)>;
+
 struct CheckpointResult {
   bool committed = false;     // false: nothing had changed and nothing was written
   bool full = false;          // the first checkpoint: every map rewritten
@@ -73,6 +77,8 @@ class AtlasCheckpointWriter {
   void attribute_keyframe(KeyframeId keyframe, SessionId session);
   // Several writers of one database: only these maps are written (unset: every map).
   void set_writable_maps(WritableMaps writable) { writable_maps_ = std::move(writable); }
+  // Told, inside each checkpoint's transaction, which maps it changed (unset: nobody).
+  void set_maps_changed(MapsChanged changed) { maps_changed_ = std::move(changed); }
   // The maps the last committed checkpoint wrote (what the database holds of them is committed_).
   const std::unordered_set<MapId>& written_maps() const { return written_maps_; }
   std::size_t session_count() const { return sessions_.size(); }
@@ -139,8 +145,10 @@ class AtlasCheckpointWriter {
   bool has_committed_ = false;
   AtlasRows committed_;  // what the file holds for the maps of written_maps_ (objects dropped)
   WritableMaps writable_maps_;
-  std::unordered_set<MapId> written_maps_;  // maps whose rows in committed_ are the file's
-  std::unordered_set<MapId> deleted_maps_;  // maps merged away whose rows this writer deleted
+  MapsChanged maps_changed_;
+  std::unordered_map<MapId, std::uint64_t> committed_digests_;  // map_digests of committed_ (with maps_changed_)
+  std::unordered_set<MapId> written_maps_;                      // maps whose rows in committed_ are the file's
+  std::unordered_set<MapId> deleted_maps_;                      // maps merged away whose rows this writer deleted
   std::size_t deferred_frames_ = 0;
   std::size_t dropped_frames_ = 0;
 };

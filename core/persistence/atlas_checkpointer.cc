@@ -29,6 +29,7 @@ AtlasCheckpointer::AtlasCheckpointer(const Atlas& atlas, const std::filesystem::
   // survives a crash of the process is enough (docs/schema.md).
   writer_.set_durable(false);
   if (options_.writable_maps) writer_.set_writable_maps(options_.writable_maps);
+  if (options_.maps_changed) writer_.set_maps_changed(options_.maps_changed);
   worker_ = std::thread([this] { run(); });
 }
 

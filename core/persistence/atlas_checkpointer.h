@@ -33,6 +33,8 @@ struct CheckpointOptions {
   // writes, asked inside each checkpoint's transaction (atlas_checkpoint_writer.h).
   // Unset: every map.
   WritableMaps writable_maps;
+  // Told inside each checkpoint's transaction which maps it changed (unset: nobody).
+  MapsChanged maps_changed;
 
   // Throws Error naming the first value out of range.
   void check() const;

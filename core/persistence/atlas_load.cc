@@ -350,4 +350,21 @@ AtlasLoadReport AtlasStore::load_atlas(Atlas& atlas, const Vocabulary* vocabular
   return report;
 }
 
+std::shared_ptr<Map> AtlasStore::load_map(const Atlas& atlas, MapId id, const Vocabulary* vocabulary) {
+  ORBATLAS_CHECK(
+      !vocabulary || vocabulary->hash() == vocabulary_hash_,
+      location() << ": loading with vocabulary " << vocabulary->hash() << " an atlas built with " << vocabulary_hash_);
+  AtlasLoadReport report;
+  SqlTransaction transaction(*db_, SqlTransaction::Mode::kRead);
+  const auto stored = stored_map_ids();
+  if (std::find(stored.begin(), stored.end(), id) == stored.end()) return nullptr;
+  std::shared_ptr<Map> map = atlas.detached_map(id);
+  {
+    AtlasReader reader(*db_, vocabulary, report);
+    reader.read_map(*map);
+  }
+  transaction.commit();
+  return map;
+}
+
 }  // namespace orbatlas

@@ -186,4 +186,26 @@ AtlasRows rows_of_maps(AtlasRows rows, const std::function<bool(MapId)>& keep) {
   return rows;
 }
 
+std::unordered_map<MapId, std::uint64_t> map_digests(const AtlasRows& rows) {
+  std::unordered_map<MapId, RowHash> hashes;
+  std::unordered_map<KeyframeId, MapId> keyframe_maps;
+  for (const MapId m : rows.maps) hashes[m];
+  for (const KeyframeRow& k : rows.keyframes) {
+    keyframe_maps.emplace(k.id, k.map);
+    RowHash& h = hashes[k.map];
+    h.add(std::uint64_t{k.id}).add(k.hash).add(k.inertial_hash).add(k.imu_hash);
+    for (const MapPointId p : k.slots) h.add(std::uint64_t{p});
+    for (const CovisibilityEdge& e : k.covisibility) h.add(std::uint64_t{e.keyframe}).add(e.weight);
+  }
+  for (const MapPointRow& p : rows.points) hashes[p.map].add(std::uint64_t{p.id}).add(p.hash);
+  for (const CulledKeyframeRow& c : rows.culled) hashes[c.map].add(std::uint64_t{c.anchor.id}).add(c.hash);
+  for (const MapInertialRow& i : rows.inertial) hashes[i.map].add(i.hash);
+  for (const LoopEdge& e : rows.loop_edges)
+    if (const auto it = keyframe_maps.find(e.first); it != keyframe_maps.end())
+      hashes[it->second].add(std::uint64_t{e.first}).add(std::uint64_t{e.second});
+  std::unordered_map<MapId, std::uint64_t> out;
+  for (const auto& [map, h] : hashes) out.emplace(map, h.value());
+  return out;
+}
+
 }  // namespace orbatlas

@@ -8,6 +8,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -104,5 +105,11 @@ AtlasRows collect_atlas_rows(const Atlas& atlas, const KeyframeSessionOf& sessio
 // keyframe's map); the atlas row stays, its active map only when kept. Several writers of one database each
 // write only their own maps (AtlasCheckpointWriter).
 AtlasRows rows_of_maps(AtlasRows rows, const std::function<bool(MapId)>& keep);
+
+// One digest per map of every row it has (keyframes with their observations,
+// covisibility, links and IMU states; points; culled keyframes; inertial
+// state; loop edges), so that a writer can tell which maps a checkpoint
+// changed (replicas of one database: the others read those maps again).
+std::unordered_map<MapId, std::uint64_t> map_digests(const AtlasRows& rows);
 
 }  // namespace orbatlas

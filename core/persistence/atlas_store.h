@@ -83,6 +83,10 @@ class AtlasStore {
   // restored (Map::keyframe_pose resolves them as before). Throws DataError on inconsistent
   // stored data; the atlas may then hold part of it and should be discarded.
   AtlasLoadReport load_atlas(Atlas& atlas, const Vocabulary* vocabulary);
+  // One stored map as the database has it now, read into a map of `atlas`'s
+  // that is not in it yet (Atlas::detached_map; put it in with replace_map).
+  // Null when the database has no such map. Throws as load_atlas.
+  std::shared_ptr<Map> load_map(const Atlas& atlas, MapId id, const Vocabulary* vocabulary);
   std::vector<MapId> stored_map_ids();
 
   // --- sessions and their trajectories ---

@@ -25,10 +25,10 @@ std::string read_all(int fd) {
 
 }  // namespace
 
-DatabaseLock::DatabaseLock(const std::filesystem::path& db) {
+DatabaseLock::DatabaseLock(const std::filesystem::path& db, DatabaseLockMode mode) {
   if (is_postgres_location(db.string())) {
     check_postgres_uri(db.string());
-    pg_ = std::make_unique<PgWriterLock>(db.string());
+    pg_ = std::make_unique<PgWriterLock>(db.string(), mode == DatabaseLockMode::kShared);
     previous_crashed_ = pg_->previous_holder_crashed();
     return;
   }

@@ -27,11 +27,18 @@ inline constexpr std::uint64_t kKeyframeIdGapAfterCrash = std::uint64_t{1} << 32
 inline constexpr std::uint64_t kMapPointIdGapAfterCrash = std::uint64_t{1} << 40;
 inline constexpr std::uint64_t kMapIdGapAfterCrash = std::uint64_t{1} << 24;
 
+// kShared: orbatlas-server replicas of one PostgreSQL atlas (issue 23), each
+// writing the maps it owns (map ownership, core/server/map_ownership.h), hold
+// the lock together, and a single writer (orbatlas run) waits for them all;
+// they need no crash record (every replica hands out ids of its own ranges).
+// On SQLite, kShared is kExclusive: an SQLite atlas has one writer.
+enum class DatabaseLockMode { kExclusive, kShared };
+
 class DatabaseLock {
  public:
   // Takes the lock (Error naming the holder when another process has it).
   // `db`: the SQLite file, or a postgresql:// URI.
-  explicit DatabaseLock(const std::filesystem::path& db);
+  explicit DatabaseLock(const std::filesystem::path& db, DatabaseLockMode mode = DatabaseLockMode::kExclusive);
   ~DatabaseLock();  // releases the lock; the file keeps saying "running" unless mark_stopped()
   DatabaseLock(const DatabaseLock&) = delete;
   DatabaseLock& operator=(const DatabaseLock&) = delete;

@@ -26,7 +26,8 @@ std::string this_holder() {
 
 }  // namespace
 
-PgWriterLock::PgWriterLock(const std::string& conninfo) : db_(std::make_unique<PgDb>(conninfo)) {
+PgWriterLock::PgWriterLock(const std::string& conninfo, bool shared)
+    : db_(std::make_unique<PgDb>(conninfo)), shared_(shared) {
   migrate_postgres_schema(*db_, unix_time_ns());
   // The lock of a writer that just stopped or died goes when the server has
   // ended its connection, which libpq does not wait for: the server waits for
@@ -34,7 +35,7 @@ PgWriterLock::PgWriterLock(const std::string& conninfo) : db_(std::make_unique<P
   bool taken = false;
   db_->exec("SET lock_timeout = " + std::to_string(kWaitMs));
   try {
-    PgStatement take = db_->prepare("SELECT pg_advisory_lock(?1)");
+    PgStatement take = db_->prepare(shared_ ? "SELECT pg_advisory_lock_shared(?1)" : "SELECT pg_advisory_lock(?1)");
     take.bind_int64(1, kWriterLockKey);
     take.step();
     taken = true;
@@ -43,11 +44,20 @@ PgWriterLock::PgWriterLock(const std::string& conninfo) : db_(std::make_unique<P
   }
   db_->exec("SET lock_timeout = 0");
   if (!taken) {
-    PgStatement holder = db_->prepare("SELECT holder FROM atlas_writer WHERE id = 1");
-    const std::string who = holder.step() ? holder.text(0) : std::string("unknown holder");
-    throw Error("the atlas " + db_->description() + " is in use by another writer (" + who +
-                "); one writer per database");
+    // Server replicas holding it together, or the single writer.
+    std::string who;
+    PgStatement replicas =
+        db_->prepare("SELECT holder FROM replicas WHERE state = 'running' AND lease_until >= now() ORDER BY id");
+    while (replicas.step()) who += (who.empty() ? "orbatlas-server replicas: " : ", ") + replicas.text(0);
+    if (who.empty()) {
+      PgStatement holder = db_->prepare("SELECT holder FROM atlas_writer WHERE id = 1");
+      who = holder.step() ? holder.text(0) : std::string("unknown holder");
+    }
+    throw Error(
+        "the atlas " + db_->description() + " is in use by another writer (" + who +
+        (shared_ ? "); a server replica cannot start while a single writer has it" : "); one writer per database"));
   }
+  if (shared_) return;
   PgStatement state = db_->prepare("SELECT state FROM atlas_writer WHERE id = 1");
   previous_crashed_ = state.step() && state.text(0) == "running";
   db_->prepare(
@@ -62,12 +72,15 @@ PgWriterLock::PgWriterLock(const std::string& conninfo) : db_(std::make_unique<P
 PgWriterLock::~PgWriterLock() {
   // Released at once on a clean drop (a crash leaves it to the server).
   try {
-    db_->prepare("SELECT pg_advisory_unlock(?1)").bind_int64(1, kWriterLockKey).step();
+    db_->prepare(shared_ ? "SELECT pg_advisory_unlock_shared(?1)" : "SELECT pg_advisory_unlock(?1)")
+        .bind_int64(1, kWriterLockKey)
+        .step();
   } catch (const std::exception&) {  // the connection is gone: so is the lock
   }
 }
 
 void PgWriterLock::mark_stopped() {
+  if (shared_) return;
   db_->prepare("UPDATE atlas_writer SET state = 'stopped', changed_ns = ?1 WHERE id = 1")
       .bind_int64(1, unix_time_ns())
       .run();

@@ -23,8 +23,11 @@ class PgDb;
 
 class PgWriterLock {
  public:
-  // Error naming the holder when another writer has the lock.
-  explicit PgWriterLock(const std::string& conninfo);
+  // Error naming the holder when another writer has the lock. `shared`: a
+  // replica of several (issue 23): held together with the other replicas
+  // (pg_advisory_lock_shared), refused only while a single writer has it; no
+  // crash record (previous_holder_crashed() is false, mark_stopped() does nothing).
+  explicit PgWriterLock(const std::string& conninfo, bool shared = false);
   ~PgWriterLock();  // releases the lock, then closes the connection
   PgWriterLock(const PgWriterLock&) = delete;
   PgWriterLock& operator=(const PgWriterLock&) = delete;
@@ -34,6 +37,7 @@ class PgWriterLock {
 
  private:
   std::unique_ptr<PgDb> db_;
+  bool shared_ = false;
   bool previous_crashed_ = false;
 };
 

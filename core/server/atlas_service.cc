@@ -101,14 +101,37 @@ AtlasServiceOptions with_background_nice(AtlasServiceOptions options) {
 
 AtlasService::AtlasService(AtlasServiceOptions options)
     : options_((options.check(), with_background_nice(std::move(options)))),
-      db_lock_(options_.db.empty() ? nullptr : std::make_unique<DatabaseLock>(options_.db)),
+      db_lock_(options_.db.empty() ? nullptr : std::make_unique<DatabaseLock>(options_.db, DatabaseLockMode::kShared)),
       replica_(std::make_unique<ReplicaRegistry>(options_.db, options_.replica)),
+      ownership_(replica_->shared() ? std::make_unique<MapOwnership>(*replica_, options_.db.string()) : nullptr),
       vocabulary_(Vocabulary::load(options_.vocabulary.empty() ? default_vocabulary_path() : options_.vocabulary)),
       loop_worker_(std::make_shared<SerialWorker>(options_.loop_queue, options_.background_nice)) {
   const auto start = std::chrono::steady_clock::now();
   {
+    // A shared atlas: the maps nobody owns and those of dead replicas are
+    // claimed before they are read, so what is read is what they last committed.
+    const std::vector<MapId> claimed = ownership_ ? ownership_->claim_free_and_dead() : std::vector<MapId>{};
+    // The versions before the maps are read: a map changed meanwhile is read again later.
+    if (ownership_)
+      for (const MapOwnership::Owned& o : ownership_->owners()) seen_versions_[o.map] = o.version;
     AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());
     const AtlasLoadReport loaded = store.load_atlas(atlas_, &vocabulary_);
+    if (ownership_) {
+      // Ids of this replica's own ranges (replica_registry.h).
+      IdAllocator& ids = atlas_.ids();
+      const std::uint64_t r = replica_->id();
+      ids.confine(IdKind::keyframe, replica_id_range(r, kReplicaKeyframeIdShift).begin,
+                  replica_id_range(r, kReplicaKeyframeIdShift).end);
+      ids.confine(IdKind::map_point, replica_id_range(r, kReplicaMapPointIdShift).begin,
+                  replica_id_range(r, kReplicaMapPointIdShift).end);
+      ids.confine(IdKind::map, replica_id_range(r, kReplicaMapIdShift).begin,
+                  replica_id_range(r, kReplicaMapIdShift).end);
+      next_session_ = replica_id_range(r, kReplicaMapIdShift).begin;
+      ownership_->ready(claimed);
+      if (!claimed.empty())
+        log_info("replica " + std::to_string(r) + " writes " + std::to_string(claimed.size()) +
+                 " stored map(s) that no live replica writes (their replica stopped or died, or none ever did)");
+    }
     atlas_.index_all_keyframes();
     if (db_lock_->previous_holder_crashed()) {
       skip_ids_after_crash(atlas_);
@@ -116,7 +139,9 @@ AtlasService::AtlasService(AtlasServiceOptions options)
                ": the previous server stopped without its final checkpoint (killed?); what it did after its last "
                "checkpoint is lost, and new ids continue past any it may have handed out");
     }
-    for (const auto& map : atlas_.maps()) leases_.add_free(map->id());
+    // Mapping, merging and entering (leases): only the maps this replica writes.
+    for (const auto& map : atlas_.maps())
+      if (!ownership_ || ownership_->owns(map->id())) leases_.add_free(map->id());
     for (const SessionInfo& info : store.load_sessions()) {
       const auto anchors = store.load_trajectory(info.id);
       // The rig each stored map was made with (for merging, and for entering
@@ -125,20 +150,31 @@ AtlasService::AtlasService(AtlasServiceOptions options)
       // The trajectory itself stays in the database (read when asked for).
       sessions_[info.id] = std::make_shared<LiveSession>(
           info, anchors.size(), anchors.empty() ? std::nullopt : std::optional<FrameAnchor>(anchors.back()));
-      next_session_ = std::max(next_session_, info.id + 1);
+      if (!ownership_ || replica_id_range(replica_->id(), kReplicaMapIdShift).contains(info.id))
+        next_session_ = std::max(next_session_, info.id + 1);
     }
     log_info("atlas " + store.location() + ": " + std::to_string(loaded.maps) + " maps, " +
              std::to_string(loaded.keyframes) + " keyframes, " + std::to_string(loaded.map_points) + " map points, " +
              std::to_string(sessions_.size()) + " sessions loaded in " +
              std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()) + " s");
   }
-  checkpointer_ = std::make_unique<AtlasCheckpointer>(atlas_, options_.db, vocabulary_.hash(), options_.checkpoints);
+  CheckpointOptions checkpoints = options_.checkpoints;
+  if (ownership_) {
+    checkpoints.writable_maps = [this](SqlConnection& db, const std::vector<MapId>& candidates) {
+      return ownership_->writable(db, candidates, atlas_);
+    };
+    checkpoints.maps_changed = [this](SqlConnection& db, const std::vector<MapId>& maps) {
+      ownership_->changed(db, maps);
+    };
+  }
+  checkpointer_ = std::make_unique<AtlasCheckpointer>(atlas_, options_.db, vocabulary_.hash(), checkpoints);
   store_.emplace(AtlasStore::open(options_.db, vocabulary_.hash()));
   if (options_.merge_maps)
     merger_ = std::make_unique<MapMergeWorker>(
         atlas_, leases_, [this](MapId a, MapId b) { return rigs_match(a, b); },
         [this](const MergeRecord& r) { merged(r); }, options_.merging);
   if (options_.idle_timeout_s > 0) idle_thread_ = std::thread([this] { finish_idle_sessions(); });
+  if (ownership_) takeover_thread_ = std::thread([this] { take_over_until_stopped(); });
 }
 
 void AtlasService::finish_idle_sessions() {
@@ -484,6 +520,8 @@ void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
 }
 
 bool AtlasService::rigs_match(MapId source, MapId target) const {
+  // A shared atlas: only maps this replica writes are merged.
+  if (ownership_ && (!ownership_->owns(source) || !ownership_->owns(target))) return false;
   // Maps of one rig; a single camera's map goes into a stereo one of its rig,
   // not the other way (merge_maps gives the first the target's scale). Maps
   // of single-camera sessions have a rig only in the server run that made
@@ -502,6 +540,7 @@ bool AtlasService::cameras_match(const CameraRig& cameras, MapId target) const {
 }
 
 bool AtlasService::mapping_rig_matches(const MapRig& rig, MapId target) const {
+  if (ownership_ && !ownership_->owns(target)) return false;  // another replica's map: read, never mapped
   {
     std::lock_guard lock(rigs_mutex_);
     const auto b = map_rigs_.find(target);
@@ -701,6 +740,7 @@ MapSummary AtlasService::map(MapId id) const {
   if (const auto holders = leases_.holders(id); !holders.empty() && holders.front() != kMergeWorkerLease)
     out.live_session = holders.front();
   out.sessions = sessions_in(id);
+  out.writable = !ownership_ || ownership_->owns(id);
   const auto points = map->map_points();
   if (!points.empty()) {
     MapSummary::Bounds bounds{Eigen::Vector3d::Constant(1e300), Eigen::Vector3d::Constant(-1e300)};
@@ -787,6 +827,8 @@ void AtlasService::shutdown() {
   }
   idle_wake_.notify_all();
   if (idle_thread_.joinable()) idle_thread_.join();  // it may be finishing a session: let it end
+  takeover_wake_.notify_all();
+  if (takeover_thread_.joinable()) takeover_thread_.join();
   {
     std::lock_guard lock(mutex_);
     for (const auto& [_, s] : sessions_)

@@ -26,6 +26,7 @@
 #include "core/server/live_session.h"
 #include "core/server/map_leases.h"
 #include "core/server/map_merge_worker.h"
+#include "core/server/map_ownership.h"
 #include "core/server/replica_registry.h"
 #include "core/server/service_results.h"
 #include "core/server/session_rules.h"
@@ -231,12 +232,27 @@ class AtlasService {
   // the sessions past it.
   void finish_idle_sessions();
   void merged_live(const LiveMerge& merge);  // on the loop-closing thread
+  // A shared atlas (atlas_service_replicas.cc): takes over the maps nobody owns
+  // and those of dead replicas, reading them again from the database (and the
+  // sessions this server does not know yet); returns the maps taken over.
+  std::vector<MapId> take_over_maps();
+  // Stored sessions this server does not list yet (another replica's): listed,
+  // and their maps' rigs recorded. Under nothing; takes mutex_ and rigs_mutex_.
+  void load_new_sessions(AtlasStore& store);
+  // A shared atlas: reads again the maps other replicas changed (their version
+  // in map_owners moved) or made since, and drops those they merged away;
+  // returns the maps read. Localisation then sees them as their owners have them.
+  std::vector<MapId> refresh_others_maps();
+  // The takeover thread: take_over_maps() and refresh_others_maps() every lease, until shutdown.
+  void take_over_until_stopped();
 
   const AtlasServiceOptions options_;
   // First: held while anything below may write the database; destroyed last.
   std::unique_ptr<DatabaseLock> db_lock_;
   // This server's row among the database's replicas (after db_lock_, which migrates the schema).
   std::unique_ptr<ReplicaRegistry> replica_;
+  // A shared (PostgreSQL) atlas: the maps this replica writes; null on SQLite (every map).
+  std::unique_ptr<MapOwnership> ownership_;
   const Vocabulary vocabulary_;
   Atlas atlas_;
   MapLeases leases_;
@@ -288,6 +304,10 @@ class AtlasService {
 
   std::unique_ptr<MapMergeWorker> merger_;  // null when merging is off
   std::thread idle_thread_;                 // started last in the constructor, joined by shutdown()
+  std::condition_variable takeover_wake_;   // with mutex_: shutdown
+  // The version of each other replica's map this server has read (the constructor, then the takeover thread only).
+  std::map<MapId, std::int64_t> seen_versions_;
+  std::thread takeover_thread_;  // a shared atlas only; joined by shutdown()
 
   // GET /metrics: counters counted as things happen, the gauges set when asked.
   mutable MetricsRegistry metrics_;

@@ -7,7 +7,6 @@
 
 #include "core/common/process_memory.h"
 #include "core/server/atlas_service.h"
-#include "core/server/service_error.h"
 
 namespace orbatlas {
 namespace {
@@ -28,15 +27,6 @@ HealthReport AtlasService::health() const {
   out.maps = atlas_.maps().size();
   out.merges_pending = merger_ ? merger_->stats().pending : 0;
   return out;
-}
-
-std::vector<ReplicaInfo> AtlasService::replicas() const {
-  try {
-    return replica_->replicas();
-  } catch (const std::exception& e) {
-    throw ServiceError(ServiceErrorKind::kUnavailable, "database_unavailable",
-                       std::string("cannot read the replicas from the atlas's database: ") + e.what());
-  }
 }
 
 std::vector<prometheus::MetricFamily> AtlasService::metrics() const {

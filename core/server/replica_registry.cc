@@ -57,6 +57,9 @@ ReplicaRegistry::ReplicaRegistry(const std::filesystem::path& db, ReplicaOptions
   add.bind_text(1, holder_).bind_text(2, options_.url).bind_int64(3, started_ns_).bind_real(4, options_.lease_s);
   ORBATLAS_CHECK(add.step(), "replicas: the new replica's row returned no id");
   id_ = static_cast<std::uint64_t>(add.int64(0));
+  ORBATLAS_CHECK(id_ <= kMaxReplicaId, "replicas: the database has handed out replica id "
+                                           << id_ << ", above the " << kMaxReplicaId
+                                           << " whose id ranges fit in 63 bits (reset its `replicas` sequence)");
   log_info("replica " + std::to_string(id_) + " of the atlas " + location_for_messages(location_) + " (lease " +
            seconds_text(options_.lease_s) + ")");
   renewer_ = std::thread([this] { renew_until_stopped(); });

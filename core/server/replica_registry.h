@@ -33,6 +33,25 @@ namespace orbatlas {
 
 class PgDb;
 
+// The ids a replica of a shared atlas hands out: ranges of its own, from its
+// replica id (ids of kind K in [id << shift_K, (id + 1) << shift_K)), so that
+// replicas of one database never give one id to two objects. A restarted
+// server is a new replica with new ranges, which also steps over whatever a
+// killed one handed out after its last checkpoint (SQLite's id gap after a crash).
+inline constexpr int kReplicaKeyframeIdShift = 32;                            // 4 billion keyframes per replica
+inline constexpr int kReplicaMapPointIdShift = 40;                            // 1 trillion map points
+inline constexpr int kReplicaMapIdShift = 24;                                 // 16 million maps, sessions, upload jobs
+inline constexpr std::uint64_t kMaxReplicaId = (std::uint64_t{1} << 23) - 1;  // map point ids below 2^63
+struct ReplicaIdRange {
+  std::uint64_t begin = 0, end = 0;
+  bool contains(std::uint64_t id) const { return id >= begin && id < end; }
+};
+inline ReplicaIdRange replica_id_range(std::uint64_t replica, int shift) {
+  return {replica << shift, (replica + 1) << shift};
+}
+// The replica whose range holds `id` (ids of kind `shift`).
+inline std::uint64_t replica_of_id(std::uint64_t id, int shift) { return id >> shift; }
+
 struct ReplicaOptions {
   std::string url;        // where this replica's HTTP API is reached, for the others ('': not said yet)
   double lease_s = 10.0;  // a replica not heard of for this long is dead

@@ -63,6 +63,9 @@ struct MapSummary {
   std::size_t keyframes = 0, map_points = 0;
   std::optional<SessionId> live_session;  // the mapping session holding it now (its lease)
   std::vector<SessionId> sessions;        // live sessions whose last frame was tracked in it (any mode)
+  // This server maps in and writes it (a shared atlas: another replica owns it
+  // when false, and this server only localises in it; always true on SQLite).
+  bool writable = true;
   struct Bounds {
     Eigen::Vector3d min, max;
   };

@@ -1,6 +1,7 @@
 #include "core/server/upload_jobs.h"
 
 #include <chrono>
+#include <set>
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/common/log.h"
@@ -108,8 +109,18 @@ UploadJobs::UploadJobs(AtlasService& service, UploadJobOptions options)
              options_.work_dir.string());
   fs::create_directories(options_.work_dir);
   store_.emplace(AtlasStore::open(service_.db_path(), service_.vocabulary().hash()));
+  // Replicas of a shared atlas: job ids from this replica's range; the jobs of
+  // live replicas are theirs (only a dead replica's are interrupted).
+  const ReplicaRegistry& replica = service_.replica();
+  std::set<std::uint64_t> others_alive;
+  if (replica.shared()) {
+    for (const ReplicaInfo& r : replica.replicas())
+      if (r.alive && !r.self) others_alive.insert(r.id);
+    next_job_ = replica_id_range(replica.id(), kReplicaMapIdShift).begin;
+  }
   for (StoredJob& row : store_->load_jobs()) {
-    if (row.state == "queued" || row.state == "extracting" || row.state == "running") {
+    const bool others = others_alive.count(replica_of_id(row.id, kReplicaMapIdShift)) > 0;
+    if (!others && (row.state == "queued" || row.state == "extracting" || row.state == "running")) {
       row.error =
           "interrupted: the server stopped without finishing this job (it was killed or crashed) while it was " +
           row.state +
@@ -118,7 +129,8 @@ UploadJobs::UploadJobs(AtlasService& service, UploadJobOptions options)
       row.state = "failed";
       store_->save_job(row);
     }
-    next_job_ = std::max(next_job_, row.id + 1);
+    if (!replica.shared() || replica_id_range(replica.id(), kReplicaMapIdShift).contains(row.id))
+      next_job_ = std::max(next_job_, row.id + 1);
     Job job;
     job.request.name = row.name;
     job.row = std::move(row);

@@ -41,6 +41,7 @@ nlohmann::json to_json(const MapSummary& map) {
   nlohmann::json j = {{"id", map.id}, {"keyframes", map.keyframes}, {"map_points", map.map_points}};
   if (map.live_session) j["live_session"] = *map.live_session;
   j["sessions"] = map.sessions;
+  j["writable"] = map.writable;
   if (map.bounds_m) {
     const auto& b = *map.bounds_m;
     j["bounds_m"] = {{"min", {b.min.x(), b.min.y(), b.min.z()}}, {"max", {b.max.x(), b.max.y(), b.max.z()}}};

@@ -1,0 +1,136 @@
+// AtlasService as one replica of a shared (PostgreSQL) atlas (issue 23,
+// docs/scaling.md "Replicas"): the replicas it lists, and the takeover of the
+// maps nobody writes (their replica died) with the sessions it did not know.
+#include <chrono>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "core/common/log.h"
+#include "core/server/atlas_service.h"
+#include "core/server/service_error.h"
+
+namespace orbatlas {
+
+std::vector<ReplicaInfo> AtlasService::replicas() const {
+  try {
+    return replica_->replicas();
+  } catch (const std::exception& e) {
+    throw ServiceError(ServiceErrorKind::kUnavailable, "database_unavailable",
+                       std::string("cannot read the replicas from the atlas's database: ") + e.what());
+  }
+}
+
+void AtlasService::load_new_sessions(AtlasStore& store) {
+  for (const SessionInfo& info : store.load_sessions()) {
+    {
+      std::lock_guard lock(mutex_);
+      if (sessions_.count(info.id)) continue;
+    }
+    const auto anchors = store.load_trajectory(info.id);
+    std::map<MapId, MapRig> rigs;
+    record_map_rigs(atlas_, info, anchors, rigs);
+    {
+      std::lock_guard lock(rigs_mutex_);
+      for (auto& [map, rig] : rigs) map_rigs_.try_emplace(map, std::move(rig));  // a map keeps its first rig
+    }
+    auto session = std::make_shared<LiveSession>(
+        info, anchors.size(), anchors.empty() ? std::nullopt : std::optional<FrameAnchor>(anchors.back()));
+    std::lock_guard lock(mutex_);
+    sessions_.try_emplace(info.id, std::move(session));
+  }
+}
+
+std::vector<MapId> AtlasService::take_over_maps() {
+  if (!ownership_) return {};
+  const std::vector<MapId> claimed = ownership_->claim_free_and_dead();
+  if (claimed.empty()) return {};
+  // Read again after the claim: what their last owner committed, nothing later.
+  // A connection of its own (this is rare: a replica died).
+  std::vector<std::shared_ptr<Map>> fresh;
+  AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());
+  for (const MapId id : claimed)
+    if (auto map = store.load_map(atlas_, id, &vocabulary_)) fresh.push_back(std::move(map));
+  {
+    const auto whole = atlas_.lock_maps_exclusive();
+    KeyframeIndex& index = atlas_.keyframe_index();
+    for (const auto& map : fresh) {
+      if (const auto old = atlas_.replace_map(map))
+        for (const auto& kf : old->keyframes()) index.erase(kf->id());
+      for (const auto& kf : map->keyframes()) index.add(kf);
+    }
+  }
+  load_new_sessions(store);  // the dead replica's sessions, and its maps' rigs
+  ownership_->ready(claimed);
+  std::string names;
+  for (const auto& map : fresh) {
+    leases_.add_free(map->id());
+    names += (names.empty() ? "" : ", ") + std::to_string(map->id()) + " (" + std::to_string(map->keyframe_count()) +
+             " keyframes)";
+  }
+  if (!fresh.empty()) log_info("replica " + std::to_string(replica_->id()) + " took over map(s) " + names);
+  return claimed;
+}
+
+std::vector<MapId> AtlasService::refresh_others_maps() {
+  if (!ownership_) return {};
+  std::set<MapId> listed;
+  std::vector<MapOwnership::Owned> stale;
+  for (const MapOwnership::Owned& o : ownership_->owners()) {
+    listed.insert(o.map);
+    if (ownership_->owns(o.map)) continue;
+    const auto seen = seen_versions_.find(o.map);
+    if (seen != seen_versions_.end() && seen->second == o.version && atlas_.map(o.map)) continue;
+    stale.push_back(o);
+  }
+  // Maps of others that no replica owns any more: merged away by their owner
+  // (a stored map nobody owns was claimed by take_over_maps just before).
+  std::vector<MapId> gone;
+  for (const auto& map : atlas_.maps())
+    if (!ownership_->owns(map->id()) && !listed.count(map->id())) gone.push_back(map->id());
+  if (stale.empty() && gone.empty()) return {};
+  std::vector<std::shared_ptr<Map>> fresh;
+  std::vector<MapId> read;
+  AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());
+  for (const MapOwnership::Owned& o : stale) {
+    if (auto map = store.load_map(atlas_, o.map, &vocabulary_)) {
+      fresh.push_back(std::move(map));
+      read.push_back(o.map);
+    }
+    seen_versions_[o.map] = o.version;  // read at this version or later
+  }
+  {
+    const auto whole = atlas_.lock_maps_exclusive();
+    KeyframeIndex& index = atlas_.keyframe_index();
+    for (const auto& map : fresh) {
+      if (const auto old = atlas_.replace_map(map))
+        for (const auto& kf : old->keyframes()) index.erase(kf->id());
+      for (const auto& kf : map->keyframes()) index.add(kf);
+    }
+    for (const MapId id : gone)
+      if (const auto old = atlas_.remove_map(id))
+        for (const auto& kf : old->keyframes()) index.erase(kf->id());
+  }
+  for (const MapId id : gone) seen_versions_.erase(id);
+  if (!fresh.empty()) load_new_sessions(store);  // their sessions, and the new maps' rigs
+  return read;
+}
+
+void AtlasService::take_over_until_stopped() {
+  const auto period = std::chrono::duration<double>(options_.replica.lease_s);
+  std::unique_lock lock(mutex_);
+  while (!takeover_wake_.wait_for(lock, period, [this] { return shut_down_; })) {
+    lock.unlock();
+    try {
+      take_over_maps();
+      refresh_others_maps();
+    } catch (const std::exception& e) {
+      log_warn(std::string("replica: taking over or reading other replicas' maps failed (tried again later): ") +
+               e.what());
+    }
+    lock.lock();
+  }
+}
+
+}  // namespace orbatlas

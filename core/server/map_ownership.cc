@@ -1,0 +1,116 @@
+#include "core/server/map_ownership.h"
+
+#include "core/common/error.h"
+#include "core/map/atlas.h"
+#include "core/persistence/pg_db.h"
+#include "core/persistence/wall_clock.h"
+
+namespace orbatlas {
+
+MapOwnership::MapOwnership(const ReplicaRegistry& registry, std::string location)
+    : registry_(registry), location_(std::move(location)) {
+  ORBATLAS_CHECK(registry_.shared(), "map ownership is for a shared (PostgreSQL) atlas");
+}
+
+MapOwnership::~MapOwnership() = default;
+
+std::vector<MapId> MapOwnership::claim_free_and_dead() {
+  if (registry_.lease_lost()) return {};
+  std::lock_guard lock(db_mutex_);
+  std::vector<MapId> claimed;
+  try {
+    if (!db_) db_ = std::make_unique<PgDb>(location_);
+    SqlTransaction transaction(*db_);
+    const auto me = static_cast<std::int64_t>(registry_.id());
+    const std::int64_t now = unix_time_ns();
+    // Stored maps nobody owns.
+    PgStatement free = db_->prepare(
+        "INSERT INTO map_owners(map_id, replica_id, claimed_ns) SELECT id, ?1, ?2 FROM maps "
+        "WHERE id NOT IN (SELECT map_id FROM map_owners) ON CONFLICT (map_id) DO NOTHING RETURNING map_id");
+    free.bind_int64(1, me).bind_int64(2, now);
+    while (free.step()) claimed.push_back(static_cast<MapId>(free.int64(0)));
+    // The maps of dead replicas (waits for a checkpoint of theirs in progress).
+    PgStatement dead = db_->prepare(
+        "UPDATE map_owners SET replica_id = ?1, claimed_ns = ?2 WHERE replica_id <> ?1 AND replica_id IN "
+        "(SELECT id FROM replicas WHERE state <> 'running' OR lease_until < now()) RETURNING map_id");
+    dead.bind_int64(1, me).bind_int64(2, now);
+    while (dead.step()) claimed.push_back(static_cast<MapId>(dead.int64(0)));
+    transaction.commit();
+  } catch (const std::exception&) {
+    db_.reset();  // reconnect next time
+    throw;
+  }
+  return claimed;
+}
+
+void MapOwnership::ready(const std::vector<MapId>& maps) {
+  std::lock_guard lock(mutex_);
+  ready_.insert(maps.begin(), maps.end());
+}
+
+bool MapOwnership::owns(MapId map) const {
+  if (registry_.lease_lost()) return false;
+  if (made_here(map)) return true;
+  std::lock_guard lock(mutex_);
+  return ready_.count(map) > 0;
+}
+
+std::unordered_set<MapId> MapOwnership::writable(SqlConnection& db, const std::vector<MapId>& candidates,
+                                                 const Atlas& atlas) {
+  std::unordered_set<MapId> out;
+  if (registry_.lease_lost()) return out;
+  const auto me = static_cast<std::int64_t>(registry_.id());
+  const std::int64_t now = unix_time_ns();
+  const auto claim = db.prepare_statement(
+      "INSERT INTO map_owners(map_id, replica_id, claimed_ns) VALUES (?1, ?2, ?3) ON CONFLICT (map_id) DO NOTHING");
+  for (const MapId map : candidates) {
+    if (!made_here(map)) continue;
+    claim->bind_int64(1, static_cast<std::int64_t>(map)).bind_int64(2, me).bind_int64(3, now);
+    claim->run();
+    claim->reset();
+  }
+  std::unordered_set<MapId> held;
+  {
+    const auto mine = db.prepare_statement("SELECT map_id FROM map_owners WHERE replica_id = ?1 FOR SHARE");
+    mine->bind_int64(1, me);
+    while (mine->step()) held.insert(static_cast<MapId>(mine->int64(0)));
+  }
+  const auto release = db.prepare_statement("DELETE FROM map_owners WHERE map_id = ?1 AND replica_id = ?2");
+  for (const MapId map : candidates) {
+    if (!held.count(map) || !owns(map)) continue;
+    out.insert(map);
+    if (!atlas.map(map)) {  // merged away: its rows go in this transaction, and so does its owner row
+      release->bind_int64(1, static_cast<std::int64_t>(map)).bind_int64(2, me);
+      release->run();
+      release->reset();
+    }
+  }
+  return out;
+}
+
+void MapOwnership::changed(SqlConnection& db, const std::vector<MapId>& maps) {
+  const auto bump =
+      db.prepare_statement("UPDATE map_owners SET version = version + 1 WHERE map_id = ?1 AND replica_id = ?2");
+  for (const MapId map : maps) {
+    bump->bind_int64(1, static_cast<std::int64_t>(map)).bind_int64(2, static_cast<std::int64_t>(registry_.id()));
+    bump->run();
+    bump->reset();
+  }
+}
+
+std::vector<MapOwnership::Owned> MapOwnership::owners() const {
+  std::lock_guard lock(db_mutex_);
+  std::vector<Owned> out;
+  try {
+    if (!db_) db_ = std::make_unique<PgDb>(location_);
+    PgStatement rows = db_->prepare("SELECT map_id, replica_id, version FROM map_owners ORDER BY map_id");
+    while (rows.step())
+      out.push_back({static_cast<MapId>(rows.int64(0)), static_cast<std::uint64_t>(rows.int64(1)), rows.int64(2)});
+  } catch (const std::exception&) {
+    db_.reset();
+    throw;
+  }
+  return out;
+}
+
+}  // namespace orbatlas
