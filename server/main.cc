@@ -50,8 +50,8 @@ std::filesystem::path upload_work_dir(const std::string& db, const std::string& 
   if (!work_dir.empty()) return work_dir;
   if (orbatlas::is_postgres_location(db))
     throw orbatlas::Error("--db " + orbatlas::location_for_messages(db) +
-                          " is a PostgreSQL database: give --work-dir, a folder of this machine for uploads being "
-                          "processed (emptied at start)");
+                          " is a PostgreSQL database: give --work-dir, the folder for uploads being processed that "
+                          "every replica of the atlas reaches at the same path");
   return db + ".work";
 }
 
@@ -74,8 +74,8 @@ int main(int argc, char** argv) {
                  "postgresql://[user[:password]@]host[:port]/dbname (migrated when empty)")
       ->required();
   app.add_option("--work-dir", work_dir,
-                 "Folder for uploads being processed, emptied at start (default: <db>.work beside an SQLite file; "
-                 "required with a PostgreSQL --db)");
+                 "Folder for uploads being processed, emptied at start (default: <db>.work beside an SQLite file); "
+                 "required with a PostgreSQL --db: then one folder all replicas share, not emptied");
   app.add_option("--listen", listen_text, "HOST:PORT to listen on (port 0: any free port)")->capture_default_str();
   app.add_option("--token", token, "Require 'Authorization: Bearer TOKEN' on every route but /healthz");
   app.add_option("--workers", job_options.workers, "Background workers processing uploaded recordings")

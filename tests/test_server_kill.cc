@@ -502,5 +502,61 @@ TEST(ServerProcess, TwoReplicasMapTheirOwnMapsAndOneTakesOverWhenTheOtherDies) {
   for (const char* who : {"a", "b", "c"}) std::filesystem::remove(log(who));
 }
 
+// The shared upload queue (issue 23): two replicas over one PostgreSQL atlas
+// and one work folder. Two uploads to a: a's one worker takes the first, b's
+// free worker the second; a is SIGKILLed while it runs the first, which b runs
+// again, once a's lease has passed, to the end.
+TEST(ServerProcess, AnUploadWhoseReplicaDiesIsFinishedByTheOther) {
+  std::string why_not;
+  const auto cluster = test::ThrowawayPostgres::start(&why_not);
+  if (!cluster) GTEST_SKIP() << "PostgreSQL backend skipped: " << why_not;
+  cluster->create_database("uploads");
+  const std::string uri = cluster->uri("uploads");
+  const auto clip = test::simulated_clip("MH_01", 40.0, 8.0);
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath files("shared_uploads");
+  const std::string work = files.path.string() + ".work";  // one folder for both
+  const auto log = [&](const std::string& who) {
+    return std::filesystem::path(files.path.string() + "." + who + ".log");
+  };
+  const std::vector<std::string> args = {"--work-dir", work, "--lease-s", "1", "--workers", "1", "--no-merging"};
+  ServerProcess a(uri, log("a"), args);
+  const std::string url_a = a.wait_until_listening();
+  ASSERT_FALSE(url_a.empty()) << log_text(log("a"));
+  ServerProcess b(uri, log("b"), args);
+  const std::string url_b = b.wait_until_listening();
+  ASSERT_FALSE(url_b.empty()) << log_text(log("b"));
+  ServerClient client_a(url_a), client_b(url_b);
+  const std::uint64_t replica_b = client_b.get_json("/v1/replicas")["self"];
+
+  const std::uint64_t first = client_a.upload(clip, "euroc/stereo", "first");
+  const std::uint64_t second = client_a.upload(clip, "euroc/stereo", "second");
+  const auto job = [&](std::uint64_t id) { return client_b.get_json("/v1/jobs/" + std::to_string(id)); };
+  const auto wait_for = [&](std::uint64_t id, const std::string& state, int seconds) {
+    json j;
+    for (const auto until = Clock::now() + std::chrono::seconds(seconds); Clock::now() < until;) {
+      j = job(id);
+      if (j["state"] == state) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return j;
+  };
+  ASSERT_EQ(wait_for(first, "running", 30)["state"], "running") << log_text(log("a"));
+  a.kill();  // mid-job: the first upload's job starts again on b
+  const json done_first = wait_for(first, "done", 120), done_second = wait_for(second, "done", 120);
+  ASSERT_EQ(done_first["state"], "done") << done_first.dump() << "\n" << log_text(log("b"));
+  ASSERT_EQ(done_second["state"], "done") << done_second.dump() << "\n" << log_text(log("b"));
+  for (const json& j : {done_first, done_second}) {
+    EXPECT_EQ(j["frames_done"], j["frames_total"]) << j.dump();
+    EXPECT_GT(j["frames_total"].get<int>(), 100) << j.dump();
+    // Both ran on b at the end: their sessions are b's.
+    EXPECT_EQ(j["session"].get<std::uint64_t>() >> kReplicaMapIdShift, replica_b) << j.dump();
+  }
+  EXPECT_NE(log_text(log("b")).find("upload job " + std::to_string(first)), std::string::npos) << log_text(log("b"));
+  b.kill();
+  for (const char* who : {"a", "b"}) std::filesystem::remove(log(who));
+  std::filesystem::remove_all(work);
+}
+
 }  // namespace
 }  // namespace orbatlas

@@ -98,7 +98,10 @@ UploadJobs::UploadJobs(AtlasService& service, UploadJobOptions options)
   // nobody's any more: no job reads what it did not write itself.
   std::error_code ec;
   std::size_t leftovers = 0;
-  if (fs::is_directory(options_.work_dir, ec)) {
+  if (service_.replica().shared())
+    shared_ = std::make_unique<SharedJobQueue>(service_.replica(), service_.db_path().string());
+  // A shared work folder holds other replicas' uploads: not emptied.
+  if (!shared_ && fs::is_directory(options_.work_dir, ec)) {
     for (const auto& entry : fs::directory_iterator(options_.work_dir)) {
       fs::remove_all(entry.path(), ec);
       ++leftovers;
@@ -118,9 +121,13 @@ UploadJobs::UploadJobs(AtlasService& service, UploadJobOptions options)
       if (r.alive && !r.self) others_alive.insert(r.id);
     next_job_ = replica_id_range(replica.id(), kReplicaMapIdShift).begin;
   }
+  // A shared queue: a dead replica's jobs wait again (those it was receiving fail) first.
+  if (shared_) shared_->requeue_dead();
   for (StoredJob& row : store_->load_jobs()) {
     const bool others = others_alive.count(replica_of_id(row.id, kReplicaMapIdShift)) > 0;
-    if (!others && (row.state == "queued" || row.state == "extracting" || row.state == "running")) {
+    // (A queued job of a shared queue waits for any replica's worker.)
+    const bool waiting = shared_ && row.state == "queued";
+    if (!others && !waiting && (row.state == "queued" || row.state == "extracting" || row.state == "running")) {
       row.error =
           "interrupted: the server stopped without finishing this job (it was killed or crashed) while it was " +
           row.state +
@@ -137,7 +144,7 @@ UploadJobs::UploadJobs(AtlasService& service, UploadJobOptions options)
     jobs_[job.row.id] = std::move(job);
   }
   for (std::size_t i = 0; i < std::max<std::size_t>(1, options_.workers); ++i)
-    workers_.emplace_back([this] { work(); });
+    workers_.emplace_back([this] { shared_ ? work_shared() : work(); });
 }
 
 UploadJobs::~UploadJobs() { stop(); }
@@ -145,6 +152,10 @@ UploadJobs::~UploadJobs() { stop(); }
 void UploadJobs::stop() {
   stopping_ = true;
   queue_.close();
+  {
+    std::lock_guard lock(mutex_);  // no worker between its test of stopping_ and its wait
+  }
+  wake_.notify_all();
   for (auto& w : workers_)
     if (w.joinable()) w.join();
   std::vector<StoredJob> cancelled;
@@ -152,7 +163,7 @@ void UploadJobs::stop() {
   {
     std::lock_guard lock(mutex_);
     for (auto& [_, job] : jobs_) {
-      if (job.row.state == "queued") {
+      if (job.row.state == "queued" && !shared_) {  // a shared queue's jobs wait for another replica
         job.row.state = "cancelled";
         job.row.error = "the server stopped before this job started";
         folders.push_back(job.folder);
@@ -181,7 +192,9 @@ fs::path UploadJobs::new_upload_folder() {
   fs::path folder;
   {
     std::lock_guard lock(mutex_);
-    folder = options_.work_dir / ("upload-" + std::to_string(next_upload_++));
+    // Replicas share the folder: each names its uploads apart.
+    folder = options_.work_dir / ((shared_ ? "upload-r" + std::to_string(service_.replica().id()) + "-" : "upload-") +
+                                  std::to_string(next_upload_++));
   }
   // New: an upload reads nothing it did not extract itself.
   ORBATLAS_CHECK(fs::create_directory(folder), "the upload folder " << folder.filename().string() << " exists already");
@@ -203,6 +216,36 @@ JobId UploadJobs::submit(const fs::path& folder, SessionRequest request, std::ui
     jobs_[job.row.id] = job;
   }
   const JobId id = job.row.id;
+  if (shared_) {
+    std::size_t queued_here = 0;
+    {
+      std::lock_guard lock(mutex_);
+      for (const auto& [_, j] : jobs_) queued_here += j.row.state == "queued" ? 1 : 0;
+    }
+    try {
+      if (queued_here > options_.max_queued) throw Error("full");
+      store_row(job.row);
+      shared_->add(id, folder, job.request);
+    } catch (const std::exception& e) {
+      {
+        std::lock_guard lock(mutex_);
+        jobs_.erase(id);
+      }
+      std::error_code ec;
+      fs::remove_all(folder, ec);
+      throw ServiceError(
+          ServiceErrorKind::kUnavailable, "busy",
+          queued_here > options_.max_queued
+              ? "the upload queue is full (" + std::to_string(options_.max_queued) + " jobs); retry later"
+              : std::string("cannot queue the upload in the shared queue: ") + e.what());
+    }
+    {
+      std::lock_guard lock(mutex_);
+      ++submitted_;
+    }
+    wake_.notify_one();
+    return id;
+  }
   if (!queue_.try_push(id)) {
     {
       std::lock_guard lock(mutex_);
@@ -229,26 +272,70 @@ void UploadJobs::update(JobId id, const std::function<void(Job&)>& change, bool 
 }
 
 void UploadJobs::work() {
-  while (auto id = queue_.pop()) {
-    fs::path folder;
-    {
-      std::lock_guard lock(mutex_);
-      folder = jobs_.at(*id).folder;
-    }
+  while (auto id = queue_.pop()) run_recorded(*id);
+}
+
+void UploadJobs::work_shared() {
+  const auto period = std::chrono::duration<double>(service_.replica().options().lease_s);
+  while (!stopping_) {
+    std::optional<ClaimedJob> claimed;
     try {
-      run(*id);
+      shared_->requeue_dead();
+      claimed = shared_->claim();
     } catch (const std::exception& e) {
-      log_warn("upload job " + std::to_string(*id) + " failed: " + e.what());
-      // Paths inside the archive, not the server's folders.
-      std::string message = e.what();
-      for (const std::string& prefix : {folder.string() + "/", options_.work_dir.string()})
-        for (std::size_t at; (at = message.find(prefix)) != std::string::npos;)
-          message.replace(at, prefix.size(), prefix.back() == '/' ? "" : "<work>");
-      update(*id, [&](Job& j) {
-        j.row.state = "failed";
-        j.row.error = message;
-      });
+      log_warn(std::string("uploads: the shared queue cannot be read (tried again later): ") + e.what());
     }
+    if (!claimed) {
+      // Woken by a job submitted here; others' are looked for once per lease.
+      std::unique_lock lock(mutex_);
+      wake_.wait_for(lock, period, [this] { return stopping_ || submitted_ > 0; });
+      if (submitted_ > 0) --submitted_;
+      continue;
+    }
+    {
+      std::optional<StoredJob> row;
+      {
+        std::lock_guard lock(store_mutex_);
+        for (StoredJob& r : store_->load_jobs())
+          if (r.id == claimed->id) row = std::move(r);
+      }
+      std::lock_guard lock(mutex_);
+      Job& job = jobs_[claimed->id];
+      if (row) job.row = std::move(*row);
+      job.row.id = claimed->id;
+      job.request = claimed->request;
+      job.folder = claimed->folder;
+    }
+    log_info("upload job " + std::to_string(claimed->id) + " taken from the shared queue by replica " +
+             std::to_string(service_.replica().id()));
+    run_recorded(claimed->id);
+    try {
+      shared_->remove(claimed->id);
+    } catch (const std::exception& e) {
+      log_warn("upload job " + std::to_string(claimed->id) + ": cannot leave the shared queue: " + e.what());
+    }
+  }
+}
+
+void UploadJobs::run_recorded(JobId id) {
+  fs::path folder;
+  {
+    std::lock_guard lock(mutex_);
+    folder = jobs_.at(id).folder;
+  }
+  try {
+    run(id);
+  } catch (const std::exception& e) {
+    log_warn("upload job " + std::to_string(id) + " failed: " + e.what());
+    // Paths inside the archive, not the server's folders.
+    std::string message = e.what();
+    for (const std::string& prefix : {folder.string() + "/", options_.work_dir.string()})
+      for (std::size_t at; (at = message.find(prefix)) != std::string::npos;)
+        message.replace(at, prefix.size(), prefix.back() == '/' ? "" : "<work>");
+    update(id, [&](Job& j) {
+      j.row.state = "failed";
+      j.row.error = message;
+    });
   }
 }
 
@@ -337,6 +424,11 @@ std::vector<prometheus::MetricFamily> UploadJobs::metrics() const {
 }
 
 StoredJob UploadJobs::job(JobId id) const {
+  if (shared_) {
+    for (StoredJob& row : jobs())
+      if (row.id == id) return std::move(row);
+    throw_not_found("no job " + std::to_string(id));
+  }
   std::lock_guard lock(mutex_);
   const auto it = jobs_.find(id);
   if (it == jobs_.end()) throw_not_found("no job " + std::to_string(id));
@@ -344,6 +436,10 @@ StoredJob UploadJobs::job(JobId id) const {
 }
 
 std::vector<StoredJob> UploadJobs::jobs() const {
+  if (shared_) {  // every replica's, as the database has them
+    std::lock_guard lock(store_mutex_);
+    return store_->load_jobs();
+  }
   std::lock_guard lock(mutex_);
   std::vector<StoredJob> list;
   for (const auto& [_, job] : jobs_) list.push_back(job.row);

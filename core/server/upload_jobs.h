@@ -12,6 +12,13 @@
 // running when the server died is reported as failed ("interrupted") after the
 // restart. The work folder belongs to the server: it is emptied at start, and a
 // job only reads the folder it extracted itself.
+//
+// On a shared (PostgreSQL) atlas the replicas share one queue (shared_job_queue.h):
+// `work_dir` must then be one folder all replicas reach at the same path (it is
+// not emptied at start: others' uploads wait there), any replica's free worker
+// runs a job, a dead replica's jobs run again elsewhere, and job() / jobs()
+// read every replica's jobs from the database.
+#include <condition_variable>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -24,6 +31,7 @@
 #include "core/common/ids.h"
 #include "core/persistence/atlas_store.h"
 #include "core/server/atlas_service.h"
+#include "core/server/shared_job_queue.h"
 #include "core/server/metrics_registry.h"
 
 namespace orbatlas {
@@ -70,10 +78,18 @@ class UploadJobs {
   void update(JobId id, const std::function<void(Job&)>& change, bool store = true);
   void store_row(const StoredJob& row);
 
+  // A shared atlas: the queue every replica's workers take from (null on SQLite).
+  void work_shared();
+  // Runs a job with its failure recorded (the worker's body).
+  void run_recorded(JobId id);
+
   AtlasService& service_;
   const UploadJobOptions options_;
-  std::mutex store_mutex_;  // guards store_ (a connection of its own)
-  std::optional<AtlasStore> store_;
+  std::unique_ptr<SharedJobQueue> shared_;
+  std::condition_variable wake_;    // with mutex_: a job was submitted here, or stop()
+  std::size_t submitted_ = 0;       // guarded by mutex_: jobs submitted here not yet looked for
+  mutable std::mutex store_mutex_;  // guards store_ (a connection of its own)
+  mutable std::optional<AtlasStore> store_;
   mutable std::mutex mutex_;  // guards jobs_, next_job_, next_upload_
   std::map<JobId, Job> jobs_;
   JobId next_job_ = 1;
