@@ -605,5 +605,35 @@ TEST_P(CheckpointTest, ACheckpointSaysWhichMapsItChanged) {
   EXPECT_EQ(told.size(), 3u);
 }
 
+// A merge that lands between a checkpoint's snapshot and its transaction (found
+// by ThreadSanitizer's slow runs: the writer read the removed maps after the
+// snapshot, and the next checkpoint then inserted rows the file had): that
+// checkpoint writes the maps as its snapshot had them, the next one the merge.
+TEST_P(CheckpointTest, AMergeBetweenTheSnapshotAndTheTransactionIsWrittenByTheNext) {
+  Atlas atlas;
+  build_atlas(atlas, test_vocabulary(), 61);
+  const auto maps = atlas.maps();
+  ASSERT_GE(maps.size(), 2u);
+  const auto target = maps[0], source = maps[1];
+  bool merge_now = false;
+  CheckpointOptions options = manual_only();
+  options.before_transaction = [&] {
+    if (!merge_now) return;
+    merge_now = false;
+    const auto whole = atlas.lock_maps_exclusive();
+    target->absorb(*source, Pose3());
+    atlas.remove_map(source->id());
+  };
+  AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), options);
+  ASSERT_TRUE(checkpointer.checkpoint_now());  // both maps written
+  source->map_points()[0]->increase_found();   // something to write
+  merge_now = true;
+  ASSERT_TRUE(checkpointer.checkpoint_now()) << checkpointer.stats().last_error;
+  ASSERT_EQ(atlas.map(source->id()), nullptr);
+  ASSERT_TRUE(checkpointer.checkpoint_now()) << checkpointer.stats().last_error;
+  expect_file_holds(location(), atlas);
+  EXPECT_EQ(checkpointer.stats().failures, 0u);
+}
+
 }  // namespace
 }  // namespace orbatlas

@@ -135,8 +135,11 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   // The maps this writer writes now: every one, or (several writers) those it
   // may write inside this transaction. A map written for the first time, or
   // again after a time it could not be, is rewritten whole.
+  // The removed maps as the snapshot saw them: a map merged away after it is
+  // still in rows.maps (written as it was), and goes with the next checkpoint.
+  const std::vector<MapId> removed = rows.removed_maps;
   std::vector<MapId> candidates = rows.maps;
-  for (const MapId map : atlas_.removed_maps())
+  for (const MapId map : removed)
     if (!deleted_maps_.count(map)) candidates.push_back(map);
   const std::unordered_set<MapId> writable =
       writable_maps_ ? writable_maps_(db, candidates) : std::unordered_set<MapId>(candidates.begin(), candidates.end());
@@ -169,7 +172,7 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
     }
     // Maps merged into others since loading go (unless their rows are in
     // `before`: then the diff deletes them); other stored maps stay.
-    for (const MapId map : atlas_.removed_maps())
+    for (const MapId map : removed)
       if (is_writable(map) && !deleted_maps_.count(map) && !written_before(map)) writer.delete_map(map);
     for (const MapId map : rows.maps)
       if (!written_before(map)) writer.delete_map_contents(map);
@@ -201,7 +204,7 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   result.committed = true;
   rows.drop_objects();
   written_maps_ = std::unordered_set<MapId>(rows.maps.begin(), rows.maps.end());
-  for (const MapId map : atlas_.removed_maps())
+  for (const MapId map : removed)
     if (is_writable(map)) deleted_maps_.insert(map);
   committed_ = std::move(rows);
   if (maps_changed_) committed_digests_ = std::move(digests);

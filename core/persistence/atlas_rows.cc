@@ -147,6 +147,8 @@ AtlasRows collect_atlas_rows(const Atlas& atlas, const KeyframeSessionOf& sessio
   const auto whole = atlas.lock_maps_shared();  // no merge half-way
   // The active map before the list: it is then one of the listed maps.
   const auto active = atlas.active_map();
+  // Under the same lock as the maps: merges remove maps under the exclusive one.
+  rows.removed_maps = atlas.removed_maps();
   MapRowCollector collector(rows, session_of);
   for (const auto& map : atlas.maps()) {
     rows.maps.push_back(map->id());

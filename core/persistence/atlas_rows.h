@@ -86,6 +86,9 @@ struct AtlasRows {
   std::vector<LoopEdge> loop_edges;       // ascending, unique
   std::vector<MapInertialRow> inertial;   // by map
   std::optional<AtlasMetaRow> meta;       // none: nothing written yet
+  // The maps removed from the atlas so far (merged into others), read with the
+  // snapshot: a map is either in `maps` or here, never both or neither.
+  std::vector<MapId> removed_maps;
 
   // Releases the keyframes (after a commit: the rows are then only compared).
   void drop_objects();
