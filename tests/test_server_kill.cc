@@ -505,7 +505,8 @@ TEST(ServerProcess, TwoReplicasMapTheirOwnMapsAndOneTakesOverWhenTheOtherDies) {
 // The shared upload queue (issue 23): two replicas over one PostgreSQL atlas
 // and one work folder. Two uploads to a: a's one worker takes the first, b's
 // free worker the second; a is SIGKILLed while it runs the first, which b runs
-// again, once a's lease has passed, to the end.
+// again, once a's lease has passed, to the end; b owns a's maps then, and
+// nothing a stored is lost (its session of the first run stays).
 TEST(ServerProcess, AnUploadWhoseReplicaDiesIsFinishedByTheOther) {
   std::string why_not;
   const auto cluster = test::ThrowawayPostgres::start(&why_not);
@@ -541,7 +542,13 @@ TEST(ServerProcess, AnUploadWhoseReplicaDiesIsFinishedByTheOther) {
     }
     return j;
   };
-  ASSERT_EQ(wait_for(first, "running", 30)["state"], "running") << log_text(log("a"));
+  json running;
+  for (const auto until = Clock::now() + std::chrono::seconds(30); Clock::now() < until;) {
+    running = job(first);
+    if (running["state"] == "running" && running.contains("session")) break;  // its session is stored
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_EQ(running["state"], "running") << running.dump() << log_text(log("a"));
   a.kill();  // mid-job: the first upload's job starts again on b
   const json done_first = wait_for(first, "done", 120), done_second = wait_for(second, "done", 120);
   ASSERT_EQ(done_first["state"], "done") << done_first.dump() << "\n" << log_text(log("b"));
@@ -553,6 +560,18 @@ TEST(ServerProcess, AnUploadWhoseReplicaDiesIsFinishedByTheOther) {
     EXPECT_EQ(j["session"].get<std::uint64_t>() >> kReplicaMapIdShift, replica_b) << j.dump();
   }
   EXPECT_NE(log_text(log("b")).find("upload job " + std::to_string(first)), std::string::npos) << log_text(log("b"));
+  // a's maps (its run of the first upload made one) are b's now, and a's
+  // session of that run is kept.
+  json maps;
+  for (const auto until = Clock::now() + std::chrono::seconds(20); Clock::now() < until;) {
+    maps = client_b.get_json("/v1/maps")["maps"];
+    bool all = !maps.empty();
+    for (const auto& m : maps) all = all && m["writable"].get<bool>();
+    if (all) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  for (const auto& m : maps) EXPECT_TRUE(m["writable"].get<bool>()) << maps.dump();
+  EXPECT_EQ(client_b.get_json("/v1/sessions")["sessions"].size(), 3u);
   b.kill();
   for (const char* who : {"a", "b"}) std::filesystem::remove(log(who));
   std::filesystem::remove_all(work);

@@ -236,9 +236,14 @@ class AtlasService {
   // and those of dead replicas, reading them again from the database (and the
   // sessions this server does not know yet); returns the maps taken over.
   std::vector<MapId> take_over_maps();
-  // Stored sessions this server does not list yet (another replica's): listed,
-  // and their maps' rigs recorded. Under nothing; takes mutex_ and rigs_mutex_.
-  void load_new_sessions(AtlasStore& store);
+  // Stored sessions this server does not list yet: those of replicas that
+  // stopped or died (or from before replicas) are listed, with their maps'
+  // rigs recorded; with `rigs_of_live_replicas`, the rigs of the maps of live
+  // replicas' sessions too (they report those sessions themselves). Under
+  // nothing; takes mutex_ and rigs_mutex_.
+  void load_new_sessions(AtlasStore& store, bool rigs_of_live_replicas);
+  // The takeover thread's connection (opened when first needed).
+  AtlasStore& replica_store();
   // A shared atlas: reads again the maps other replicas changed (their version
   // in map_owners moved) or made since, and drops those they merged away;
   // returns the maps read. Localisation then sees them as their owners have them.
@@ -307,7 +312,8 @@ class AtlasService {
   std::condition_variable takeover_wake_;   // with mutex_: shutdown
   // The version of each other replica's map this server has read (the constructor, then the takeover thread only).
   std::map<MapId, std::int64_t> seen_versions_;
-  std::thread takeover_thread_;  // a shared atlas only; joined by shutdown()
+  std::optional<AtlasStore> replica_store_;  // the takeover thread's only
+  std::thread takeover_thread_;              // a shared atlas only; joined by shutdown()
 
   // GET /metrics: counters counted as things happen, the gauges set when asked.
   mutable MetricsRegistry metrics_;

@@ -22,12 +22,19 @@ std::vector<ReplicaInfo> AtlasService::replicas() const {
   }
 }
 
-void AtlasService::load_new_sessions(AtlasStore& store) {
+void AtlasService::load_new_sessions(AtlasStore& store, bool rigs_of_live_replicas) {
+  // Sessions of replicas alive now are theirs to report; those of replicas that
+  // stopped or died (and sessions from before replicas) are listed here.
+  std::set<std::uint64_t> alive;
+  for (const ReplicaInfo& r : replica_->replicas())
+    if (r.alive && !r.self) alive.insert(r.id);
   for (const SessionInfo& info : store.load_sessions()) {
     {
       std::lock_guard lock(mutex_);
       if (sessions_.count(info.id)) continue;
     }
+    const bool live_elsewhere = alive.count(replica_of_id(info.id, kReplicaMapIdShift)) > 0;
+    if (live_elsewhere && !rigs_of_live_replicas) continue;
     const auto anchors = store.load_trajectory(info.id);
     std::map<MapId, MapRig> rigs;
     record_map_rigs(atlas_, info, anchors, rigs);
@@ -35,6 +42,7 @@ void AtlasService::load_new_sessions(AtlasStore& store) {
       std::lock_guard lock(rigs_mutex_);
       for (auto& [map, rig] : rigs) map_rigs_.try_emplace(map, std::move(rig));  // a map keeps its first rig
     }
+    if (live_elsewhere) continue;
     auto session = std::make_shared<LiveSession>(
         info, anchors.size(), anchors.empty() ? std::nullopt : std::optional<FrameAnchor>(anchors.back()));
     std::lock_guard lock(mutex_);
@@ -42,14 +50,18 @@ void AtlasService::load_new_sessions(AtlasStore& store) {
   }
 }
 
+AtlasStore& AtlasService::replica_store() {
+  if (!replica_store_) replica_store_.emplace(AtlasStore::open(options_.db, vocabulary_.hash()));
+  return *replica_store_;
+}
+
 std::vector<MapId> AtlasService::take_over_maps() {
   if (!ownership_) return {};
   const std::vector<MapId> claimed = ownership_->claim_free_and_dead();
   if (claimed.empty()) return {};
   // Read again after the claim: what their last owner committed, nothing later.
-  // A connection of its own (this is rare: a replica died).
   std::vector<std::shared_ptr<Map>> fresh;
-  AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());
+  AtlasStore& store = replica_store();
   for (const MapId id : claimed)
     if (auto map = store.load_map(atlas_, id, &vocabulary_)) fresh.push_back(std::move(map));
   {
@@ -61,7 +73,7 @@ std::vector<MapId> AtlasService::take_over_maps() {
       for (const auto& kf : map->keyframes()) index.add(kf);
     }
   }
-  load_new_sessions(store);  // the dead replica's sessions, and its maps' rigs
+  load_new_sessions(store, true);  // the dead replica's sessions, and its maps' rigs
   ownership_->ready(claimed);
   std::string names;
   for (const auto& map : fresh) {
@@ -92,7 +104,7 @@ std::vector<MapId> AtlasService::refresh_others_maps() {
   if (stale.empty() && gone.empty()) return {};
   std::vector<std::shared_ptr<Map>> fresh;
   std::vector<MapId> read;
-  AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());
+  AtlasStore& store = replica_store();
   for (const MapOwnership::Owned& o : stale) {
     if (auto map = store.load_map(atlas_, o.map, &vocabulary_)) {
       fresh.push_back(std::move(map));
@@ -113,7 +125,7 @@ std::vector<MapId> AtlasService::refresh_others_maps() {
         for (const auto& kf : old->keyframes()) index.erase(kf->id());
   }
   for (const MapId id : gone) seen_versions_.erase(id);
-  if (!fresh.empty()) load_new_sessions(store);  // their sessions, and the new maps' rigs
+  if (!fresh.empty()) load_new_sessions(store, true);  // the rigs of the maps read
   return read;
 }
 
@@ -125,7 +137,9 @@ void AtlasService::take_over_until_stopped() {
     try {
       take_over_maps();
       refresh_others_maps();
+      load_new_sessions(replica_store(), false);  // sessions of replicas that stopped or died
     } catch (const std::exception& e) {
+      replica_store_.reset();  // a new connection next time
       log_warn(std::string("replica: taking over or reading other replicas' maps failed (tried again later): ") +
                e.what());
     }
