@@ -217,27 +217,32 @@ JobId UploadJobs::submit(const fs::path& folder, SessionRequest request, std::ui
   }
   const JobId id = job.row.id;
   if (shared_) {
-    std::size_t queued_here = 0;
+    // The shared queue's jobs are the database's: whichever replica claims one
+    // keeps it in its jobs_ while it runs it (job() and jobs() read the database).
     {
       std::lock_guard lock(mutex_);
-      for (const auto& [_, j] : jobs_) queued_here += j.row.state == "queued" ? 1 : 0;
+      jobs_.erase(id);
     }
+    std::size_t waiting = 0;
+    bool full = false;
     try {
-      if (queued_here > options_.max_queued) throw Error("full");
-      store_row(job.row);
-      shared_->add(id, folder, job.request);
-    } catch (const std::exception& e) {
-      {
-        std::lock_guard lock(mutex_);
-        jobs_.erase(id);
+      waiting = shared_->waiting();
+      full = waiting >= options_.max_queued;
+      if (!full) {
+        store_row(job.row);
+        shared_->add(id, folder, job.request);
       }
+    } catch (const std::exception& e) {
       std::error_code ec;
       fs::remove_all(folder, ec);
-      throw ServiceError(
-          ServiceErrorKind::kUnavailable, "busy",
-          queued_here > options_.max_queued
-              ? "the upload queue is full (" + std::to_string(options_.max_queued) + " jobs); retry later"
-              : std::string("cannot queue the upload in the shared queue: ") + e.what());
+      throw ServiceError(ServiceErrorKind::kUnavailable, "busy",
+                         std::string("cannot queue the upload in the shared queue: ") + e.what());
+    }
+    if (full) {
+      std::error_code ec;
+      fs::remove_all(folder, ec);
+      throw ServiceError(ServiceErrorKind::kUnavailable, "busy",
+                         "the shared upload queue is full (" + std::to_string(waiting) + " jobs waiting); retry later");
     }
     {
       std::lock_guard lock(mutex_);
@@ -418,8 +423,17 @@ void UploadJobs::run(JobId id) {
 }
 
 std::vector<prometheus::MetricFamily> UploadJobs::metrics() const {
+  std::map<std::string, std::size_t> by_state;
+  if (shared_) {  // one read of the database for every state
+    try {
+      for (const StoredJob& row : jobs()) ++by_state[row.state];
+    } catch (const std::exception& e) {
+      log_warn(std::string("uploads: cannot count the jobs: ") + e.what());
+    }
+  }
   for (const char* state : {"queued", "running", "done", "failed", "cancelled"})
-    metrics_.gauge("orbatlas_jobs", "Upload jobs by state.", {{"state", state}}).Set(static_cast<double>(count(state)));
+    metrics_.gauge("orbatlas_jobs", "Upload jobs by state.", {{"state", state}})
+        .Set(static_cast<double>(shared_ ? by_state[state] : count(state)));
   return metrics_.collect();
 }
 
@@ -447,6 +461,15 @@ std::vector<StoredJob> UploadJobs::jobs() const {
 }
 
 std::size_t UploadJobs::count(const std::string& state) const {
+  if (shared_) {  // every replica's (a job this one queued may run on another)
+    std::size_t n = 0;
+    try {
+      for (const StoredJob& row : jobs()) n += row.state == state ? 1 : 0;
+    } catch (const std::exception& e) {
+      log_warn(std::string("uploads: cannot count the jobs: ") + e.what());
+    }
+    return n;
+  }
   std::lock_guard lock(mutex_);
   std::size_t n = 0;
   for (const auto& [_, job] : jobs_) n += job.row.state == state ? 1 : 0;
