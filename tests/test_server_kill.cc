@@ -577,5 +577,63 @@ TEST(ServerProcess, AnUploadWhoseReplicaDiesIsFinishedByTheOther) {
   std::filesystem::remove_all(work);
 }
 
+// Merge work as rows (issue 23): replica a does not merge (--no-merging), so
+// the merge work of its finished session waits in the database; a is killed;
+// b, which maps the same place in a map of its own, takes a's map over with
+// that work and merges it into its own.
+TEST(ServerProcess, TheMergeWorkOfADeadReplicaIsDoneByTheReplicaThatTakesItsMapsOver) {
+  std::string why_not;
+  const auto cluster = test::ThrowawayPostgres::start(&why_not);
+  if (!cluster) GTEST_SKIP() << "PostgreSQL backend skipped: " << why_not;
+  cluster->create_database("merges");
+  const std::string uri = cluster->uri("merges");
+  // Two flights over one place (as ServerMerging.SessionsOverOnePlaceEndInOneMap...).
+  const auto clip_b = test::simulated_clip("MH_01", 46.0, 8.0), clip_a = test::simulated_clip("MH_02", 38.0, 8.0);
+  test::ClipCleanup cleanup_a{clip_a}, cleanup_b{clip_b};
+  test::TempDbPath files("shared_merges");
+  const auto log = [&](const std::string& who) {
+    return std::filesystem::path(files.path.string() + "." + who + ".log");
+  };
+  const auto args = [&](const std::string& who, bool merging) {
+    std::vector<std::string> a = {"--work-dir", files.path.string() + ".work", "--lease-s", "1"};
+    if (!merging) a.push_back("--no-merging");
+    return a;
+  };
+  const auto stream = [&](ServerClient& client, const std::filesystem::path& clip, const std::string& name) {
+    const std::uint64_t id = client.create_session("euroc/stereo", name);
+    for (const auto& f : test::stereo_frames(clip))
+      client.post_frame(id, f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                        cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+    client.finish_session(id);
+    return client.get_json("/v1/sessions/" + std::to_string(id))["map"].get<std::uint64_t>();
+  };
+  ServerProcess b(uri, log("b"), args("b", true));
+  const std::string url_b = b.wait_until_listening();
+  ASSERT_FALSE(url_b.empty()) << log_text(log("b"));
+  ServerClient client_b(url_b);
+  const std::uint64_t map_b = stream(client_b, clip_b, "on b");
+  ServerProcess a(uri, log("a"), args("a", false));
+  const std::string url_a = a.wait_until_listening();
+  ASSERT_FALSE(url_a.empty()) << log_text(log("a"));
+  ServerClient client_a(url_a);
+  const std::uint64_t map_a = stream(client_a, clip_a, "the same place, on a");  // b's map is b's: a map of its own
+  ASSERT_NE(map_a, map_b);
+  a.kill();
+
+  json maps;
+  for (const auto until = Clock::now() + std::chrono::seconds(30); Clock::now() < until;) {
+    maps = client_b.get_json("/v1/maps")["maps"];
+    if (maps.size() == 1) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_EQ(maps.size(), 1u) << maps.dump() << "\n" << log_text(log("b"));
+  EXPECT_EQ(maps[0]["id"].get<std::uint64_t>(), map_b) << maps.dump();  // a's map merged into b's
+  EXPECT_NE(log_text(log("b")).find("map merging: map " + std::to_string(map_a) + "'s stored merge work taken"),
+            std::string::npos)
+      << log_text(log("b"));
+  b.kill();
+  for (const char* who : {"a", "b"}) std::filesystem::remove(log(who));
+}
+
 }  // namespace
 }  // namespace orbatlas

@@ -12,6 +12,7 @@
 #include "core/persistence/wall_clock.h"
 #include "core/server/replica_registry.h"
 #include "core/server/shared_job_queue.h"
+#include "core/server/shared_merges.h"
 #include "tests/throwaway_postgres.h"
 
 namespace orbatlas {
@@ -99,6 +100,39 @@ TEST(SharedJobQueue, TheSessionRequestRoundTrips) {
   EXPECT_FALSE(session_request_from_json(session_request_json(SessionRequest{})).max_lag_s.has_value());
   EXPECT_THROW(session_request_from_json("{\"name\": 3}"), DataError);
   EXPECT_THROW(session_request_from_json("not json"), DataError);
+}
+
+// The merge work a finished session leaves (shared_merges.h): stored, read back
+// for the maps asked, replaced, removed.
+TEST_F(SharedJobQueueTest, MergeWorkIsStoredPerMapAndReadBackExactly) {
+  migrate_postgres_schema(*db_, unix_time_ns());
+  SharedMerges merges(cluster().uri(name_));
+  StoredMerge visual{7, {"euroc/stereo", ""}, 123, std::nullopt, false};
+  StoredMerge inertial{9, {"", "%YAML:1.0\n"}, 456, GlobalBundleAdjustmentOptions::Inertial{}, true};
+  inertial.inertial->T_b_i = Pose3(Eigen::Quaterniond(0.5, 0.5, -0.5, 0.5), Eigen::Vector3d(0.1, -0.2, 0.3));
+  inertial.inertial->max_chain_keyframes = 77;
+  merges.add(visual);
+  merges.add(inertial);
+  const auto read = merges.of({9, 8, 7});
+  ASSERT_EQ(read.size(), 2u);
+  EXPECT_EQ(read[0].map, 9u);
+  EXPECT_EQ(read[0].settings.settings_yaml, "%YAML:1.0\n");
+  EXPECT_EQ(read[0].first_keyframe, 456u);
+  EXPECT_TRUE(read[0].single_camera);
+  ASSERT_TRUE(read[0].inertial.has_value());
+  EXPECT_EQ(read[0].inertial->T_b_i.t, inertial.inertial->T_b_i.t);
+  EXPECT_EQ(read[0].inertial->T_b_i.q.coeffs(), inertial.inertial->T_b_i.q.coeffs());
+  EXPECT_EQ(read[0].inertial->max_chain_keyframes, 77u);
+  EXPECT_EQ(read[0].inertial->huber, inertial.inertial->huber);
+  EXPECT_EQ(read[1].map, 7u);
+  EXPECT_EQ(read[1].settings.config, "euroc/stereo");
+  EXPECT_FALSE(read[1].inertial.has_value());
+  visual.first_keyframe = 124;  // a later session's work on the same map replaces it
+  merges.add(visual);
+  EXPECT_EQ(merges.of({7})[0].first_keyframe, 124u);
+  merges.remove(7);
+  EXPECT_TRUE(merges.of({7}).empty());
+  EXPECT_THROW(stored_merge_from_json(1, "{\"config\": 1}"), DataError);
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 #include "core/server/atlas_service.h"
 
+#include "core/server/shared_merges.h"
+
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -104,6 +106,7 @@ AtlasService::AtlasService(AtlasServiceOptions options)
       db_lock_(options_.db.empty() ? nullptr : std::make_unique<DatabaseLock>(options_.db, DatabaseLockMode::kShared)),
       replica_(std::make_unique<ReplicaRegistry>(options_.db, options_.replica)),
       ownership_(replica_->shared() ? std::make_unique<MapOwnership>(*replica_, options_.db.string()) : nullptr),
+      shared_merges_(replica_->shared() ? std::make_unique<SharedMerges>(options_.db.string()) : nullptr),
       vocabulary_(Vocabulary::load(options_.vocabulary.empty() ? default_vocabulary_path() : options_.vocabulary)),
       loop_worker_(std::make_shared<SerialWorker>(options_.loop_queue, options_.background_nice)) {
   const auto start = std::chrono::steady_clock::now();
@@ -173,6 +176,21 @@ AtlasService::AtlasService(AtlasServiceOptions options)
     merger_ = std::make_unique<MapMergeWorker>(
         atlas_, leases_, [this](MapId a, MapId b) { return rigs_match(a, b); },
         [this](const MergeRecord& r) { merged(r); }, options_.merging);
+  if (merger_ && shared_merges_)
+    merger_->set_on_done([this](MapId map) {
+      try {
+        shared_merges_->remove(map);
+      } catch (const std::exception& e) {
+        log_warn("map merging: the stored merge work of map " + std::to_string(map) + " stays: " + e.what());
+      }
+    });
+  // A shared atlas: the merge work left with the maps this replica writes now.
+  if (ownership_) {
+    std::vector<MapId> owned;
+    for (const auto& map : atlas_.maps())
+      if (ownership_->owns(map->id())) owned.push_back(map->id());
+    submit_stored_merges(owned);
+  }
   if (options_.idle_timeout_s > 0) idle_thread_ = std::thread([this] { finish_idle_sessions(); });
   if (ownership_) takeover_thread_ = std::thread([this] { take_over_until_stopped(); });
 }
@@ -497,24 +515,43 @@ std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
   return held;
 }
 
+std::shared_ptr<const FrameCamera> AtlasService::merge_camera(const SettingsSource& settings) {
+  const std::shared_ptr<LocalizerContext> context = localizer_for(settings);
+  // The camera shares the context's ownership: it lives while a request holds it.
+  return std::shared_ptr<const FrameCamera>(context, &context->map_cam);
+}
+
 void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
-  if (!merger_ || maps.empty()) return;
+  if ((!merger_ && !shared_merges_) || maps.empty()) return;
   SessionStart start;
+  bool shutting_down = false;
   {
     std::lock_guard lock(mutex_);
     const auto it = session_starts_.find(id);
-    if (it == session_starts_.end() || shut_down_) return;
+    if (it == session_starts_.end()) return;
     start = it->second;
+    shutting_down = shut_down_;
   }
-  std::shared_ptr<LocalizerContext> context;
+  // A shared atlas keeps the work in the database (done here, or by whoever
+  // takes these maps over), also when this replica does not merge or stops.
+  if (shared_merges_) {
+    for (const MapId map : maps) {
+      try {
+        shared_merges_->add(
+            StoredMerge{map, start.settings, start.first_keyframe, start.inertial, start.rig.monocular});
+      } catch (const std::exception& e) {
+        log_warn("map merging: cannot store the merge work of map " + std::to_string(map) + ": " + e.what());
+      }
+    }
+  }
+  if (!merger_ || shutting_down) return;
+  std::shared_ptr<const FrameCamera> cam;
   try {
-    context = localizer_for(start.settings);
+    cam = merge_camera(start.settings);
   } catch (const std::exception& e) {
     log_warn("session " + std::to_string(id) + ": no merging (" + e.what() + ")");
     return;
   }
-  // The camera shares the context's ownership: it lives while a request holds it.
-  const std::shared_ptr<const FrameCamera> cam(context, &context->map_cam);
   for (const MapId map : maps)
     merger_->submit(MergeRequest{map, cam, start.first_keyframe, start.inertial, start.rig.monocular});
 }

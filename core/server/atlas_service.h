@@ -35,6 +35,8 @@
 
 namespace orbatlas {
 
+class SharedMerges;
+
 // Request limits checked at the edge (400 beyond them).
 inline constexpr std::size_t kMaxSettingsBytes = 1 << 20;  // a settings_yaml text
 
@@ -216,6 +218,8 @@ class AtlasService {
   std::vector<MapId> end_session_storage(SessionId id);
   // Live sessions whose last frame was tracked in `map` (lock-free reads of each).
   std::vector<SessionId> sessions_in(MapId map) const;
+  // The camera of a merge request made with these settings (ServiceError when unusable).
+  std::shared_ptr<const FrameCamera> merge_camera(const SettingsSource& settings);
   // Hands a finished session's maps to the merging worker.
   void submit_merges(SessionId id, const std::vector<MapId>& maps);
   // May two maps be merged (made with one camera rig)?
@@ -248,6 +252,9 @@ class AtlasService {
   // in map_owners moved) or made since, and drops those they merged away;
   // returns the maps read. Localisation then sees them as their owners have them.
   std::vector<MapId> refresh_others_maps();
+  // The stored merge work of these maps (taken over, or this replica's from
+  // before it started) goes to the merging worker.
+  void submit_stored_merges(const std::vector<MapId>& maps);
   // The takeover thread: take_over_maps() and refresh_others_maps() every lease, until shutdown.
   void take_over_until_stopped();
 
@@ -258,6 +265,8 @@ class AtlasService {
   std::unique_ptr<ReplicaRegistry> replica_;
   // A shared (PostgreSQL) atlas: the maps this replica writes; null on SQLite (every map).
   std::unique_ptr<MapOwnership> ownership_;
+  // A shared atlas: the merge work finished sessions left (null on SQLite).
+  std::unique_ptr<SharedMerges> shared_merges_;
   const Vocabulary vocabulary_;
   Atlas atlas_;
   MapLeases leases_;

@@ -72,7 +72,9 @@ void MapMergeWorker::run_one(const MergeRequest& request) {
     MapLeases& leases;
     ~ReleaseLeases() { leases.release_all(kMergeWorkerLease); }
   } release{leases_};
-  if (!stopping_.load()) process(request);
+  if (stopping_.load()) return;
+  process(request);
+  if (on_done_ && !stopping_.load()) on_done_(request.map);
 }
 
 void MapMergeWorker::process(const MergeRequest& request) {

@@ -127,6 +127,10 @@ class MapMergeWorker {
   void stop();
 
   MapMergeWorkerStats stats() const;
+  // Called on the worker thread when a request's map has been searched (and
+  // merged or refined, or found gone), not when stop() cut it short. Set
+  // before the first submit (a shared atlas forgets the map's stored merge work).
+  void set_on_done(std::function<void(MapId)> on_done) { on_done_ = std::move(on_done); }
 
  private:
   void run_one(const MergeRequest& request);  // on the worker thread; leases released after
@@ -138,6 +142,7 @@ class MapMergeWorker {
   MapLeases& leases_;
   const MayMerge may_merge_;
   const OnMerged on_merged_;
+  std::function<void(MapId)> on_done_;
   const MapMergeWorkerOptions options_;
 
   std::atomic<bool> stopping_{false};  // interrupts a search or global adjustment
