@@ -3,10 +3,12 @@
 # or TSan ("thread") in build-<mode>/, renders a Machine Hall clip once, and
 # runs `orbatlas run` on it with the sanitizer set to stop at the first report.
 # A clean run ends with "sanitize_run: clean". Also runs the map/mapping/SLAM
-# tests (and, with SERVER=1, the server's three-concurrent-sessions test and the
-# shared-maps tests: eight localisations in one map, two mapping sessions in one
-# map, a localisation through a live merge and global BA) under the same
-# sanitizer. SHARED=1 also runs two recordings at once into one atlas
+# tests under the same sanitizer. SERVER=1 adds the server's tests: three
+# concurrent sessions; the shared-map tests (eight localisations in one map, two
+# mapping sessions in one map, a localisation through a live merge and global
+# BA); and the replicas over one PostgreSQL atlas (the registry, the job queue,
+# and the three two-replica process tests, whose servers run under the
+# sanitizer too). SHARED=1 also runs two recordings at once into one atlas
 # (`orbatlas run --dataset A --dataset B`, the clip and the same window of the
 # next sequence) and the runner's several-recordings test.
 #   scripts/sanitize_run.sh address
@@ -28,7 +30,7 @@ DURATION="${DURATION:-20}"
 START="${START:-40}"
 [ "$DURATION" = "full" ] && START=0
 TARGETS=(orbatlas test_map test_mapping test_slam)
-[ "${SERVER:-0}" = "1" ] && TARGETS+=(test_server test_server_shared_maps)
+[ "${SERVER:-0}" = "1" ] && TARGETS+=(test_server test_server_shared_maps test_replicas test_server_kill orbatlas-server)
 [ "${SHARED:-0}" = "1" ] && TARGETS+=(test_atlas_sessions)
 cmake -S "$ROOT" -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DORBATLAS_SANITIZE="$MODE" >/dev/null
 ninja -C "$BUILD" -j"$(nproc)" "${TARGETS[@]}"
@@ -58,6 +60,11 @@ for t in test_map test_mapping test_slam; do "$BUILD/tests/$t" --gtest_brief=1; 
 if [ "${SERVER:-0}" = "1" ]; then
   "$BUILD/tests/test_server" --gtest_brief=1 --gtest_filter='ServerEndToEnd.ThreeSessionsStreamConcurrently'
   "$BUILD/tests/test_server_shared_maps" --gtest_brief=1
+  # Replicas over one PostgreSQL atlas (skipped without PostgreSQL). The
+  # killed-replica test forks a child that starts threads: die_after_fork=0.
+  TSAN_OPTIONS="$TSAN_OPTIONS:die_after_fork=0" ASAN_OPTIONS="$ASAN_OPTIONS" "$BUILD/tests/test_replicas" --gtest_brief=1
+  # The server processes run under the sanitizer too (a report ends one, and its test fails).
+  "$BUILD/tests/test_server_kill" --gtest_brief=1 --gtest_filter='*TwoReplicas*:*AnUploadWhose*:*TheMergeWork*'
 fi
 if [ "${SHARED:-0}" = "1" ]; then
   # The same window of the next Machine Hall sequence: another flight, at once.
