@@ -457,7 +457,9 @@ TEST(ServerProcess, TwoReplicasMapTheirOwnMapsAndOneTakesOverWhenTheOtherDies) {
   const json located = client_b.localize("euroc/stereo", cv::imread(probe.left.string(), cv::IMREAD_GRAYSCALE),
                                          cv::imread(probe.right.string(), cv::IMREAD_GRAYSCALE));
   EXPECT_TRUE(located["recognised"].get<bool>()) << located.dump();
-  if (located["recognised"].get<bool>()) EXPECT_EQ(located["map"].get<std::uint64_t>(), map_a) << located.dump();
+  if (located["recognised"].get<bool>()) {
+    EXPECT_EQ(located["map"].get<std::uint64_t>(), map_a) << located.dump();
+  }
 
   // And a reads b's map the same way.
   const int keyframes_b_then = keyframes_of(client_b.get_json("/v1/maps")["maps"], map_b);
@@ -595,7 +597,7 @@ TEST(ServerProcess, TheMergeWorkOfADeadReplicaIsDoneByTheReplicaThatTakesItsMaps
   const auto log = [&](const std::string& who) {
     return std::filesystem::path(files.path.string() + "." + who + ".log");
   };
-  const auto args = [&](const std::string& who, bool merging) {
+  const auto args = [&](bool merging) {
     std::vector<std::string> a = {"--work-dir", files.path.string() + ".work", "--lease-s", "1"};
     if (!merging) a.push_back("--no-merging");
     return a;
@@ -608,12 +610,12 @@ TEST(ServerProcess, TheMergeWorkOfADeadReplicaIsDoneByTheReplicaThatTakesItsMaps
     client.finish_session(id);
     return client.get_json("/v1/sessions/" + std::to_string(id))["map"].get<std::uint64_t>();
   };
-  ServerProcess b(uri, log("b"), args("b", true));
+  ServerProcess b(uri, log("b"), args(true));
   const std::string url_b = b.wait_until_listening();
   ASSERT_FALSE(url_b.empty()) << log_text(log("b"));
   ServerClient client_b(url_b);
   const std::uint64_t map_b = stream(client_b, clip_b, "on b");
-  ServerProcess a(uri, log("a"), args("a", false));
+  ServerProcess a(uri, log("a"), args(false));
   const std::string url_a = a.wait_until_listening();
   ASSERT_FALSE(url_a.empty()) << log_text(log("a"));
   ServerClient client_a(url_a);

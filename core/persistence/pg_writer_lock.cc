@@ -7,6 +7,7 @@
 #include "core/common/error.h"
 #include "core/persistence/pg_db.h"
 #include "core/persistence/pg_schema.h"
+#include "core/persistence/process_holder.h"
 #include "core/persistence/wall_clock.h"
 
 namespace orbatlas {
@@ -17,12 +18,6 @@ namespace {
 constexpr std::int64_t kWriterLockKey = 0x6f726261746c6177;
 // How long a new writer waits for the previous writer's lock to go.
 constexpr int kWaitMs = 3000;
-
-std::string this_holder() {
-  char host[HOST_NAME_MAX + 1] = {};
-  if (::gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
-  return "pid " + std::to_string(::getpid()) + " on host " + (host[0] ? host : "?");
-}
 
 }  // namespace
 
@@ -64,7 +59,7 @@ PgWriterLock::PgWriterLock(const std::string& conninfo, bool shared)
          "INSERT INTO atlas_writer(id, state, holder, changed_ns) VALUES (1, 'running', ?1, ?2) "
          "ON CONFLICT (id) DO UPDATE SET state = excluded.state, holder = excluded.holder, "
          "changed_ns = excluded.changed_ns")
-      .bind_text(1, this_holder())
+      .bind_text(1, process_holder())
       .bind_int64(2, unix_time_ns())
       .run();
 }

@@ -119,22 +119,7 @@ AtlasService::AtlasService(AtlasServiceOptions options)
       for (const MapOwnership::Owned& o : ownership_->owners()) seen_versions_[o.map] = o.version;
     AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());
     const AtlasLoadReport loaded = store.load_atlas(atlas_, &vocabulary_);
-    if (ownership_) {
-      // Ids of this replica's own ranges (replica_registry.h).
-      IdAllocator& ids = atlas_.ids();
-      const std::uint64_t r = replica_->id();
-      ids.confine(IdKind::keyframe, replica_id_range(r, kReplicaKeyframeIdShift).begin,
-                  replica_id_range(r, kReplicaKeyframeIdShift).end);
-      ids.confine(IdKind::map_point, replica_id_range(r, kReplicaMapPointIdShift).begin,
-                  replica_id_range(r, kReplicaMapPointIdShift).end);
-      ids.confine(IdKind::map, replica_id_range(r, kReplicaMapIdShift).begin,
-                  replica_id_range(r, kReplicaMapIdShift).end);
-      next_session_ = replica_id_range(r, kReplicaMapIdShift).begin;
-      ownership_->ready(claimed);
-      if (!claimed.empty())
-        log_info("replica " + std::to_string(r) + " writes " + std::to_string(claimed.size()) +
-                 " stored map(s) that no live replica writes (their replica stopped or died, or none ever did)");
-    }
+    if (ownership_) start_as_replica(claimed);
     atlas_.index_all_keyframes();
     if (db_lock_->previous_holder_crashed()) {
       skip_ids_after_crash(atlas_);

@@ -236,6 +236,12 @@ class AtlasService {
   // the sessions past it.
   void finish_idle_sessions();
   void merged_live(const LiveMerge& merge);  // on the loop-closing thread
+  // A shared atlas, at start after the load (atlas_service_replicas.cc): ids of
+  // this replica's own ranges; the maps claimed before the load may be written.
+  void start_as_replica(const std::vector<MapId>& claimed);
+  // Puts maps read again from the database in place of this server's copies
+  // (or as new ones) and drops `gone`, keeping the keyframe index in step.
+  void swap_in_maps(const std::vector<std::shared_ptr<Map>>& fresh, const std::vector<MapId>& gone);
   // A shared atlas (atlas_service_replicas.cc): takes over the maps nobody owns
   // and those of dead replicas, reading them again from the database (and the
   // sessions this server does not know yet); returns the maps taken over.

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <map>
 #include <set>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -56,6 +57,35 @@ AtlasStore& AtlasService::replica_store() {
   return *replica_store_;
 }
 
+void AtlasService::start_as_replica(const std::vector<MapId>& claimed) {
+  const std::uint64_t r = replica_->id();
+  IdAllocator& ids = atlas_.ids();
+  for (const auto& [kind, shift] :
+       {std::pair{IdKind::keyframe, kReplicaKeyframeIdShift}, std::pair{IdKind::map_point, kReplicaMapPointIdShift},
+        std::pair{IdKind::map, kReplicaMapIdShift}}) {
+    const ReplicaIdRange range = replica_id_range(r, shift);
+    ids.confine(kind, range.begin, range.end);
+  }
+  next_session_ = replica_id_range(r, kReplicaMapIdShift).begin;  // before any thread: no lock needed yet
+  ownership_->ready(claimed);
+  if (!claimed.empty())
+    log_info("replica " + std::to_string(r) + " writes " + std::to_string(claimed.size()) +
+             " stored map(s) that no live replica writes (their replica stopped or died, or none ever did)");
+}
+
+void AtlasService::swap_in_maps(const std::vector<std::shared_ptr<Map>>& fresh, const std::vector<MapId>& gone) {
+  const auto whole = atlas_.lock_maps_exclusive();
+  KeyframeIndex& index = atlas_.keyframe_index();
+  for (const auto& map : fresh) {
+    if (const auto old = atlas_.replace_map(map))
+      for (const auto& kf : old->keyframes()) index.erase(kf->id());
+    for (const auto& kf : map->keyframes()) index.add(kf);
+  }
+  for (const MapId id : gone)
+    if (const auto old = atlas_.remove_map(id))
+      for (const auto& kf : old->keyframes()) index.erase(kf->id());
+}
+
 std::vector<MapId> AtlasService::take_over_maps() {
   if (!ownership_) return {};
   const std::vector<MapId> claimed = ownership_->claim_free_and_dead();
@@ -65,15 +95,7 @@ std::vector<MapId> AtlasService::take_over_maps() {
   AtlasStore& store = replica_store();
   for (const MapId id : claimed)
     if (auto map = store.load_map(atlas_, id, &vocabulary_)) fresh.push_back(std::move(map));
-  {
-    const auto whole = atlas_.lock_maps_exclusive();
-    KeyframeIndex& index = atlas_.keyframe_index();
-    for (const auto& map : fresh) {
-      if (const auto old = atlas_.replace_map(map))
-        for (const auto& kf : old->keyframes()) index.erase(kf->id());
-      for (const auto& kf : map->keyframes()) index.add(kf);
-    }
-  }
+  swap_in_maps(fresh, {});
   load_new_sessions(store, true);  // the dead replica's sessions, and its maps' rigs
   ownership_->ready(claimed);
   std::string names;
@@ -114,18 +136,7 @@ std::vector<MapId> AtlasService::refresh_others_maps() {
     }
     seen_versions_[o.map] = o.version;  // read at this version or later
   }
-  {
-    const auto whole = atlas_.lock_maps_exclusive();
-    KeyframeIndex& index = atlas_.keyframe_index();
-    for (const auto& map : fresh) {
-      if (const auto old = atlas_.replace_map(map))
-        for (const auto& kf : old->keyframes()) index.erase(kf->id());
-      for (const auto& kf : map->keyframes()) index.add(kf);
-    }
-    for (const MapId id : gone)
-      if (const auto old = atlas_.remove_map(id))
-        for (const auto& kf : old->keyframes()) index.erase(kf->id());
-  }
+  swap_in_maps(fresh, gone);
   for (const MapId id : gone) seen_versions_.erase(id);
   if (!fresh.empty()) load_new_sessions(store, true);  // the rigs of the maps read
   return read;

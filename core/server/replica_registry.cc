@@ -11,6 +11,7 @@
 #include "core/common/log.h"
 #include "core/persistence/atlas_location.h"
 #include "core/persistence/pg_db.h"
+#include "core/persistence/process_holder.h"
 #include "core/persistence/wall_clock.h"
 
 namespace orbatlas {
@@ -20,12 +21,6 @@ std::string seconds_text(double s) {
   char text[32];
   std::snprintf(text, sizeof text, "%g s", s);
   return text;
-}
-
-std::string this_holder() {
-  char host[HOST_NAME_MAX + 1] = {};
-  if (::gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
-  return "pid " + std::to_string(::getpid()) + " on host " + (host[0] ? host : "?");
 }
 
 // How long the rows of replicas that are gone stay listed.
@@ -45,7 +40,7 @@ ReplicaRegistry::ReplicaRegistry(const std::filesystem::path& db, ReplicaOptions
       location_(db.string()),
       shared_(is_postgres_location(location_)),
       started_ns_(unix_time_ns()),
-      holder_(this_holder()) {
+      holder_(process_holder()) {
   if (!shared_) return;
   renew_db_ = std::make_unique<PgDb>(location_);
   renew_db_->prepare("DELETE FROM replicas WHERE lease_until < now() - make_interval(secs => ?1)")
