@@ -581,10 +581,11 @@ TEST(ServerProcess, AnUploadWhoseReplicaDiesIsFinishedByTheOther) {
 }
 
 // Merge work as rows (issue 23): replica a does not merge (--no-merging), so
-// the merge work of its finished session waits in the database; a is killed;
-// b, which maps the same place in a map of its own, takes a's map over with
-// that work and merges it into its own.
-TEST(ServerProcess, TheMergeWorkOfADeadReplicaIsDoneByTheReplicaThatTakesItsMapsOver) {
+// the merge work of its finished session, a map over b's place, waits in the
+// database. b merges it into its own map: after taking a's map over once a is
+// killed (`kill_a`), or while a is alive, having asked a for the map once the
+// work waited a lease (a hands it over).
+void merge_work_of_a_replica_that_does_not_merge(bool kill_a) {
   std::string why_not;
   const auto cluster = test::ThrowawayPostgres::start(&why_not);
   if (!cluster) GTEST_SKIP() << "PostgreSQL backend skipped: " << why_not;
@@ -621,7 +622,7 @@ TEST(ServerProcess, TheMergeWorkOfADeadReplicaIsDoneByTheReplicaThatTakesItsMaps
   ServerClient client_a(url_a);
   const std::uint64_t map_a = stream(client_a, clip_a, "the same place, on a");  // b's map is b's: a map of its own
   ASSERT_NE(map_a, map_b);
-  a.kill();
+  if (kill_a) a.kill();
 
   json maps;
   for (const auto until = Clock::now() + std::chrono::seconds(120); Clock::now() < until;) {
@@ -634,6 +635,97 @@ TEST(ServerProcess, TheMergeWorkOfADeadReplicaIsDoneByTheReplicaThatTakesItsMaps
   EXPECT_NE(log_text(log("b")).find("map merging: map " + std::to_string(map_a) + "'s stored merge work taken"),
             std::string::npos)
       << log_text(log("b"));
+  if (!kill_a) {
+    const std::string text_a = log_text(log("a"));
+    EXPECT_NE(log_text(log("b")).find("asks for map " + std::to_string(map_a) + ": its merge work waits"),
+              std::string::npos);
+    EXPECT_NE(text_a.find("handed map " + std::to_string(map_a) + " over to replica"), std::string::npos) << text_a;
+    json on_a;
+    for (const auto until = Clock::now() + std::chrono::seconds(120); Clock::now() < until;) {
+      on_a = client_a.get_json("/v1/maps")["maps"];
+      if (on_a.size() == 1) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    ASSERT_EQ(on_a.size(), 1u) << on_a.dump() << "\n" << text_a;  // a reads b's merged map
+    EXPECT_EQ(on_a[0]["id"].get<std::uint64_t>(), map_b);
+    a.kill();
+  }
+  b.kill();
+  for (const char* who : {"a", "b"}) std::filesystem::remove(log(who));
+}
+
+TEST(ServerProcess, TheMergeWorkOfADeadReplicaIsDoneByTheReplicaThatTakesItsMapsOver) {
+  merge_work_of_a_replica_that_does_not_merge(true);
+}
+
+TEST(ServerProcess, TheMergeWorkALiveReplicaLeavesIsDoneByAFreeOneItHandsTheMapTo) {
+  merge_work_of_a_replica_that_does_not_merge(false);
+}
+
+// Both replicas live: b's finished session found its place in a's map, so b
+// asks for that map, a hands it over (nothing works in it on a) and b merges.
+TEST(ServerProcess, TwoLiveReplicasMappingOnePlaceEndInOneMap) {
+  std::string why_not;
+  const auto cluster = test::ThrowawayPostgres::start(&why_not);
+  if (!cluster) GTEST_SKIP() << "PostgreSQL backend skipped: " << why_not;
+  cluster->create_database("handover");
+  const std::string uri = cluster->uri("handover");
+  const auto clip_a = test::simulated_clip("MH_01", 46.0, 8.0), clip_b = test::simulated_clip("MH_02", 38.0, 8.0);
+  test::ClipCleanup cleanup_a{clip_a}, cleanup_b{clip_b};
+  test::TempDbPath files("shared_handover");
+  const auto log = [&](const std::string& who) {
+    return std::filesystem::path(files.path.string() + "." + who + ".log");
+  };
+  const std::vector<std::string> args = {"--work-dir", files.path.string() + ".work", "--lease-s", "1"};
+  const auto stream = [&](ServerClient& client, const std::filesystem::path& clip, const std::string& name) {
+    const std::uint64_t id = client.create_session("euroc/stereo", name);
+    for (const auto& f : test::stereo_frames(clip))
+      client.post_frame(id, f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                        cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+    client.finish_session(id);
+    return std::pair{id, client.get_json("/v1/sessions/" + std::to_string(id))["map"].get<std::uint64_t>()};
+  };
+  ServerProcess a(uri, log("a"), args), b(uri, log("b"), args);
+  const std::string url_a = a.wait_until_listening(), url_b = b.wait_until_listening();
+  ASSERT_FALSE(url_a.empty()) << log_text(log("a"));
+  ASSERT_FALSE(url_b.empty()) << log_text(log("b"));
+  ServerClient client_a(url_a), client_b(url_b);
+  const auto [session_a, map_a] = stream(client_a, clip_a, "on a");
+  // a's own merge work first (nothing to merge with yet: its map is refined), so that b's finds a's map.
+  for (const auto until = Clock::now() + std::chrono::seconds(120);
+       Clock::now() < until && client_a.get_json("/v1/merges")["refinements_total"].get<std::size_t>() == 0;)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  ASSERT_EQ(client_a.get_json("/v1/merges")["refinements_total"].get<std::size_t>(), 1u) << log_text(log("a"));
+  const auto [session_b, map_b] = stream(client_b, clip_b, "the same place, on b");  // a's map is a's: a map of its own
+  ASSERT_NE(map_a, map_b);
+
+  // Both alive: one map in the end, as each of them sees it.
+  const auto one_map = [&](ServerClient& client) {
+    json maps;
+    for (const auto until = Clock::now() + std::chrono::seconds(120); Clock::now() < until;) {
+      maps = client.get_json("/v1/maps")["maps"];
+      if (maps.size() == 1) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    return maps;
+  };
+  const json on_b = one_map(client_b);
+  ASSERT_EQ(on_b.size(), 1u) << on_b.dump() << "\n" << log_text(log("b")) << "\n" << log_text(log("a"));
+  EXPECT_EQ(on_b[0]["id"].get<std::uint64_t>(), map_a) << on_b.dump();  // b's map merged into a's map
+  const std::string text_a = log_text(log("a")), text_b = log_text(log("b"));
+  EXPECT_NE(text_b.find("asks for map " + std::to_string(map_a)), std::string::npos) << text_b;
+  EXPECT_NE(text_a.find("handed map " + std::to_string(map_a) + " over to replica"), std::string::npos) << text_a;
+  EXPECT_TRUE(client_b.get_json("/v1/maps/" + std::to_string(map_a))["writable"].get<bool>());
+  const json on_a = one_map(client_a);  // a reads what b made of it
+  ASSERT_EQ(on_a.size(), 1u) << on_a.dump() << "\n" << log_text(log("a"));
+  EXPECT_EQ(on_a[0]["id"].get<std::uint64_t>(), map_a);
+  const json map_on_a = client_a.get_json("/v1/maps/" + std::to_string(map_a));
+  EXPECT_FALSE(map_on_a["writable"].get<bool>());
+  EXPECT_EQ(map_on_a["keyframes"].get<std::size_t>(), on_b[0]["keyframes"].get<std::size_t>()) << map_on_a.dump();
+  // Each session (listed by its own replica) ends in the one map.
+  EXPECT_EQ(client_a.get_json("/v1/sessions/" + std::to_string(session_a))["map"].get<std::uint64_t>(), map_a);
+  EXPECT_EQ(client_b.get_json("/v1/sessions/" + std::to_string(session_b))["map"].get<std::uint64_t>(), map_a);
+  a.kill();
   b.kill();
   for (const char* who : {"a", "b"}) std::filesystem::remove(log(who));
 }

@@ -6,7 +6,7 @@
 namespace orbatlas {
 namespace {
 
-// pg_advisory_xact_lock's key for migrations (any constant the atlas owns).
+// pg_advisory_lock's key for migrations (any constant the atlas owns).
 constexpr std::int64_t kMigrationLockKey = 0x6f72626174;  // "orbat"
 
 }  // namespace
@@ -40,12 +40,26 @@ void check_postgres_schema_supported(PgDb& db) {
 
 void migrate_postgres_schema(PgDb& db, TimestampNs now_ns) {
   check_postgres_schema_supported(db);
+  if (read_postgres_schema_version(db) >= latest_postgres_schema_version()) return;
+  // Replicas may start together on an empty database: one migrates, the
+  // others wait. The lock is the session's, taken before each migration's
+  // transaction starts: a transaction that waited for it inside could still
+  // see the tables as they were when it began (PostgreSQL reads its catalog
+  // changes at a transaction's start), and create them a second time.
+  db.prepare("SELECT pg_advisory_lock(?1)").bind_int64(1, kMigrationLockKey).run();
+  struct Unlock {
+    PgDb& db;
+    ~Unlock() {
+      try {
+        db.prepare("SELECT pg_advisory_unlock(?1)").bind_int64(1, kMigrationLockKey).run();
+      } catch (const std::exception&) {
+        // The connection is gone, and its session lock with it.
+      }
+    }
+  } unlock{db};
   for (const SchemaMigration& migration : postgres_schema_migrations()) {
-    if (read_postgres_schema_version(db) >= migration.version) continue;
+    if (read_postgres_schema_version(db) >= migration.version) continue;  // another replica migrated it
     PgTransaction transaction(db);
-    db.prepare("SELECT pg_advisory_xact_lock(?1)").bind_int64(1, kMigrationLockKey).run();
-    // Re-read under the lock: another replica may have migrated meanwhile.
-    if (read_postgres_schema_version(db) >= migration.version) continue;
     db.exec(migration.sql);
     db.prepare("INSERT INTO schema_migrations(version, name, applied_ns) VALUES (?1, ?2, ?3)")
         .bind_int64(1, migration.version)

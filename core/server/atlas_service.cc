@@ -161,23 +161,28 @@ AtlasService::AtlasService(AtlasServiceOptions options)
     merger_ = std::make_unique<MapMergeWorker>(
         atlas_, leases_, [this](MapId a, MapId b) { return rigs_match(a, b); },
         [this](const MergeRecord& r) { merged(r); }, options_.merging);
-  if (merger_ && shared_merges_)
+  if (merger_ && shared_merges_) {
     merger_->set_on_done([this](MapId map) {
       try {
         shared_merges_->remove(map);
       } catch (const std::exception& e) {
         log_warn("map merging: the stored merge work of map " + std::to_string(map) + " stays: " + e.what());
       }
+      {
+        std::lock_guard lock(merge_work_mutex_);
+        claimed_merges_.erase(map);
+      }
+      wake_merge_work();  // the next row
     });
-  // A shared atlas: the merge work left with the maps this replica writes now.
-  if (ownership_) {
-    std::vector<MapId> owned;
-    for (const auto& map : atlas_.maps())
-      if (ownership_->owns(map->id())) owned.push_back(map->id());
-    submit_stored_merges(owned);
+    merger_->set_put_off([this](MapId target) { return ownership_->owns(target); },
+                         [this](MapId source, MapId target) { merge_put_off(source, target); });
   }
   if (options_.idle_timeout_s > 0) idle_thread_ = std::thread([this] { finish_idle_sessions(); });
-  if (ownership_) takeover_thread_ = std::thread([this] { take_over_until_stopped(); });
+  if (ownership_) {
+    takeover_thread_ = std::thread([this] { take_over_until_stopped(); });
+    // The merge work left with the maps this replica writes now is claimed there too.
+    merge_work_thread_ = std::thread([this] { share_merge_work_until_stopped(); });
+  }
 }
 
 void AtlasService::finish_idle_sessions() {
@@ -517,19 +522,25 @@ void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
     start = it->second;
     shutting_down = shut_down_;
   }
-  // A shared atlas keeps the work in the database (done here, or by whoever
-  // takes these maps over), also when this replica does not merge or stops.
+  // A shared atlas keeps the work in the database: the merge-work thread
+  // claims it for this replica's worker, or hands the map to a replica that
+  // asks for it (also when this replica does not merge, or stops first).
+  std::vector<MapId> direct = maps;
   if (shared_merges_) {
+    direct.clear();
     for (const MapId map : maps) {
       try {
         shared_merges_->add(
             StoredMerge{map, start.settings, start.first_keyframe, start.inertial, start.rig.monocular});
       } catch (const std::exception& e) {
-        log_warn("map merging: cannot store the merge work of map " + std::to_string(map) + ": " + e.what());
+        log_warn("map merging: cannot store the merge work of map " + std::to_string(map) +
+                 " (done here): " + e.what());
+        direct.push_back(map);
       }
     }
+    wake_merge_work();
   }
-  if (!merger_ || shutting_down) return;
+  if (!merger_ || shutting_down || direct.empty()) return;
   std::shared_ptr<const FrameCamera> cam;
   try {
     cam = merge_camera(start.settings);
@@ -537,13 +548,15 @@ void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
     log_warn("session " + std::to_string(id) + ": no merging (" + e.what() + ")");
     return;
   }
-  for (const MapId map : maps)
+  for (const MapId map : direct)
     merger_->submit(MergeRequest{map, cam, start.first_keyframe, start.inertial, start.rig.monocular});
 }
 
 bool AtlasService::rigs_match(MapId source, MapId target) const {
-  // A shared atlas: only maps this replica writes are merged.
-  if (ownership_ && (!ownership_->owns(source) || !ownership_->owns(target))) return false;
+  // A shared atlas: only maps this replica writes are merged; a place found in
+  // another replica's map puts the work off until that map is handed over
+  // (MapMergeWorker::set_put_off).
+  if (ownership_ && !ownership_->owns(source)) return false;
   // Maps of one rig; a single camera's map goes into a stereo one of its rig,
   // not the other way (merge_maps gives the first the target's scale). Maps
   // of single-camera sessions have a rig only in the server run that made
@@ -851,6 +864,8 @@ void AtlasService::shutdown() {
   if (idle_thread_.joinable()) idle_thread_.join();  // it may be finishing a session: let it end
   takeover_wake_.notify_all();
   if (takeover_thread_.joinable()) takeover_thread_.join();
+  merge_work_wake_.notify_all();
+  if (merge_work_thread_.joinable()) merge_work_thread_.join();
   {
     std::lock_guard lock(mutex_);
     for (const auto& [_, s] : sessions_)

@@ -13,6 +13,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,8 @@
 #include "core/vocabulary/vocabulary.h"
 
 namespace orbatlas {
+
+struct StoredMerge;
 
 class SharedMerges;
 
@@ -258,11 +261,24 @@ class AtlasService {
   // in map_owners moved) or made since, and drops those they merged away;
   // returns the maps read. Localisation then sees them as their owners have them.
   std::vector<MapId> refresh_others_maps();
-  // The stored merge work of these maps (taken over, or this replica's from
-  // before it started) goes to the merging worker.
-  void submit_stored_merges(const std::vector<MapId>& maps);
   // The takeover thread: take_over_maps() and refresh_others_maps() every lease, until shutdown.
   void take_over_until_stopped();
+  // A shared atlas (atlas_service_merge_work.cc): the merge-work thread, woken
+  // by a finished session's merge rows, by the merging worker when it is done
+  // with one, and every lease; share_merge_work() until shutdown.
+  void share_merge_work_until_stopped();
+  // Once: hands the maps other replicas asked for over when nothing works in
+  // them here; claims this replica's next merge row when its worker is free;
+  // a free worker with nothing of its own asks for a map whose row waited.
+  void share_merge_work();
+  // A checkpoint, then `map` is `to`'s (false when something works in it here).
+  bool hand_over_if_idle(MapId map, std::uint64_t to);
+  // A claimed merge row goes to the merging worker (false when it cannot).
+  bool submit_stored_merge(const StoredMerge& merge);
+  // The merging worker put a claimed row off (its place is in `target`, a map
+  // another replica writes or a session holds): ask for `target`, retry later.
+  void merge_put_off(MapId source, MapId target);
+  void wake_merge_work();
 
   const AtlasServiceOptions options_;
   // First: held while anything below may write the database; destroyed last.
@@ -329,6 +345,16 @@ class AtlasService {
   std::map<MapId, std::int64_t> seen_versions_;
   std::optional<AtlasStore> replica_store_;  // the takeover thread's only
   std::thread takeover_thread_;              // a shared atlas only; joined by shutdown()
+  // The merge-work thread (a shared atlas only; joined by shutdown()), woken
+  // with mutex_ through merge_work_woken_; the merge rows this replica's worker
+  // has claimed (merge_work_mutex_, a leaf).
+  std::condition_variable merge_work_wake_;
+  bool merge_work_woken_ = false;  // guarded by mutex_
+  std::mutex merge_work_mutex_;
+  std::set<MapId> claimed_merges_;
+  std::thread merge_work_thread_;
+  // The lease holder of a map being handed over to another replica (no session gets this id).
+  static constexpr SessionId kHandOverLease = kInvalidSessionId - 2;
 
   // GET /metrics: counters counted as things happen, the gauges set when asked.
   mutable MetricsRegistry metrics_;

@@ -105,7 +105,7 @@ std::vector<MapId> AtlasService::take_over_maps() {
              " keyframes)";
   }
   if (!fresh.empty()) log_info("replica " + std::to_string(replica_->id()) + " took over map(s) " + names);
-  submit_stored_merges(claimed);  // and the merge work their replica left
+  wake_merge_work();  // and the merge work their replica left
   return claimed;
 }
 
@@ -140,29 +140,6 @@ std::vector<MapId> AtlasService::refresh_others_maps() {
   for (const MapId id : gone) seen_versions_.erase(id);
   if (!fresh.empty()) load_new_sessions(store, true);  // the rigs of the maps read
   return read;
-}
-
-void AtlasService::submit_stored_merges(const std::vector<MapId>& maps) {
-  if (!merger_ || !shared_merges_ || maps.empty()) return;
-  std::vector<StoredMerge> stored;
-  try {
-    stored = shared_merges_->of(maps);
-  } catch (const std::exception& e) {
-    log_warn(std::string("map merging: cannot read the stored merge work: ") + e.what());
-    return;
-  }
-  for (StoredMerge& m : stored) {
-    std::shared_ptr<const FrameCamera> cam;
-    try {
-      cam = merge_camera(m.settings);
-    } catch (const std::exception& e) {
-      log_warn("map merging: map " + std::to_string(m.map) + ": no merging (" + e.what() + ")");
-      continue;
-    }
-    log_info("map merging: map " + std::to_string(m.map) + "'s stored merge work taken by replica " +
-             std::to_string(replica_->id()));
-    merger_->submit(MergeRequest{m.map, cam, m.first_keyframe, m.inertial, m.single_camera});
-  }
 }
 
 void AtlasService::take_over_until_stopped() {

@@ -73,14 +73,18 @@ void MapMergeWorker::run_one(const MergeRequest& request) {
     ~ReleaseLeases() { leases.release_all(kMergeWorkerLease); }
   } release{leases_};
   if (stopping_.load()) return;
-  process(request);
-  if (on_done_ && !stopping_.load()) on_done_(request.map);
+  const std::optional<MapId> put_off_for = process(request);
+  if (stopping_.load()) return;
+  if (put_off_for)
+    on_put_off_(request.map, *put_off_for);
+  else if (on_done_)
+    on_done_(request.map);
 }
 
-void MapMergeWorker::process(const MergeRequest& request) {
+std::optional<MapId> MapMergeWorker::process(const MergeRequest& request) {
   const auto source = atlas_.map(request.map);
-  if (!source || !request.cam || !request.cam->camera) return;            // merged away meanwhile
-  if (!leases_.claim_exclusive(kMergeWorkerLease, source->id())) return;  // a session works in it again
+  if (!source || !request.cam || !request.cam->camera) return std::nullopt;            // merged away meanwhile
+  if (!leases_.claim_exclusive(kMergeWorkerLease, source->id())) return std::nullopt;  // a session works in it again
   const auto search_start = std::chrono::steady_clock::now();
 
   PlaceRecognitionOptions recognition = options_.recognition;
@@ -98,7 +102,7 @@ void MapMergeWorker::process(const MergeRequest& request) {
   std::optional<PlaceMatch> match;
   std::size_t searched = 0;
   for (const auto& kf : source->keyframes()) {
-    if (stopping_.load()) return;
+    if (stopping_.load()) return std::nullopt;
     if (kf->id() < request.first_keyframe) continue;
     ++searched;
     PlaceRecognitionStep step = recognizer.process(kf, similarity);
@@ -125,14 +129,21 @@ void MapMergeWorker::process(const MergeRequest& request) {
       push_recent(stats_.refinements, refinement);
       ++stats_.refinements_total;
     }
-    return;
+    return std::nullopt;
   }
   const MapId target_id = match->matched->map_id();
-  if (!leases_.claim_exclusive(kMergeWorkerLease, target_id)) return;  // a session entered it just now
+  const bool put_off = static_cast<bool>(on_put_off_);
+  if (put_off && target_writable_ && !target_writable_(target_id)) {
+    log_info("map merging: map " + std::to_string(source_id) + " found its place in map " + std::to_string(target_id) +
+             ", which another replica writes; the merge waits for that map");
+    return target_id;
+  }
+  if (!leases_.claim_exclusive(kMergeWorkerLease, target_id))  // a session entered it just now
+    return put_off ? std::optional<MapId>(target_id) : std::nullopt;
   if (const auto target = atlas_.map(target_id); !target || !merge_keeps_scale(*source, *target)) {
     log_info("map merging: map " + std::to_string(source_id) + " is metric and map " + std::to_string(target_id) +
              " is not (or is gone); not merged");
-    return;
+    return std::nullopt;
   }
 
   MergeRecord record;
@@ -163,6 +174,7 @@ void MapMergeWorker::process(const MergeRequest& request) {
     ++stats_.merges_total;
   }
   if (on_merged_) on_merged_(record);
+  return std::nullopt;
 }
 
 GlobalBundleAdjustmentResult MapMergeWorker::refine(Map& map, const MergeRequest& request, double* seconds) {

@@ -131,10 +131,22 @@ class MapMergeWorker {
   // merged or refined, or found gone), not when stop() cut it short. Set
   // before the first submit (a shared atlas forgets the map's stored merge work).
   void set_on_done(std::function<void(MapId)> on_done) { on_done_ = std::move(on_done); }
+  // A shared atlas: when a request's map found its place in a map this server
+  // may not write (`target_writable` false: another replica's), or one a
+  // session or the service holds just then, the request ends without a merge
+  // and without on_done; `on_put_off(source, target)` is called instead (the
+  // service keeps the work for later). Unset (one server): such a request is
+  // done without a merge. Set before the first submit.
+  void set_put_off(std::function<bool(MapId target)> target_writable,
+                   std::function<void(MapId source, MapId target)> on_put_off) {
+    target_writable_ = std::move(target_writable);
+    on_put_off_ = std::move(on_put_off);
+  }
 
  private:
   void run_one(const MergeRequest& request);  // on the worker thread; leases released after
-  void process(const MergeRequest& request);
+  // The target a request was put off for (set_put_off); none when it is done.
+  std::optional<MapId> process(const MergeRequest& request);
   // One global BA of `map` with the request's camera and IMU (stop() interrupts it).
   GlobalBundleAdjustmentResult refine(Map& map, const MergeRequest& request, double* seconds);
 
@@ -143,6 +155,8 @@ class MapMergeWorker {
   const MayMerge may_merge_;
   const OnMerged on_merged_;
   std::function<void(MapId)> on_done_;
+  std::function<bool(MapId)> target_writable_;
+  std::function<void(MapId, MapId)> on_put_off_;
   const MapMergeWorkerOptions options_;
 
   std::atomic<bool> stopping_{false};  // interrupts a search or global adjustment

@@ -1,5 +1,7 @@
 #include "core/server/map_ownership.h"
 
+#include <algorithm>
+
 #include "core/common/error.h"
 #include "core/map/atlas.h"
 #include "core/persistence/pg_db.h"
@@ -35,6 +37,13 @@ std::vector<MapId> MapOwnership::claim_free_and_dead() {
         "(SELECT id FROM replicas WHERE state <> 'running' OR lease_until < now()) RETURNING map_id");
     dead.bind_int64(1, me).bind_int64(2, now);
     while (dead.step()) claimed.push_back(static_cast<MapId>(dead.int64(0)));
+    // Maps handed over to this replica by live ones (hand_over()).
+    PgStatement mine = db_->prepare("SELECT map_id FROM map_owners WHERE replica_id = ?1");
+    mine.bind_int64(1, me);
+    while (mine.step()) {
+      const auto map = static_cast<MapId>(mine.int64(0));
+      if (!owns(map) && std::find(claimed.begin(), claimed.end(), map) == claimed.end()) claimed.push_back(map);
+    }
     transaction.commit();
   } catch (const std::exception&) {
     db_.reset();  // reconnect next time
@@ -46,13 +55,71 @@ std::vector<MapId> MapOwnership::claim_free_and_dead() {
 void MapOwnership::ready(const std::vector<MapId>& maps) {
   std::lock_guard lock(mutex_);
   ready_.insert(maps.begin(), maps.end());
+  for (const MapId map : maps) given_.erase(map);
 }
 
 bool MapOwnership::owns(MapId map) const {
   if (registry_.lease_lost()) return false;
-  if (made_here(map)) return true;
   std::lock_guard lock(mutex_);
-  return ready_.count(map) > 0;
+  if (given_.count(map)) return false;
+  return made_here(map) || ready_.count(map) > 0;
+}
+
+bool MapOwnership::want(MapId map) {
+  if (registry_.lease_lost()) return false;
+  std::lock_guard lock(db_mutex_);
+  try {
+    if (!db_) db_ = std::make_unique<PgDb>(location_);
+    PgStatement ask = db_->prepare(
+        "UPDATE map_owners SET wanted_by = ?2 WHERE map_id = ?1 AND replica_id IS NOT NULL AND replica_id <> ?2");
+    ask.bind_int64(1, static_cast<std::int64_t>(map)).bind_int64(2, static_cast<std::int64_t>(registry_.id()));
+    ask.run();
+    return ask.changes() > 0;
+  } catch (const std::exception&) {
+    db_.reset();
+    throw;
+  }
+}
+
+std::vector<MapOwnership::Wanted> MapOwnership::wanted() const {
+  std::lock_guard lock(db_mutex_);
+  std::vector<Wanted> out;
+  try {
+    if (!db_) db_ = std::make_unique<PgDb>(location_);
+    PgStatement rows = db_->prepare(
+        "SELECT o.map_id, o.wanted_by FROM map_owners o JOIN replicas r ON r.id = o.wanted_by "
+        "WHERE o.replica_id = ?1 AND r.state = 'running' AND r.lease_until >= now() ORDER BY o.map_id");
+    rows.bind_int64(1, static_cast<std::int64_t>(registry_.id()));
+    while (rows.step()) out.push_back({static_cast<MapId>(rows.int64(0)), static_cast<std::uint64_t>(rows.int64(1))});
+  } catch (const std::exception&) {
+    db_.reset();
+    throw;
+  }
+  return out;
+}
+
+bool MapOwnership::hand_over(MapId map, std::uint64_t to) {
+  if (registry_.lease_lost()) return false;
+  std::lock_guard lock(db_mutex_);
+  try {
+    if (!db_) db_ = std::make_unique<PgDb>(location_);
+    PgStatement give = db_->prepare(
+        "UPDATE map_owners SET replica_id = ?3, wanted_by = NULL, claimed_ns = ?4 WHERE map_id = ?1 AND "
+        "replica_id = ?2");
+    give.bind_int64(1, static_cast<std::int64_t>(map))
+        .bind_int64(2, static_cast<std::int64_t>(registry_.id()))
+        .bind_int64(3, static_cast<std::int64_t>(to))
+        .bind_int64(4, unix_time_ns());
+    give.run();
+    if (give.changes() == 0) return false;
+  } catch (const std::exception&) {
+    db_.reset();
+    throw;
+  }
+  std::lock_guard lock_ready(mutex_);
+  ready_.erase(map);
+  given_.insert(map);
+  return true;
 }
 
 std::unordered_set<MapId> MapOwnership::writable(SqlConnection& db, const std::vector<MapId>& candidates,

@@ -10,6 +10,10 @@
 //   over by claim_free_and_dead(), after which the caller reads them again
 //   from the database and then calls ready(): only then are they written, so
 //   a stale copy never overwrites what the dead owner committed last.
+// - a live replica may ask for another's map (want(): it has merge work for
+//   it); the owner hands it over (hand_over()) once nobody works in it there,
+//   after a checkpoint, and the new owner takes it like a dead replica's map
+//   (claim_free_and_dead() returns it, read again, then ready()).
 // A checkpoint asks writable() inside its transaction, which locks this
 // replica's ownership rows (FOR SHARE): a takeover by another replica waits for
 // that checkpoint, and this replica writes nothing of the map afterwards. A
@@ -44,12 +48,28 @@ class MapOwnership {
 
   // Claims the stored maps without an owner and those owned by dead replicas
   // (one transaction, on a connection of its own); returns the maps claimed
-  // now. They are written only once ready(). Error when the database cannot be reached.
+  // now, and those another replica handed over since. They are written only
+  // once ready(). Error when the database cannot be reached.
   std::vector<MapId> claim_free_and_dead();
   // The claimed maps have been read again from the database: they may be written.
   void ready(const std::vector<MapId>& maps);
-  // True when this replica may write `map` (it made it, or took it over and read it again).
+  // True when this replica may write `map` (it made it, or took it over and
+  // read it again, and has not handed it over since).
   bool owns(MapId map) const;
+
+  // Asks the replica that owns `map` to hand it over (merge work for it
+  // waits here). False when this replica owns it, or nobody does.
+  bool want(MapId map);
+  struct Wanted {
+    MapId map = 0;
+    std::uint64_t by = 0;  // a live replica
+  };
+  // This replica's maps that a live replica asked for.
+  std::vector<Wanted> wanted() const;
+  // Gives `map` to replica `to` (after the caller checkpointed it and while
+  // nothing works in it here); from then on it is not owns(). False when it
+  // was not this replica's in the database.
+  bool hand_over(MapId map, std::uint64_t to);
 
   // CheckpointOptions::writable_maps: of `candidates`, the maps this replica
   // owns in the database (claiming those it made), locked for the
@@ -76,8 +96,9 @@ class MapOwnership {
   const std::string location_;
   mutable std::mutex db_mutex_;  // guards db_ (claims, owners())
   mutable std::unique_ptr<PgDb> db_;
-  mutable std::mutex mutex_;  // leaf; guards ready_
+  mutable std::mutex mutex_;  // leaf; guards ready_, given_
   std::set<MapId> ready_;     // taken over and read again (maps made here need not be)
+  std::set<MapId> given_;     // handed over to another replica (made here or not)
 };
 
 }  // namespace orbatlas

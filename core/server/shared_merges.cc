@@ -72,7 +72,8 @@ void SharedMerges::add(const StoredMerge& merge) {
   on_connection(db_, location_, [&](PgDb& db) {
     db.prepare(
           "INSERT INTO shared_merges(map_id, request, requested_ns) VALUES (?1, ?2, ?3) ON CONFLICT (map_id) DO "
-          "UPDATE SET request = excluded.request, requested_ns = excluded.requested_ns")
+          "UPDATE SET request = excluded.request, requested_ns = excluded.requested_ns, claimed_by = NULL, "
+          "retry_ns = 0")
         .bind_int64(1, static_cast<std::int64_t>(merge.map))
         .bind_text(2, stored_merge_json(merge))
         .bind_int64(3, unix_time_ns())
@@ -98,6 +99,68 @@ std::vector<StoredMerge> SharedMerges::of(const std::vector<MapId>& maps) {
       row.reset();
     }
     return out;
+  });
+}
+
+// A replica counts as alive while it runs and its lease has not passed.
+constexpr const char* kAliveReplicas = "SELECT id FROM replicas WHERE state = 'running' AND lease_until >= now()";
+
+std::optional<StoredMerge> SharedMerges::claim(std::uint64_t me) {
+  std::lock_guard lock(mutex_);
+  return on_connection(db_, location_, [&](PgDb& db) -> std::optional<StoredMerge> {
+    PgStatement take = db.prepare(
+        std::string("UPDATE shared_merges SET claimed_by = ?1 WHERE map_id = (SELECT s.map_id FROM shared_merges s "
+                    "JOIN map_owners o ON o.map_id = s.map_id WHERE o.replica_id = ?1 AND s.retry_ns <= ?2 AND "
+                    "(s.claimed_by IS NULL OR s.claimed_by NOT IN (") +
+        kAliveReplicas +
+        ")) ORDER BY s.requested_ns, s.map_id LIMIT 1 FOR UPDATE OF s SKIP LOCKED) "
+        "RETURNING map_id, request");
+    take.bind_int64(1, static_cast<std::int64_t>(me)).bind_int64(2, unix_time_ns());
+    if (!take.step()) return std::nullopt;
+    return stored_merge_from_json(static_cast<MapId>(take.int64(0)), take.text(1));
+  });
+}
+
+void SharedMerges::defer(MapId map, std::int64_t retry_ns) {
+  std::lock_guard lock(mutex_);
+  on_connection(db_, location_, [&](PgDb& db) {
+    db.prepare("UPDATE shared_merges SET claimed_by = NULL, retry_ns = ?2 WHERE map_id = ?1")
+        .bind_int64(1, static_cast<std::int64_t>(map))
+        .bind_int64(2, retry_ns)
+        .run();
+  });
+}
+
+void SharedMerges::unclaim(MapId map) {
+  std::lock_guard lock(mutex_);
+  on_connection(db_, location_, [&](PgDb& db) {
+    db.prepare("UPDATE shared_merges SET claimed_by = NULL WHERE map_id = ?1")
+        .bind_int64(1, static_cast<std::int64_t>(map))
+        .run();
+  });
+}
+
+bool SharedMerges::put_off(MapId map) {
+  std::lock_guard lock(mutex_);
+  return on_connection(db_, location_, [&](PgDb& db) {
+    PgStatement row = db.prepare("SELECT retry_ns FROM shared_merges WHERE map_id = ?1");
+    row.bind_int64(1, static_cast<std::int64_t>(map));
+    return row.step() && row.int64(0) > 0;
+  });
+}
+
+std::optional<MapId> SharedMerges::waiting_elsewhere(std::uint64_t me, std::int64_t requested_before_ns) {
+  std::lock_guard lock(mutex_);
+  return on_connection(db_, location_, [&](PgDb& db) -> std::optional<MapId> {
+    PgStatement row =
+        db.prepare(std::string("SELECT s.map_id FROM shared_merges s JOIN map_owners o ON o.map_id = s.map_id "
+                               "WHERE o.replica_id <> ?1 AND o.replica_id IN (") +
+                   kAliveReplicas +
+                   ") AND s.claimed_by IS NULL AND s.requested_ns < ?2 AND s.retry_ns = 0 "
+                   "ORDER BY s.requested_ns, s.map_id LIMIT 1");
+    row.bind_int64(1, static_cast<std::int64_t>(me)).bind_int64(2, requested_before_ns);
+    if (!row.step()) return std::nullopt;
+    return static_cast<MapId>(row.int64(0));
   });
 }
 

@@ -1,11 +1,15 @@
 #pragma once
 // The merge work finished sessions leave in a shared (PostgreSQL) atlas
-// (issue 23, schema/postgres/006, docs/scaling.md "Replicas"): one row per map
-// to search for a place shared with the atlas's other maps (then merged and
-// refined, MapMergeWorker). The replica owning the map does it and deletes the
-// row; when it dies first, the replica that takes its maps over takes their
-// rows too (AtlasService::take_over_maps). A replica started with
-// --no-merging leaves its rows to one that merges.
+// (issue 23, schema/postgres/006 and 007, docs/scaling.md "Replicas"): one row
+// per map to search for a place shared with the atlas's other maps (then
+// merged and refined, MapMergeWorker). The replica owning the map claims the
+// row (FOR UPDATE SKIP LOCKED) when its merging worker is free, does the work
+// and deletes the row. A row nobody claims for a lease (its owner's worker is
+// busy, or it runs with --no-merging) is asked for by a free replica, which
+// the owner hands the map to (MapOwnership::want, hand_over); so is a map
+// another replica's merge found its place in (the row waits meanwhile,
+// defer()). A dead replica's rows go with its maps to the replica that takes
+// them over; a row claimed by a dead replica waits again.
 //
 // Thread-safe: one connection under a mutex.
 #include <cstdint>
@@ -43,9 +47,23 @@ class SharedMerges {
   SharedMerges(const SharedMerges&) = delete;
   SharedMerges& operator=(const SharedMerges&) = delete;
 
-  void add(const StoredMerge& merge);  // replaces the map's row
+  void add(const StoredMerge& merge);  // replaces the map's row (waiting again)
   void remove(MapId map);
   std::vector<StoredMerge> of(const std::vector<MapId>& maps);  // the rows of these maps
+
+  // The oldest waiting row of a map replica `me` owns (unclaimed, or claimed
+  // by a replica no longer alive; its retry time passed), now claimed by `me`.
+  std::optional<StoredMerge> claim(std::uint64_t me);
+  // Puts a claimed row back, not to be claimed before `retry_ns` (unix ns).
+  void defer(MapId map, std::int64_t retry_ns);
+  // Puts a claimed row back as it was (claimable at once).
+  void unclaim(MapId map);
+  // True when `map`'s row was put back (defer()) and waits for another map.
+  bool put_off(MapId map);
+  // The oldest row waiting unclaimed since before `requested_before_ns`, never
+  // put back, whose map a live replica other than `me` owns (its owner did not
+  // take it: its worker is busy, or it does not merge).
+  std::optional<MapId> waiting_elsewhere(std::uint64_t me, std::int64_t requested_before_ns);
 
  private:
   const std::string location_;
