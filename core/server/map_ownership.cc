@@ -6,6 +6,7 @@
 #include "core/map/atlas.h"
 #include "core/persistence/pg_db.h"
 #include "core/persistence/wall_clock.h"
+#include "core/server/pg_connection.h"
 
 namespace orbatlas {
 
@@ -20,35 +21,31 @@ std::vector<MapId> MapOwnership::claim_free_and_dead() {
   if (registry_.lease_lost()) return {};
   std::lock_guard lock(db_mutex_);
   std::vector<MapId> claimed;
-  try {
-    if (!db_) db_ = std::make_unique<PgDb>(location_);
-    SqlTransaction transaction(*db_);
+  on_pg_connection(db_, location_, [&](PgDb& db) {
+    SqlTransaction transaction(db);
     const auto me = static_cast<std::int64_t>(registry_.id());
     const std::int64_t now = unix_time_ns();
     // Stored maps nobody owns.
-    PgStatement free = db_->prepare(
+    PgStatement free = db.prepare(
         "INSERT INTO map_owners(map_id, replica_id, claimed_ns) SELECT id, ?1, ?2 FROM maps "
         "WHERE id NOT IN (SELECT map_id FROM map_owners) ON CONFLICT (map_id) DO NOTHING RETURNING map_id");
     free.bind_int64(1, me).bind_int64(2, now);
     while (free.step()) claimed.push_back(static_cast<MapId>(free.int64(0)));
     // The maps of dead replicas (waits for a checkpoint of theirs in progress).
-    PgStatement dead = db_->prepare(
+    PgStatement dead = db.prepare(
         "UPDATE map_owners SET replica_id = ?1, claimed_ns = ?2 WHERE replica_id <> ?1 AND replica_id IN "
         "(SELECT id FROM replicas WHERE state <> 'running' OR lease_until < now()) RETURNING map_id");
     dead.bind_int64(1, me).bind_int64(2, now);
     while (dead.step()) claimed.push_back(static_cast<MapId>(dead.int64(0)));
     // Maps handed over to this replica by live ones (hand_over()).
-    PgStatement mine = db_->prepare("SELECT map_id FROM map_owners WHERE replica_id = ?1");
+    PgStatement mine = db.prepare("SELECT map_id FROM map_owners WHERE replica_id = ?1");
     mine.bind_int64(1, me);
     while (mine.step()) {
       const auto map = static_cast<MapId>(mine.int64(0));
       if (!owns(map) && std::find(claimed.begin(), claimed.end(), map) == claimed.end()) claimed.push_back(map);
     }
     transaction.commit();
-  } catch (const std::exception&) {
-    db_.reset();  // reconnect next time
-    throw;
-  }
+  });
   return claimed;
 }
 
@@ -68,42 +65,33 @@ bool MapOwnership::owns(MapId map) const {
 bool MapOwnership::want(MapId map) {
   if (registry_.lease_lost()) return false;
   std::lock_guard lock(db_mutex_);
-  try {
-    if (!db_) db_ = std::make_unique<PgDb>(location_);
-    PgStatement ask = db_->prepare(
+  return on_pg_connection(db_, location_, [&](PgDb& db) {
+    PgStatement ask = db.prepare(
         "UPDATE map_owners SET wanted_by = ?2 WHERE map_id = ?1 AND replica_id IS NOT NULL AND replica_id <> ?2");
     ask.bind_int64(1, static_cast<std::int64_t>(map)).bind_int64(2, static_cast<std::int64_t>(registry_.id()));
     ask.run();
     return ask.changes() > 0;
-  } catch (const std::exception&) {
-    db_.reset();
-    throw;
-  }
+  });
 }
 
 std::vector<MapOwnership::Wanted> MapOwnership::wanted() const {
   std::lock_guard lock(db_mutex_);
   std::vector<Wanted> out;
-  try {
-    if (!db_) db_ = std::make_unique<PgDb>(location_);
-    PgStatement rows = db_->prepare(
+  on_pg_connection(db_, location_, [&](PgDb& db) {
+    PgStatement rows = db.prepare(
         "SELECT o.map_id, o.wanted_by FROM map_owners o JOIN replicas r ON r.id = o.wanted_by "
         "WHERE o.replica_id = ?1 AND r.state = 'running' AND r.lease_until >= now() ORDER BY o.map_id");
     rows.bind_int64(1, static_cast<std::int64_t>(registry_.id()));
     while (rows.step()) out.push_back({static_cast<MapId>(rows.int64(0)), static_cast<std::uint64_t>(rows.int64(1))});
-  } catch (const std::exception&) {
-    db_.reset();
-    throw;
-  }
+  });
   return out;
 }
 
 bool MapOwnership::hand_over(MapId map, std::uint64_t to) {
   if (registry_.lease_lost()) return false;
   std::lock_guard lock(db_mutex_);
-  try {
-    if (!db_) db_ = std::make_unique<PgDb>(location_);
-    PgStatement give = db_->prepare(
+  const bool given = on_pg_connection(db_, location_, [&](PgDb& db) {
+    PgStatement give = db.prepare(
         "UPDATE map_owners SET replica_id = ?3, wanted_by = NULL, claimed_ns = ?4 WHERE map_id = ?1 AND "
         "replica_id = ?2");
     give.bind_int64(1, static_cast<std::int64_t>(map))
@@ -111,11 +99,9 @@ bool MapOwnership::hand_over(MapId map, std::uint64_t to) {
         .bind_int64(3, static_cast<std::int64_t>(to))
         .bind_int64(4, unix_time_ns());
     give.run();
-    if (give.changes() == 0) return false;
-  } catch (const std::exception&) {
-    db_.reset();
-    throw;
-  }
+    return give.changes() > 0;
+  });
+  if (!given) return false;
   std::lock_guard lock_ready(mutex_);
   ready_.erase(map);
   given_.insert(map);
@@ -168,15 +154,11 @@ void MapOwnership::changed(SqlConnection& db, const std::vector<MapId>& maps) {
 std::vector<MapOwnership::Owned> MapOwnership::owners() const {
   std::lock_guard lock(db_mutex_);
   std::vector<Owned> out;
-  try {
-    if (!db_) db_ = std::make_unique<PgDb>(location_);
-    PgStatement rows = db_->prepare("SELECT map_id, replica_id, version FROM map_owners ORDER BY map_id");
+  on_pg_connection(db_, location_, [&](PgDb& db) {
+    PgStatement rows = db.prepare("SELECT map_id, replica_id, version FROM map_owners ORDER BY map_id");
     while (rows.step())
       out.push_back({static_cast<MapId>(rows.int64(0)), static_cast<std::uint64_t>(rows.int64(1)), rows.int64(2)});
-  } catch (const std::exception&) {
-    db_.reset();
-    throw;
-  }
+  });
   return out;
 }
 

@@ -5,6 +5,7 @@
 #include "core/common/error.h"
 #include "core/persistence/pg_db.h"
 #include "core/persistence/wall_clock.h"
+#include "core/server/pg_connection.h"
 
 namespace orbatlas {
 
@@ -41,30 +42,10 @@ SharedJobQueue::SharedJobQueue(const ReplicaRegistry& registry, std::string loca
 
 SharedJobQueue::~SharedJobQueue() = default;
 
-PgDb& SharedJobQueue::db() {
-  if (!db_) db_ = std::make_unique<PgDb>(location_);
-  return *db_;
-}
-
-namespace {
-
-// Runs `work` on the connection; a failure drops it (reconnected next time) and is rethrown.
-template <class Work>
-auto with_connection(std::unique_ptr<PgDb>& db, Work work) {
-  try {
-    return work();
-  } catch (const std::exception&) {
-    db.reset();
-    throw;
-  }
-}
-
-}  // namespace
-
 void SharedJobQueue::add(JobId id, const std::filesystem::path& folder, const SessionRequest& request) {
   std::lock_guard lock(db_mutex_);
-  with_connection(db_, [&] {
-    db().prepare("INSERT INTO shared_jobs(job_id, replica_id, folder, request) VALUES (?1, NULL, ?2, ?3)")
+  on_pg_connection(db_, location_, [&](PgDb& db) {
+    db.prepare("INSERT INTO shared_jobs(job_id, replica_id, folder, request) VALUES (?1, NULL, ?2, ?3)")
         .bind_int64(1, static_cast<std::int64_t>(id))
         .bind_text(2, folder.string())
         .bind_text(3, session_request_json(request))
@@ -75,8 +56,8 @@ void SharedJobQueue::add(JobId id, const std::filesystem::path& folder, const Se
 std::optional<ClaimedJob> SharedJobQueue::claim() {
   if (registry_.lease_lost()) return std::nullopt;
   std::lock_guard lock(db_mutex_);
-  return with_connection(db_, [&]() -> std::optional<ClaimedJob> {
-    PgStatement take = db().prepare(
+  return on_pg_connection(db_, location_, [&](PgDb& db) -> std::optional<ClaimedJob> {
+    PgStatement take = db.prepare(
         "UPDATE shared_jobs SET replica_id = ?1, claimed_ns = ?2 WHERE job_id = ("
         "SELECT s.job_id FROM shared_jobs s JOIN upload_jobs u ON u.id = s.job_id "
         "WHERE s.replica_id IS NULL AND u.state = 'queued' ORDER BY s.job_id LIMIT 1 FOR UPDATE OF s SKIP LOCKED) "
@@ -93,27 +74,27 @@ std::optional<ClaimedJob> SharedJobQueue::claim() {
 
 void SharedJobQueue::remove(JobId id) {
   std::lock_guard lock(db_mutex_);
-  with_connection(db_, [&] {
-    db().prepare("DELETE FROM shared_jobs WHERE job_id = ?1").bind_int64(1, static_cast<std::int64_t>(id)).run();
+  on_pg_connection(db_, location_, [&](PgDb& db) {
+    db.prepare("DELETE FROM shared_jobs WHERE job_id = ?1").bind_int64(1, static_cast<std::int64_t>(id)).run();
   });
 }
 
 std::size_t SharedJobQueue::requeue_dead() {
   std::lock_guard lock(db_mutex_);
-  return with_connection(db_, [&] {
-    SqlTransaction transaction(db());
+  return on_pg_connection(db_, location_, [&](PgDb& db) {
+    SqlTransaction transaction(db);
     const char* dead = "(SELECT id FROM replicas WHERE state <> 'running' OR lease_until < now())";
     // Uploads a dead replica was still receiving (its job ids are its own range's).
-    db().exec(std::string("UPDATE upload_jobs SET state = 'failed', error = 'interrupted: the replica receiving "
-                          "this upload stopped or died before it had all of it' WHERE state = 'extracting' AND "
-                          "(id >> " +
-                          std::to_string(kReplicaMapIdShift) + ") IN ") +
-              dead);
+    db.exec(std::string("UPDATE upload_jobs SET state = 'failed', error = 'interrupted: the replica receiving "
+                        "this upload stopped or died before it had all of it' WHERE state = 'extracting' AND "
+                        "(id >> " +
+                        std::to_string(kReplicaMapIdShift) + ") IN ") +
+            dead);
     PgStatement again =
-        db().prepare(std::string("UPDATE shared_jobs SET replica_id = NULL, claimed_ns = NULL WHERE replica_id IN ") +
-                     dead + " RETURNING job_id");
+        db.prepare(std::string("UPDATE shared_jobs SET replica_id = NULL, claimed_ns = NULL WHERE replica_id IN ") +
+                   dead + " RETURNING job_id");
     std::size_t n = 0;
-    PgStatement queued = db().prepare(
+    PgStatement queued = db.prepare(
         "UPDATE upload_jobs SET state = 'queued', frames_done = 0, tracked = 0, rejected = 0, error = "
         "'its replica stopped or died while it ran: started again' WHERE id = ?1 AND state IN ('queued', 'running')");
     std::vector<std::int64_t> ids;
@@ -130,8 +111,8 @@ std::size_t SharedJobQueue::requeue_dead() {
 
 std::size_t SharedJobQueue::waiting() {
   std::lock_guard lock(db_mutex_);
-  return with_connection(db_, [&] {
-    return static_cast<std::size_t>(db().query_int64("SELECT count(*) FROM shared_jobs WHERE replica_id IS NULL"));
+  return on_pg_connection(db_, location_, [&](PgDb& db) {
+    return static_cast<std::size_t>(db.query_int64("SELECT count(*) FROM shared_jobs WHERE replica_id IS NULL"));
   });
 }
 

@@ -55,8 +55,6 @@ class SharedJobQueue {
   std::size_t waiting();
 
  private:
-  PgDb& db();  // db_mutex_ held; reconnects after a failure
-
   const ReplicaRegistry& registry_;
   const std::string location_;
   std::mutex db_mutex_;  // a leaf

@@ -5,6 +5,7 @@
 #include "core/common/error.h"
 #include "core/persistence/pg_db.h"
 #include "core/persistence/wall_clock.h"
+#include "core/server/pg_connection.h"
 
 namespace orbatlas {
 
@@ -52,24 +53,9 @@ SharedMerges::SharedMerges(std::string location) : location_(std::move(location)
 
 SharedMerges::~SharedMerges() = default;
 
-namespace {
-
-template <class Work>
-auto on_connection(std::unique_ptr<PgDb>& db, const std::string& location, Work work) {
-  try {
-    if (!db) db = std::make_unique<PgDb>(location);
-    return work(*db);
-  } catch (const std::exception&) {
-    db.reset();  // a new connection next time
-    throw;
-  }
-}
-
-}  // namespace
-
 void SharedMerges::add(const StoredMerge& merge) {
   std::lock_guard lock(mutex_);
-  on_connection(db_, location_, [&](PgDb& db) {
+  on_pg_connection(db_, location_, [&](PgDb& db) {
     db.prepare(
           "INSERT INTO shared_merges(map_id, request, requested_ns) VALUES (?1, ?2, ?3) ON CONFLICT (map_id) DO "
           "UPDATE SET request = excluded.request, requested_ns = excluded.requested_ns, claimed_by = NULL, "
@@ -83,14 +69,14 @@ void SharedMerges::add(const StoredMerge& merge) {
 
 void SharedMerges::remove(MapId map) {
   std::lock_guard lock(mutex_);
-  on_connection(db_, location_, [&](PgDb& db) {
+  on_pg_connection(db_, location_, [&](PgDb& db) {
     db.prepare("DELETE FROM shared_merges WHERE map_id = ?1").bind_int64(1, static_cast<std::int64_t>(map)).run();
   });
 }
 
 std::vector<StoredMerge> SharedMerges::of(const std::vector<MapId>& maps) {
   std::lock_guard lock(mutex_);
-  return on_connection(db_, location_, [&](PgDb& db) {
+  return on_pg_connection(db_, location_, [&](PgDb& db) {
     std::vector<StoredMerge> out;
     PgStatement row = db.prepare("SELECT request FROM shared_merges WHERE map_id = ?1");
     for (const MapId map : maps) {
@@ -107,7 +93,7 @@ constexpr const char* kAliveReplicas = "SELECT id FROM replicas WHERE state = 'r
 
 std::optional<StoredMerge> SharedMerges::claim(std::uint64_t me) {
   std::lock_guard lock(mutex_);
-  return on_connection(db_, location_, [&](PgDb& db) -> std::optional<StoredMerge> {
+  return on_pg_connection(db_, location_, [&](PgDb& db) -> std::optional<StoredMerge> {
     PgStatement take = db.prepare(
         std::string("UPDATE shared_merges SET claimed_by = ?1 WHERE map_id = (SELECT s.map_id FROM shared_merges s "
                     "JOIN map_owners o ON o.map_id = s.map_id WHERE o.replica_id = ?1 AND s.retry_ns <= ?2 AND "
@@ -123,7 +109,7 @@ std::optional<StoredMerge> SharedMerges::claim(std::uint64_t me) {
 
 void SharedMerges::defer(MapId map, std::int64_t retry_ns) {
   std::lock_guard lock(mutex_);
-  on_connection(db_, location_, [&](PgDb& db) {
+  on_pg_connection(db_, location_, [&](PgDb& db) {
     db.prepare("UPDATE shared_merges SET claimed_by = NULL, retry_ns = ?2 WHERE map_id = ?1")
         .bind_int64(1, static_cast<std::int64_t>(map))
         .bind_int64(2, retry_ns)
@@ -133,7 +119,7 @@ void SharedMerges::defer(MapId map, std::int64_t retry_ns) {
 
 void SharedMerges::unclaim(MapId map) {
   std::lock_guard lock(mutex_);
-  on_connection(db_, location_, [&](PgDb& db) {
+  on_pg_connection(db_, location_, [&](PgDb& db) {
     db.prepare("UPDATE shared_merges SET claimed_by = NULL WHERE map_id = ?1")
         .bind_int64(1, static_cast<std::int64_t>(map))
         .run();
@@ -142,7 +128,7 @@ void SharedMerges::unclaim(MapId map) {
 
 bool SharedMerges::put_off(MapId map) {
   std::lock_guard lock(mutex_);
-  return on_connection(db_, location_, [&](PgDb& db) {
+  return on_pg_connection(db_, location_, [&](PgDb& db) {
     PgStatement row = db.prepare("SELECT retry_ns FROM shared_merges WHERE map_id = ?1");
     row.bind_int64(1, static_cast<std::int64_t>(map));
     return row.step() && row.int64(0) > 0;
@@ -151,7 +137,7 @@ bool SharedMerges::put_off(MapId map) {
 
 std::optional<MapId> SharedMerges::waiting_elsewhere(std::uint64_t me, std::int64_t requested_before_ns) {
   std::lock_guard lock(mutex_);
-  return on_connection(db_, location_, [&](PgDb& db) -> std::optional<MapId> {
+  return on_pg_connection(db_, location_, [&](PgDb& db) -> std::optional<MapId> {
     PgStatement row =
         db.prepare(std::string("SELECT s.map_id FROM shared_merges s JOIN map_owners o ON o.map_id = s.map_id "
                                "WHERE o.replica_id <> ?1 AND o.replica_id IN (") +
