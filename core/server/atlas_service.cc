@@ -643,10 +643,6 @@ MergesReport AtlasService::merges() const {
   return out;
 }
 
-void AtlasService::wait_for_merges() {
-  if (merger_) merger_->wait_until_idle();
-}
-
 FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
   const auto live = session(id);
   FrameReply reply;

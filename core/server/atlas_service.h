@@ -175,8 +175,6 @@ class AtlasService {
   MapPointCloud map_points(MapId id) const;  // ServiceError 404
   // GET /v1/merges: the merging worker's queue and the merges done.
   MergesReport merges() const;
-  // Waits until the merging worker has nothing queued or running.
-  void wait_for_merges();
 
   LocalizeReply localize(const LocalizeRequest& request);
   // The image size a localisation with these settings takes (ServiceError for
