@@ -120,6 +120,32 @@ std::string log_text(const std::filesystem::path& log) {
   return std::string((std::istreambuf_iterator<char>(in)), {});
 }
 
+// Streams a clip's stereo frames as one session of `client`'s server and finishes it; returns its id.
+std::uint64_t stream_stereo_session(ServerClient& client, const std::filesystem::path& clip, const std::string& name) {
+  const std::uint64_t id = client.create_session("euroc/stereo", name);
+  for (const auto& f : test::stereo_frames(clip))
+    client.post_frame(id, f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                      cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+  client.finish_session(id);
+  return id;
+}
+
+// The map a session's last frame is in.
+std::uint64_t map_of_session(ServerClient& client, std::uint64_t session) {
+  return client.get_json("/v1/sessions/" + std::to_string(session))["map"].get<std::uint64_t>();
+}
+
+// The server's maps once it lists exactly one (waits up to 120 s; the last list otherwise).
+json maps_once_one(ServerClient& client) {
+  json maps;
+  for (const auto until = Clock::now() + std::chrono::seconds(120); Clock::now() < until;) {
+    maps = client.get_json("/v1/maps")["maps"];
+    if (maps.size() == 1) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return maps;
+}
+
 std::string tar_without_mav0() {
   std::string tar;
   TarWriter writer([&](const char* d, std::size_t n) { tar.append(d, n); });
@@ -404,17 +430,6 @@ TEST(ServerProcess, TwoReplicasMapTheirOwnMapsAndOneTakesOverWhenTheOtherDies) {
   const auto args = [&](const std::string& who) {
     return std::vector<std::string>{"--work-dir", files.path.string() + "." + who + ".work", "--lease-s", "1"};
   };
-  const auto stream = [](ServerClient& client, const std::filesystem::path& clip, const std::string& name) {
-    const std::uint64_t id = client.create_session("euroc/stereo", name);
-    for (const auto& f : test::stereo_frames(clip))
-      client.post_frame(id, f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
-                        cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
-    client.finish_session(id);
-    return id;
-  };
-  const auto map_of = [](ServerClient& client, std::uint64_t session) {
-    return client.get_json("/v1/sessions/" + std::to_string(session))["map"].get<std::uint64_t>();
-  };
   const auto keyframes_of = [](const json& maps, std::uint64_t map) {
     for (const auto& m : maps)
       if (m["id"].get<std::uint64_t>() == map) return m["keyframes"].get<int>();
@@ -435,10 +450,10 @@ TEST(ServerProcess, TwoReplicasMapTheirOwnMapsAndOneTakesOverWhenTheOtherDies) {
 
   // Each maps a session of its own, at the same time, into a map of its own.
   std::uint64_t session_a = 0, session_b = 0;
-  std::thread streaming_a([&] { session_a = stream(client_a, clip_a, "on a"); });
-  session_b = stream(client_b, clip_b, "on b");
+  std::thread streaming_a([&] { session_a = stream_stereo_session(client_a, clip_a, "on a"); });
+  session_b = stream_stereo_session(client_b, clip_b, "on b");
   streaming_a.join();
-  const std::uint64_t map_a = map_of(client_a, session_a), map_b = map_of(client_b, session_b);
+  const std::uint64_t map_a = map_of_session(client_a, session_a), map_b = map_of_session(client_b, session_b);
   EXPECT_EQ(map_a >> kReplicaMapIdShift, replica_a);  // ids from each replica's own range
   EXPECT_EQ(map_b >> kReplicaMapIdShift, replica_b);
   EXPECT_EQ(session_a >> kReplicaMapIdShift, replica_a);
@@ -485,8 +500,8 @@ TEST(ServerProcess, TwoReplicasMapTheirOwnMapsAndOneTakesOverWhenTheOtherDies) {
   // a's session too: listed by b, its trajectory read from the database.
   EXPECT_FALSE(client_b.trajectory_tum(session_a).empty());
   // b maps in a's map now: a session over a's place joins it.
-  const std::uint64_t again = stream(client_b, clip_a, "a's place, on b");
-  EXPECT_EQ(map_of(client_b, again), map_a);
+  const std::uint64_t again = stream_stereo_session(client_b, clip_a, "a's place, on b");
+  EXPECT_EQ(map_of_session(client_b, again), map_a);
   const int extended = keyframes_of(client_b.get_json("/v1/maps")["maps"], map_a);
   const int keyframes_b = keyframes_of(client_b.get_json("/v1/maps")["maps"], map_b);
   b.terminate();
@@ -603,13 +618,8 @@ void merge_work_of_a_replica_that_does_not_merge(bool kill_a) {
     if (!merging) a.push_back("--no-merging");
     return a;
   };
-  const auto stream = [&](ServerClient& client, const std::filesystem::path& clip, const std::string& name) {
-    const std::uint64_t id = client.create_session("euroc/stereo", name);
-    for (const auto& f : test::stereo_frames(clip))
-      client.post_frame(id, f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
-                        cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
-    client.finish_session(id);
-    return client.get_json("/v1/sessions/" + std::to_string(id))["map"].get<std::uint64_t>();
+  const auto stream = [](ServerClient& client, const std::filesystem::path& clip, const std::string& name) {
+    return map_of_session(client, stream_stereo_session(client, clip, name));
   };
   ServerProcess b(uri, log("b"), args(true));
   const std::string url_b = b.wait_until_listening();
@@ -624,12 +634,7 @@ void merge_work_of_a_replica_that_does_not_merge(bool kill_a) {
   ASSERT_NE(map_a, map_b);
   if (kill_a) a.kill();
 
-  json maps;
-  for (const auto until = Clock::now() + std::chrono::seconds(120); Clock::now() < until;) {
-    maps = client_b.get_json("/v1/maps")["maps"];
-    if (maps.size() == 1) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
+  const json maps = maps_once_one(client_b);
   ASSERT_EQ(maps.size(), 1u) << maps.dump() << "\n" << log_text(log("b"));
   EXPECT_EQ(maps[0]["id"].get<std::uint64_t>(), map_b) << maps.dump();  // a's map merged into b's
   EXPECT_NE(log_text(log("b")).find("map merging: map " + std::to_string(map_a) + "'s stored merge work taken"),
@@ -640,12 +645,7 @@ void merge_work_of_a_replica_that_does_not_merge(bool kill_a) {
     EXPECT_NE(log_text(log("b")).find("asks for map " + std::to_string(map_a) + ": its merge work waits"),
               std::string::npos);
     EXPECT_NE(text_a.find("handed map " + std::to_string(map_a) + " over to replica"), std::string::npos) << text_a;
-    json on_a;
-    for (const auto until = Clock::now() + std::chrono::seconds(120); Clock::now() < until;) {
-      on_a = client_a.get_json("/v1/maps")["maps"];
-      if (on_a.size() == 1) break;
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
+    const json on_a = maps_once_one(client_a);
     ASSERT_EQ(on_a.size(), 1u) << on_a.dump() << "\n" << text_a;  // a reads b's merged map
     EXPECT_EQ(on_a[0]["id"].get<std::uint64_t>(), map_b);
     a.kill();
@@ -677,13 +677,9 @@ TEST(ServerProcess, TwoLiveReplicasMappingOnePlaceEndInOneMap) {
     return std::filesystem::path(files.path.string() + "." + who + ".log");
   };
   const std::vector<std::string> args = {"--work-dir", files.path.string() + ".work", "--lease-s", "1"};
-  const auto stream = [&](ServerClient& client, const std::filesystem::path& clip, const std::string& name) {
-    const std::uint64_t id = client.create_session("euroc/stereo", name);
-    for (const auto& f : test::stereo_frames(clip))
-      client.post_frame(id, f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
-                        cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
-    client.finish_session(id);
-    return std::pair{id, client.get_json("/v1/sessions/" + std::to_string(id))["map"].get<std::uint64_t>()};
+  const auto stream = [](ServerClient& client, const std::filesystem::path& clip, const std::string& name) {
+    const std::uint64_t id = stream_stereo_session(client, clip, name);
+    return std::pair{id, map_of_session(client, id)};
   };
   ServerProcess a(uri, log("a"), args), b(uri, log("b"), args);
   const std::string url_a = a.wait_until_listening(), url_b = b.wait_until_listening();
@@ -700,23 +696,14 @@ TEST(ServerProcess, TwoLiveReplicasMappingOnePlaceEndInOneMap) {
   ASSERT_NE(map_a, map_b);
 
   // Both alive: one map in the end, as each of them sees it.
-  const auto one_map = [&](ServerClient& client) {
-    json maps;
-    for (const auto until = Clock::now() + std::chrono::seconds(120); Clock::now() < until;) {
-      maps = client.get_json("/v1/maps")["maps"];
-      if (maps.size() == 1) break;
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    return maps;
-  };
-  const json on_b = one_map(client_b);
+  const json on_b = maps_once_one(client_b);
   ASSERT_EQ(on_b.size(), 1u) << on_b.dump() << "\n" << log_text(log("b")) << "\n" << log_text(log("a"));
   EXPECT_EQ(on_b[0]["id"].get<std::uint64_t>(), map_a) << on_b.dump();  // b's map merged into a's map
   const std::string text_a = log_text(log("a")), text_b = log_text(log("b"));
   EXPECT_NE(text_b.find("asks for map " + std::to_string(map_a)), std::string::npos) << text_b;
   EXPECT_NE(text_a.find("handed map " + std::to_string(map_a) + " over to replica"), std::string::npos) << text_a;
   EXPECT_TRUE(client_b.get_json("/v1/maps/" + std::to_string(map_a))["writable"].get<bool>());
-  const json on_a = one_map(client_a);  // a reads what b made of it
+  const json on_a = maps_once_one(client_a);  // a reads what b made of it
   ASSERT_EQ(on_a.size(), 1u) << on_a.dump() << "\n" << log_text(log("a"));
   EXPECT_EQ(on_a[0]["id"].get<std::uint64_t>(), map_a);
   const json map_on_a = client_a.get_json("/v1/maps/" + std::to_string(map_a));
