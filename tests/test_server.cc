@@ -505,6 +505,27 @@ TEST(ServerEndToEnd, AClipStreamedThreeTimesIsOneSessionOfThreePasses) {
   EXPECT_THROW(stream_dataset(client, imu), Error);
 }
 
+// StreamOptions::stop ends a stream before its clip does: the frames sent so
+// far, and the session finished as at the clip's end.
+TEST(ServerEndToEnd, AStreamStoppedEarlyFinishesItsSession) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 2.0);
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath db("stopped");
+  AtlasServiceOptions options = test::server_options(db.path);
+  options.merge_maps = false;
+  test::TestServer server(options);
+  ServerClient client(server.url());
+  StreamOptions o = test::stream_options(clip);
+  std::size_t asked = 0;
+  o.stop = [&] { return ++asked > 10; };
+  const StreamReport report = stream_dataset(client, o);
+  EXPECT_EQ(asked, 11u);
+  EXPECT_EQ(report.frames, 10u);
+  EXPECT_EQ(report.trajectory.size(), 10u);
+  const auto status = client.get_json("/v1/sessions/" + std::to_string(report.session));
+  EXPECT_EQ(status.at("state"), "finished") << status.dump();
+}
+
 // A single camera streams into a server whose stored map (from a restart)
 // covers the place: it localises there, replies carry that map, and the map
 // is left as it was.

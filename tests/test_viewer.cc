@@ -99,7 +99,8 @@ TEST(Viewer, AHeadlessBrowserShowsTheStoredMapAndALiveSessionMoving) {
   const auto chromium = chromium_binary();
   if (!chromium) GTEST_SKIP() << "chromium is not installed (scripts/setup.sh installs it): the viewer is not tested";
   const auto stored_clip = test::simulated_clip("MH_01", 60.0, 6.0);
-  const auto live_clip = test::simulated_clip("MH_01", 62.0, 20.0);  // outlasts both looks on a loaded machine
+  // Longer than both looks take on a loaded machine; the stream stops once they are done.
+  const auto live_clip = test::simulated_clip("MH_01", 62.0, 40.0);
   test::ClipCleanup c1{stored_clip}, c2{live_clip};
   test::TempDbPath db("viewer");
   const fs::path profile = fs::temp_directory_path() / ("orbatlas_test_viewer_profile_" + std::to_string(::getpid()));
@@ -113,12 +114,13 @@ TEST(Viewer, AHeadlessBrowserShowsTheStoredMapAndALiveSessionMoving) {
   ASSERT_GT(stream_dataset(client, first).tracked, 100u);
 
   // A live session at the camera's rate while the browser looks.
-  std::atomic<bool> streamed{false};
+  std::atomic<bool> streamed{false}, looked{false};
   StreamReport live_report;
   std::thread live([&] {
     StreamOptions o = test::stream_options(live_clip);
     o.rate = 1.0;
     o.name = "live <walk>";  // shown escaped
+    o.stop = [&] { return looked.load(); };
     live_report = stream_dataset(client, o);
     streamed = true;
   });
@@ -135,6 +137,7 @@ TEST(Viewer, AHeadlessBrowserShowsTheStoredMapAndALiveSessionMoving) {
   const Capture a = capture(*chromium, url, "viewer_first.png", profile);
   std::this_thread::sleep_for(std::chrono::milliseconds(2500));
   const Capture b = capture(*chromium, url, "viewer_second.png", profile);
+  looked = true;
   live.join();
   std::error_code ec;
   fs::remove_all(profile, ec);
@@ -160,7 +163,7 @@ TEST(Viewer, AHeadlessBrowserShowsTheStoredMapAndALiveSessionMoving) {
   };
   const std::vector<double> pa = pose_of(a), pb = pose_of(b);
   ASSERT_EQ(pa.size(), 3u);
-  ASSERT_EQ(pb.size(), 3u);
+  ASSERT_EQ(pb.size(), 3u) << "the live session was not drawn at the second look";
   const double moved = std::hypot(pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]);
   cv::Mat diff;
   cv::absdiff(a.screenshot, b.screenshot, diff);

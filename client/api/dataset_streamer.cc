@@ -147,7 +147,9 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   }
   const auto start = Clock::now();
   std::optional<Clock::time_point> last_reply;  // of the frame before this one
-  while (auto pair = next_pair()) {
+  while (!(options.stop && options.stop())) {
+    auto pair = next_pair();
+    if (!pair) break;
     if (options.rate > 0) {
       const auto due = start + std::chrono::nanoseconds(
                                    static_cast<std::int64_t>(static_cast<double>(pair->t_ns - first_t) / options.rate));

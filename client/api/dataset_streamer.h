@@ -5,6 +5,7 @@
 // as the server answers), the session is finished (stored), and its final trajectory fetched and, with ground truth,
 // evaluated.
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -42,6 +43,10 @@ struct StreamOptions {
   double start_s = 0.0;
   std::optional<double> duration_s;
   bool show_progress = true;
+  // Asked before each frame: true ends the stream there, and the session is
+  // finished as at the clip's end (a client that stops early; a test that needs
+  // a live session only while it looks).
+  std::function<bool()> stop;
 
   // Throws Error naming the first value out of range.
   void check() const;
