@@ -64,6 +64,10 @@ nlohmann::json stream_json(const StreamReport& r) {
     j["imu_initialized_at_s"] = r.finish_status["slam"]["imu_initialized_at_s"];
     j["imu_bias"] = r.finish_status["slam"]["imu_bias"];
   }
+  if (r.finish_status.contains("slam") && r.finish_status["slam"].contains("mapping_wait_ms")) {
+    j["mapping_wait_ms"] = r.finish_status["slam"]["mapping_wait_ms"];
+    j["mapping_waits_cut"] = r.finish_status["slam"]["mapping_waits_cut"];
+  }
   if (r.ate_rmse_m) {
     j["ate_rmse_m"] = *r.ate_rmse_m;
     j["ate_align"] = r.ate_sim3 ? "sim3" : "se3";

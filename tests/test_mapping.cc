@@ -3,6 +3,7 @@
 // projection and bag-of-words search, poses of culled keyframes, the bounded queue.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <future>
 #include <random>
 #include <thread>
@@ -430,6 +431,41 @@ TEST(LocalMapping, AnErrorInOneKeyframeIsCountedAndMappingGoesOn) {
   }
 }
 
+// Tracking's wait for its last keyframe (Tracker::wait_for_mapping): a
+// keyframe counts as adjusted once its local BA and culling are done, before
+// the rest of its processing (here the listener holds it); one queued behind
+// another session's keyframe is not adjusted until it has been processed.
+TEST(LocalMapping, AKeyframeIsAdjustedBeforeItsProcessingEndsAndWaitsAreBounded) {
+  const Scene s = make_scene(200, 29);
+  Atlas atlas;
+  auto map = atlas.create_map();
+  LocalMapperOptions o;
+  o.run_culling = false;
+  LocalMapper mapper(atlas, s.cam(), o);
+  std::promise<void> entered, release;
+  std::shared_future<void> released = release.get_future().share();
+  bool first = true;
+  mapper.set_processed_listener([&](const std::shared_ptr<KeyFrame>&) {
+    if (!std::exchange(first, false)) return;
+    entered.set_value();
+    released.wait();
+  });
+  using std::chrono::milliseconds;
+  EXPECT_TRUE(mapper.wait_until_adjusted(1, milliseconds(0)));  // nothing handed in
+  std::vector<std::size_t> idx;
+  ASSERT_TRUE(mapper.insert(map->new_keyframe(keyframe_data(s, at(0.0, 0, 0), &idx)), 1));
+  ASSERT_TRUE(mapper.insert(map->new_keyframe(keyframe_data(s, at(0.05, 0, 0), &idx)), 2));
+  entered.get_future().wait();
+  EXPECT_TRUE(mapper.wait_until_adjusted(1, milliseconds(0)));  // adjusted, still in processing
+  EXPECT_FALSE(mapper.idle(1));
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_FALSE(mapper.wait_until_adjusted(2, milliseconds(50)));  // queued behind it: the wait is cut
+  EXPECT_GE(std::chrono::steady_clock::now() - start, milliseconds(50));
+  release.set_value();
+  EXPECT_TRUE(mapper.wait_until_adjusted(2, milliseconds(10000)));
+  mapper.finish();
+  EXPECT_EQ(mapper.stats().keyframes, 2u);
+}
 // Sessions sharing a mapper (sources): a keyframe of one in processing makes
 // the mapper busy for that session only, so another session still makes its
 // keyframes as it would alone (ORB-SLAM's AcceptKeyFrames, per session).

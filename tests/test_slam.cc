@@ -158,6 +158,44 @@ TEST(StereoSlam, TwoAtlasesInOneProcessRunSideBySide) {
   expect_counters_consistent(sb.stats());
 }
 
+// TrackerOptions::max_mapping_wait_ms: the frame after each keyframe waits for
+// local mapping to adjust it. A bound that is never reached: one wait per
+// keyframe but the last (the clip ends), none cut; off (the default): none.
+// MH_04's fast flight makes a keyframe every few frames.
+TEST(StereoSlam, TheFrameAfterAKeyframeWaitsForItsAdjustmentWhenAsked) {
+  const auto clip = test::simulated_clip("MH_04", 20.0, 3.0);
+  test::ClipCleanup cleanup{clip};
+  const auto frames = test::stereo_frames(clip);
+  const SlamSettings settings = read_settings(stereo_settings(), SensorType::kStereo);
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  for (const double wait_ms : {10000.0, 0.0}) {
+    StereoSlamOptions o;
+    o.tracker.max_mapping_wait_ms = wait_ms;
+    Atlas atlas;
+    StereoSlam slam(atlas, settings, vocabulary, o);
+    std::size_t tracked = 0;
+    bool last_made_keyframe = false;
+    for (const auto& f : frames) {
+      const TrackResult r = slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                                         cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+      tracked += r.tracked ? 1 : 0;
+      last_made_keyframe = r.keyframe;
+    }
+    slam.finish();
+    const SlamStats stats = slam.stats();
+    EXPECT_EQ(tracked, frames.size());
+    ASSERT_GT(stats.keyframes_made, 2u);
+    std::printf("wait bound %.0f ms: %zu keyframes, %zu waits (mean %.2f ms), %zu cut\n", wait_ms, stats.keyframes_made,
+                stats.mapping_wait_ms.count(), stats.mapping_wait_ms.mean(), stats.mapping_waits_cut);
+    if (wait_ms > 0.0) {
+      EXPECT_EQ(stats.mapping_wait_ms.count(), stats.keyframes_made - (last_made_keyframe ? 1 : 0));
+      EXPECT_EQ(stats.mapping_waits_cut, 0u);
+    } else {
+      EXPECT_EQ(stats.mapping_wait_ms.count(), 0u);
+    }
+  }
+}
+
 TEST(StereoSlam, BadFramesAreDataErrorsAndTheSessionGoesOn) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 1.0);
   test::ClipCleanup cleanup{clip};

@@ -68,14 +68,33 @@ LocalMapper::~LocalMapper() {
 }
 
 bool LocalMapper::insert(std::shared_ptr<KeyFrame> keyframe, std::uint64_t source) {
+  handed_in(source);
+  if (worker_.push(Item{std::move(keyframe), source})) return true;
   {
     std::lock_guard lock(pending_mutex_);
-    ++pending_[source];
+    if (--pending_[source] == 0) pending_.erase(source);
   }
-  if (worker_.push(Item{std::move(keyframe), source})) return true;
-  std::lock_guard lock(pending_mutex_);
-  if (--pending_[source] == 0) pending_.erase(source);
+  adjusted(source);
   return false;
+}
+
+void LocalMapper::handed_in(std::uint64_t source) {
+  std::lock_guard lock(pending_mutex_);
+  ++pending_[source];
+  ++unadjusted_[source];
+}
+
+void LocalMapper::adjusted(std::uint64_t source) {
+  {
+    std::lock_guard lock(pending_mutex_);
+    if (--unadjusted_[source] == 0) unadjusted_.erase(source);
+  }
+  adjusted_cv_.notify_all();
+}
+
+bool LocalMapper::wait_until_adjusted(std::uint64_t source, std::chrono::milliseconds at_most) const {
+  std::unique_lock lock(pending_mutex_);
+  return adjusted_cv_.wait_for(lock, at_most, [&] { return !unadjusted_.contains(source); });
 }
 
 bool LocalMapper::idle(std::uint64_t source) const {
@@ -115,12 +134,14 @@ void LocalMapper::run_one(Item& item) {
     LocalMapper& mapper;
     std::uint64_t source;
     ~Done() {
+      if (!mapper.adjusted_) mapper.adjusted(source);  // it ended early (a bad keyframe, an error)
       std::lock_guard lock(mapper.pending_mutex_);
       if (--mapper.pending_[source] == 0) mapper.pending_.erase(source);
     }
   } done{*this, item.source};
   processing_source_.store(item.source);
   abort_ba_.store(false);
+  adjusted_ = false;
   process(item.keyframe, item.source);
   if (processed_listener_ && !item.keyframe->is_bad()) processed_listener_(item.keyframe);
 }
@@ -178,6 +199,8 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
         for (const KeyframeId id : culling.culled) index_->erase(id);
     }
   }
+  adjusted(source);  // tracking may go on (Tracker::wait_for_mapping)
+  adjusted_ = true;
   ++sequence_;
   if (options_.inertial.enabled) {
     const bool initialised = map->inertial_state().has_value();

@@ -11,6 +11,8 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <chrono>
+#include <condition_variable>
 #include <mutex>
 #include <vector>
 
@@ -121,6 +123,10 @@ class LocalMapper final {
   bool insert(std::shared_ptr<KeyFrame> keyframe, std::uint64_t source = 0);
   // Stops the running local BA early when it is one of `source`'s keyframes.
   void interrupt_optimization(std::uint64_t source = 0);
+  // Waits, at most `at_most`, until every keyframe of `source` handed in has
+  // been adjusted (its local BA and culling done, or skipped; the inertial
+  // work after them is not waited for). True when they have.
+  bool wait_until_adjusted(std::uint64_t source, std::chrono::milliseconds at_most) const;
   bool accepting() const { return !worker_.pause_requested(); }
 
   // Called on the mapper thread with every keyframe it has processed (loop
@@ -173,9 +179,14 @@ class LocalMapper final {
   const LocalMapperOptions options_;
 
   std::atomic<bool> abort_ba_{false};
-  // Keyframes handed in and not yet processed, per source (leaf lock).
+  // Keyframes handed in and not yet processed, and those not yet adjusted,
+  // per source (leaf lock).
   mutable std::mutex pending_mutex_;
+  mutable std::condition_variable adjusted_cv_;
   std::map<std::uint64_t, std::size_t> pending_;
+  std::map<std::uint64_t, std::size_t> unadjusted_;
+  void handed_in(std::uint64_t source);
+  void adjusted(std::uint64_t source);  // once per keyframe handed in
   std::atomic<std::uint64_t> processing_source_{0};
   std::function<void(const std::shared_ptr<KeyFrame>&)> processed_listener_;
 
@@ -185,6 +196,7 @@ class LocalMapper final {
   std::map<MapId, KeyframeId> origins_;
   std::vector<RecentPoint> recent_;
   std::size_t sequence_ = 0;
+  bool adjusted_ = false;  // the keyframe in processing has been counted adjusted
 
   const std::shared_ptr<LocalMapperStatsBoard> board_;
 

@@ -149,8 +149,9 @@ bool LiveSession::finish(const std::string& ended_by) {
     slam_->finish();
     worker_errors_.store(slam_->worker_errors());
     const SlamStats stats = slam_->stats();
-    final_counts_ = SessionStatus::SlamCounts{stats.relocalizations, stats.loop.loops.size(),
-                                              stats.imu_initialized_at_s, stats.imu_bias};
+    final_counts_ =
+        SessionStatus::SlamCounts{stats.relocalizations, stats.loop.loops.size(), stats.imu_initialized_at_s,
+                                  stats.imu_bias,        stats.mapping_wait_ms,   stats.mapping_waits_cut};
     final_anchors_ = slam_->anchors();
     slam_.reset();
     state_ = SessionState::kFinished;

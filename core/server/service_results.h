@@ -53,6 +53,10 @@ struct SessionStatus {
     // its first frame), and the biases found.
     std::optional<double> imu_initialized_at_s;
     ImuBias imu_bias;
+    // The frames after its keyframes waiting for local mapping to adjust them
+    // (TrackerOptions::max_mapping_wait_ms), and the waits cut at that bound.
+    SampleSummary mapping_wait_ms;
+    std::size_t mapping_waits_cut = 0;
   };
   std::optional<SlamCounts> slam;  // once finished
 };

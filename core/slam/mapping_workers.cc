@@ -61,6 +61,11 @@ class MappingWorkers::Sink final : public KeyframeSink {
   void interrupt_optimization(MapId map) override {
     if (const auto mapper = workers_.mapper_for(map, false)) mapper->interrupt_optimization(stream_);
   }
+  bool wait_until_adjusted(MapId map, std::chrono::milliseconds at_most) override {
+    if (!accepting(map)) return false;  // paused for a loop correction or a merge: do not wait for it
+    const auto mapper = workers_.mapper_for(map, false);
+    return !mapper || mapper->wait_until_adjusted(stream_, at_most);
+  }
 
  private:
   MappingWorkers& workers_;

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <sstream>
 
 #include "core/common/error.h"
@@ -34,6 +35,9 @@ const std::vector<Binding>& bindings() {
                       "a keyframe at least this often (default: the frame rate)", tracker.max_frames_between_keyframes),
       ORBATLAS_TUNING("Tracker.RecentlyLostSeconds", 0, 3600, false,
                       "relocalisation is tried this long before a lost map is given up", tracker.recently_lost_s),
+      ORBATLAS_TUNING("Tracker.MaxMappingWaitMs", 0, 10000, false,
+                      "the frame after a keyframe waits this long at most for local mapping to adjust it (0: never)",
+                      tracker.max_mapping_wait_ms),
       ORBATLAS_TUNING("Tracker.MaxLocalKeyframes", 5, 1000, true, "keyframes of the local map a frame is tracked in",
                       tracker.max_local_keyframes),
       ORBATLAS_TUNING("Tracker.MinKeyframesToKeepMap", 0, 1000, true,
@@ -53,6 +57,16 @@ const std::vector<Binding>& bindings() {
                       mapper.fusion_radius),
       ORBATLAS_TUNING("LocalMapping.BundleAdjustment", 0, 1, true, "1: local bundle adjustment after each keyframe",
                       mapper.run_bundle_adjustment),
+      Binding{SlamTuningKey{"LocalMapping.BundleAdjustmentCovisibles", 0, 1000, true,
+                            "covisible keyframes adjusted with each new one, the best first (0: all, as ORB-SLAM)"},
+              [](const StereoSlamOptions& o) {
+                const std::size_t n = o.mapper.bundle_adjustment.max_covisibles;
+                return n == std::numeric_limits<std::size_t>::max() ? 0.0 : static_cast<double>(n);
+              },
+              [](StereoSlamOptions& o, double v) {
+                o.mapper.bundle_adjustment.max_covisibles =
+                    v == 0.0 ? std::numeric_limits<std::size_t>::max() : static_cast<std::size_t>(v);
+              }},
       ORBATLAS_TUNING("LocalMapping.Culling", 0, 1, true, "1: redundant keyframes are culled", mapper.run_culling),
       ORBATLAS_TUNING("LocalMapping.InertialWindowKeyframes", 2, 100, true,
                       "visual-inertial local BA: keyframes of the inertial chain with velocity and biases",

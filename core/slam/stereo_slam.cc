@@ -189,6 +189,8 @@ StereoSlam::~StereoSlam() {
 TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
   ORBATLAS_CHECK(!finished_, "this SLAM session has finished; it takes no more frames");
   ORBATLAS_DATA_CHECK(monocular_ || !right.empty(), "a stereo session takes a stereo pair: the right image is missing");
+  // Before this frame's time counts: its session's last keyframe adjusted.
+  if (const auto waited = tracker_->wait_for_mapping()) mapping_wait_ms_.add(*waited);
   const auto start = std::chrono::steady_clock::now();
   frontend_->set_map_starting(tracker_->state() == TrackingState::kNotInitialized ||
                               tracker_->state() == TrackingState::kLost);
@@ -260,6 +262,8 @@ SlamStats StereoSlam::stats() const {
   s.lost = s.frames - s.tracked - s.frames_tracked_by_imu;
   s.tracking_errors = frames_.errors();
   s.slot_races = tracker_->slot_races();
+  s.mapping_waits_cut = tracker_->mapping_waits_cut();
+  s.mapping_wait_ms = mapping_wait_ms_;
   if (monocular_) {
     s.monocular = true;
     s.monocular_attempts = tracker_->monocular_attempts();

@@ -129,6 +129,7 @@ class StereoSlam final : public SessionSlam {
   double final_ba_s_ = 0.0;
   TrackedFrames frames_;
   std::size_t keyframes_made_ = 0;
+  SampleSummary mapping_wait_ms_;  // Tracker::wait_for_mapping, each wait
 };
 
 }  // namespace orbatlas

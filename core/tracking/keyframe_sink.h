@@ -3,6 +3,7 @@
 // (one mapper per map being mapped, fed by every session tracking in it). An
 // interface so that tracking does not depend on the mapping library. The
 // questions name the map the tracker is in.
+#include <chrono>
 #include <cstddef>
 #include <memory>
 
@@ -28,6 +29,10 @@ class KeyframeSink {
   // Asks the map's running local bundle adjustment to finish early when it is
   // of this session's keyframe (the session's next keyframe is waiting).
   virtual void interrupt_optimization(MapId map) = 0;
+  // Waits, at most `at_most`, until the map's mapping has adjusted every
+  // keyframe this session handed it (its local BA done, or skipped). True when
+  // it has; false at once while the map's mapping is paused.
+  virtual bool wait_until_adjusted(MapId map, std::chrono::milliseconds at_most) = 0;
 };
 
 // The sink of a localisation, which never makes a keyframe (one would be a bug).
@@ -38,6 +43,7 @@ class NoKeyframes final : public KeyframeSink {
   bool accepting(MapId) const override { return false; }
   void insert(std::shared_ptr<KeyFrame>) override { throw Error("a localisation session made a keyframe"); }
   void interrupt_optimization(MapId) override {}
+  bool wait_until_adjusted(MapId, std::chrono::milliseconds) override { return true; }
 };
 
 }  // namespace orbatlas

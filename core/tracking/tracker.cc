@@ -1,8 +1,10 @@
 #include "core/tracking/tracker.h"
 
 #include <algorithm>
+#include <chrono>
 #include <unordered_map>
 #include <unordered_set>
+#include <utility>
 
 #include "core/common/error.h"
 #include "core/map/map_point_update.h"
@@ -44,6 +46,8 @@ void TrackerOptions::check() const {
   ORBATLAS_CHECK(
       new_map_after_failed_relocalizations >= 0,
       "tracker: new_map_after_failed_relocalizations must be >= 0, not " << new_map_after_failed_relocalizations);
+  ORBATLAS_CHECK(std::isfinite(max_mapping_wait_ms) && max_mapping_wait_ms >= 0.0 && max_mapping_wait_ms <= 10000.0,
+                 "tracker: max_mapping_wait_ms must be in [0, 10000], not " << max_mapping_wait_ms);
   ORBATLAS_CHECK(max_local_keyframes >= 0, "tracker: max_local_keyframes must be >= 0, not " << max_local_keyframes);
   ORBATLAS_CHECK(min_keyframes_to_keep_map >= 0,
                  "tracker: min_keyframes_to_keep_map must be >= 0, not " << min_keyframes_to_keep_map);
@@ -569,7 +573,19 @@ void Tracker::keyframe_made(std::shared_ptr<KeyFrame> kf) {
   reference_ = kf;
   last_keyframe_ = kf;
   last_keyframe_index_ = frame_index_;
+  awaiting_adjustment_ = kf->map_id();
   sink_.insert(std::move(kf));
+}
+
+std::optional<double> Tracker::wait_for_mapping() {
+  const std::optional<MapId> map = std::exchange(awaiting_adjustment_, std::nullopt);
+  if (!map || options_.max_mapping_wait_ms <= 0.0) return std::nullopt;
+  const auto start = std::chrono::steady_clock::now();
+  const auto at_most = std::chrono::duration_cast<std::chrono::milliseconds>(
+      std::chrono::duration<double, std::milli>(options_.max_mapping_wait_ms));
+  ++mapping_waits_;
+  if (!sink_.wait_until_adjusted(*map, at_most)) ++mapping_waits_cut_;
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
 void Tracker::create_keyframe(Frame& frame, bool all_stereo_points) {

@@ -43,6 +43,13 @@ struct TrackerOptions {
   // recognised): tracking resumes at once instead of waiting to come back to
   // a mapped place. 0: only recently_lost_s counts.
   int new_map_after_failed_relocalizations = 0;
+  // Before the frame after a keyframe is tracked, local mapping is given up to
+  // this long to adjust that keyframe (its local BA; Tracker::wait_for_mapping).
+  // A wait that is never cut makes a session's map independent of the load on
+  // the machine, as --synchronous does; the price is latency whenever a local
+  // BA outlasts a frame interval (docs/mapping.md, "Tracking's wait for its
+  // keyframe"). 0 (the default): tracking never waits, as ORB-SLAM.
+  double max_mapping_wait_ms = 0.0;
   int max_local_keyframes = 80;
   int min_keyframes_to_keep_map = 10;  // a map lost with fewer keyframes goes straight to LOST
   // Localisation on stored maps: no keyframe and no map is ever made; the first
@@ -85,6 +92,13 @@ class Tracker {
 
   // Tracks one frame (timestamps strictly increasing; throws Error otherwise).
   TrackResult track(Frame frame);
+  // Called before a frame is made and tracked: when the last frame made a
+  // keyframe, waits (at most max_mapping_wait_ms) until local mapping has
+  // adjusted it, so this frame tracks in the adjusted map. Returns the time
+  // waited [ms]; none when there was nothing to wait for (or waits are off).
+  std::optional<double> wait_for_mapping();
+  std::size_t mapping_waits() const { return mapping_waits_; }
+  std::size_t mapping_waits_cut() const { return mapping_waits_cut_; }  // ended at max_mapping_wait_ms
 
   TrackingState state() const { return state_; }
   MapId map_id() const { return map_ ? map_->id() : kInvalidMapId; }  // the map it is in (tracking thread)
@@ -183,6 +197,8 @@ class Tracker {
   TimestampNs lost_since_ns_ = 0;
   int failed_relocalizations_ = 0;  // in a row, while recently lost
   std::size_t maps_started_ = 0, relocalizations_ = 0, maps_followed_ = 0, slot_races_ = 0, monocular_starts_ = 0;
+  std::optional<MapId> awaiting_adjustment_;  // the map of the last keyframe made, until wait_for_mapping()
+  std::size_t mapping_waits_ = 0, mapping_waits_cut_ = 0;
   std::optional<FrameAnchor> last_anchor_;
 };
 

@@ -27,7 +27,10 @@ nlohmann::json to_json(const SessionStatus& s) {
   if (s.last_frame) j["last_frame"] = {{"t_ns", s.last_frame->t_ns}, {"tracked", s.last_frame->tracked}};
   if (!s.tracking_ms.empty()) j["tracking_ms"] = to_json_summary(s.tracking_ms);
   if (s.slam) {
-    j["slam"] = {{"relocalizations", s.slam->relocalizations}, {"loops", s.slam->loops}};
+    j["slam"] = {{"relocalizations", s.slam->relocalizations},
+                 {"loops", s.slam->loops},
+                 {"mapping_wait_ms", to_json_summary(s.slam->mapping_wait_ms)},
+                 {"mapping_waits_cut", s.slam->mapping_waits_cut}};
     if (s.slam->imu_initialized_at_s) {
       const auto v = [](const Eigen::Vector3d& x) { return nlohmann::json::array({x.x(), x.y(), x.z()}); };
       j["slam"]["imu_initialized_at_s"] = *s.slam->imu_initialized_at_s;
