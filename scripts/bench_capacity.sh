@@ -19,6 +19,7 @@
 #   PHASES=spread NS=4 scripts/bench_capacity.sh   # the cameras' frames out of step (see below)
 #   RATE=0.25 NS=4 scripts/bench_capacity.sh       # slower than the sensor (no core ever busy)
 #   SERVER_CPUS=1 CLIENT_CPUS=0 NS=1 scripts/bench_capacity.sh  # the server on one core (taskset -c)
+#   MAPPING_WAIT_MS=250 NS="1 4" scripts/bench_capacity.sh  # tracking waits for its keyframe's local BA (docs/mapping.md)
 # PHASES: 'together' (default) starts every client at one instant, so the N
 # cameras' frames arrive at the same moments (the worst case: N frames at once,
 # then nothing for 50 ms); 'spread' starts client i of N i/N of a frame interval
@@ -48,6 +49,16 @@ CLIENT_TASKSET=(); [ -n "${CLIENT_CPUS:-}" ] && CLIENT_TASKSET=(taskset -c "$CLI
 [ "$PHASES" = together ] || [ "$PHASES" = spread ] || { echo "bench_capacity: PHASES is together or spread" >&2; exit 1; }
 PRELOAD_S="${PRELOAD_S:-40}"  # seconds the clients get to read and decode their clips before they begin
 SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05 MH_01)
+# MAPPING_WAIT_MS: the server's sessions get Orbatlas.Tracker.MaxMappingWaitMs
+# through a copy of the shipped configs (--config-dir); empty: the shipped ones.
+CONFIG_FLAGS=()
+if [ -n "${MAPPING_WAIT_MS:-}" ]; then
+  mkdir -p "$OUT"
+  rm -rf "$OUT/config"
+  cp -r "$ROOT/config" "$OUT/config"
+  echo "Orbatlas.Tracker.MaxMappingWaitMs: $MAPPING_WAIT_MS" >> "$OUT/config/euroc/stereo.yaml"
+  CONFIG_FLAGS=(--config-dir "$OUT/config")
+fi
 
 dataset() { bench_dataset "$1" "$LOOK"; }  # the rendered full sequence
 
@@ -73,7 +84,7 @@ run_sessions() {
   mkdir -p "$dir"
   # shellcheck disable=SC2086  # SERVER_FLAGS: several flags, split on spaces
   "${SERVER_TASKSET[@]}" "$SERVER_BIN" --db "$dir/atlas.db" --listen 127.0.0.1:0 --port-file "$dir/port" \
-      --background-nice "$BACKGROUND_NICE" ${SERVER_FLAGS:-} 2>"$dir/server.log" &
+      --background-nice "$BACKGROUND_NICE" "${CONFIG_FLAGS[@]}" ${SERVER_FLAGS:-} 2>"$dir/server.log" &
   SERVER_PID=$!
   for _ in $(seq 1 300); do [ -s "$dir/port" ] && break; sleep 0.1; done
   [ -s "$dir/port" ] || { cat "$dir/server.log" >&2; echo "bench_capacity: the server did not start" >&2; exit 1; }
@@ -150,4 +161,9 @@ for n in ns:
                     for r, s in zip(runs, seqs))
     print(f"{n:>2} {sent:>7} {late:>6} {100.0 * late / sent:>5.2f}% {skipped:>7} {100.0 * skipped / sent:>5.2f}% "
           f"{p50:>10.1f}/{p95:<8.1f} {cores:>6.2f} {cores / n:>13.2f} {rss:>13.0f} {rss / n:>11.0f}  {ates}")
+    waited = [r for r in runs if r.get("mapping_wait_ms", {}).get("count", 0) > 0]
+    if waited:  # MAPPING_WAIT_MS: each session's waits for its keyframes' local BA
+        print("    mapping waits p50/p95/max [ms], cut: " + "; ".join(
+            f"{r['mapping_wait_ms']['p50']:.0f}/{r['mapping_wait_ms']['p95']:.0f}/{r['mapping_wait_ms']['max']:.0f}, "
+            f"{r['mapping_waits_cut']}" for r in waited))
 PY
