@@ -431,6 +431,22 @@ TEST(LocalMapping, AnErrorInOneKeyframeIsCountedAndMappingGoesOn) {
   }
 }
 
+// The first keyframe a mapper processes stays in processing (in its processed
+// listener, after its local BA and culling) until `release` is set; `entered`
+// is set once it is there. Declared before the mapper, which calls it.
+struct FirstKeyframeHold {
+  std::promise<void> entered, release;
+  std::shared_future<void> released = release.get_future().share();
+  bool first = true;
+  void attach(LocalMapper& mapper) {
+    mapper.set_processed_listener([this](const std::shared_ptr<KeyFrame>&) {
+      if (!std::exchange(first, false)) return;
+      entered.set_value();
+      released.wait();
+    });
+  }
+};
+
 // Tracking's wait for its last keyframe (Tracker::wait_for_mapping): a
 // keyframe counts as adjusted once its local BA and culling are done, before
 // the rest of its processing (here the listener holds it); one queued behind
@@ -441,31 +457,26 @@ TEST(LocalMapping, AKeyframeIsAdjustedBeforeItsProcessingEndsAndWaitsAreBounded)
   auto map = atlas.create_map();
   LocalMapperOptions o;
   o.run_culling = false;
+  FirstKeyframeHold hold;
   LocalMapper mapper(atlas, s.cam(), o);
-  std::promise<void> entered, release;
-  std::shared_future<void> released = release.get_future().share();
-  bool first = true;
-  mapper.set_processed_listener([&](const std::shared_ptr<KeyFrame>&) {
-    if (!std::exchange(first, false)) return;
-    entered.set_value();
-    released.wait();
-  });
+  hold.attach(mapper);
   using std::chrono::milliseconds;
   EXPECT_TRUE(mapper.wait_until_adjusted(1, milliseconds(0)));  // nothing handed in
   std::vector<std::size_t> idx;
   ASSERT_TRUE(mapper.insert(map->new_keyframe(keyframe_data(s, at(0.0, 0, 0), &idx)), 1));
   ASSERT_TRUE(mapper.insert(map->new_keyframe(keyframe_data(s, at(0.05, 0, 0), &idx)), 2));
-  entered.get_future().wait();
+  hold.entered.get_future().wait();
   EXPECT_TRUE(mapper.wait_until_adjusted(1, milliseconds(0)));  // adjusted, still in processing
   EXPECT_FALSE(mapper.idle(1));
   const auto start = std::chrono::steady_clock::now();
   EXPECT_FALSE(mapper.wait_until_adjusted(2, milliseconds(50)));  // queued behind it: the wait is cut
   EXPECT_GE(std::chrono::steady_clock::now() - start, milliseconds(50));
-  release.set_value();
+  hold.release.set_value();
   EXPECT_TRUE(mapper.wait_until_adjusted(2, milliseconds(10000)));
   mapper.finish();
   EXPECT_EQ(mapper.stats().keyframes, 2u);
 }
+
 // Sessions sharing a mapper (sources): a keyframe of one in processing makes
 // the mapper busy for that session only, so another session still makes its
 // keyframes as it would alone (ORB-SLAM's AcceptKeyFrames, per session).
@@ -476,26 +487,20 @@ TEST(LocalMapping, IdleIsPerSourceWhenSessionsShareAMapper) {
   LocalMapperOptions o;
   o.run_bundle_adjustment = false;
   o.run_culling = false;
+  FirstKeyframeHold hold;
   LocalMapper mapper(atlas, s.cam(), o);
-  std::promise<void> entered, release;
-  std::shared_future<void> released = release.get_future().share();
-  bool first = true;
-  mapper.set_processed_listener([&](const std::shared_ptr<KeyFrame>&) {
-    if (!std::exchange(first, false)) return;
-    entered.set_value();
-    released.wait();  // the first keyframe stays in processing until released
-  });
+  hold.attach(mapper);
   std::vector<std::size_t> idx;
   EXPECT_TRUE(mapper.idle(1));
   EXPECT_TRUE(mapper.insert(map->new_keyframe(keyframe_data(s, at(0.0, 0, 0), &idx)), 1));
-  entered.get_future().wait();
+  hold.entered.get_future().wait();
   EXPECT_FALSE(mapper.idle());   // the mapper is working
   EXPECT_FALSE(mapper.idle(1));  // on source 1's keyframe
   EXPECT_TRUE(mapper.idle(2));   // source 2 has nothing pending
   EXPECT_TRUE(mapper.insert(map->new_keyframe(keyframe_data(s, at(0.05, 0, 0), &idx)), 2));
   EXPECT_FALSE(mapper.idle(2));  // queued behind source 1's
   EXPECT_EQ(mapper.queued(), 1u);
-  release.set_value();
+  hold.release.set_value();
   mapper.wait_until_idle();
   EXPECT_TRUE(mapper.idle(1));
   EXPECT_TRUE(mapper.idle(2));
