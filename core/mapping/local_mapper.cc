@@ -70,11 +70,8 @@ LocalMapper::~LocalMapper() {
 bool LocalMapper::insert(std::shared_ptr<KeyFrame> keyframe, std::uint64_t source) {
   handed_in(source);
   if (worker_.push(Item{std::move(keyframe), source})) return true;
-  {
-    std::lock_guard lock(pending_mutex_);
-    if (--pending_[source] == 0) pending_.erase(source);
-  }
   adjusted(source);
+  processed(source);
   return false;
 }
 
@@ -90,6 +87,11 @@ void LocalMapper::adjusted(std::uint64_t source) {
     if (--unadjusted_[source] == 0) unadjusted_.erase(source);
   }
   adjusted_cv_.notify_all();
+}
+
+void LocalMapper::processed(std::uint64_t source) {
+  std::lock_guard lock(pending_mutex_);
+  if (--pending_[source] == 0) pending_.erase(source);
 }
 
 bool LocalMapper::wait_until_adjusted(std::uint64_t source, std::chrono::milliseconds at_most) const {
@@ -134,14 +136,13 @@ void LocalMapper::run_one(Item& item) {
     LocalMapper& mapper;
     std::uint64_t source;
     ~Done() {
-      if (!mapper.adjusted_) mapper.adjusted(source);  // it ended early (a bad keyframe, an error)
-      std::lock_guard lock(mapper.pending_mutex_);
-      if (--mapper.pending_[source] == 0) mapper.pending_.erase(source);
+      if (!mapper.counted_adjusted_) mapper.adjusted(source);  // it ended early (a bad keyframe, an error)
+      mapper.processed(source);
     }
   } done{*this, item.source};
   processing_source_.store(item.source);
   abort_ba_.store(false);
-  adjusted_ = false;
+  counted_adjusted_ = false;
   process(item.keyframe, item.source);
   if (processed_listener_ && !item.keyframe->is_bad()) processed_listener_(item.keyframe);
 }
@@ -200,7 +201,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
     }
   }
   adjusted(source);  // tracking may go on (Tracker::wait_for_mapping)
-  adjusted_ = true;
+  counted_adjusted_ = true;
   ++sequence_;
   if (options_.inertial.enabled) {
     const bool initialised = map->inertial_state().has_value();

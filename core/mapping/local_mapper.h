@@ -7,12 +7,12 @@
 // covisible keyframes, fuse duplicates with the neighbours, run local bundle
 // adjustment, and cull redundant keyframes. See docs/mapping.md.
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <map>
 #include <memory>
-#include <chrono>
-#include <condition_variable>
 #include <mutex>
 #include <vector>
 
@@ -186,7 +186,8 @@ class LocalMapper final {
   std::map<std::uint64_t, std::size_t> pending_;
   std::map<std::uint64_t, std::size_t> unadjusted_;
   void handed_in(std::uint64_t source);
-  void adjusted(std::uint64_t source);  // once per keyframe handed in
+  void adjusted(std::uint64_t source);   // once per keyframe handed in
+  void processed(std::uint64_t source);  // once per keyframe handed in, after adjusted()
   std::atomic<std::uint64_t> processing_source_{0};
   std::function<void(const std::shared_ptr<KeyFrame>&)> processed_listener_;
 
@@ -196,7 +197,7 @@ class LocalMapper final {
   std::map<MapId, KeyframeId> origins_;
   std::vector<RecentPoint> recent_;
   std::size_t sequence_ = 0;
-  bool adjusted_ = false;  // the keyframe in processing has been counted adjusted
+  bool counted_adjusted_ = false;  // the keyframe in processing has been counted adjusted
 
   const std::shared_ptr<LocalMapperStatsBoard> board_;
 

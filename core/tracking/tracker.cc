@@ -583,7 +583,6 @@ std::optional<double> Tracker::wait_for_mapping() {
   const auto start = std::chrono::steady_clock::now();
   const auto at_most = std::chrono::duration_cast<std::chrono::milliseconds>(
       std::chrono::duration<double, std::milli>(options_.max_mapping_wait_ms));
-  ++mapping_waits_;
   if (!sink_.wait_until_adjusted(*map, at_most)) ++mapping_waits_cut_;
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }

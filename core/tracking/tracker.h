@@ -97,7 +97,6 @@ class Tracker {
   // adjusted it, so this frame tracks in the adjusted map. Returns the time
   // waited [ms]; none when there was nothing to wait for (or waits are off).
   std::optional<double> wait_for_mapping();
-  std::size_t mapping_waits() const { return mapping_waits_; }
   std::size_t mapping_waits_cut() const { return mapping_waits_cut_; }  // ended at max_mapping_wait_ms
 
   TrackingState state() const { return state_; }
@@ -198,7 +197,7 @@ class Tracker {
   int failed_relocalizations_ = 0;  // in a row, while recently lost
   std::size_t maps_started_ = 0, relocalizations_ = 0, maps_followed_ = 0, slot_races_ = 0, monocular_starts_ = 0;
   std::optional<MapId> awaiting_adjustment_;  // the map of the last keyframe made, until wait_for_mapping()
-  std::size_t mapping_waits_ = 0, mapping_waits_cut_ = 0;
+  std::size_t mapping_waits_cut_ = 0;
   std::optional<FrameAnchor> last_anchor_;
 };
 
