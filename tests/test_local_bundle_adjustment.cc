@@ -231,21 +231,54 @@ TEST(LocalBundleAdjustment, StopFlagInterrupts) {
   EXPECT_LT(translation_distance(w->keyframes.back()->T_w_b(), last), 1e-12);
 }
 
+// Both solvers of the local BA (orbatlas' own Levenberg-Marquardt and Ceres)
+// from the same perturbed window with bad observations, stereo and monocular
+// (bf 0: two-row residuals): the same algorithm, so the same iterations,
+// observations erased and end point (to rounding).
 // Times are printed, not asserted; the timed runs must still optimise the whole window.
-TEST(LocalBundleAdjustment, Timing) {
-  for (const std::size_t window : {10, 20}) {
-    auto w = make_world(50, {.keyframes = 40, .points = 4000, .spacing = 0.5});
-    perturb(*w, w->keyframes.size() - window);  // the window; the border stays exact
-    LocalBundleAdjustmentOptions o;
-    o.max_covisibles = window - 1;
-    const LocalBundleAdjustmentStats s = local_bundle_adjustment(*w->map, w->keyframes.back(), *w->camera, w->bf, o);
+TEST(LocalBundleAdjustment, TheOwnSolverEndsWhereCeresEndsAndTimesAreReported) {
+  struct Case {
+    std::size_t window;
+    bool stereo;
+  };
+  for (const auto& [window, stereo] : {Case{10, true}, Case{20, true}, Case{10, false}}) {
+    std::map<bool, std::unique_ptr<World>> worlds;
+    std::map<bool, LocalBundleAdjustmentStats> stats;
+    for (const bool own : {true, false}) {
+      auto& w = worlds[own] = make_world(50, {.keyframes = 40, .points = 4000, .spacing = 0.5});
+      perturb(*w, w->keyframes.size() - window);  // the window; the border stays exact
+      LocalBundleAdjustmentOptions o;
+      o.max_covisibles = window - 1;
+      o.own_solver = own;
+      const LocalBundleAdjustmentStats s = stats[own] =
+          local_bundle_adjustment(*w->map, w->keyframes.back(), *w->camera, stereo ? w->bf : 0.0, o);
+      std::printf(
+          "[lba timing] %s, %s: %zu window + %zu fixed keyframes, %zu points, %zu observations (%zu removed): "
+          "%d iterations, %.1f ms\n",
+          stereo ? "stereo" : "monocular", own ? "own solver" : "Ceres", s.window_keyframes, s.fixed_keyframes, s.points, s.observations,
+          s.observations_removed, s.iterations, s.time_ms);
+      EXPECT_EQ(s.window_keyframes, window);
+      EXPECT_GT(s.iterations, 0);
+    }
+    EXPECT_EQ(stats[true].observations_removed, stats[false].observations_removed);
+    EXPECT_NEAR(stats[true].iterations, stats[false].iterations, 1);
+    double pose_gap = 0.0, point_gap = 0.0, pose_error = 0.0;
+    const World& own = *worlds[true];
+    const World& ceres = *worlds[false];
+    for (std::size_t i = 0; i < own.keyframes.size(); ++i) {
+      pose_gap = std::max(pose_gap, translation_distance(own.keyframes[i]->T_w_b(), ceres.keyframes[i]->T_w_b()));
+      pose_error = std::max(pose_error, translation_distance(own.keyframes[i]->T_w_b(), own.true_T_w_b[i]));
+    }
+    const auto own_points = own.map->map_points();
+    for (const auto& mp : own_points)
+      if (const auto other = ceres.map->map_point(mp->id()))
+        point_gap = std::max(point_gap, (mp->p_w() - other->p_w()).norm());
     std::printf(
-        "[lba timing] %zu window + %zu fixed keyframes, %zu points, %zu observations (%zu removed): "
-        "%d iterations, %.1f ms\n",
-        s.window_keyframes, s.fixed_keyframes, s.points, s.observations, s.observations_removed, s.iterations,
-        s.time_ms);
-    EXPECT_EQ(s.window_keyframes, window);
-    EXPECT_GT(s.iterations, 0);
+        "[lba timing] own solver against Ceres: poses %.2e m, points %.2e m apart; poses %.2e m from the truth\n",
+        pose_gap, point_gap, pose_error);
+    EXPECT_LT(pose_gap, 1e-7);
+    EXPECT_LT(point_gap, 1e-6);
+    EXPECT_LT(pose_error, 1e-4);
   }
 }
 

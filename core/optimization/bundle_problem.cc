@@ -9,6 +9,7 @@
 #include <unordered_map>
 
 #include "core/common/error.h"
+#include "core/optimization/bundle_levenberg.h"
 #include "core/optimization/reprojection_residuals.h"
 
 namespace orbatlas {
@@ -95,9 +96,46 @@ bool is_bundle_outlier(const BundleProblem& lp, const BundleEdge& e, const Bundl
   return !chi2 || *chi2 > (e.stereo ? options.chi2_stereo : options.chi2_mono);
 }
 
-// One stage: a problem over the active edges, solved for `iterations`.
-ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int iterations, const BundleSettings& options,
-                                          StopFlagCallback& callback) {
+namespace {
+
+std::size_t free_keyframes_of(const BundleProblem& lp) {
+  std::vector<std::uint8_t> seen(lp.keyframes.size(), 0);
+  std::size_t count = 0;
+  for (const BundleEdge& e : lp.edges)
+    if (e.active && !lp.fixed[e.keyframe] && !seen[e.keyframe]) {
+      seen[e.keyframe] = 1;
+      ++count;
+    }
+  return count;
+}
+
+// Edges that cannot be evaluated at the current estimates (a point behind the
+// camera, e.g. after a merge moved one of them) are outliers: made inactive.
+// True when there was one.
+bool drop_unevaluable_edges(BundleProblem& lp) {
+  bool dropped = false;
+  for (BundleEdge& e : lp.edges)
+    if (e.active && !bundle_edge_chi2(lp, e)) {
+      e.active = false;
+      dropped = true;
+    }
+  return dropped;
+}
+
+}  // namespace
+
+int solve_bundle_stage(BundleProblem& lp, bool robust, int iterations, const BundleSettings& options,
+                       StopFlagCallback& callback) {
+  if (options.own_solver && lp.extra_terms.empty() && free_keyframes_of(lp) <= options.dense_schur_max_keyframes) {
+    BundleLevenbergOptions lm;
+    lm.max_iterations = iterations;
+    lm.stop = callback.flag();
+    const BundleLevenbergResult result = solve_bundle_levenberg(lp, robust, options, lm);
+    if (!result.usable && drop_unevaluable_edges(lp))
+      return solve_bundle_stage(lp, robust, iterations, options, callback);
+    return result.iterations;
+  }
+
   std::vector<std::unique_ptr<ceres::HuberLoss>> extra_losses;  // the problem does not own its losses
   ceres::Problem::Options po;
   po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -152,7 +190,7 @@ ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int it
   }
 
   ceres::Solver::Summary summary;
-  if (problem.NumResidualBlocks() == 0) return summary;
+  if (problem.NumResidualBlocks() == 0) return 0;
   ceres::Solver::Options so;
   const bool sparse = free_keyframes > options.dense_schur_max_keyframes &&
                       ceres::IsSparseLinearAlgebraLibraryTypeAvailable(so.sparse_linear_algebra_library_type);
@@ -171,18 +209,11 @@ ceres::Solver::Summary solve_bundle_stage(BundleProblem& lp, bool robust, int it
   ceres::Solve(so, &problem, &summary);
   if (summary.termination_type == ceres::FAILURE && summary.iterations.size() <= 1) {
     // Ceres gave up at its first evaluation (the parameters are untouched): an
-    // observation cannot be evaluated where the solve starts (its point behind
-    // the camera, e.g. after a merge moved one of them). Those are outliers:
-    // left out, and the stage solved again. Checked only then, not per solve.
-    bool dropped = false;
-    for (BundleEdge& e : lp.edges)
-      if (e.active && !bundle_edge_chi2(lp, e)) {
-        e.active = false;
-        dropped = true;
-      }
-    if (dropped) return solve_bundle_stage(lp, robust, iterations, options, callback);
+    // observation cannot be evaluated where the solve starts. Checked only
+    // then, not per solve.
+    if (drop_unevaluable_edges(lp)) return solve_bundle_stage(lp, robust, iterations, options, callback);
   }
-  return summary;
+  return std::max(0, static_cast<int>(summary.iterations.size()) - 1);
 }
 
 }  // namespace orbatlas

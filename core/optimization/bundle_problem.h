@@ -26,6 +26,9 @@ struct BundleSettings {
   double huber_mono = 0.0, huber_stereo = 0.0;  // robust kernel widths
   std::vector<double> level_sigma2;             // per pyramid level
   std::size_t dense_schur_max_keyframes = 40;   // DENSE_SCHUR up to this many free keyframes
+  // Up to dense_schur_max_keyframes free keyframes, a problem of observations
+  // only is solved by solve_bundle_levenberg (bundle_levenberg.h) instead of Ceres.
+  bool own_solver = false;
   int num_threads = 1;
   // Levenberg-Marquardt's first trust region with inertial terms: Ceres'
   // default (1e4) lets the first steps throw weakly observed points through a
@@ -92,8 +95,11 @@ std::size_t bundle_keyframe_index(BundleProblem& problem, const std::shared_ptr<
 std::optional<double> bundle_edge_chi2(const BundleProblem& problem, const BundleEdge& e);
 bool is_bundle_outlier(const BundleProblem& problem, const BundleEdge& e, const BundleSettings& settings);
 
-// One stage: a problem over the active edges, solved for `iterations`.
-ceres::Solver::Summary solve_bundle_stage(BundleProblem& problem, bool robust, int iterations,
-                                          const BundleSettings& settings, StopFlagCallback& callback);
+// One stage: a problem over the active edges, solved for at most `iterations`
+// iterations; returns the iterations run (as Ceres counts them). An edge that
+// cannot be evaluated where the stage starts is made inactive and the stage
+// solved again without it.
+int solve_bundle_stage(BundleProblem& problem, bool robust, int iterations, const BundleSettings& settings,
+                       StopFlagCallback& callback);
 
 }  // namespace orbatlas

@@ -98,8 +98,7 @@ GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Came
   }
 
   StopFlagCallback callback(stop);
-  const ceres::Solver::Summary summary = solve_bundle_stage(problem, true, options.iterations, settings, callback);
-  result.iterations = std::max(0, static_cast<int>(summary.iterations.size()) - 1);
+  result.iterations = solve_bundle_stage(problem, true, options.iterations, settings, callback);
   result.stopped = callback.stopped();
 
   for (std::size_t k = 0; k < problem.window; ++k) {

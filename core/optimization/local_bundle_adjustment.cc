@@ -18,6 +18,7 @@ BundleSettings settings_of(const LocalBundleAdjustmentOptions& o) {
   s.huber_stereo = o.huber_stereo;
   s.level_sigma2 = o.level_sigma2;
   s.dense_schur_max_keyframes = o.dense_schur_max_keyframes;
+  s.own_solver = o.own_solver;
   s.num_threads = o.num_threads;
   return s;
 }
@@ -90,17 +91,11 @@ LocalBundleAdjustmentStats local_bundle_adjustment(Map& map, const std::shared_p
   stats.observations = lp.edges.size();
 
   StopFlagCallback callback(stop);
-  stats.iterations += std::max(
-      0,
-      static_cast<int>(solve_bundle_stage(lp, true, options.first_iterations, settings, callback).iterations.size()) -
-          1);
+  stats.iterations += solve_bundle_stage(lp, true, options.first_iterations, settings, callback);
   stats.stopped = callback.stopped();
   if (!stats.stopped && options.second_iterations > 0) {
     for (BundleEdge& e : lp.edges) e.active = !is_bundle_outlier(lp, e, settings);
-    stats.iterations += std::max(
-        0, static_cast<int>(
-               solve_bundle_stage(lp, false, options.second_iterations, settings, callback).iterations.size()) -
-               1);
+    stats.iterations += solve_bundle_stage(lp, false, options.second_iterations, settings, callback);
     stats.stopped = callback.stopped();
   }
 

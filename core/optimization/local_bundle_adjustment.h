@@ -44,6 +44,10 @@ struct LocalBundleAdjustmentOptions {
   // 104-112 ms on average and 259-276 ms at p95 instead of 125 and 365 ms, with
   // the same trajectory (docs/benchmarks.md, "Stop 44").
   std::size_t dense_schur_max_keyframes = 100;
+  // Up to dense_schur_max_keyframes free keyframes and without inertial terms,
+  // solve with orbatlas' own Levenberg-Marquardt (bundle_levenberg.h), the
+  // same algorithm as Ceres' written for this problem; false: Ceres.
+  bool own_solver = true;
   // After erasing observations, points left with fewer observers are culled
   // from the map (ORB-SLAM discards them in EraseObservation); 0 never culls.
   std::size_t min_observers = 2;

@@ -15,6 +15,7 @@ class StopFlagCallback final : public ceres::IterationCallback {
     return stopped() ? ceres::SOLVER_TERMINATE_SUCCESSFULLY : ceres::SOLVER_CONTINUE;
   }
   bool stopped() const { return stop_ != nullptr && stop_->load(std::memory_order_relaxed); }
+  const std::atomic<bool>* flag() const { return stop_; }  // null: never stops
 
  private:
   const std::atomic<bool>* stop_;  // not owned

@@ -1,0 +1,348 @@
+#include "core/optimization/bundle_levenberg.h"
+
+#include <ceres/manifold.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "core/common/error.h"
+
+namespace orbatlas {
+namespace {
+
+using Matrix6 = Eigen::Matrix<double, 6, 6>;
+using Vector6 = Eigen::Matrix<double, 6, 1>;
+using Matrix36 = Eigen::Matrix<double, 3, 6>;
+using Matrix63 = Eigen::Matrix<double, 6, 3>;
+constexpr int kNone = -1;
+constexpr double kMinDiagonal = 1e-6, kMaxDiagonal = 1e32;  // Ceres' LM diagonal clamp
+constexpr double kMaxRadius = 1e16, kMinRadius = 1e-32;
+constexpr double kMinRelativeDecrease = 1e-3;
+
+// The unknowns: the free poses and the points of the active edges; the active
+// edges grouped by point (the elimination visits one point's edges together).
+struct Layout {
+  std::vector<int> pose_var;                // per keyframe: index among the free poses, or kNone
+  std::vector<std::size_t> free_keyframes;  // pose var -> keyframe
+  std::vector<std::size_t> points;          // point var -> point
+  std::vector<std::size_t> point_begin;     // point var -> its first edge; one past the last at the end
+  std::vector<std::size_t> edges;           // active edges (indices into BundleProblem::edges)
+  std::vector<int> edge_pose;               // per entry of `edges`: its pose var, or kNone
+};
+
+Layout layout_of(const BundleProblem& lp) {
+  Layout l;
+  l.pose_var.assign(lp.keyframes.size(), kNone);
+  std::vector<int> point_var(lp.points.size(), kNone);
+  std::vector<std::size_t> count;
+  for (const BundleEdge& e : lp.edges) {
+    if (!e.active) continue;
+    if (!lp.fixed[e.keyframe] && l.pose_var[e.keyframe] == kNone) {
+      l.pose_var[e.keyframe] = static_cast<int>(l.free_keyframes.size());
+      l.free_keyframes.push_back(e.keyframe);
+    }
+    if (point_var[e.point] == kNone) {
+      point_var[e.point] = static_cast<int>(l.points.size());
+      l.points.push_back(e.point);
+      count.push_back(0);
+    }
+    ++count[static_cast<std::size_t>(point_var[e.point])];
+  }
+  l.point_begin.assign(l.points.size() + 1, 0);
+  for (std::size_t v = 0; v < l.points.size(); ++v) l.point_begin[v + 1] = l.point_begin[v] + count[v];
+  std::vector<std::size_t> next(l.point_begin.begin(), l.point_begin.end() - 1);
+  l.edges.resize(l.point_begin.back());
+  l.edge_pose.resize(l.edges.size());
+  for (std::size_t i = 0; i < lp.edges.size(); ++i) {
+    const BundleEdge& e = lp.edges[i];
+    if (!e.active) continue;
+    const std::size_t n = next[static_cast<std::size_t>(point_var[e.point])]++;
+    l.edges[n] = i;
+    l.edge_pose[n] = l.pose_var[e.keyframe];
+  }
+  return l;
+}
+
+// Huber's rho(s) and the weight rho'(s) that Ceres' corrector applies (its
+// second derivative is negative beyond the width: no curvature correction).
+struct Robust {
+  double rho = 0.0, weight = 1.0;
+};
+Robust robust_of(double s, double width) {
+  if (width <= 0.0 || s <= width * width) return {s, 1.0};
+  const double root = std::sqrt(s);
+  return {2.0 * width * root - width * width, width / root};
+}
+
+double width_of(const BundleEdge& e, bool robust, const BundleSettings& settings) {
+  if (!robust) return 0.0;
+  return e.stereo ? settings.huber_stereo : settings.huber_mono;
+}
+
+struct EdgeJacobian {
+  Matrix36 Jc = Matrix36::Zero();  // d r / d (pose tangent: rotation 3, translation 3); zero for a fixed pose
+  Eigen::Matrix3d Jx = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d r = Eigen::Vector3d::Zero();  // rows past the residual's own are zero
+  double weight = 1.0;
+  Matrix63 W = Matrix63::Zero();  // weight Jc^T Jx
+};
+
+// The normal equations at the current estimates, per block.
+struct Linearisation {
+  double cost = 0.0;
+  double max_gradient = 0.0;
+  std::vector<EdgeJacobian> edges;  // per entry of Layout::edges
+  std::vector<Matrix6> U;           // per free pose: sum weight Jc^T Jc
+  std::vector<Vector6> a;           // per free pose: sum weight Jc^T r
+  std::vector<Eigen::Matrix3d> V;   // per point: sum weight Jx^T Jx
+  std::vector<Eigen::Vector3d> b;   // per point: sum weight Jx^T r
+};
+
+bool linearise(const BundleProblem& lp, const Layout& l, bool robust, const BundleSettings& settings,
+               Linearisation& out) {
+  const std::size_t poses = l.free_keyframes.size(), points = l.points.size();
+  out.cost = 0.0;
+  out.U.assign(poses, Matrix6::Zero());
+  out.a.assign(poses, Vector6::Zero());
+  out.V.assign(points, Eigen::Matrix3d::Zero());
+  out.b.assign(points, Eigen::Vector3d::Zero());
+  out.edges.resize(l.edges.size());
+  std::vector<Eigen::Matrix<double, 4, 3, Eigen::RowMajor>> plus(poses);
+  const ceres::EigenQuaternionManifold manifold;
+  for (std::size_t f = 0; f < poses; ++f) manifold.PlusJacobian(lp.poses[l.free_keyframes[f]].q.data(), plus[f].data());
+
+  double r[3], jq[12], jt[9], jx[9];
+  for (std::size_t v = 0; v < points; ++v) {
+    for (std::size_t n = l.point_begin[v]; n < l.point_begin[v + 1]; ++n) {
+      const BundleEdge& e = lp.edges[l.edges[n]];
+      const int f = l.edge_pose[n];
+      const std::array<const double*, 3> params = lp.parameters(e);
+      double* jacobians[3] = {f == kNone ? nullptr : jq, f == kNone ? nullptr : jt, jx};
+      if (!e.cost->Evaluate(params.data(), r, jacobians)) return false;
+      const int rows = e.cost->num_residuals();
+      EdgeJacobian& ej = out.edges[n];
+      ej.r.setZero();
+      ej.Jx.setZero();
+      ej.Jc.setZero();
+      for (int i = 0; i < rows; ++i) {
+        ej.r[i] = r[i];
+        ej.Jx.row(i) = Eigen::Map<const Eigen::RowVector3d>(jx + 3 * i);
+      }
+      const Robust rb = robust_of(ej.r.squaredNorm(), width_of(e, robust, settings));
+      out.cost += 0.5 * rb.rho;
+      ej.weight = rb.weight;
+      out.V[v].noalias() += rb.weight * ej.Jx.transpose() * ej.Jx;
+      out.b[v].noalias() += rb.weight * ej.Jx.transpose() * ej.r;
+      if (f == kNone) continue;
+      const auto fu = static_cast<std::size_t>(f);
+      for (int i = 0; i < rows; ++i) {
+        ej.Jc.row(i).head<3>() = Eigen::Map<const Eigen::Matrix<double, 1, 4>>(jq + 4 * i) * plus[fu];
+        ej.Jc.row(i).tail<3>() = Eigen::Map<const Eigen::RowVector3d>(jt + 3 * i);
+      }
+      out.U[fu].noalias() += rb.weight * ej.Jc.transpose() * ej.Jc;
+      out.a[fu].noalias() += rb.weight * ej.Jc.transpose() * ej.r;
+      ej.W.noalias() = rb.weight * ej.Jc.transpose() * ej.Jx;
+    }
+  }
+  out.max_gradient = 0.0;
+  for (const Vector6& g : out.a) out.max_gradient = std::max(out.max_gradient, g.cwiseAbs().maxCoeff());
+  for (const Eigen::Vector3d& g : out.b) out.max_gradient = std::max(out.max_gradient, g.cwiseAbs().maxCoeff());
+  return true;
+}
+
+// The cost alone; nullopt when an observation cannot be evaluated.
+std::optional<double> cost_at(const BundleProblem& lp, const Layout& l, bool robust, const BundleSettings& settings) {
+  double cost = 0.0, r[3];
+  for (const std::size_t i : l.edges) {
+    const BundleEdge& e = lp.edges[i];
+    const std::array<const double*, 3> params = lp.parameters(e);
+    if (!e.cost->Evaluate(params.data(), r, nullptr)) return std::nullopt;
+    double s = 0.0;
+    for (int k = 0; k < e.cost->num_residuals(); ++k) s += r[k] * r[k];
+    cost += 0.5 * robust_of(s, width_of(e, robust, settings)).rho;
+  }
+  return cost;
+}
+
+template <int N>
+Eigen::Matrix<double, N, N> damped(Eigen::Matrix<double, N, N> m, double radius) {
+  for (int i = 0; i < N; ++i) m(i, i) += std::clamp(m(i, i), kMinDiagonal, kMaxDiagonal) / radius;
+  return m;
+}
+
+struct Step {
+  std::vector<Vector6> poses;
+  std::vector<Eigen::Vector3d> points;
+};
+
+// Solves (H + D / radius) step = -g with the points eliminated; false when
+// the damped system is not positive definite.
+bool solve_step(const Linearisation& at, const Layout& l, double radius, Step& step) {
+  const std::size_t poses = l.free_keyframes.size(), points = l.points.size();
+  const auto dim = static_cast<Eigen::Index>(6 * poses);
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(dim, dim);
+  Eigen::VectorXd rhs(dim);
+  for (std::size_t f = 0; f < poses; ++f) {
+    const auto o = static_cast<Eigen::Index>(6 * f);
+    S.block<6, 6>(o, o) = damped<6>(at.U[f], radius);
+    rhs.segment<6>(o) = -at.a[f];
+  }
+  std::vector<Eigen::Matrix3d> V_inv(points);
+  std::vector<Matrix63> T;  // per edge of the point being eliminated: W V^-1
+  for (std::size_t v = 0; v < points; ++v) {
+    V_inv[v] = damped<3>(at.V[v], radius).inverse();
+    if (!V_inv[v].allFinite()) return false;
+    const std::size_t begin = l.point_begin[v], end = l.point_begin[v + 1];
+    T.resize(end - begin);
+    for (std::size_t n = begin; n < end; ++n) {
+      const int f = l.edge_pose[n];
+      if (f == kNone) continue;
+      T[n - begin].noalias() = at.edges[n].W * V_inv[v];
+      rhs.segment<6>(6 * f).noalias() += T[n - begin] * at.b[v];
+    }
+    for (std::size_t n1 = begin; n1 < end; ++n1) {
+      const int f1 = l.edge_pose[n1];
+      if (f1 == kNone) continue;
+      for (std::size_t n2 = begin; n2 < end; ++n2) {
+        const int f2 = l.edge_pose[n2];
+        if (f2 == kNone || f2 < f1) continue;  // the upper triangle of blocks (whole diagonal blocks)
+        S.block<6, 6>(6 * f1, 6 * f2).noalias() -= T[n1 - begin] * at.edges[n2].W.transpose();
+      }
+    }
+  }
+  Eigen::VectorXd pose_step;
+  if (poses > 0) {
+    const Eigen::LLT<Eigen::MatrixXd, Eigen::Upper> llt(S);
+    if (llt.info() != Eigen::Success) return false;
+    pose_step = llt.solve(rhs);
+    if (!pose_step.allFinite()) return false;
+  }
+  step.poses.resize(poses);
+  for (std::size_t f = 0; f < poses; ++f) step.poses[f] = pose_step.segment<6>(static_cast<Eigen::Index>(6 * f));
+  step.points.resize(points);
+  for (std::size_t v = 0; v < points; ++v) {
+    Eigen::Vector3d x = -at.b[v];
+    for (std::size_t n = l.point_begin[v]; n < l.point_begin[v + 1]; ++n)
+      if (const int f = l.edge_pose[n]; f != kNone) x.noalias() -= at.edges[n].W.transpose() * step.poses[f];
+    step.points[v] = V_inv[v] * x;
+    if (!step.points[v].allFinite()) return false;
+  }
+  return true;
+}
+
+// The decrease of the linearised (reweighted) cost along `step`.
+double model_decrease(const Linearisation& at, const Layout& l, const Step& step) {
+  double decrease = 0.0;
+  for (std::size_t v = 0; v < l.points.size(); ++v) {
+    for (std::size_t n = l.point_begin[v]; n < l.point_begin[v + 1]; ++n) {
+      const EdgeJacobian& ej = at.edges[n];
+      Eigen::Vector3d change = ej.Jx * step.points[v];
+      if (const int f = l.edge_pose[n]; f != kNone) change.noalias() += ej.Jc * step.poses[f];
+      decrease -= ej.weight * (ej.r.dot(change) + 0.5 * change.squaredNorm());
+    }
+  }
+  return decrease;
+}
+
+double squared_norm(const Step& step) {
+  double s = 0.0;
+  for (const Vector6& d : step.poses) s += d.squaredNorm();
+  for (const Eigen::Vector3d& d : step.points) s += d.squaredNorm();
+  return s;
+}
+
+double state_norm(const BundleProblem& lp, const Layout& l) {
+  double s = 0.0;
+  for (const std::size_t k : l.free_keyframes) {
+    for (const double x : lp.poses[k].q) s += x * x;
+    for (const double x : lp.poses[k].t) s += x * x;
+  }
+  for (const std::size_t j : l.points)
+    for (const double x : lp.positions[j]) s += x * x;
+  return std::sqrt(s);
+}
+
+void apply(BundleProblem& lp, const Layout& l, const Step& step) {
+  const ceres::EigenQuaternionManifold manifold;
+  for (std::size_t f = 0; f < l.free_keyframes.size(); ++f) {
+    PoseParameters& pose = lp.poses[l.free_keyframes[f]];
+    std::array<double, 4> q{};
+    manifold.Plus(pose.q.data(), step.poses[f].data(), q.data());
+    pose.q = q;
+    for (int i = 0; i < 3; ++i) pose.t[static_cast<std::size_t>(i)] += step.poses[f][3 + i];
+  }
+  for (std::size_t v = 0; v < l.points.size(); ++v)
+    for (int i = 0; i < 3; ++i) lp.positions[l.points[v]][static_cast<std::size_t>(i)] += step.points[v][i];
+}
+
+}  // namespace
+
+BundleLevenbergResult solve_bundle_levenberg(BundleProblem& lp, bool robust, const BundleSettings& settings,
+                                             const BundleLevenbergOptions& options) {
+  ORBATLAS_CHECK(lp.extra_terms.empty(), "bundle Levenberg-Marquardt: only reprojection terms are supported");
+  BundleLevenbergResult result;
+  const Layout l = layout_of(lp);
+  if (l.edges.empty()) return result;
+  Linearisation at;
+  if (!linearise(lp, l, robust, settings, at)) {
+    result.usable = false;
+    return result;
+  }
+  result.initial_cost = result.final_cost = at.cost;
+  double radius = options.initial_radius, decrease_factor = 2.0;
+  Step step;
+  std::vector<PoseParameters> saved_poses;
+  std::vector<std::array<double, 3>> saved_positions;
+  for (int it = 0; it < options.max_iterations; ++it) {
+    if (options.stop != nullptr && options.stop->load(std::memory_order_relaxed)) {
+      result.stopped = true;
+      break;
+    }
+    if (at.max_gradient <= options.gradient_tolerance) break;
+    ++result.iterations;
+    if (!solve_step(at, l, radius, step)) {
+      radius /= decrease_factor;
+      decrease_factor *= 2.0;
+      if (radius < kMinRadius) break;
+      continue;
+    }
+    const double x_norm = state_norm(lp, l);
+    if (std::sqrt(squared_norm(step)) <= options.parameter_tolerance * (x_norm + options.parameter_tolerance)) break;
+    const double predicted = model_decrease(at, l, step);
+    saved_poses = lp.poses;
+    saved_positions = lp.positions;
+    apply(lp, l, step);
+    const std::optional<double> cost = cost_at(lp, l, robust, settings);
+    const double gain =
+        cost && predicted > 0.0 ? (at.cost - *cost) / predicted : -std::numeric_limits<double>::infinity();
+    if (gain > kMinRelativeDecrease) {
+      const double decrease = at.cost - *cost;
+      radius = std::min(kMaxRadius, radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * gain - 1.0, 3)));
+      decrease_factor = 2.0;
+      if (decrease <= options.function_tolerance * at.cost) {
+        at.cost = *cost;
+        break;
+      }
+      if (!linearise(lp, l, robust, settings, at)) {  // cannot happen: the cost evaluated there
+        lp.poses = saved_poses;
+        lp.positions = saved_positions;
+        linearise(lp, l, robust, settings, at);
+        break;
+      }
+    } else {
+      lp.poses = saved_poses;
+      lp.positions = saved_positions;
+      radius /= decrease_factor;
+      decrease_factor *= 2.0;
+      if (radius < kMinRadius) break;
+    }
+  }
+  result.final_cost = at.cost;
+  return result;
+}
+
+}  // namespace orbatlas
