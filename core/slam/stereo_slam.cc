@@ -189,13 +189,19 @@ StereoSlam::~StereoSlam() {
 TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
   ORBATLAS_CHECK(!finished_, "this SLAM session has finished; it takes no more frames");
   ORBATLAS_DATA_CHECK(monocular_ || !right.empty(), "a stereo session takes a stereo pair: the right image is missing");
-  // Before this frame's time counts: its session's last keyframe adjusted.
-  if (const auto waited = tracker_->wait_for_mapping()) mapping_wait_ms_.add(*waited);
-  const auto start = std::chrono::steady_clock::now();
+  auto start = std::chrono::steady_clock::now();
   frontend_->set_map_starting(tracker_->state() == TrackingState::kNotInitialized ||
                               tracker_->state() == TrackingState::kLost);
   Frame frame = frontend_->make_frame(t_ns, left, right);
   if (first_t_ns_.load() < 0) first_t_ns_.store(t_ns);
+  // The front end does not read the map, so it runs while local mapping may
+  // still adjust the session's last keyframe; tracking proper waits for that
+  // here when asked (the wait is not counted in the frame's time).
+  if (const auto waited = tracker_->wait_for_mapping()) {
+    mapping_wait_ms_.add(*waited);
+    start += std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double, std::milli>(*waited));
+  }
   const TrackResult result = frames_.track(*tracker_, std::move(frame), atlas_, start);
   if (result.keyframe) {
     ++keyframes_made_;
