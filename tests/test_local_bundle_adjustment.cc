@@ -255,8 +255,8 @@ TEST(LocalBundleAdjustment, TheOwnSolverEndsWhereCeresEndsAndTimesAreReported) {
       std::printf(
           "[lba timing] %s, %s: %zu window + %zu fixed keyframes, %zu points, %zu observations (%zu removed): "
           "%d iterations, %.1f ms\n",
-          stereo ? "stereo" : "monocular", own ? "own solver" : "Ceres", s.window_keyframes, s.fixed_keyframes, s.points, s.observations,
-          s.observations_removed, s.iterations, s.time_ms);
+          stereo ? "stereo" : "monocular", own ? "own solver" : "Ceres", s.window_keyframes, s.fixed_keyframes,
+          s.points, s.observations, s.observations_removed, s.iterations, s.time_ms);
       EXPECT_EQ(s.window_keyframes, window);
       EXPECT_GT(s.iterations, 0);
     }
