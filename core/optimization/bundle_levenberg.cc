@@ -339,9 +339,7 @@ BundleLevenbergResult solve_bundle_levenberg(BundleProblem& lp, bool robust, con
         break;
       }
       if (!linearise(lp, l, robust, settings, at)) {  // cannot happen: the cost evaluated there
-        lp.poses = saved_poses;
-        lp.positions = saved_positions;
-        linearise(lp, l, robust, settings, at);
+        at.cost = *cost;                              // the step is kept; the solve ends
         break;
       }
     } else {
