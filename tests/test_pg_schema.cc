@@ -82,10 +82,12 @@ TEST_F(PgSchemaTest, TheTablesAndColumnsAreSqlitesInPostgresqlsDialect) {
   std::set<std::string> sqlite_tables, postgres_tables;
   for (const auto& [t, c] : sqlite) sqlite_tables.insert(t);
   // PostgreSQL's only: atlas_writer (SQLite keeps the writer's record in its
-  // lock file), replicas, map_owners, shared_jobs and shared_merges (an SQLite atlas has one server).
+  // lock file), replicas, map_owners, shared_jobs, shared_merges and
+  // shared_session_work (an SQLite atlas has one server).
+  const std::set<std::string> postgres_only = {"atlas_writer", "replicas",      "map_owners",
+                                               "shared_jobs",  "shared_merges", "shared_session_work"};
   for (const auto& [t, c] : postgres)
-    if (t != "atlas_writer" && t != "replicas" && t != "map_owners" && t != "shared_jobs" && t != "shared_merges")
-      postgres_tables.insert(t);
+    if (!postgres_only.count(t)) postgres_tables.insert(t);
   EXPECT_GE(sqlite_tables.size(), 16u);  // atlas, maps, keyframes, ... upload_jobs, keyframe_imu_states
   ASSERT_EQ(postgres_tables, sqlite_tables);
   for (const auto& [table, columns] : sqlite) {

@@ -595,12 +595,19 @@ TEST(ServerProcess, AnUploadWhoseReplicaDiesIsFinishedByTheOther) {
   std::filesystem::remove_all(work);
 }
 
-// Merge work as rows (issue 23): replica a does not merge (--no-merging), so
-// the merge work of its finished session, a map over b's place, waits in the
-// database. b merges it into its own map: after taking a's map over once a is
-// killed (`kill_a`), or while a is alive, having asked a for the map once the
-// work waited a lease (a hands it over).
-void merge_work_of_a_replica_that_does_not_merge(bool kill_a) {
+// Merge work as rows (issue 23): a maps again, in a map of its own, a place
+// b mapped, and b merges a's map into its own map:
+// - kNoMergingKilled: a does not merge (--no-merging), so the merge work of
+//   its finished session waits in the database; b takes it with a's map once
+//   a is killed;
+// - kNoMergingAlive: the same with a alive: b asks a for the map once the
+//   work waited a lease, and a hands it over;
+// - kKilledWhileMapping: a merges, but is killed while its session maps (the
+//   session never finishes); b takes a's map over and adopts the session's
+//   stored work (the search, merge and global BA its end would have started).
+enum class ReplicaA { kNoMergingKilled, kNoMergingAlive, kKilledWhileMapping };
+
+void merge_work_left_by_replica(ReplicaA what) {
   std::string why_not;
   const auto cluster = test::ThrowawayPostgres::start(&why_not);
   if (!cluster) GTEST_SKIP() << "PostgreSQL backend skipped: " << why_not;
@@ -626,24 +633,47 @@ void merge_work_of_a_replica_that_does_not_merge(bool kill_a) {
   ASSERT_FALSE(url_b.empty()) << log_text(log("b"));
   ServerClient client_b(url_b);
   const std::uint64_t map_b = stream(client_b, clip_b, "on b");
-  ServerProcess a(uri, log("a"), args(false));
+  ServerProcess a(uri, log("a"), args(what == ReplicaA::kKilledWhileMapping));
   const std::string url_a = a.wait_until_listening();
   ASSERT_FALSE(url_a.empty()) << log_text(log("a"));
   ServerClient client_a(url_a);
-  const std::uint64_t map_a = stream(client_a, clip_a, "the same place, on a");  // b's map is b's: a map of its own
+  std::uint64_t map_a = 0;
+  if (what == ReplicaA::kKilledWhileMapping) {
+    const std::uint64_t session = client_a.create_session("euroc/stereo", "the same place, on a, never finished");
+    for (const auto& f : test::stereo_frames(clip_a))
+      client_a.post_frame(session, f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                          cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+    map_a = map_of_session(client_a, session);
+    // Killed once b has read a's map as a last checkpointed it (all its keyframes).
+    const auto keyframes_on = [&](ServerClient& client) {
+      for (const auto& m : client.get_json("/v1/maps")["maps"])
+        if (m["id"].get<std::uint64_t>() == map_a) return m["keyframes"].get<int>();
+      return -1;
+    };
+    const int keyframes_a = keyframes_on(client_a);
+    for (const auto until = Clock::now() + std::chrono::seconds(60);
+         keyframes_on(client_b) != keyframes_a && Clock::now() < until;)
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    ASSERT_EQ(keyframes_on(client_b), keyframes_a) << log_text(log("b"));
+  } else {
+    map_a = stream(client_a, clip_a, "the same place, on a");  // b's map is b's: a map of its own
+  }
   ASSERT_NE(map_a, map_b);
-  if (kill_a) a.kill();
+  if (what != ReplicaA::kNoMergingAlive) a.kill();
 
   const json maps = maps_once_one(client_b);
   ASSERT_EQ(maps.size(), 1u) << maps.dump() << "\n" << log_text(log("b"));
   EXPECT_EQ(maps[0]["id"].get<std::uint64_t>(), map_b) << maps.dump();  // a's map merged into b's
-  EXPECT_NE(log_text(log("b")).find("map merging: map " + std::to_string(map_a) + "'s stored merge work taken"),
-            std::string::npos)
-      << log_text(log("b"));
-  if (!kill_a) {
+  const std::string text_b = log_text(log("b"));
+  EXPECT_NE(text_b.find("map merging: map " + std::to_string(map_a) + "'s stored merge work taken"), std::string::npos)
+      << text_b;
+  if (what == ReplicaA::kKilledWhileMapping) {
+    EXPECT_NE(text_b.find("while they mapped leave merge work for map(s) " + std::to_string(map_a)), std::string::npos)
+        << text_b;
+  }
+  if (what == ReplicaA::kNoMergingAlive) {
     const std::string text_a = log_text(log("a"));
-    EXPECT_NE(log_text(log("b")).find("asks for map " + std::to_string(map_a) + ": its merge work waits"),
-              std::string::npos);
+    EXPECT_NE(text_b.find("asks for map " + std::to_string(map_a) + ": its merge work waits"), std::string::npos);
     EXPECT_NE(text_a.find("handed map " + std::to_string(map_a) + " over to replica"), std::string::npos) << text_a;
     const json on_a = maps_once_one(client_a);
     ASSERT_EQ(on_a.size(), 1u) << on_a.dump() << "\n" << text_a;  // a reads b's merged map
@@ -655,11 +685,15 @@ void merge_work_of_a_replica_that_does_not_merge(bool kill_a) {
 }
 
 TEST(ServerProcess, TheMergeWorkOfADeadReplicaIsDoneByTheReplicaThatTakesItsMapsOver) {
-  merge_work_of_a_replica_that_does_not_merge(true);
+  merge_work_left_by_replica(ReplicaA::kNoMergingKilled);
 }
 
 TEST(ServerProcess, TheMergeWorkALiveReplicaLeavesIsDoneByAFreeOneItHandsTheMapTo) {
-  merge_work_of_a_replica_that_does_not_merge(false);
+  merge_work_left_by_replica(ReplicaA::kNoMergingAlive);
+}
+
+TEST(ServerProcess, TheSessionAReplicaMappedWhenItDiedIsMergedByTheReplicaThatTakesItsMapOver) {
+  merge_work_left_by_replica(ReplicaA::kKilledWhileMapping);
 }
 
 // Both replicas live: b's finished session found its place in a's map, so b

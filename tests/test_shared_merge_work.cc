@@ -4,7 +4,8 @@
 // put back as it was, or until a retry time (then nobody asks for its map);
 // asked for by another replica once it waited;
 // a map asked for is handed over and taken like a dead replica's; the rows of
-// a replica that stopped go with its maps.
+// a replica that stopped go with its maps; the live sessions of a replica
+// gone become rows of the maps their keyframes are in.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -146,6 +147,70 @@ TEST_F(SharedMergeWorkTest, AMapAskedForIsHandedOverAndTakenLikeADeadReplicasMap
   EXPECT_TRUE(ownership_b.want(map));
   b.stop();
   EXPECT_TRUE(ownership_a.wanted().empty());
+}
+
+// A stored map, and a session with one keyframe in it (the columns as a checkpoint writes them, values unused).
+void map_with_session_keyframe(PgDb& db, MapId map, SessionId session, KeyframeId keyframe) {
+  db.prepare("INSERT INTO maps(id, saved_ns) VALUES (?1, 0) ON CONFLICT DO NOTHING")
+      .bind_int64(1, static_cast<std::int64_t>(map))
+      .run();
+  db.prepare(
+        "INSERT INTO sessions(id, name, sensor, created_ns) VALUES (?1, 'test', 'stereo', 0) ON CONFLICT DO NOTHING")
+      .bind_int64(1, static_cast<std::int64_t>(session))
+      .run();
+  db.prepare(
+        "INSERT INTO keyframes(id, map_id, session_id, timestamp_ns, qw, qx, qy, qz, tx, ty, tz, c_qw, c_qx, c_qy, "
+        "c_qz, c_tx, c_ty, c_tz, slot_count, features) VALUES (?1, ?2, ?3, 0, 1, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, "
+        "0, 0, ''::bytea)")
+      .bind_int64(1, static_cast<std::int64_t>(keyframe))
+      .bind_int64(2, static_cast<std::int64_t>(map))
+      .bind_int64(3, static_cast<std::int64_t>(session))
+      .run();
+}
+
+TEST_F(SharedMergeWorkTest, TheLiveSessionsOfAReplicaGoneBecomeRowsOfTheirMaps) {
+  migrate_postgres_schema(*db_, unix_time_ns());
+  const std::string uri = cluster().uri(name_);
+  ReplicaRegistry a(uri, long_lease()), b(uri, long_lease());
+  const MapId map_1 = replica_id_range(a.id(), kReplicaMapIdShift).begin + 1, map_2 = map_1 + 1, map_3 = map_1 + 2;
+  const MapId map_b = replica_id_range(b.id(), kReplicaMapIdShift).begin + 1;
+  const SessionId live = replica_id_range(a.id(), kReplicaMapIdShift).begin + 7;  // maps 1 and 2 (lost, then again)
+  const SessionId finished = live + 1, on_b = replica_id_range(b.id(), kReplicaMapIdShift).begin + 7;
+  map_with_session_keyframe(*db_, map_1, live, 1);
+  map_with_session_keyframe(*db_, map_2, live, 2);
+  map_with_session_keyframe(*db_, map_2, live, 3);
+  map_with_session_keyframe(*db_, map_3, finished, 4);
+  map_with_session_keyframe(*db_, map_b, on_b, 5);
+  SharedMerges merges(uri);
+  merges.begin_session(live, a.id(), merge_of(0));
+  merges.begin_session(finished, a.id(), merge_of(1));
+  merges.begin_session(on_b, b.id(), merge_of(2));
+  merges.end_session(finished);                                   // its maps' rows were its replica's to add
+  EXPECT_TRUE(merges.adopt_sessions_of_gone_replicas().empty());  // a and b alive: theirs
+  EXPECT_TRUE(merges.of({map_1, map_2, map_3, map_b}).empty());
+
+  a.stop();  // its live session never finished
+  std::vector<MapId> adopted = merges.adopt_sessions_of_gone_replicas();
+  std::sort(adopted.begin(), adopted.end());
+  EXPECT_EQ(adopted, (std::vector<MapId>{map_1, map_2}));
+  const auto rows = merges.of({map_1, map_2, map_3, map_b});
+  ASSERT_EQ(rows.size(), 2u);
+  for (const StoredMerge& row : rows) {
+    EXPECT_EQ(row.first_keyframe, 100u) << row.map;  // the session's request
+    EXPECT_EQ(row.settings.config, "euroc/stereo");
+  }
+  EXPECT_TRUE(merges.adopt_sessions_of_gone_replicas().empty());  // once
+
+  // A map that has a row keeps it; b's session is b's until b is gone too.
+  merges.add(merge_of(map_b));
+  b.stop();
+  EXPECT_TRUE(merges.adopt_sessions_of_gone_replicas().empty());
+  const auto kept = merges.of({map_b});
+  ASSERT_EQ(kept.size(), 1u);
+  EXPECT_EQ(kept[0].first_keyframe, 100 + map_b);
+  PgStatement left = db_->prepare("SELECT count(*) FROM shared_session_work");
+  ASSERT_TRUE(left.step());
+  EXPECT_EQ(left.int64(0), 0);
 }
 
 }  // namespace

@@ -420,11 +420,15 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
                        std::string("cannot store the new session: ") + e.what());
   }
   auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam), mode, request.max_lag_s);
+  SessionStart start;
   {
     std::lock_guard lock(mutex_);
     sessions_[id] = live;
     session_starts_[id] = {request.settings, atlas_.ids().peek(IdKind::keyframe), inertial, rig};
+    start = session_starts_[id];
   }
+  if (mode == SessionMode::kMap)
+    begin_session_work(id, StoredMerge{0, start.settings, start.first_keyframe, start.inertial, rig.monocular});
   idle_wake_.notify_all();
   // The checkpoint thread reads the frames through its own reference.
   checkpointer_->add_session(CheckpointSession{info, [live](std::size_t first) { return live->anchors_from(first); }});
@@ -653,7 +657,10 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     reply.tracking_ms = out.tracking_ms;
     reply.skipped = out.skipped;
   } catch (const ServiceError& e) {
-    if (e.code() == "session_failed") end_session_storage(id);
+    if (e.code() == "session_failed") {
+      end_session_storage(id);
+      end_session_work(id);
+    }
     throw;
   } catch (const DataError&) {
     frames_rejected_.Increment();
@@ -710,6 +717,7 @@ SessionStatus AtlasService::finish_session(SessionId id, const std::string& ende
     // maps (of free scale, or with its IMU of a scale that may not have
     // settled) are merged as similarities (MergeRequest::single_camera).
     if (!is_single_camera(live->info().sensor) || live->mode() == SessionMode::kMap) submit_merges(id, held);
+    end_session_work(id);  // after its maps' rows: a death in between leaves both, adopted as one
     // The session's SLAM objects (images, pyramids, rectification maps) are
     // gone: give the allocator's idle pages back, so a server that runs
     // session after session keeps a flat resident size.
@@ -868,7 +876,8 @@ void AtlasService::shutdown() {
       if (s->state() == SessionState::kActive) live.push_back(s);
   }
   // Merging stops first (a running global adjustment is interrupted; a merge
-  // already made is in the final checkpoint); the sessions below submit none.
+  // already made is in the final checkpoint); the sessions below submit none
+  // (on a shared atlas their stored work stays, for another replica to adopt).
   if (merger_) merger_->stop();
   for (const auto& s : live) {
     try {

@@ -277,6 +277,14 @@ class AtlasService {
   // another replica writes or a session holds): ask for `target`, retry later.
   void merge_put_off(MapId source, MapId target);
   void wake_merge_work();
+  // A shared atlas's rows of live mapping sessions (SharedMerges::
+  // begin_session): kept while the session maps; ended when it finishes or
+  // fails (a shutdown leaves them, for another replica to adopt); the
+  // sessions of replicas gone are adopted by the takeover thread. A database
+  // error is logged, never thrown: the session goes on without its row.
+  void begin_session_work(SessionId id, const StoredMerge& request);
+  void end_session_work(SessionId id);
+  void adopt_gone_sessions_work();
 
   const AtlasServiceOptions options_;
   // First: held while anything below may write the database; destroyed last.

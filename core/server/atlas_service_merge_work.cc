@@ -110,6 +110,37 @@ void AtlasService::merge_put_off(MapId source, MapId target) {
   wake_merge_work();
 }
 
+void AtlasService::begin_session_work(SessionId id, const StoredMerge& request) {
+  if (!shared_merges_) return;
+  try {
+    shared_merges_->begin_session(id, replica_->id(), request);
+  } catch (const std::exception& e) {
+    log_warn("session " + std::to_string(id) + ": its merge work is not stored while it maps (" + e.what() +
+             "); should this replica die first, nobody merges its maps");
+  }
+}
+
+void AtlasService::end_session_work(SessionId id) {
+  if (!shared_merges_) return;
+  try {
+    shared_merges_->end_session(id);
+  } catch (const std::exception& e) {
+    log_warn("session " + std::to_string(id) + ": its stored merge work stays (" + e.what() +
+             "); another replica adopts it once this one stops");
+  }
+}
+
+void AtlasService::adopt_gone_sessions_work() {
+  if (!shared_merges_) return;
+  const std::vector<MapId> maps = shared_merges_->adopt_sessions_of_gone_replicas();
+  if (maps.empty()) return;
+  std::string names;
+  for (const MapId map : maps) names += (names.empty() ? "" : ", ") + std::to_string(map);
+  log_info("replica " + std::to_string(replica_->id()) +
+           ": sessions whose replica stopped or died while they mapped leave merge work for map(s) " + names);
+  wake_merge_work();
+}
+
 bool AtlasService::hand_over_if_idle(MapId map, std::uint64_t to) {
   {
     std::lock_guard lock(merge_work_mutex_);

@@ -149,6 +149,7 @@ void AtlasService::take_over_until_stopped() {
     lock.unlock();
     try {
       take_over_maps();
+      adopt_gone_sessions_work();  // after the takeover: the maps are read here before their rows are claimed
       refresh_others_maps();
       load_new_sessions(replica_store(), false);  // sessions of replicas that stopped or died
     } catch (const std::exception& e) {

@@ -49,6 +49,9 @@ StoredMerge stored_merge_from_json(MapId map, const std::string& text) {
   }
 }
 
+// A replica counts as alive while it runs and its lease has not passed.
+constexpr const char* kAliveReplicas = "SELECT id FROM replicas WHERE state = 'running' AND lease_until >= now()";
+
 SharedMerges::SharedMerges(std::string location) : location_(std::move(location)) {}
 
 SharedMerges::~SharedMerges() = default;
@@ -88,8 +91,48 @@ std::vector<StoredMerge> SharedMerges::of(const std::vector<MapId>& maps) {
   });
 }
 
-// A replica counts as alive while it runs and its lease has not passed.
-constexpr const char* kAliveReplicas = "SELECT id FROM replicas WHERE state = 'running' AND lease_until >= now()";
+void SharedMerges::begin_session(SessionId session, std::uint64_t replica, const StoredMerge& request) {
+  std::lock_guard lock(mutex_);
+  on_pg_connection(db_, location_, [&](PgDb& db) {
+    db.prepare(
+          "INSERT INTO shared_session_work(session_id, replica_id, request, started_ns) VALUES (?1, ?2, ?3, ?4) "
+          "ON CONFLICT (session_id) DO UPDATE SET replica_id = excluded.replica_id, request = excluded.request, "
+          "started_ns = excluded.started_ns")
+        .bind_int64(1, static_cast<std::int64_t>(session))
+        .bind_int64(2, static_cast<std::int64_t>(replica))
+        .bind_text(3, stored_merge_json(request))
+        .bind_int64(4, unix_time_ns())
+        .run();
+  });
+}
+
+void SharedMerges::end_session(SessionId session) {
+  std::lock_guard lock(mutex_);
+  on_pg_connection(db_, location_, [&](PgDb& db) {
+    db.prepare("DELETE FROM shared_session_work WHERE session_id = ?1")
+        .bind_int64(1, static_cast<std::int64_t>(session))
+        .run();
+  });
+}
+
+std::vector<MapId> SharedMerges::adopt_sessions_of_gone_replicas() {
+  std::lock_guard lock(mutex_);
+  return on_pg_connection(db_, location_, [&](PgDb& db) {
+    // The DELETE locks the rows it takes: a second replica adopting at the
+    // same time waits, then finds them gone.
+    PgStatement adopt = db.prepare(
+        std::string("WITH gone AS (DELETE FROM shared_session_work WHERE replica_id NOT IN (") + kAliveReplicas +
+        ") RETURNING session_id, request) "
+        "INSERT INTO shared_merges(map_id, request, requested_ns) "
+        "SELECT DISTINCT ON (k.map_id) k.map_id, g.request, ?1 FROM gone g JOIN keyframes k ON k.session_id = "
+        "g.session_id ORDER BY k.map_id, g.session_id "
+        "ON CONFLICT (map_id) DO NOTHING RETURNING map_id");
+    adopt.bind_int64(1, unix_time_ns());
+    std::vector<MapId> maps;
+    while (adopt.step()) maps.push_back(static_cast<MapId>(adopt.int64(0)));
+    return maps;
+  });
+}
 
 std::optional<StoredMerge> SharedMerges::claim(std::uint64_t me) {
   std::lock_guard lock(mutex_);

@@ -10,6 +10,10 @@
 // another replica's merge found its place in (the row waits meanwhile,
 // defer()). A dead replica's rows go with its maps to the replica that takes
 // them over; a row claimed by a dead replica waits again.
+// A live mapping session has a row of its own (schema/postgres/008): when its
+// replica dies or stops before the session finishes, another replica turns it
+// into rows of the maps the session's stored keyframes are in
+// (adopt_sessions_of_gone_replicas), so its end's work is still done.
 //
 // Thread-safe: one connection under a mutex.
 #include <cstdint>
@@ -50,6 +54,17 @@ class SharedMerges {
   void add(const StoredMerge& merge);  // replaces the map's row (waiting again)
   void remove(MapId map);
   std::vector<StoredMerge> of(const std::vector<MapId>& maps);  // the rows of these maps
+
+  // A mapping session of replica `replica` started; its merge work
+  // (`request`, whose map is not used) is kept until end_session().
+  void begin_session(SessionId session, std::uint64_t replica, const StoredMerge& request);
+  // The session finished (its maps' rows added first) or failed.
+  void end_session(SessionId session);
+  // The sessions of replicas no longer alive (stopped, or their lease passed)
+  // that never ended: each becomes a row (its request) for every map its
+  // stored keyframes are in, unless that map has one. Returns those maps.
+  // One statement: two replicas adopting at once never both take a session.
+  std::vector<MapId> adopt_sessions_of_gone_replicas();
 
   // The oldest waiting row of a map replica `me` owns (unclaimed, or claimed
   // by a replica no longer alive; its retry time passed), now claimed by `me`.
