@@ -3,6 +3,7 @@
 // the server), `orbatlas sessions|maps|jobs|merges`, `orbatlas trajectory`.
 #include <chrono>
 #include <cstdio>
+#include <fstream>
 #include <thread>
 #include <memory>
 #include <set>
@@ -11,6 +12,7 @@
 #include "client/api/dataset_streamer.h"
 #include "client/bag_options.h"
 #include "client/commands.h"
+#include "core/common/error.h"
 #include "core/common/progress.h"
 #include "core/io/euroc_trajectory.h"
 #include "core/io/tum_trajectory.h"
@@ -32,10 +34,20 @@ void add_server_options(CLI::App* cmd, ServerArgs& args) {
 struct StreamArgs {
   ServerArgs server;
   StreamOptions stream;
-  std::string dataset, encoding = "raw", out_trajectory, stats, format = "tum";
+  std::string dataset, encoding = "raw", out_trajectory, stats, frame_log, format = "tum";
   double duration_s = 0.0;
   BagArgs bag;
 };
+
+// One line per frame answered: several clients' logs line up on sent_unix_us.
+void write_frame_log(const std::string& path, const StreamReport& r) {
+  std::ofstream out(path);
+  out << "t_ns,sent_unix_us,round_trip_ms,server_ms,tracking_ms,late,skipped,keyframe\n";
+  for (const StreamReport::FrameTiming& f : r.frame_timings)
+    out << f.t_ns << ',' << f.sent_unix_us << ',' << f.round_trip_ms << ',' << f.server_ms << ',' << f.tracking_ms
+        << ',' << f.late << ',' << f.skipped << ',' << f.keyframe << '\n';
+  if (!out) throw Error("cannot write the frame log " + path);
+}
 
 nlohmann::json stream_json(const StreamReport& r) {
   std::vector<double> server_overhead, client_overhead;
@@ -151,6 +163,9 @@ void register_stream(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::IsMember({"tum", "euroc"}));
   cmd->add_option("--stats", args->stats, "Write the figures as JSON here");
+  cmd->add_option("--frame-log", args->frame_log,
+                  "Write one CSV line per frame here: when it was sent (Unix us), round trip, server and tracking "
+                  "ms, late, skipped, keyframe (to line several clients' stalls up in time)");
   cmd->add_flag("!--no-progress", args->stream.show_progress, "Do not print progress");
   cmd->callback([args] {
     StreamOptions options = args->stream;
@@ -166,6 +181,7 @@ void register_stream(CLI::App& app) {
                        parse_trajectory_format(args->format));
     const nlohmann::json j = stream_json(report);
     if (!args->stats.empty()) write_stats_file(args->stats, j);
+    if (!args->frame_log.empty()) write_frame_log(args->frame_log, report);
     print_stream_summary(j);
   });
 }

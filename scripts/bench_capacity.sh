@@ -103,7 +103,7 @@ run_sessions() {
     [ "$PHASES" = spread ] && client_start=$(awk -v t="$start_at" -v i="$i" -v n="$#" 'BEGIN { printf "%.4f", t + (i - 1) * 0.05 / n }')
     "${CLIENT_TASKSET[@]}" "$OA" stream --server "$url" --dataset "$(dataset "$seq")" --start "$START_S" \
         --duration "$SECONDS_PER_SESSION" --rate "$RATE" --max-lag "$MAX_LAG" --preload --start-at "$client_start" --name "$name-$i-$seq" --no-progress \
-        --stats "$dir/${i}_$seq.json" > "$dir/${i}_$seq.txt" 2>&1 &
+        --stats "$dir/${i}_$seq.json" --frame-log "$dir/${i}_$seq.frames.csv" > "$dir/${i}_$seq.txt" 2>&1 &
     pids+=($!)
   done
   wait_s=$(( start_at - $(date +%s) ))

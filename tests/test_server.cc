@@ -107,6 +107,22 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   EXPECT_EQ(streamed.frames, 201u);
   EXPECT_EQ(streamed.rejected, 0u);
   EXPECT_EQ(streamed.tracked, streamed.frames);
+  // One timing per frame answered (--frame-log), in order, each as the summaries count it.
+  ASSERT_EQ(streamed.frame_timings.size(), 201u);
+  std::size_t keyframes = 0;
+  for (std::size_t i = 0; i < streamed.frame_timings.size(); ++i) {
+    const StreamReport::FrameTiming& f = streamed.frame_timings[i];
+    EXPECT_DOUBLE_EQ(f.round_trip_ms, streamed.round_trip_ms[i]);
+    EXPECT_DOUBLE_EQ(f.tracking_ms, streamed.tracking_ms[i]);
+    EXPECT_LE(f.tracking_ms, f.round_trip_ms);
+    EXPECT_FALSE(f.skipped || f.late);  // not paced: nothing is due
+    if (i > 0) {
+      EXPECT_GT(f.t_ns, streamed.frame_timings[i - 1].t_ns);
+      EXPECT_GE(f.sent_unix_us, streamed.frame_timings[i - 1].sent_unix_us);
+    }
+    keyframes += f.keyframe ? 1 : 0;
+  }
+  EXPECT_EQ(keyframes, streamed.keyframes);
   ASSERT_EQ(streamed.trajectory.size(), offline.trajectory.size());
   ASSERT_TRUE(streamed.ate_rmse_m.has_value());
   EXPECT_LT(*streamed.ate_rmse_m, 0.004);  // measured 0.0020 m

@@ -153,7 +153,10 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
     if (options.rate > 0) {
       const auto due = start + std::chrono::nanoseconds(
                                    static_cast<std::int64_t>(static_cast<double>(pair->t_ns - first_t) / options.rate));
-      if (last_reply && *last_reply > due) ++report.late_frames;
+      if (last_reply && *last_reply > due) {
+        ++report.late_frames;
+        if (!report.frame_timings.empty()) report.frame_timings.back().late = true;
+      }
       std::this_thread::sleep_until(due);
     }
     progress.advance();
@@ -170,16 +173,27 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
       continue;
     }
     const auto sent = Clock::now();
+    const auto sent_unix = std::chrono::system_clock::now();
     try {
       const auto reply = client.post_frame(report.session, pair->t_ns, pair->left, pair->right, options.encoding);
       last_reply = Clock::now();
+      StreamReport::FrameTiming timing;
+      timing.t_ns = pair->t_ns;
+      timing.sent_unix_us = std::chrono::duration_cast<std::chrono::microseconds>(sent_unix.time_since_epoch()).count();
+      timing.round_trip_ms = ms_between(sent, *last_reply);
       if (reply.value("skipped", false)) {
+        timing.skipped = true;
+        report.frame_timings.push_back(timing);
         ++report.skipped_frames;
         continue;
       }
-      report.round_trip_ms.push_back(ms_between(sent, *last_reply));
-      report.tracking_ms.push_back(reply.at("tracking_ms").get<double>());
-      report.server_ms.push_back(reply.at("server_ms").get<double>());
+      timing.tracking_ms = reply.at("tracking_ms").get<double>();
+      timing.server_ms = reply.at("server_ms").get<double>();
+      timing.keyframe = reply.at("keyframe").get<bool>();
+      report.frame_timings.push_back(timing);
+      report.round_trip_ms.push_back(timing.round_trip_ms);
+      report.tracking_ms.push_back(timing.tracking_ms);
+      report.server_ms.push_back(timing.server_ms);
       ++report.frames;
       if (reply.at("tracked").get<bool>()) {
         ++report.tracked;

@@ -62,6 +62,16 @@ struct StreamReport {
   std::vector<double> tracking_ms;    // the server's tracking time per frame
   std::vector<double> server_ms;      // the server's time per request (parsing, decoding, tracking)
   std::vector<double> round_trip_ms;  // seen by the client (encoding, transfer, server)
+  // One per frame answered (skipped ones too): when it was sent and how it
+  // went, to line several clients' stalls up in time (--frame-log).
+  struct FrameTiming {
+    TimestampNs t_ns = 0;
+    std::int64_t sent_unix_us = 0;  // the client's wall clock
+    double round_trip_ms = 0.0, server_ms = 0.0, tracking_ms = 0.0;
+    bool late = false;  // its reply came after the next frame was due
+    bool skipped = false, keyframe = false;
+  };
+  std::vector<FrameTiming> frame_timings;
   double wall_s = 0.0;
   Trajectory trajectory;  // the server's final trajectory (after the session finished)
   std::vector<std::uint64_t> trajectory_maps;
