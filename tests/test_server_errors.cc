@@ -96,6 +96,25 @@ TEST(ServerErrors, EveryRouteAnswersBadRequestsWithAJsonErrorAndChangesNothing) 
   raw_form.push_back({"width", "752", "", ""});
   raw_form.push_back({"height", "480", "", ""});
   EXPECT_REPLY(http.Post(sid + "/frames", raw_form), 422, "bad_input");
+  // One application/octet-stream body of raw pixels (left, then right), its size in the query.
+  const std::string pair(2u * 752 * 480, '\7');
+  const auto raw_frame = [&](const std::string& query, const std::string& body) {
+    return http.Post(sid + "/frames" + query, body, "application/octet-stream");
+  };
+  EXPECT_REPLY(
+      http.Post("/v1/sessions/999/frames?t_ns=" + next_t + "&width=752&height=480", pair, "application/octet-stream"),
+      404, "not_found");
+  EXPECT_REPLY(raw_frame("?width=752&height=480", pair), 400, "bad_request");                    // no t_ns
+  EXPECT_REPLY(raw_frame("?t_ns=soon&width=752&height=480", pair), 400, "bad_request");          // not an integer
+  EXPECT_REPLY(raw_frame("?t_ns=" + next_t + "&width=752", pair), 400, "bad_request");           // no height
+  EXPECT_REPLY(raw_frame("?t_ns=" + next_t + "&width=0&height=480", pair), 400, "bad_request");  // no image
+  EXPECT_REPLY(raw_frame("?t_ns=" + next_t + "&width=376&height=240", pair), 422, "bad_input");  // not the camera's
+  EXPECT_REPLY(raw_frame("?t_ns=" + next_t + "&width=752&height=480", pair.substr(1)), 422, "bad_input");
+  EXPECT_REPLY(raw_frame("?t_ns=" + next_t + "&width=752&height=480", pair.substr(pair.size() / 2)), 422,
+               "bad_input");  // one image for a stereo session
+  EXPECT_REPLY(raw_frame("?t_ns=" + std::to_string(frames[2].t_ns) + "&width=752&height=480", pair), 422,
+               "bad_input");  // time going backwards
+  EXPECT_REPLY(raw_frame("?t_ns=" + next_t + "&width=752&height=480", ""), 422, "bad_input");
   EXPECT_REPLY(http.Post(sid + "/frames", frame_form(next_t, std::string(5u << 20, 'x'), right)), 413, "too_large");
   // POST /v1/sessions/{id}/imu
   EXPECT_REPLY(http.Post("/v1/sessions/999/imu", R"({"samples": []})", "application/json"), 404, "not_found");

@@ -146,6 +146,17 @@ json ServerClient::start_session(const std::string& config, const std::string& n
 
 json ServerClient::post_frame(std::uint64_t session, std::int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
                               ImageEncoding encoding) {
+  const std::string path = "/v1/sessions/" + std::to_string(session) + "/frames";
+  if (encoding == ImageEncoding::kRaw && right.depth() != CV_16U) {
+    // One body of pixels, left then right (docs/api.md "Frames"): no multipart on either side.
+    ORBATLAS_CHECK(right.empty() || right.size() == left.size(), "the left and right images differ in size");
+    std::string body = image_bytes(left, encoding);
+    if (!right.empty()) body += image_bytes(right, encoding);
+    const std::string target = path + "?t_ns=" + std::to_string(t_ns) + "&width=" + std::to_string(left.cols) +
+                               "&height=" + std::to_string(left.rows);
+    return json::parse(
+        checked(send([&] { return client_->Post(target, body, "application/octet-stream"); }, true), url_, path).body);
+  }
   httplib::MultipartFormDataItems items;
   items.push_back({"t_ns", std::to_string(t_ns), "", ""});
   add_image(items, "left", left, encoding);
@@ -155,7 +166,6 @@ json ServerClient::post_frame(std::uint64_t session, std::int64_t t_ns, const cv
     add_image(items, "right", right, encoding);
   }
   add_raw_size(items, left, encoding);
-  const std::string path = "/v1/sessions/" + std::to_string(session) + "/frames";
   return json::parse(checked(send([&] { return client_->Post(path, items); }, true), url_, path).body);
 }
 

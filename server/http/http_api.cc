@@ -19,6 +19,8 @@
 #include "core/server/service_error.h"
 #include "core/server/atlas_service.h"
 #include "server/http/image_decode.h"
+#include "server/http/raw_frame.h"
+#include "core/persistence/map_rigs.h"
 #include "server/http/service_json.h"
 #include "wire/pose_json.h"
 #include "core/server/upload_jobs.h"
@@ -247,24 +249,38 @@ void install_session_routes(Router& router, AtlasService& service) {
         const auto session = service.session(id);  // 404 before looking at the body
         const CameraCalibration& camera = session->info().cameras.at(0);
         const cv::Size expected(camera.width, camera.height);
-        require_multipart(req, "'t_ns', 'left', 'right' or 'depth' (and 'width', 'height' for raw pixels)");
-        const TimestampNs t_ns = form_integer(req, "t_ns", true);
-        if (!req.has_file("left"))
-          throw_bad_request(
-              "a frame needs the image 'left' (and 'right' for a stereo session, 'depth' for an RGB-D one)");
         const bool rgbd = session->info().sensor == SensorType::kRgbd;
-        if (rgbd && (req.has_file("right") || !req.has_file("depth")))
-          throw_bad_request("an RGB-D session's frame is 'left' and its 'depth' (a 16-bit PNG), not a pair");
-        if (!rgbd && req.has_file("depth"))
-          throw_bad_request("a 'depth' image belongs to an RGB-D session; this one is " +
-                            std::string(sensor_type_name(session->info().sensor)));
-        const auto raw = raw_size(req);
-        const cv::Mat left = decode_request_image(req.get_file_value("left").content, raw, "left image", expected);
-        // A single-camera session takes 'left' alone; the session says which it needs.
-        const cv::Mat right = rgbd ? decode_request_depth(req.get_file_value("depth").content, "depth image", expected)
-                              : req.has_file("right") ? decode_request_image(req.get_file_value("right").content, raw,
-                                                                             "right image", expected)
-                                                      : cv::Mat();
+        TimestampNs t_ns = 0;
+        cv::Mat left, right;
+        if (is_raw_frame_request(req)) {
+          // One body of raw pixels (server/http/raw_frame.h): no multipart parsing, no decoding.
+          if (rgbd)
+            throw_bad_request("an RGB-D session's frame is multipart/form-data: 'left' and its 'depth' (a 16-bit PNG)");
+          RawFrame raw = parse_raw_frame(req, expected, !is_single_camera(session->info().sensor));
+          t_ns = raw.t_ns;
+          left = std::move(raw.left);
+          right = std::move(raw.right);
+        } else {
+          require_multipart(req,
+                            "'t_ns', 'left', 'right' or 'depth' (and 'width', 'height' for raw pixels); or an "
+                            "application/octet-stream body of raw pixels");
+          t_ns = form_integer(req, "t_ns", true);
+          if (!req.has_file("left"))
+            throw_bad_request(
+                "a frame needs the image 'left' (and 'right' for a stereo session, 'depth' for an RGB-D one)");
+          if (rgbd && (req.has_file("right") || !req.has_file("depth")))
+            throw_bad_request("an RGB-D session's frame is 'left' and its 'depth' (a 16-bit PNG), not a pair");
+          if (!rgbd && req.has_file("depth"))
+            throw_bad_request("a 'depth' image belongs to an RGB-D session; this one is " +
+                              std::string(sensor_type_name(session->info().sensor)));
+          const auto raw = raw_size(req);
+          left = decode_request_image(req.get_file_value("left").content, raw, "left image", expected);
+          // A single-camera session takes 'left' alone; the session says which it needs.
+          right = rgbd ? decode_request_depth(req.get_file_value("depth").content, "depth image", expected)
+                  : req.has_file("right")
+                      ? decode_request_image(req.get_file_value("right").content, raw, "right image", expected)
+                      : cv::Mat();
+        }
         const FrameReply r = service.process_frame(id, t_ns, left, right);
         json body = {{"t_ns", r.result.t_ns},         {"state", tracking_state_name(r.result.state)},
                      {"tracked", r.result.tracked},   {"by_imu", r.result.by_imu},
