@@ -11,6 +11,7 @@
 #include "core/features/keypoint_geometry.h"
 #include "core/features/orb_extractor.h"
 #include "core/features/patch_sad.h"
+#include "core/features/remap_bilinear.h"
 #include "core/features/stereo_rectified.h"
 #include "core/features/stereo_triangulated.h"
 #include "core/sim/renderer.h"
@@ -132,6 +133,46 @@ TEST(RectifiedStereo, FixedPointMapsRectifyAsTheFloatMapsDo) {
   cv::initUndistortRectifyMap(K(right), cv::Mat(right.distortion), R2, P2, size, CV_32F, map_x, map_y);
   cv::remap(image, expected, map_x, map_y, cv::INTER_LINEAR);
   EXPECT_EQ(cv::norm(right_rect, expected, cv::NORM_INF), 0.0);
+}
+
+// The own remap is cv::remap's result bit for bit (INTER_LINEAR, fixed-point
+// maps, constant border 0), with and without its AVX2 path: maps that reach
+// past every edge (zoomed out, shifted, jittered), widths that are not whole
+// vectors, and a source that is a view of a larger image.
+TEST(RemapBilinear, EqualsCvRemapBitForBitAlsoAtTheBorders) {
+  cv::RNG rng(7);
+  for (const cv::Size size : {cv::Size(752, 480), cv::Size(37, 23), cv::Size(9, 2)}) {
+    cv::Mat whole(size.height + 6, size.width + 10, CV_8UC1);
+    cv::randu(whole, 0, 256);
+    const cv::Mat src = whole(cv::Rect(3, 2, size.width, size.height));  // not continuous
+    for (int kind = 0; kind < 3; ++kind) {
+      cv::Mat map_x(size, CV_32F), map_y(size, CV_32F);
+      for (int y = 0; y < size.height; ++y)
+        for (int x = 0; x < size.width; ++x) {
+          const float cx = 0.5f * static_cast<float>(size.width), cy = 0.5f * static_cast<float>(size.height);
+          float u = static_cast<float>(x), v = static_cast<float>(y);
+          if (kind == 0) u = cx + 1.15f * (u - cx) + 0.3f, v = cy + 1.15f * (v - cy) - 0.7f;  // past every edge
+          if (kind == 1) u += 2.5f, v -= 1.25f;                                               // shifted
+          if (kind == 2) u += rng.uniform(-4.0f, 4.0f), v += rng.uniform(-4.0f, 4.0f);        // jittered
+          map_x.at<float>(y, x) = u;
+          map_y.at<float>(y, x) = v;
+        }
+      cv::Mat xy, frac, expected;
+      cv::convertMaps(map_x, map_y, xy, frac, CV_16SC2);
+      cv::remap(src, expected, xy, frac, cv::INTER_LINEAR);
+      for (const bool avx2 : {true, false}) {
+        cv::Mat mine;
+        remap_bilinear(src, mine, xy, frac, avx2);
+        ASSERT_EQ(mine.size(), expected.size());
+        EXPECT_EQ(cv::norm(mine, expected, cv::NORM_INF), 0.0)
+            << size << " map kind " << kind << (avx2 ? " (AVX2)" : " (scalar)");
+      }
+    }
+  }
+  cv::Mat xy(4, 4, CV_16SC2, cv::Scalar(0, 0)), frac(4, 4, CV_16UC1, cv::Scalar(0)), out;
+  EXPECT_THROW(remap_bilinear(cv::Mat(4, 4, CV_16UC1), out, xy, frac), Error);   // not 8-bit
+  EXPECT_THROW(remap_bilinear(cv::Mat(4, 4, CV_8UC1), out, frac, frac), Error);  // not a CV_16SC2 map
+  EXPECT_THROW(remap_bilinear(cv::Mat(4, 4, CV_8UC1), out, xy, frac(cv::Rect(0, 0, 2, 2))), Error);  // sizes differ
 }
 
 // The row search's zero-mean SADs (left patch and right sums computed once

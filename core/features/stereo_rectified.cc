@@ -8,6 +8,7 @@
 
 #include "core/common/error.h"
 #include "core/features/patch_sad.h"
+#include "core/features/remap_bilinear.h"
 
 namespace orbatlas {
 namespace {
@@ -72,20 +73,20 @@ void StereoRectifier::rectify(const cv::Mat& left, const cv::Mat& right, cv::Mat
   ORBATLAS_CHECK(left.size() == size_ && right.size() == size_,
                  "stereo images of " << left.cols << "x" << left.rows << " and " << right.cols << "x" << right.rows
                                      << " do not match the calibration (" << size_.width << "x" << size_.height << ")");
-  cv::remap(left, left_rect, map_left_xy_, map_left_frac_, cv::INTER_LINEAR);
-  cv::remap(right, right_rect, map_right_xy_, map_right_frac_, cv::INTER_LINEAR);
+  remap_bilinear(left, left_rect, map_left_xy_, map_left_frac_);
+  remap_bilinear(right, right_rect, map_right_xy_, map_right_frac_);
 }
 
 void StereoRectifier::rectify_left(const cv::Mat& left, cv::Mat& left_rect) const {
   ORBATLAS_CHECK(left.size() == size_,
                  "left image of " << left.cols << "x" << left.rows << " does not match the calibration");
-  cv::remap(left, left_rect, map_left_xy_, map_left_frac_, cv::INTER_LINEAR);
+  remap_bilinear(left, left_rect, map_left_xy_, map_left_frac_);
 }
 
 void StereoRectifier::rectify_right(const cv::Mat& right, cv::Mat& right_rect) const {
   ORBATLAS_CHECK(right.size() == size_,
                  "right image of " << right.cols << "x" << right.rows << " does not match the calibration");
-  cv::remap(right, right_rect, map_right_xy_, map_right_frac_, cv::INTER_LINEAR);
+  remap_bilinear(right, right_rect, map_right_xy_, map_right_frac_);
 }
 
 std::size_t StereoDepths::matched() const {
