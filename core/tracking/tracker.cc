@@ -583,8 +583,16 @@ std::optional<double> Tracker::wait_for_mapping() {
   const auto start = std::chrono::steady_clock::now();
   const auto at_most = std::chrono::duration_cast<std::chrono::milliseconds>(
       std::chrono::duration<double, std::milli>(options_.max_mapping_wait_ms));
-  if (!sink_.wait_until_adjusted(*map, at_most)) ++mapping_waits_cut_;
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  const bool adjusted = sink_.wait_until_adjusted(*map, at_most);
+  const double waited = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  if (!adjusted) {
+    ++mapping_waits_cut_;
+    // Still not adjusted after the whole bound: the next frame waits again (at
+    // most as long), so a local BA longer than one wait is still waited for, a
+    // frame at a time. (A paused mapping answers at once: nothing to wait for.)
+    if (waited >= options_.max_mapping_wait_ms) awaiting_adjustment_ = map;
+  }
+  return waited;
 }
 
 void Tracker::create_keyframe(Frame& frame, bool all_stereo_points) {

@@ -94,8 +94,10 @@ class Tracker {
   TrackResult track(Frame frame);
   // Called before a frame is made and tracked: when the last frame made a
   // keyframe, waits (at most max_mapping_wait_ms) until local mapping has
-  // adjusted it, so this frame tracks in the adjusted map. Returns the time
-  // waited [ms]; none when there was nothing to wait for (or waits are off).
+  // adjusted it, so this frame tracks in the adjusted map; a wait that ends
+  // at the bound is taken up again by the next frame (each frame waits at most
+  // the bound). Returns the time waited [ms]; none when there was nothing to
+  // wait for (or waits are off).
   std::optional<double> wait_for_mapping();
   std::size_t mapping_waits_cut() const { return mapping_waits_cut_; }  // ended at max_mapping_wait_ms
 
