@@ -261,7 +261,7 @@ TEST(Tracker, AWaitCutAtItsBoundIsTakenUpByTheNextFrame) {
       EXPECT_GE(*first, options.max_mapping_wait_ms);
       ASSERT_TRUE(second.has_value()) << "the cut wait is taken up by the next frame";
       EXPECT_GE(*second, options.max_mapping_wait_ms);  // cut again
-      const bool third_made_keyframe = tracker.track(frame(2)).keyframe;
+      tracker.track(frame(2));
       const auto third = tracker.wait_for_mapping();  // adjusted now
       ASSERT_TRUE(third.has_value());
       EXPECT_LT(*third, options.max_mapping_wait_ms);
@@ -269,7 +269,6 @@ TEST(Tracker, AWaitCutAtItsBoundIsTakenUpByTheNextFrame) {
       const bool fourth_made_keyframe = tracker.track(frame(3)).keyframe;
       EXPECT_EQ(tracker.wait_for_mapping().has_value(), fourth_made_keyframe) << "nothing left to wait for";
       EXPECT_EQ(sink.waits, fourth_made_keyframe ? 4 : 3);
-      (void)third_made_keyframe;
     }
   }
 }
