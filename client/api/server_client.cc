@@ -28,6 +28,12 @@ std::string image_bytes(const cv::Mat& image, ImageEncoding encoding) {
   return std::string(reinterpret_cast<const char*>(dense.data), dense.total());
 }
 
+// An 8-bit grey image's pixels, row by row, at the end of `body` (no copy of the image first).
+void append_raw_pixels(std::string& body, const cv::Mat& image) {
+  ORBATLAS_CHECK(image.type() == CV_8UC1, "raw frames are 8-bit grey images");
+  for (int y = 0; y < image.rows; ++y) body.append(image.ptr<char>(y), static_cast<std::size_t>(image.cols));
+}
+
 void add_image(httplib::MultipartFormDataItems& items, const char* name, const cv::Mat& image, ImageEncoding encoding) {
   items.push_back({name, image_bytes(image, encoding),
                    std::string(name) + (encoding == ImageEncoding::kPng ? ".png" : ".raw"),
@@ -150,8 +156,10 @@ json ServerClient::post_frame(std::uint64_t session, std::int64_t t_ns, const cv
   if (encoding == ImageEncoding::kRaw && right.depth() != CV_16U) {
     // One body of pixels, left then right (docs/api.md "Frames"): no multipart on either side.
     ORBATLAS_CHECK(right.empty() || right.size() == left.size(), "the left and right images differ in size");
-    std::string body = image_bytes(left, encoding);
-    if (!right.empty()) body += image_bytes(right, encoding);
+    std::string body;
+    body.reserve(left.total() + right.total());
+    for (const cv::Mat* image : {&left, &right})
+      if (!image->empty()) append_raw_pixels(body, *image);
     const std::string target = path + "?t_ns=" + std::to_string(t_ns) + "&width=" + std::to_string(left.cols) +
                                "&height=" + std::to_string(left.rows);
     return json::parse(

@@ -420,12 +420,11 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
                        std::string("cannot store the new session: ") + e.what());
   }
   auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam), mode, request.max_lag_s);
-  SessionStart start;
+  const SessionStart start{request.settings, atlas_.ids().peek(IdKind::keyframe), inertial, rig};
   {
     std::lock_guard lock(mutex_);
     sessions_[id] = live;
-    session_starts_[id] = {request.settings, atlas_.ids().peek(IdKind::keyframe), inertial, rig};
-    start = session_starts_[id];
+    session_starts_[id] = start;
   }
   if (mode == SessionMode::kMap)
     begin_session_work(id, StoredMerge{0, start.settings, start.first_keyframe, start.inertial, rig.monocular});

@@ -590,7 +590,7 @@ std::optional<double> Tracker::wait_for_mapping() {
     // Still not adjusted after the whole bound: the next frame waits again (at
     // most as long), so a local BA longer than one wait is still waited for, a
     // frame at a time. (A paused mapping answers at once: nothing to wait for.)
-    if (waited >= options_.max_mapping_wait_ms) awaiting_adjustment_ = map;
+    if (waited >= static_cast<double>(at_most.count())) awaiting_adjustment_ = map;
   }
   return waited;
 }
