@@ -20,6 +20,7 @@
 #   RATE=0.25 NS=4 scripts/bench_capacity.sh       # slower than the sensor (no core ever busy)
 #   SERVER_CPUS=1 CLIENT_CPUS=0 NS=1 scripts/bench_capacity.sh  # the server on one core (taskset -c)
 #   MAPPING_WAIT_MS=250 NS="1 4" scripts/bench_capacity.sh  # tracking waits for its keyframe's local BA (docs/mapping.md)
+#   SETTINGS="Orbatlas.Tracker.YoungMapKeyframes: 0" NS=4 scripts/bench_capacity.sh  # other settings (';' between them)
 # PHASES: 'together' (default) starts every client at one instant, so the N
 # cameras' frames arrive at the same moments (the worst case: N frames at once,
 # then nothing for 50 ms); 'spread' starts client i of N i/N of a frame interval
@@ -49,14 +50,16 @@ CLIENT_TASKSET=(); [ -n "${CLIENT_CPUS:-}" ] && CLIENT_TASKSET=(taskset -c "$CLI
 [ "$PHASES" = together ] || [ "$PHASES" = spread ] || { echo "bench_capacity: PHASES is together or spread" >&2; exit 1; }
 PRELOAD_S="${PRELOAD_S:-40}"  # seconds the clients get to read and decode their clips before they begin
 SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05 MH_01)
-# MAPPING_WAIT_MS: the server's sessions get Orbatlas.Tracker.MaxMappingWaitMs
-# through a copy of the shipped configs (--config-dir); empty: the shipped ones.
+# MAPPING_WAIT_MS: the server's sessions get Orbatlas.Tracker.MaxMappingWaitMs,
+# and SETTINGS ("Name: value" entries, ';' between them) any others, through a
+# copy of the shipped configs (--config-dir); both empty: the shipped ones.
 CONFIG_FLAGS=()
-if [ -n "${MAPPING_WAIT_MS:-}" ]; then
+if [ -n "${MAPPING_WAIT_MS:-}" ] || [ -n "${SETTINGS:-}" ]; then
   mkdir -p "$OUT"
   rm -rf "$OUT/config"
   cp -r "$ROOT/config" "$OUT/config"
-  echo "Orbatlas.Tracker.MaxMappingWaitMs: $MAPPING_WAIT_MS" >> "$OUT/config/euroc/stereo.yaml"
+  [ -n "${MAPPING_WAIT_MS:-}" ] && echo "Orbatlas.Tracker.MaxMappingWaitMs: $MAPPING_WAIT_MS" >> "$OUT/config/euroc/stereo.yaml"
+  [ -n "${SETTINGS:-}" ] && tr ';' '\n' <<< "$SETTINGS" | sed 's/^ *//' >> "$OUT/config/euroc/stereo.yaml"
   CONFIG_FLAGS=(--config-dir "$OUT/config")
 fi
 
