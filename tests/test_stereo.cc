@@ -136,16 +136,17 @@ TEST(RectifiedStereo, FixedPointMapsRectifyAsTheFloatMapsDo) {
 }
 
 // The own remap is cv::remap's result bit for bit (INTER_LINEAR, fixed-point
-// maps, constant border 0), with and without its AVX2 path: maps that reach
-// past every edge (zoomed out, shifted, jittered), widths that are not whole
-// vectors, and a source that is a view of a larger image.
+// maps, constant border 0), with and without its AVX2 paths (byte shuffles
+// within a window of three rows, gathers, and single pixels at the edges):
+// maps that reach past every edge (zoomed out, shifted, jittered, turned),
+// widths that are not whole vectors, and a source that is a view of a larger image.
 TEST(RemapBilinear, EqualsCvRemapBitForBitAlsoAtTheBorders) {
   cv::RNG rng(7);
   for (const cv::Size size : {cv::Size(752, 480), cv::Size(37, 23), cv::Size(9, 2)}) {
     cv::Mat whole(size.height + 6, size.width + 10, CV_8UC1);
     cv::randu(whole, 0, 256);
     const cv::Mat src = whole(cv::Rect(3, 2, size.width, size.height));  // not continuous
-    for (int kind = 0; kind < 3; ++kind) {
+    for (int kind = 0; kind < 4; ++kind) {
       cv::Mat map_x(size, CV_32F), map_y(size, CV_32F);
       for (int y = 0; y < size.height; ++y)
         for (int x = 0; x < size.width; ++x) {
@@ -154,6 +155,10 @@ TEST(RemapBilinear, EqualsCvRemapBitForBitAlsoAtTheBorders) {
           if (kind == 0) u = cx + 1.15f * (u - cx) + 0.3f, v = cy + 1.15f * (v - cy) - 0.7f;  // past every edge
           if (kind == 1) u += 2.5f, v -= 1.25f;                                               // shifted
           if (kind == 2) u += rng.uniform(-4.0f, 4.0f), v += rng.uniform(-4.0f, 4.0f);        // jittered
+          if (kind == 3) {  // turned a little and barrel-distorted, as a rectification: rows cross within blocks
+            const float du = u - cx, dv = v - cy, k = 1.0f + 0.05f * (du * du + dv * dv) / (cx * cx);
+            u = cx + (0.9996f * du - 0.03f * dv) * k, v = cy + (0.03f * du + 0.9996f * dv) * k;
+          }
           map_x.at<float>(y, x) = u;
           map_y.at<float>(y, x) = v;
         }

@@ -48,9 +48,6 @@ void TrackerOptions::check() const {
       "tracker: new_map_after_failed_relocalizations must be >= 0, not " << new_map_after_failed_relocalizations);
   ORBATLAS_CHECK(std::isfinite(max_mapping_wait_ms) && max_mapping_wait_ms >= 0.0 && max_mapping_wait_ms <= 10000.0,
                  "tracker: max_mapping_wait_ms must be in [0, 10000], not " << max_mapping_wait_ms);
-  ORBATLAS_CHECK(young_map_keyframes >= 0, "tracker: young_map_keyframes must be >= 0, not " << young_map_keyframes);
-  ORBATLAS_CHECK(std::isfinite(young_map_wait_ms) && young_map_wait_ms >= 0.0 && young_map_wait_ms <= 10000.0,
-                 "tracker: young_map_wait_ms must be in [0, 10000], not " << young_map_wait_ms);
   ORBATLAS_CHECK(max_local_keyframes >= 0, "tracker: max_local_keyframes must be >= 0, not " << max_local_keyframes);
   ORBATLAS_CHECK(min_keyframes_to_keep_map >= 0,
                  "tracker: min_keyframes_to_keep_map must be >= 0, not " << min_keyframes_to_keep_map);
@@ -578,18 +575,15 @@ void Tracker::keyframe_made(std::shared_ptr<KeyFrame> kf) {
   last_keyframe_ = kf;
   last_keyframe_index_ = frame_index_;
   awaiting_adjustment_ = kf->map_id();
-  awaiting_young_map_ = map_->keyframe_count() <= static_cast<std::size_t>(options_.young_map_keyframes);
   sink_.insert(std::move(kf));
 }
 
 std::optional<double> Tracker::wait_for_mapping() {
   const std::optional<MapId> map = std::exchange(awaiting_adjustment_, std::nullopt);
-  const double bound_ms = awaiting_young_map_ ? std::max(options_.max_mapping_wait_ms, options_.young_map_wait_ms)
-                                              : options_.max_mapping_wait_ms;
-  if (!map || bound_ms <= 0.0) return std::nullopt;
+  if (!map || options_.max_mapping_wait_ms <= 0.0) return std::nullopt;
   const auto start = std::chrono::steady_clock::now();
-  const auto at_most =
-      std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::duration<double, std::milli>(bound_ms));
+  const auto at_most = std::chrono::duration_cast<std::chrono::milliseconds>(
+      std::chrono::duration<double, std::milli>(options_.max_mapping_wait_ms));
   const bool adjusted = sink_.wait_until_adjusted(*map, at_most);
   const double waited = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   if (!adjusted) {

@@ -51,13 +51,6 @@ struct TrackerOptions {
   // BA outlasts a frame interval (docs/mapping.md, "Tracking's wait for its
   // keyframe"). 0 (the default): tracking never waits, as ORB-SLAM.
   double max_mapping_wait_ms = 0.0;
-  // The same wait for the keyframes that start a map (while it has at most
-  // young_map_keyframes), at most young_map_wait_ms each frame: the first
-  // keyframes' points are what the rest of the map is built from, and under
-  // load a young map's local BAs come after many frames (docs/mapping.md).
-  // 0 keyframes: no wait beyond max_mapping_wait_ms.
-  int young_map_keyframes = 0;
-  double young_map_wait_ms = 0.0;
   int max_local_keyframes = 80;
   int min_keyframes_to_keep_map = 10;  // a map lost with fewer keyframes goes straight to LOST
   // Localisation on stored maps: no keyframe and no map is ever made; the first
@@ -207,7 +200,6 @@ class Tracker {
   int failed_relocalizations_ = 0;  // in a row, while recently lost
   std::size_t maps_started_ = 0, relocalizations_ = 0, maps_followed_ = 0, slot_races_ = 0, monocular_starts_ = 0;
   std::optional<MapId> awaiting_adjustment_;  // the map of the last keyframe made, until wait_for_mapping()
-  bool awaiting_young_map_ = false;           // that keyframe is one of its map's first (young_map_keyframes)
   std::size_t mapping_waits_cut_ = 0;
   std::optional<FrameAnchor> last_anchor_;
   FlatIdSet local_points_seen_;  // track_local_map's points already taken, kept between frames
