@@ -15,12 +15,12 @@ void KeyFrame::update_connections(int min_weight) {
   std::map<KeyframeId, Link> counts;
   for (const auto& mp : slots()) {
     if (!mp || mp->is_bad()) continue;
-    for (const auto& obs : mp->observations()) {
-      if (obs.keyframe == id_) continue;
-      Link& link = counts[obs.keyframe];
-      link.keyframe = obs.kf;
+    mp->for_each_observer([&](KeyframeId other, const std::weak_ptr<KeyFrame>& kf) {
+      if (other == id_) return;
+      Link& link = counts[other];
+      if (link.weight == 0) link.keyframe = kf;
       ++link.weight;
-    }
+    });
   }
   std::vector<std::pair<std::shared_ptr<KeyFrame>, int>> kept;  // dropped at return, no lock held
   std::shared_ptr<KeyFrame> best;

@@ -91,6 +91,14 @@ class MapPoint {
 
   // Observations are edited through KeyFrame::add_observation / erase_slot / replace.
   std::vector<MapPointObservation> observations() const;  // by keyframe id
+  // f(keyframe id, weak keyframe) for each observer, by keyframe id, under the
+  // point's lock: no copy of the list (tracking's local map asks this of every
+  // tracked point each frame). f must not call into this point or take a lock.
+  template <class F>
+  void for_each_observer(F&& f) const {
+    std::lock_guard lock(mutex_);
+    for (const auto& [kf_id, record] : observers_) f(kf_id, record.keyframe);
+  }
   std::size_t observation_count() const;
   std::optional<std::size_t> slot_in(KeyframeId keyframe) const;
   // Number of observers other than `exclude` with level <= max_level, counting

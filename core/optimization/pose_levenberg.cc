@@ -49,7 +49,13 @@ Linearisation linearise(const std::vector<PoseTerm>& terms, const PoseParameters
       const Eigen::Map<const Eigen::Matrix<double, 1, 4>> dq(jq + 4 * i);
       row.head<3>() = (dq * plus).transpose();
       row.tail<3>() = Eigen::Map<const Eigen::Vector3d>(jt + 3 * i);
-      out.H.selfadjointView<Eigen::Upper>().rankUpdate(row, weight);
+      // The upper triangle of weight * row * row^T, as Eigen's rankUpdate sums
+      // it (the same products in the same order) without its general-size
+      // kernel's overhead (1.8 % of a loaded server's samples).
+      for (int j = 0; j < 6; ++j) {
+        const double scaled = weight * row[j];
+        for (int a = 0; a <= j; ++a) out.H(a, j) += scaled * row[a];
+      }
       out.g += weight * r[i] * row;
     }
   }

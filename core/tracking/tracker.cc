@@ -426,11 +426,11 @@ void Tracker::update_local_map(const Frame& frame) {
   for (std::size_t i = 0; i < frame.size(); ++i) {
     const auto& mp = frame.map_points[i];
     if (!mp || mp->is_bad()) continue;
-    for (const auto& obs : mp->observations()) {
-      auto& entry = counts[obs.keyframe];
-      if (!entry.first) entry.first = obs.kf.lock();
+    mp->for_each_observer([&](KeyframeId id, const std::weak_ptr<KeyFrame>& kf) {
+      auto& entry = counts[id];
+      if (!entry.first) entry.first = kf.lock();
       ++entry.second;
-    }
+    });
   }
   // No association (a frame placed by the IMU's prediction alone): the last
   // local map is where to look.
