@@ -93,7 +93,8 @@ class MapPoint {
   std::vector<MapPointObservation> observations() const;  // by keyframe id
   // f(keyframe id, weak keyframe) for each observer, by keyframe id, under the
   // point's lock: no copy of the list (tracking's local map asks this of every
-  // tracked point each frame). f must not call into this point or take a lock.
+  // tracked point each frame). f must not call into this point, take a lock,
+  // or make the weak link strong (docs/map_model.md, "Threads and locks").
   template <class F>
   void for_each_observer(F&& f) const {
     std::lock_guard lock(mutex_);

@@ -422,14 +422,14 @@ bool Tracker::recover(Frame& frame) {
 
 void Tracker::update_local_map(const Frame& frame) {
   // Keyframes that observe the frame's points, by how many; the best is the new reference.
-  std::unordered_map<KeyframeId, std::pair<std::shared_ptr<KeyFrame>, int>> counts;
+  // (Weak links under the points' locks, made strong after: docs/map_model.md.)
+  std::unordered_map<KeyframeId, std::pair<std::weak_ptr<KeyFrame>, int>> counts;
   for (std::size_t i = 0; i < frame.size(); ++i) {
     const auto& mp = frame.map_points[i];
     if (!mp || mp->is_bad()) continue;
     mp->for_each_observer([&](KeyframeId id, const std::weak_ptr<KeyFrame>& kf) {
       auto& entry = counts[id];
-      if (!entry.first) entry.first = kf.lock();
-      ++entry.second;
+      if (entry.second++ == 0) entry.first = kf;
     });
   }
   // No association (a frame placed by the IMU's prediction alone): the last
@@ -441,8 +441,9 @@ void Tracker::update_local_map(const Frame& frame) {
   int best_count = 0;
   std::vector<std::pair<int, std::shared_ptr<KeyFrame>>> sorted;
   for (auto& [id, entry] : counts) {
-    if (!entry.first || entry.first->is_bad()) continue;
-    sorted.emplace_back(entry.second, entry.first);
+    auto kf = entry.first.lock();
+    if (!kf || kf->is_bad()) continue;
+    sorted.emplace_back(entry.second, std::move(kf));
   }
   std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) {
     return a.first != b.first ? a.first > b.first : a.second->id() < b.second->id();
