@@ -109,6 +109,15 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
   tracking_ms_.add(out.tracking_ms);
   last_ = out.result;
   current_map_.store(out.result.tracked ? out.result.map : kInvalidMapId);
+  if (out.result.tracked && out.result.map != logged_map_) {
+    // The session's map lineage in the log (a map started or joined, a merge
+    // into another): rare, and what explains a session's accuracy in a shared map.
+    log_info("session " + std::to_string(info_.id) + " (" + info_.name + ") tracks in map " +
+             std::to_string(out.result.map) +
+             (logged_map_ == kInvalidMapId ? std::string() : " (was map " + std::to_string(logged_map_) + ")") +
+             " at frame " + std::to_string(frames_) + ", " + std::to_string(out.result.t_ns) + " ns");
+    logged_map_ = out.result.map;
+  }
   return out;
 }
 

@@ -107,6 +107,7 @@ class LiveSession {
   std::optional<SessionStatus::SlamCounts> final_counts_;  // captured by finish()
   std::atomic<std::size_t> worker_errors_{0};
   std::atomic<MapId> current_map_{kInvalidMapId};
+  MapId logged_map_ = kInvalidMapId;  // under mutex_: the last map the log named for this session
   std::atomic<std::chrono::steady_clock::rep> last_activity_{
       std::chrono::steady_clock::now().time_since_epoch().count()};
   std::string ended_by_;  // under mutex_; empty: the client finished it

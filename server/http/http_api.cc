@@ -1,6 +1,5 @@
 #include "server/http/http_api.h"
 
-#include <charconv>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -19,6 +18,7 @@
 #include "core/server/service_error.h"
 #include "core/server/atlas_service.h"
 #include "server/http/image_decode.h"
+#include "server/http/parse_integer.h"
 #include "server/http/raw_frame.h"
 #include "core/persistence/map_rigs.h"
 #include "server/http/service_json.h"
@@ -156,10 +156,9 @@ class Router {
 
 std::uint64_t id_from(const Request& req, std::size_t group, const char* what) {
   const std::string& text = req.matches[group];
-  std::uint64_t id = 0;
-  const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), id);
-  if (ec != std::errc() || ptr != text.data() + text.size()) throw_not_found(std::string("no ") + what + " " + text);
-  return id;
+  const auto id = parse_integer<std::uint64_t>(text);
+  if (!id) throw_not_found(std::string("no ") + what + " " + text);
+  return *id;
 }
 
 json parse_json_body(const Request& req) {
@@ -186,11 +185,10 @@ std::int64_t form_integer(const Request& req, const char* key, bool required) {
     if (required) throw_bad_request(std::string("the form field '") + key + "' is missing");
     return 0;
   }
-  std::int64_t v = 0;
-  const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (ec != std::errc() || ptr != text.data() + text.size())
+  const auto v = parse_integer<std::int64_t>(text);
+  if (!v)
     throw_bad_request(std::string("the form field '") + key + "' must be an integer, got '" + text.substr(0, 40) + "'");
-  return v;
+  return *v;
 }
 
 std::optional<RawImageSize> raw_size(const Request& req) {
@@ -436,9 +434,10 @@ void install_viewer_routes(Router& router, AtlasService& service, const HttpApiO
                std::size_t max_points = 200000;
                if (req.has_param("max")) {
                  const std::string text = req.get_param_value("max");
-                 const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), max_points);
-                 if (ec != std::errc() || end != text.data() + text.size() || max_points < 1 || max_points > 5000000)
+                 const auto parsed = parse_integer<std::size_t>(text);
+                 if (!parsed || *parsed < 1 || *parsed > 5000000)
                    throw_bad_request("max must be a whole number of points in 1..5000000, not '" + text + "'");
+                 max_points = *parsed;
                }
                const MapPointCloud cloud = service.map_points(id_from(req, 1, "map"));
                const std::vector<float> xyz = point_buffer(cloud, max_points);
@@ -618,9 +617,9 @@ void install_http_api(httplib::Server& server, AtlasService& service, const Http
     const std::string length = req.get_header_value("Content-Length");
     std::uint64_t bytes = 0;
     if (lengths == 1) {
-      const auto [end, ec] = std::from_chars(length.data(), length.data() + length.size(), bytes);
-      if (ec != std::errc() || end != length.data() + length.size())
-        return refuse(res, 400, "bad_request", "Content-Length is not a number");
+      const auto parsed = parse_integer<std::uint64_t>(length);
+      if (!parsed) return refuse(res, 400, "bad_request", "Content-Length is not a number");
+      bytes = *parsed;
     }
     const bool upload = req.path == "/v1/uploads";
     if (upload) {

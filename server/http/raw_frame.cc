@@ -1,12 +1,12 @@
 #include "server/http/raw_frame.h"
 
-#include <charconv>
 #include <cstring>
 #include <string>
 
 #include "core/common/error.h"
 #include "core/server/service_error.h"
 #include "core/io/settings.h"
+#include "server/http/parse_integer.h"
 
 // Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
 #include <httplib.h>
@@ -20,12 +20,11 @@ std::int64_t query_integer(const httplib::Request& req, const char* key) {
     throw_bad_request(std::string("a raw frame (application/octet-stream) needs the query parameter '") + key +
                       "' (t_ns, width, height)");
   const std::string text = req.get_param_value(key);
-  std::int64_t v = 0;
-  const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (text.empty() || ec != std::errc() || ptr != text.data() + text.size())
+  const auto v = parse_integer<std::int64_t>(text);
+  if (!v)
     throw_bad_request(std::string("the query parameter '") + key + "' must be an integer, got '" + text.substr(0, 40) +
                       "'");
-  return v;
+  return *v;
 }
 
 cv::Mat copy_pixels(const char* data, const cv::Size& size) {
