@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "core/common/error.h"
+#include "core/common/parse_integer.h"
 
 namespace orbatlas {
 
@@ -72,11 +73,10 @@ double parse_double(std::string_view field, const std::filesystem::path& path, s
 }
 
 long long parse_int64(std::string_view field, const std::filesystem::path& path, std::size_t line) {
-  long long v = 0;
-  const auto [ptr, ec] = std::from_chars(field.data(), field.data() + field.size(), v);
-  if (ec != std::errc() || ptr != field.data() + field.size())
+  const auto v = parse_integer<long long>(field);
+  if (!v)
     throw DataError(path.string() + ":" + std::to_string(line) + ": not an integer: '" + std::string(field) + "'");
-  return v;
+  return *v;
 }
 
 }  // namespace orbatlas

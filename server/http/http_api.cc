@@ -18,7 +18,7 @@
 #include "core/server/service_error.h"
 #include "core/server/atlas_service.h"
 #include "server/http/image_decode.h"
-#include "server/http/parse_integer.h"
+#include "core/common/parse_integer.h"
 #include "server/http/raw_frame.h"
 #include "core/persistence/map_rigs.h"
 #include "server/http/service_json.h"

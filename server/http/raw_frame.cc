@@ -6,7 +6,7 @@
 #include "core/common/error.h"
 #include "core/server/service_error.h"
 #include "core/io/settings.h"
-#include "server/http/parse_integer.h"
+#include "core/common/parse_integer.h"
 
 // Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
 #include <httplib.h>

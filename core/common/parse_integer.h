@@ -1,7 +1,7 @@
 #pragma once
-// Whole decimal text as an integer (path ids, query parameters, form fields):
-// none for empty text, trailing characters, a sign an unsigned type cannot
-// take, or a value out of the type's range. The caller words the error.
+// Whole decimal text as an integer (table fields, path ids, query parameters,
+// form fields): none for empty text, trailing characters, a sign an unsigned
+// type cannot take, or a value out of the type's range. The caller words the error.
 #include <charconv>
 #include <optional>
 #include <string_view>
