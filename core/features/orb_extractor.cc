@@ -524,9 +524,12 @@ ImageFeatures OrbExtractor::extract(const cv::Mat& image) {
     if (selected_.empty()) continue;
 
     const auto scale = static_cast<float>(scale_factors_[level]);
-    // Rotated BRIEF on the blurred level, as cv::ORB computes it (bit for bit).
+    // Rotated BRIEF on the blurred level (cv::ORB's bits with opencv_blur).
     cv::Mat& blurred = blurred_[level];
-    RotatedBrief::blur(img, blurred);
+    if (options_.opencv_blur)
+      RotatedBrief::blur_as_opencv(img, blurred);
+    else
+      RotatedBrief::blur(img, blurred, options_.use_avx2);
     for (const std::uint32_t c : selected_) {
       const Candidate& cand = candidates_[c];
       const int x = static_cast<int>(cand.x) + min_x, y = static_cast<int>(cand.y) + min_y;

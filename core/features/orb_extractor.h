@@ -28,6 +28,10 @@ struct OrbExtractorOptions {
   // time, SSE2, the rest one pixel at a time): the same features; false forces
   // the narrower paths (tests compare the two).
   bool use_avx2 = true;
+  // The descriptors' blur: false (default) our fixed-point one, about twice as
+  // fast; true cv::GaussianBlur as cv::ORB runs it, for descriptors equal to
+  // cv::ORB's bit for bit (tests; RotatedBrief::blur_as_opencv).
+  bool opencv_blur = false;
   void check() const;  // throws Error on invalid values
 };
 

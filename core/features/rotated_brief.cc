@@ -15,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/common/error.h"
+#include "core/features/brief_blur.h"
 #include "core/features/cpu_features.h"
 
 namespace orbatlas {
@@ -72,7 +73,9 @@ RotatedBrief::RotatedBrief(const BriefPattern& pattern) {
   reach_ = static_cast<int>(std::floor(reach + 0.5f));
 }
 
-void RotatedBrief::blur(const cv::Mat& level_view, cv::Mat& dst) {
+namespace {
+
+void check_level_view(const cv::Mat& level_view, const cv::Mat& dst) {
   constexpr int kRadius = 3;
   ORBATLAS_CHECK(!level_view.empty() && level_view.type() == CV_8UC1,
                  "rotated BRIEF: the level must be a non-empty CV_8UC1 image");
@@ -83,9 +86,19 @@ void RotatedBrief::blur(const cv::Mat& level_view, cv::Mat& dst) {
       offset.x >= kRadius && offset.y >= kRadius && whole.width - offset.x - level_view.cols >= kRadius &&
           whole.height - offset.y - level_view.rows >= kRadius,
       "rotated BRIEF: the level needs " << kRadius << " valid pixels on every side (a view of a bordered buffer)");
-  dst.create(level_view.size(), CV_8UC1);
-  ORBATLAS_CHECK(dst.datastart != level_view.datastart,
+  ORBATLAS_CHECK(dst.empty() || dst.datastart != level_view.datastart,
                  "rotated BRIEF: the blurred level must not share the level's memory");
+}
+
+}  // namespace
+
+void RotatedBrief::blur(const cv::Mat& level_view, cv::Mat& dst, bool use_avx2) {
+  check_level_view(level_view, dst);
+  brief_blur(level_view, dst, use_avx2);
+}
+
+void RotatedBrief::blur_as_opencv(const cv::Mat& level_view, cv::Mat& dst) {
+  check_level_view(level_view, dst);
   cv::GaussianBlur(level_view, dst, cv::Size(7, 7), 2, 2, cv::BORDER_REFLECT_101);
 }
 

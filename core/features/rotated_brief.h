@@ -16,12 +16,17 @@ class RotatedBrief {
  public:
   explicit RotatedBrief(const BriefPattern& pattern);
 
-  // The blur ORB applies before its tests: cv::GaussianBlur 7x7, sigma 2,
-  // BORDER_REFLECT_101, on the level image as a view into its bordered buffer
-  // (at least 3 valid pixels on every side, checked). cv::ORB blurs such a view,
-  // which OpenCV does in floating point (its bit-exact fixed-point blur is only
-  // for whole images); so do we, for the same bits. dst must not share src's memory.
-  static void blur(const cv::Mat& level_view, cv::Mat& dst);
+  // The blur before the tests: 7x7 Gaussian, sigma 2, on the level image as a
+  // view into its bordered buffer (at least 3 valid pixels on every side,
+  // checked), in fixed point (brief_blur.h). use_avx2 false forces the plain
+  // path (the same bits). dst must not share the level's memory (checked).
+  static void blur(const cv::Mat& level_view, cv::Mat& dst, bool use_avx2 = true);
+  // The same blur as cv::ORB computes it: cv::GaussianBlur, BORDER_REFLECT_101,
+  // which on such a view takes OpenCV's generic filter in float with unrounded
+  // taps, so a pixel can differ from blur()'s by a grey level. About twice as
+  // slow; with it our descriptors are cv::ORB's bit for bit
+  // (OrbExtractorOptions::opencv_blur).
+  static void blur_as_opencv(const cv::Mat& level_view, cv::Mat& dst);
 
   // blurred: CV_8UC1, the level image after gaussian_blur_7x7_sigma2. (x, y): a
   // pixel at least reach() from every edge (checked). angle_deg: the keypoint's
