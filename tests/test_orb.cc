@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -406,6 +407,21 @@ TEST(Descriptor, MatRoundTripKeepsOpenCvByteOrder) {
   for (int i = 1; i < rows.rows; ++i)
     EXPECT_EQ(hamming(ds[static_cast<std::size_t>(i)], ds[0]),
               static_cast<int>(cv::norm(rows.row(i), rows.row(0), cv::NORM_HAMMING)));
+  // The distance equals std::popcount's count at every count, 0 and 256 included.
+  Descriptor zero{}, all{};
+  all.fill(~std::uint64_t{0});
+  EXPECT_EQ(hamming(zero, all), 256);
+  EXPECT_EQ(hamming(all, all), 0);
+  for (int bits = 0; bits <= 256; ++bits) {
+    Descriptor d{};
+    for (int k = 0; k < bits; ++k) d[static_cast<std::size_t>(k / 64)] |= std::uint64_t{1} << (k % 64);
+    EXPECT_EQ(hamming(d, zero), bits);
+  }
+  for (std::size_t i = 1; i < ds.size(); ++i) {
+    int expected = 0;
+    for (std::size_t w = 0; w < 4; ++w) expected += std::popcount(ds[i][w] ^ ds[i - 1][w]);
+    EXPECT_EQ(hamming(ds[i], ds[i - 1]), expected);
+  }
   Descriptor one{};
   one[0] = 1;  // bit 0 of byte 0
   EXPECT_EQ(descriptors_to_mat({one}).at<std::uint8_t>(0, 0), 1);
