@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "core/common/error.h"
+#include "core/common/log.h"
 #include "core/map/atlas.h"
 #include "core/persistence/pg_db.h"
 #include "core/persistence/wall_clock.h"
@@ -30,21 +31,35 @@ std::vector<MapId> MapOwnership::claim_free_and_dead() {
         "INSERT INTO map_owners(map_id, replica_id, claimed_ns) SELECT id, ?1, ?2 FROM maps "
         "WHERE id NOT IN (SELECT map_id FROM map_owners) ON CONFLICT (map_id) DO NOTHING RETURNING map_id");
     free.bind_int64(1, me).bind_int64(2, now);
-    while (free.step()) claimed.push_back(static_cast<MapId>(free.int64(0)));
+    std::string why;  // for the log: how each map was claimed
+    const auto note = [&](MapId map, const std::string& how) {
+      why += (why.empty() ? "" : ", ") + std::to_string(map) + " (" + how + ")";
+    };
+    while (free.step()) {
+      claimed.push_back(static_cast<MapId>(free.int64(0)));
+      note(claimed.back(), "stored, no owner");
+    }
     // The maps of dead replicas (waits for a checkpoint of theirs in progress).
     PgStatement dead = db.prepare(
         "UPDATE map_owners SET replica_id = ?1, claimed_ns = ?2 WHERE replica_id <> ?1 AND replica_id IN "
         "(SELECT id FROM replicas WHERE state <> 'running' OR lease_until < now()) RETURNING map_id");
     dead.bind_int64(1, me).bind_int64(2, now);
-    while (dead.step()) claimed.push_back(static_cast<MapId>(dead.int64(0)));
+    while (dead.step()) {
+      claimed.push_back(static_cast<MapId>(dead.int64(0)));
+      note(claimed.back(), "its replica stopped or its lease passed");
+    }
     // Maps handed over to this replica by live ones (hand_over()).
     PgStatement mine = db.prepare("SELECT map_id FROM map_owners WHERE replica_id = ?1");
     mine.bind_int64(1, me);
     while (mine.step()) {
       const auto map = static_cast<MapId>(mine.int64(0));
-      if (!owns(map) && std::find(claimed.begin(), claimed.end(), map) == claimed.end()) claimed.push_back(map);
+      if (!owns(map) && std::find(claimed.begin(), claimed.end(), map) == claimed.end()) {
+        claimed.push_back(map);
+        note(map, "its owner row names this replica");
+      }
     }
     transaction.commit();
+    if (!why.empty()) log_info("replica " + std::to_string(me) + " claims map(s) " + why);
   });
   return claimed;
 }
