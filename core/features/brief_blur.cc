@@ -116,10 +116,7 @@ __attribute__((target("avx2"))) void column_pass_avx2(const Rows& rows, int widt
 void brief_blur(const cv::Mat& view, cv::Mat& dst, bool use_avx2) {
   const int width = view.cols, height = view.rows;
   dst.create(view.size(), CV_8UC1);
-  bool avx2 = use_avx2 && cpu_has_avx2();
-#if !defined(ORBATLAS_BLUR_AVX2)
-  avx2 = false;
-#endif
+  const bool avx2 = use_avx2 && cpu_has_avx2();  // false wherever ORBATLAS_BLUR_AVX2 is not defined
   const auto stride = static_cast<std::size_t>(width + 16);
   std::vector<std::uint16_t> ring(kRing * stride);
   const auto slot = [&](int r) { return ring.data() + static_cast<std::size_t>((r + kRing) % kRing) * stride; };

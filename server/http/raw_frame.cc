@@ -4,9 +4,9 @@
 #include <string>
 
 #include "core/common/error.h"
-#include "core/server/service_error.h"
-#include "core/io/settings.h"
 #include "core/common/parse_integer.h"
+#include "core/io/settings.h"
+#include "core/server/service_error.h"
 
 // Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
 #include <httplib.h>
