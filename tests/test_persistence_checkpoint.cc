@@ -492,7 +492,8 @@ TEST_P(CheckpointTest, TwoWritersEachWriteOnlyTheirOwnMaps) {
   std::set<MapId> a_writes = {a_own};
   std::vector<std::vector<MapId>> a_candidates;
   CheckpointOptions a_options = manual_only();
-  a_options.writable_maps = [&](SqlConnection&, const std::vector<MapId>& candidates) {
+  a_options.writable_maps = [&](SqlConnection&, const std::vector<MapId>& candidates,
+                                const std::unordered_set<MapId>&) {
     std::lock_guard lock(ownership_mutex);
     a_candidates.push_back(candidates);
     std::unordered_set<MapId> out;

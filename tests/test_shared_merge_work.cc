@@ -4,12 +4,14 @@
 // put back as it was, or until a retry time (then nobody asks for its map);
 // asked for by another replica once it waited;
 // a map asked for is handed over and taken like a dead replica's; the rows of
-// a replica that stopped go with its maps; the live sessions of a replica
+// a replica that stopped go with its maps; a map merged away loses its owner
+// with its rows only, never claimed back by its maker; the live sessions of a replica
 // gone become rows of the maps their keyframes are in.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <string>
+#include <unordered_set>
 
 #include "core/persistence/pg_schema.h"
 #include "core/persistence/wall_clock.h"
@@ -147,6 +149,53 @@ TEST_F(SharedMergeWorkTest, AMapAskedForIsHandedOverAndTakenLikeADeadReplicasMap
   EXPECT_TRUE(ownership_b.want(map));
   b.stop();
   EXPECT_TRUE(ownership_a.wanted().empty());
+}
+
+bool owned_by(const MapOwnership& ownership, MapId map, std::uint64_t replica) {
+  for (const MapOwnership::Owned& o : ownership.owners())
+    if (o.map == map) return o.replica == replica;
+  return false;
+}
+
+bool has_owner(const MapOwnership& ownership, MapId map) {
+  const auto owners = ownership.owners();
+  return std::any_of(owners.begin(), owners.end(), [&](const MapOwnership::Owned& o) { return o.map == map; });
+}
+
+// A map a made, handed over to b and merged away there: its owner row goes only
+// with the checkpoint that deletes its rows (not with one whose snapshot still
+// had it: that one writes it as it was), and a's stale copy never claims it back.
+TEST_F(SharedMergeWorkTest, AMapMergedAwayKeepsItsOwnerUntilItsRowsGoAndItsMakerNeverClaimsItBack) {
+  migrate_postgres_schema(*db_, unix_time_ns());
+  const std::string uri = cluster().uri(name_);
+  ReplicaRegistry a(uri, long_lease()), b(uri, long_lease());
+  MapOwnership ownership_a(a, uri), ownership_b(b, uri);
+  const MapId map = replica_id_range(a.id(), kReplicaMapIdShift).begin + 1;  // made by a
+  db_->prepare("INSERT INTO maps(id, saved_ns) VALUES (?1, 0)").bind_int64(1, static_cast<std::int64_t>(map)).run();
+  EXPECT_EQ(ownership_a.writable(*db_, {map}, {}), std::unordered_set<MapId>{map});  // a's first checkpoint claims it
+  EXPECT_TRUE(owned_by(ownership_a, map, a.id()));
+  ASSERT_TRUE(ownership_b.want(map));
+  ASSERT_TRUE(ownership_a.hand_over(map, b.id()));
+  ASSERT_TRUE(contains(ownership_b.claim_free_and_dead(), map));
+  ownership_b.ready({map});
+
+  // b merges it away after a checkpoint's snapshot: that checkpoint writes it as it was, and it stays b's.
+  EXPECT_EQ(ownership_b.writable(*db_, {map}, {}), std::unordered_set<MapId>{map});
+  EXPECT_TRUE(owned_by(ownership_b, map, b.id()));
+  EXPECT_FALSE(contains(ownership_a.claim_free_and_dead(), map));  // not a stored map without an owner
+  // a's checkpoints (a still reads its copy) neither write it nor claim it.
+  EXPECT_TRUE(ownership_a.writable(*db_, {map}, {}).empty());
+  EXPECT_TRUE(owned_by(ownership_b, map, b.id()));
+
+  // b's next checkpoint deletes its rows, and its owner row with them.
+  EXPECT_EQ(ownership_b.writable(*db_, {map}, {map}), std::unordered_set<MapId>{map});
+  db_->prepare("DELETE FROM maps WHERE id = ?1").bind_int64(1, static_cast<std::int64_t>(map)).run();
+  EXPECT_FALSE(has_owner(ownership_a, map));
+  // a's stale copy does not bring its ownership back (its rows would collide with b's merged map's).
+  EXPECT_TRUE(ownership_a.writable(*db_, {map}, {}).empty());
+  EXPECT_FALSE(has_owner(ownership_a, map));
+  EXPECT_FALSE(contains(ownership_a.claim_free_and_dead(), map));
+  EXPECT_FALSE(ownership_a.owns(map));
 }
 
 // A stored map, and a session with one keyframe in it (the columns as a checkpoint writes them, values unused).

@@ -139,10 +139,15 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   // still in rows.maps (written as it was), and goes with the next checkpoint.
   const std::vector<MapId> removed = rows.removed_maps;
   std::vector<MapId> candidates = rows.maps;
+  std::unordered_set<MapId> gone;
   for (const MapId map : removed)
-    if (!deleted_maps_.count(map)) candidates.push_back(map);
-  const std::unordered_set<MapId> writable =
-      writable_maps_ ? writable_maps_(db, candidates) : std::unordered_set<MapId>(candidates.begin(), candidates.end());
+    if (!deleted_maps_.count(map)) {
+      candidates.push_back(map);
+      if (std::find(rows.maps.begin(), rows.maps.end(), map) == rows.maps.end()) gone.insert(map);
+    }
+  const std::unordered_set<MapId> writable = writable_maps_
+                                                 ? writable_maps_(db, candidates, gone)
+                                                 : std::unordered_set<MapId>(candidates.begin(), candidates.end());
   const bool every_map = writable.size() == candidates.size();
   const auto is_writable = [&](MapId m) { return writable.count(m) > 0; };
   const auto written_before = [&](MapId m) { return !full && written_maps_.count(m) > 0; };

@@ -45,8 +45,11 @@ struct CheckpointSession {
 
 // Of `candidates` (the atlas's maps, and the maps merged away since it was
 // loaded), the maps this writer may write in the checkpoint whose transaction
-// is open on `db` (e.g. those whose ownership rows it could lock).
-using WritableMaps = std::function<std::unordered_set<MapId>(SqlConnection& db, const std::vector<MapId>& candidates)>;
+// is open on `db` (e.g. those whose ownership rows it could lock). `gone`: the
+// candidates this checkpoint deletes, merged away as its snapshot of the atlas
+// saw it (a map merged away after the snapshot is still written, as it was).
+using WritableMaps = std::function<std::unordered_set<MapId>(SqlConnection& db, const std::vector<MapId>& candidates,
+                                                             const std::unordered_set<MapId>& gone)>;
 
 // The maps whose rows the checkpoint whose transaction is open on `db` has
 // changed (replicas of one database: a version the others watch).

@@ -148,8 +148,9 @@ AtlasService::AtlasService(AtlasServiceOptions options)
   }
   CheckpointOptions checkpoints = options_.checkpoints;
   if (ownership_) {
-    checkpoints.writable_maps = [this](SqlConnection& db, const std::vector<MapId>& candidates) {
-      return ownership_->writable(db, candidates, atlas_);
+    checkpoints.writable_maps = [this](SqlConnection& db, const std::vector<MapId>& candidates,
+                                       const std::unordered_set<MapId>& gone) {
+      return ownership_->writable(db, candidates, gone);
     };
     checkpoints.maps_changed = [this](SqlConnection& db, const std::vector<MapId>& maps) {
       ownership_->changed(db, maps);

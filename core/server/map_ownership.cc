@@ -4,7 +4,6 @@
 
 #include "core/common/error.h"
 #include "core/common/log.h"
-#include "core/map/atlas.h"
 #include "core/persistence/pg_db.h"
 #include "core/persistence/wall_clock.h"
 #include "core/server/pg_connection.h"
@@ -70,6 +69,11 @@ void MapOwnership::ready(const std::vector<MapId>& maps) {
   for (const MapId map : maps) given_.erase(map);
 }
 
+bool MapOwnership::handed_over(MapId map) const {
+  std::lock_guard lock(mutex_);
+  return given_.count(map) > 0;
+}
+
 bool MapOwnership::owns(MapId map) const {
   if (registry_.lease_lost()) return false;
   std::lock_guard lock(mutex_);
@@ -124,7 +128,7 @@ bool MapOwnership::hand_over(MapId map, std::uint64_t to) {
 }
 
 std::unordered_set<MapId> MapOwnership::writable(SqlConnection& db, const std::vector<MapId>& candidates,
-                                                 const Atlas& atlas) {
+                                                 const std::unordered_set<MapId>& gone) {
   std::unordered_set<MapId> out;
   if (registry_.lease_lost()) return out;
   const auto me = static_cast<std::int64_t>(registry_.id());
@@ -132,7 +136,10 @@ std::unordered_set<MapId> MapOwnership::writable(SqlConnection& db, const std::v
   const auto claim = db.prepare_statement(
       "INSERT INTO map_owners(map_id, replica_id, claimed_ns) VALUES (?1, ?2, ?3) ON CONFLICT (map_id) DO NOTHING");
   for (const MapId map : candidates) {
-    if (!made_here(map)) continue;
+    // A map made here is claimed by its first checkpoint; never one handed
+    // over (its new owner may have merged it away, deleting its row: this
+    // replica's copy is stale) or one merged away here.
+    if (!made_here(map) || gone.count(map) || handed_over(map)) continue;
     claim->bind_int64(1, static_cast<std::int64_t>(map)).bind_int64(2, me).bind_int64(3, now);
     claim->run();
     claim->reset();
@@ -147,7 +154,7 @@ std::unordered_set<MapId> MapOwnership::writable(SqlConnection& db, const std::v
   for (const MapId map : candidates) {
     if (!held.count(map) || !owns(map)) continue;
     out.insert(map);
-    if (!atlas.map(map)) {  // merged away: its rows go in this transaction, and so does its owner row
+    if (gone.count(map)) {  // merged away: its rows go in this transaction, and so does its owner row
       release->bind_int64(1, static_cast<std::int64_t>(map)).bind_int64(2, me);
       release->run();
       release->reset();

@@ -35,7 +35,6 @@
 
 namespace orbatlas {
 
-class Atlas;
 class PgDb;
 
 class MapOwnership {
@@ -72,10 +71,13 @@ class MapOwnership {
   bool hand_over(MapId map, std::uint64_t to);
 
   // CheckpointOptions::writable_maps: of `candidates`, the maps this replica
-  // owns in the database (claiming those it made), locked for the
-  // transaction open on `db`; the ownership of maps merged away (not in
-  // `atlas` any more) is deleted with their rows.
-  std::unordered_set<MapId> writable(SqlConnection& db, const std::vector<MapId>& candidates, const Atlas& atlas);
+  // owns in the database (claiming those it made and has neither handed over
+  // nor merged away), locked for the transaction open on `db`; the ownership
+  // of the maps this checkpoint deletes (`gone`: merged away in its snapshot)
+  // is deleted with their rows. A map merged away after the snapshot keeps its
+  // owner row: the checkpoint still writes it as it was.
+  std::unordered_set<MapId> writable(SqlConnection& db, const std::vector<MapId>& candidates,
+                                     const std::unordered_set<MapId>& gone);
 
   // CheckpointOptions::maps_changed: the versions of the maps this replica
   // owns and the checkpoint changed go up, in its transaction.
@@ -91,6 +93,7 @@ class MapOwnership {
 
  private:
   bool made_here(MapId map) const { return replica_id_range(registry_.id(), kReplicaMapIdShift).contains(map); }
+  bool handed_over(MapId map) const;
 
   const ReplicaRegistry& registry_;
   const std::string location_;
