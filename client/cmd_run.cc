@@ -83,7 +83,8 @@ void print_run_summary(const DatasetRunReport& r) {
     std::printf("; place recognition ms/keyframe p50 %.1f p95 %.1f", pr.p50, pr.p95);
     for (const auto& loop : r.stats.loop.loops) std::printf("; correction %.0f ms", loop.correction.total_ms);
     for (const auto& g : r.stats.loop.global_adjustments)
-      std::printf("; global BA %zu keyframes %.2f s%s", g.keyframes, g.seconds, g.interrupted ? " (interrupted)" : "");
+      std::printf("; global BA (%s) %zu keyframes %.2f s%s", to_string(g.cause), g.keyframes, g.seconds,
+                  g.interrupted ? " (interrupted)" : "");
     std::printf("\n");
     if (r.stats.maps_started > 1 || !r.stats.loop.merges.empty()) {
       std::printf("maps started %zu, merged live %zu", r.stats.maps_started, r.stats.loop.merges.size());
@@ -96,6 +97,9 @@ void print_run_summary(const DatasetRunReport& r) {
       std::printf("\n");
     }
   }
+  if (r.stats.final_ba_keyframes > 0)
+    std::printf("final global BA (--final-ba): %zu keyframes, %.2f s\n", r.stats.final_ba_keyframes,
+                r.stats.final_ba_s);
   if (r.session) {
     std::printf("atlas: %zu maps / %zu keyframes loaded in %.2f s; stored as session %llu", r.loaded_maps,
                 r.loaded_keyframes, r.atlas_load_s, static_cast<unsigned long long>(*r.session));

@@ -7,7 +7,9 @@
 # arrive too late are skipped by the server and counted). Per N it prints the
 # late and skipped frames, tracking p50/p95, the server's CPU (cores, and per
 # session), its peak resident size, and each session's ATE against the same
-# clip streamed alone (N = 1 for every sequence used). The clients read and
+# clip streamed alone (N = 1 for every sequence used): as each client got it
+# when its session finished, and as the atlas holds it once the server's
+# end-of-session work (merge search, global BA) is done. The clients read and
 # decode their clips before they begin (`--preload`, then `--start-at` one
 # time), so what competes for the cores while they stream is the server (and
 # the clients' HTTP work), not PNG decoding a device would not do.
@@ -125,6 +127,20 @@ run_sessions() {
   awk -v t0="$t0" -v t1="$t1" -v c0="$ticks0" -v c1="$ticks1" -v hz="$(getconf CLK_TCK)" -v hwm="$hwm" -v n="$#" \
       'BEGIN { printf "{\"wall_s\": %.3f, \"cpu_s\": %.3f, \"peak_rss_kb\": %d, \"sessions\": %d}\n", t1 - t0, (c1 - c0) / hz, hwm, n }' \
       > "$dir/server.json"
+  # The trajectories as the atlas holds them once its end-of-session work is
+  # done (the merging worker's search and global BA of each finished session's
+  # map; docs/api.md "Map merging"): downloaded again and evaluated.
+  local settle_start session
+  settle_start=$(date +%s.%N)
+  "$OA" merges --server "$url" --wait 600 > "$dir/merges.txt" 2>&1 || true
+  awk -v t0="$settle_start" -v t1="$(date +%s.%N)" 'BEGIN { printf "%.1f\n", t1 - t0 }' > "$dir/settle_s.txt"
+  i=0
+  for seq in "$@"; do
+    i=$((i + 1))
+    session=$(/usr/bin/python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["session"])' "$dir/${i}_$seq.json")
+    "$OA" trajectory --server "$url" --session "$session" --out "$dir/${i}_$seq.settled.tum" > /dev/null
+    "$OA" eval --gt "$(dataset "$seq")" --est "$dir/${i}_$seq.settled.tum" --json > "$dir/${i}_$seq.settled.json" 2> /dev/null || true
+  done
   stop_server
 }
 
@@ -146,6 +162,9 @@ done
 import json, sys, os
 out, ns, seqs = sys.argv[1], [int(n) for n in sys.argv[2].split()], sys.argv[3].split()
 def load(d, i, seq): return json.load(open(os.path.join(out, d, f"{i}_{seq}.json")))
+def settled_ate(d, i, seq):  # NaN for runs made before this measurement
+    try: return json.load(open(os.path.join(out, d, f"{i}_{seq}.settled.json")))["ate_rmse_m"]
+    except (OSError, ValueError, KeyError): return float("nan")
 alone = {s: load(f"alone_{s}", 1, s) for s in seqs[:max(ns)]}
 print(f"{'N':>2} {'frames':>7} {'late':>6} {'late%':>6} {'skipped':>7} {'skip%':>6} {'track p50/p95 [ms]':>19} "
       f"{'cores':>6} {'cores/session':>13} {'peak RSS [MB]':>13} {'RSS/session':>11}  ATE per session [m] (alone)")
@@ -162,8 +181,14 @@ for n in ns:
     rss = server["peak_rss_kb"] / 1024.0
     ates = " ".join(f"{r.get('ate_rmse_m', float('nan')):.4f}({alone[s].get('ate_rmse_m', float('nan')):.4f})"
                     for r, s in zip(runs, seqs))
+    settled = [settled_ate(d, i + 1, s) for i, s in enumerate(seqs[:n])]
+    settled_alone = {s: settled_ate(f"alone_{s}", 1, s) for s in seqs[:n]}
     print(f"{n:>2} {sent:>7} {late:>6} {100.0 * late / sent:>5.2f}% {skipped:>7} {100.0 * skipped / sent:>5.2f}% "
           f"{p50:>10.1f}/{p95:<8.1f} {cores:>6.2f} {cores / n:>13.2f} {rss:>13.0f} {rss / n:>11.0f}  {ates}")
+    settle = os.path.join(out, d, "settle_s.txt")
+    print("    ATE once the atlas settled [m] (alone): " + " ".join(
+        f"{a:.4f}({settled_alone[s]:.4f})" for a, s in zip(settled, seqs)) +
+        (f"; settled {open(settle).read().strip()} s after the last client" if os.path.exists(settle) else ""))
     waited = [r for r in runs if r.get("mapping_wait_ms", {}).get("count", 0) > 0]
     if waited:  # MAPPING_WAIT_MS: each session's waits for its keyframes' local BA
         print("    mapping waits p50/p95/max [ms], cut: " + "; ".join(

@@ -178,6 +178,7 @@ TEST(OptionsCheck, PlacesLoopsAndMerging) {
   refused<LoopCloserOptions>("min_bow_matches", [](auto& o) { o.merge_recognition.min_bow_matches = -2; });
   refused<LoopCloserOptions>("fusion_th", [](auto& o) { o.merge.fusion_th = -1.0f; });
   refused<LoopCloserOptions>("iterations", [](auto& o) { o.global.iterations = -1; });
+  refused<LoopCloserOptions>("shared_map_refinement_growth", [](auto& o) { o.shared_map_refinement_growth = -0.5; });
   EXPECT_NO_THROW(MapMergeWorkerOptions{}.check());
   refused<MapMergeWorkerOptions>("queue_capacity", [](auto& o) { o.queue_capacity = 0; });
   refused<MapMergeWorkerOptions>("verify_matches", [](auto& o) { o.recognition.verify_matches = -1; });

@@ -2,6 +2,7 @@
 #include "core/loop/loop_closer.h"
 
 #include <chrono>
+#include <cmath>
 
 #include "core/common/error.h"
 #include "core/common/stopwatch.h"
@@ -37,10 +38,24 @@ class MappingPause {
 
 }  // namespace
 
+const char* to_string(GlobalAdjustmentCause cause) {
+  switch (cause) {
+    case GlobalAdjustmentCause::kLoop:
+      return "loop";
+    case GlobalAdjustmentCause::kMerge:
+      return "merge";
+    case GlobalAdjustmentCause::kSharedMap:
+      return "shared_map";
+  }
+  return "?";
+}
+
 void LoopCloserOptions::check() const {
   ORBATLAS_CHECK(queue_capacity > 0, "loop closing: queue_capacity must be > 0, not " << queue_capacity);
   ORBATLAS_CHECK(worker_nice >= 0 && worker_nice <= 19,
                  "loop closing: worker_nice must be in 0..19, not " << worker_nice);
+  ORBATLAS_CHECK(std::isfinite(shared_map_refinement_growth) && shared_map_refinement_growth >= 0.0,
+                 "loop closing: shared_map_refinement_growth must be >= 0, not " << shared_map_refinement_growth);
   recognition.check();
   correction.check();
   global.check();
@@ -166,7 +181,33 @@ void LoopCloser::process(const Item& item) {
     stats_.place_recognition_ms.add(ms_since(start));
     if (step.hypothesis) ++stats_.hypotheses;
   }
-  if (step.match && step.match->same_map()) close_loop(*step.match);
+  if (step.match && step.match->same_map()) {
+    close_loop(*step.match);
+    return;
+  }
+  refine_shared_map(item);
+}
+
+void LoopCloser::refine_shared_map(const Item& item) {
+  if (!options_.global_bundle_adjustment || options_.shared_map_refinement_growth <= 0.0) return;
+  const auto map = atlas_.map(item.keyframe->map_id());
+  if (!map) return;
+  std::erase_if(since_global_, [&](const auto& entry) { return !atlas_.map(entry.first); });  // merged away
+  SinceGlobalAdjustment& since = since_global_[map->id()];
+  since.streams.insert(item.stream);
+  const std::size_t keyframes = map->keyframe_count();
+  if (since.streams.size() < 2 || keyframes < options_.shared_map_refinement_min_keyframes ||
+      static_cast<double>(keyframes) < (1.0 + options_.shared_map_refinement_growth) * since.keyframes)
+    return;
+  {
+    std::lock_guard lock(global_mutex_);
+    if (global_running_) return;  // that one goes on; a later keyframe asks again
+  }
+  log_info("map " + std::to_string(map->id()) + ": " + std::to_string(since.streams.size()) +
+           " sessions mapped it since its last global bundle adjustment (" + std::to_string(since.keyframes) +
+           " keyframes then, " + std::to_string(keyframes) + " now): one more");
+  stop_global_adjustment();  // ended: joins its thread
+  start_global_adjustment(map->id(), GlobalAdjustmentCause::kSharedMap);
 }
 
 void LoopCloser::close_loop(const PlaceMatch& loop) {
@@ -196,7 +237,7 @@ void LoopCloser::close_loop(const PlaceMatch& loop) {
     closed.correction = correction;
     stats_.loops.push_back(closed);
   }
-  if (options_.global_bundle_adjustment) start_global_adjustment(map->id());
+  if (options_.global_bundle_adjustment) start_global_adjustment(map->id(), GlobalAdjustmentCause::kLoop);
 }
 
 bool LoopCloser::merge_live(const PlaceMatch& match) {
@@ -238,7 +279,7 @@ bool LoopCloser::merge_live(const PlaceMatch& match) {
     stats_.merges.push_back(record);
   }
   if (wiring_.on_merged) wiring_.on_merged(record);
-  if (options_.global_bundle_adjustment) start_global_adjustment(target);
+  if (options_.global_bundle_adjustment) start_global_adjustment(target, GlobalAdjustmentCause::kMerge);
   return true;
 }
 
@@ -249,12 +290,13 @@ void LoopCloser::stop_global_adjustment() {
   stop_global_.store(false);
 }
 
-void LoopCloser::start_global_adjustment(MapId map_id) {
+void LoopCloser::start_global_adjustment(MapId map_id, GlobalAdjustmentCause cause) {
   {
     std::lock_guard lock(global_mutex_);
     global_running_ = true;
   }
-  global_thread_ = std::thread([this, map_id] {
+  if (const auto map = atlas_.map(map_id)) since_global_[map_id] = {map->keyframe_count(), {}};
+  global_thread_ = std::thread([this, map_id, cause] {
     set_current_thread_nice(options_.worker_nice);
     try {
       const auto map = atlas_.map(map_id);
@@ -269,11 +311,11 @@ void LoopCloser::start_global_adjustment(MapId map_id) {
           const auto whole = atlas_.lock_maps_exclusive();  // tracking sees the map before or after
           apply_global_adjustment(*map, result, cam_.pyramid);
         }
-        GlobalAdjustmentRun run{result.keyframes, result.points, result.inertial_edges, ms_since(start) * 1e-3,
-                                result.stopped};
-        log_info("global bundle adjustment: " + std::to_string(run.keyframes) + " keyframes, " +
-                 std::to_string(run.inertial_edges) + " inertial edges, " + std::to_string(run.seconds) + " s" +
-                 (run.interrupted ? " (interrupted)" : ""));
+        GlobalAdjustmentRun run{
+            cause, result.keyframes, result.points, result.inertial_edges, ms_since(start) * 1e-3, result.stopped};
+        log_info(std::string("global bundle adjustment (") + to_string(cause) + "): " + std::to_string(run.keyframes) +
+                 " keyframes, " + std::to_string(run.inertial_edges) + " inertial edges, " +
+                 std::to_string(run.seconds) + " s" + (run.interrupted ? " (interrupted)" : ""));
         std::lock_guard lock(stats_mutex_);
         stats_.global_adjustments.push_back(run);
       }

@@ -13,6 +13,7 @@
 #include <functional>
 #include <condition_variable>
 #include <map>
+#include <set>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -50,6 +51,14 @@ struct LoopCloserOptions {
   LoopCorrectionOptions correction;
   bool global_bundle_adjustment = true;
   GlobalBundleAdjustmentOptions global;
+  // A map that several sessions (streams) map at once gets a global BA each
+  // time it has grown by this fraction of its keyframes since its last one
+  // (0: never). Sessions that track each other's points close no loop there,
+  // so nothing else makes such a map consistent while they run (four
+  // sessions in one map ended 1.5-3 times less accurate than alone without
+  // it; docs/benchmarks.md, stop 49). A map of one session is never adjusted so.
+  double shared_map_refinement_growth = 0.5;
+  std::size_t shared_map_refinement_min_keyframes = 20;
   // The sessions' maps have no metric scale until an IMU gives them one
   // (monocular): loops and merges are then similarities (Sim(3)).
   bool monocular = false;
@@ -93,7 +102,13 @@ struct ClosedLoop {
   LoopCorrectionStats correction;
 };
 
+// Why a global BA ran: after a loop correction, after a live merge, or for a
+// map several sessions map at once (LoopCloserOptions::shared_map_refinement_growth).
+enum class GlobalAdjustmentCause { kLoop, kMerge, kSharedMap };
+const char* to_string(GlobalAdjustmentCause cause);
+
 struct GlobalAdjustmentRun {
+  GlobalAdjustmentCause cause = GlobalAdjustmentCause::kLoop;
   std::size_t keyframes = 0, points = 0;
   std::size_t inertial_edges = 0;  // IMU terms of an inertial map's chain (0: visual only)
   double seconds = 0.0;
@@ -157,7 +172,10 @@ class LoopCloser {
   // True when the active map was merged into the match's map.
   bool merge_live(const PlaceMatch& match);
   void stop_global_adjustment();
-  void start_global_adjustment(MapId map);
+  void start_global_adjustment(MapId map, GlobalAdjustmentCause cause);
+  // A global BA of the keyframe's map when several streams map it and it grew
+  // enough since its last one (shared_map_refinement_growth); none while one runs.
+  void refine_shared_map(const Item& item);
 
   Atlas& atlas_;
   const FrameCamera cam_;
@@ -165,8 +183,15 @@ class LoopCloser {
   const LoopCloserOptions options_;
   const LoopCloserWiring wiring_;
   std::map<std::uint64_t, Recognizers> recognizers_;  // worker thread only
-  std::mutex forgotten_mutex_;                        // leaf: guards forgotten_
-  std::vector<std::uint64_t> forgotten_;              // streams to drop on the worker thread
+  // Worker thread only: per map, its keyframes at its last global BA and the
+  // streams that inserted keyframes since.
+  struct SinceGlobalAdjustment {
+    std::size_t keyframes = 0;
+    std::set<std::uint64_t> streams;
+  };
+  std::map<MapId, SinceGlobalAdjustment> since_global_;
+  std::mutex forgotten_mutex_;            // leaf: guards forgotten_
+  std::vector<std::uint64_t> forgotten_;  // streams to drop on the worker thread
 
   std::mutex global_mutex_;  // leaf: guards global_running_
   std::condition_variable global_cv_;

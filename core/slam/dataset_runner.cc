@@ -5,6 +5,7 @@
 #include <functional>
 #include <map>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include "core/common/error.h"
@@ -479,6 +480,12 @@ std::vector<DatasetRunReport> run_stereo_datasets(const DatasetRunOptions& optio
       for (auto& r : reports)
         if (r.failed.empty()) r.failed = e.what();
     }
+  }
+  if (options.slam.final_global_ba && mapping) {
+    // --final-ba: the sessions' maps, once the mapping they shared has stopped (each map once).
+    std::set<MapId> maps;
+    for (const auto& slam : slams) maps.merge(slam->tracked_maps());
+    slams.front()->adjust_maps_globally(maps);
   }
   finish_storage(checkpointer.get(), stored.lock.get(), reports[0]);
   const double wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();

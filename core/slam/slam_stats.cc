@@ -142,7 +142,8 @@ nlohmann::json to_json(const SlamStats& s) {
     lc["loops"] = loops;
     nlohmann::json gba = nlohmann::json::array();
     for (const auto& g : s.loop.global_adjustments)
-      gba.push_back({{"keyframes", g.keyframes},
+      gba.push_back({{"cause", to_string(g.cause)},
+                     {"keyframes", g.keyframes},
                      {"points", g.points},
                      {"inertial_edges", g.inertial_edges},
                      {"seconds", g.seconds},

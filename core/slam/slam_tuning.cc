@@ -90,6 +90,10 @@ const std::vector<Binding>& bindings() {
                       loop.global_bundle_adjustment),
       ORBATLAS_TUNING("LoopClosing.LiveMerging", 0, 1, true,
                       "1: a session's map is merged into another map of the atlas while it runs", live_merging),
+      ORBATLAS_TUNING("LoopClosing.SharedMapRefinementGrowth", 0, 100, false,
+                      "a map several sessions map at once gets a global BA each time its keyframes grew by this "
+                      "fraction since its last one (0: never)",
+                      loop.shared_map_refinement_growth),
       ORBATLAS_TUNING("LoopClosing.SettledInertialRefinements", 0, 1000, true,
                       "a single camera's inertial map is merged as a similarity (taking the target's scale) until "
                       "this many inertial refinements",

@@ -219,26 +219,32 @@ void StereoSlam::finish() {
     mapping_->wait_for_map(tracker_->map_id());  // its last keyframes are complete
   }
   tracker_->release_frames();
-  if (options_.final_global_ba && mapping_ && own_mapping_) {
-    // Nothing else edits these maps now: mapping and loop closing have stopped.
-    std::set<MapId> maps;
-    for (const auto& anchor : frames_.anchors())
-      if (const auto located = atlas_.locate_frame(anchor)) maps.insert(located->first);
-    const auto start = std::chrono::steady_clock::now();
-    for (const MapId id : maps) {
-      const auto map = atlas_.map(id);
-      if (!map || map->keyframe_count() < 2) continue;
-      const GlobalBundleAdjustmentResult result = global_bundle_adjustment(
-          *map, *cam_.camera, cam_.bf, with_level_sigma2(options_.final_ba, cam_.pyramid.level_sigma2()));
-      {
-        const auto whole = atlas_.lock_maps_exclusive();  // other sessions' localisations see it whole
-        apply_global_adjustment(*map, result, cam_.pyramid);
-      }
-      final_ba_keyframes_ += result.keyframes;
-      final_ba_inertial_edges_ += result.inertial_edges;
+  // Nothing else edits these maps now: mapping and loop closing have stopped.
+  if (options_.final_global_ba && mapping_ && own_mapping_) adjust_maps_globally(tracked_maps());
+}
+
+std::set<MapId> StereoSlam::tracked_maps() const {
+  std::set<MapId> maps;
+  for (const auto& anchor : frames_.anchors())
+    if (const auto located = atlas_.locate_frame(anchor)) maps.insert(located->first);
+  return maps;
+}
+
+void StereoSlam::adjust_maps_globally(const std::set<MapId>& maps) {
+  const auto start = std::chrono::steady_clock::now();
+  for (const MapId id : maps) {
+    const auto map = atlas_.map(id);
+    if (!map || map->keyframe_count() < 2) continue;
+    const GlobalBundleAdjustmentResult result = global_bundle_adjustment(
+        *map, *cam_.camera, cam_.bf, with_level_sigma2(options_.final_ba, cam_.pyramid.level_sigma2()));
+    {
+      const auto whole = atlas_.lock_maps_exclusive();  // other sessions' localisations see it whole
+      apply_global_adjustment(*map, result, cam_.pyramid);
     }
-    final_ba_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    final_ba_keyframes_ += result.keyframes;
+    final_ba_inertial_edges_ += result.inertial_edges;
   }
+  final_ba_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 std::vector<TimedPose> StereoSlam::trajectory() const {

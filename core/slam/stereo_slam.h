@@ -8,6 +8,7 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <set>
 #include <optional>
 #include <opencv2/core/mat.hpp>
 #include <vector>
@@ -58,7 +59,8 @@ struct StereoSlamOptions {
   // After the last frame, one global bundle adjustment over every map the
   // session tracked in (offline runs: every covisibility constraint the run
   // found, refined jointly; frames follow through their keyframes). Only with
-  // mapping of its own (a shared one is still running for others).
+  // mapping of its own (a shared one is still running for others: the runner
+  // of several recordings adjusts their maps once all of them ended).
   bool final_global_ba = false;
   GlobalBundleAdjustmentOptions final_ba;
 
@@ -94,6 +96,14 @@ class StereoSlam final : public SessionSlam {
   // one goes on for the others) and releases the last frame (so every culled
   // object can be reclaimed). Idempotent; process() may not be called afterwards.
   void finish() override;
+
+  // The maps this session's frames are in now (merges move frames).
+  std::set<MapId> tracked_maps() const;
+  // One global bundle adjustment over each of `maps` (after finish(): nothing
+  // else may edit them, the mapping that fed them included); counted in stats().
+  // finish() calls it for the session's maps with --final-ba and mapping of its
+  // own; recordings that shared a mapping call it once over all their maps.
+  void adjust_maps_globally(const std::set<MapId>& maps);
 
   // Every tracked frame's body pose, from its reference keyframe's current pose.
   std::vector<TimedPose> trajectory() const;
