@@ -179,7 +179,8 @@ void register_run_command(CLI::App& app) {
                   "maps are, so its map can merge into them and take their metric scale)")
       ->check(CLI::IsMember({"mono", "mono_inertial"}));
   cmd->add_flag("--final-ba", args->run.slam.final_global_ba,
-                "After the last frame, one global bundle adjustment over the session's maps (offline refinement)");
+                "After the last frame, one global bundle adjustment over the session's maps (offline refinement; "
+                "several recordings: over their maps once all ended)");
   cmd->add_option("--black-out", args->black_out,
                   "FROM:TO: every image black from FROM to TO seconds after the first frame (what the IMU carries a "
                   "stereo-inertial session through; the stats JSON reports black_out)");
