@@ -22,7 +22,7 @@ TempDb::~TempDb() { remove_all(); }
 
 void TempDb::remove_all() const {
   std::error_code ec;
-  for (const char* suffix : {"", "-wal", "-shm", "-journal"}) fs::remove(path_.string() + suffix, ec);
+  for (const char* suffix : {"", "-wal", "-shm", "-journal", ".lock"}) fs::remove(path_.string() + suffix, ec);
 }
 
 const Vocabulary& test_vocabulary() {

@@ -516,7 +516,10 @@ TEST(ServerProcess, TwoReplicasMapTheirOwnMapsAndOneTakesOverWhenTheOtherDies) {
   EXPECT_EQ(keyframes_of(maps_c, map_b), keyframes_b) << maps_c.dump();
   EXPECT_EQ(client_c.get_json("/v1/sessions")["sessions"].size(), 3u);
   c.kill();
-  for (const char* who : {"a", "b", "c"}) std::filesystem::remove(log(who));
+  for (const char* who : {"a", "b", "c"}) {
+    std::filesystem::remove(log(who));
+    std::filesystem::remove_all(files.path.string() + "." + who + ".work");
+  }
 }
 
 // The shared upload queue (issue 23): two replicas over one PostgreSQL atlas
