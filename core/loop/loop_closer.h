@@ -54,9 +54,9 @@ struct LoopCloserOptions {
   // A map that several sessions (streams) map at once gets a global BA each
   // time it has grown by this fraction of its keyframes since its last one
   // (0: never). Sessions that track each other's points close no loop there,
-  // so nothing else makes such a map consistent while they run (four
-  // sessions in one map ended 1.5-3 times less accurate than alone without
-  // it; docs/benchmarks.md, stop 49). A map of one session is never adjusted so.
+  // so nothing else makes such a map consistent while they run (of four
+  // sessions in one map, two ended 1.5-3 times less accurate than alone
+  // without it; docs/benchmarks.md, stop 49). A map of one session is never adjusted so.
   double shared_map_refinement_growth = 0.5;
   std::size_t shared_map_refinement_min_keyframes = 20;
   // The sessions' maps have no metric scale until an IMU gives them one
