@@ -137,8 +137,9 @@ run_sessions() {
   i=0
   for seq in "$@"; do
     i=$((i + 1))
-    session=$(/usr/bin/python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["session"])' "$dir/${i}_$seq.json")
-    "$OA" trajectory --server "$url" --session "$session" --out "$dir/${i}_$seq.settled.tum" > /dev/null
+    # A client that failed has no session to read back: its settled ATE stays NaN.
+    session=$(/usr/bin/python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["session"])' "$dir/${i}_$seq.json" 2> /dev/null) || continue
+    "$OA" trajectory --server "$url" --session "$session" --out "$dir/${i}_$seq.settled.tum" > /dev/null || continue
     "$OA" eval --gt "$(dataset "$seq")" --est "$dir/${i}_$seq.settled.tum" --json > "$dir/${i}_$seq.settled.json" 2> /dev/null || true
   done
   stop_server
@@ -162,9 +163,10 @@ done
 import json, sys, os
 out, ns, seqs = sys.argv[1], [int(n) for n in sys.argv[2].split()], sys.argv[3].split()
 def load(d, i, seq): return json.load(open(os.path.join(out, d, f"{i}_{seq}.json")))
-def settled_ate(d, i, seq):  # NaN for runs made before this measurement
-    try: return json.load(open(os.path.join(out, d, f"{i}_{seq}.settled.json")))["ate_rmse_m"]
+def settled(d, i, seq, key):  # NaN for runs made before this measurement, or whose session failed
+    try: return json.load(open(os.path.join(out, d, f"{i}_{seq}.settled.json")))[key]
     except (OSError, ValueError, KeyError): return float("nan")
+def settled_ate(d, i, seq): return settled(d, i, seq, "ate_rmse_m")
 alone = {s: load(f"alone_{s}", 1, s) for s in seqs[:max(ns)]}
 print(f"{'N':>2} {'frames':>7} {'late':>6} {'late%':>6} {'skipped':>7} {'skip%':>6} {'track p50/p95 [ms]':>19} "
       f"{'cores':>6} {'cores/session':>13} {'peak RSS [MB]':>13} {'RSS/session':>11}  ATE per session [m] (alone)")
@@ -181,13 +183,15 @@ for n in ns:
     rss = server["peak_rss_kb"] / 1024.0
     ates = " ".join(f"{r.get('ate_rmse_m', float('nan')):.4f}({alone[s].get('ate_rmse_m', float('nan')):.4f})"
                     for r, s in zip(runs, seqs))
-    settled = [settled_ate(d, i + 1, s) for i, s in enumerate(seqs[:n])]
+    settled_ates = [settled_ate(d, i + 1, s) for i, s in enumerate(seqs[:n])]
     settled_alone = {s: settled_ate(f"alone_{s}", 1, s) for s in seqs[:n]}
     print(f"{n:>2} {sent:>7} {late:>6} {100.0 * late / sent:>5.2f}% {skipped:>7} {100.0 * skipped / sent:>5.2f}% "
           f"{p50:>10.1f}/{p95:<8.1f} {cores:>6.2f} {cores / n:>13.2f} {rss:>13.0f} {rss / n:>11.0f}  {ates}")
     settle = os.path.join(out, d, "settle_s.txt")
     print("    ATE once the atlas settled [m] (alone): " + " ".join(
-        f"{a:.4f}({settled_alone[s]:.4f})" for a, s in zip(settled, seqs)) +
+        f"{a:.4f}({settled_alone[s]:.4f})" for a, s in zip(settled_ates, seqs)) +
+        # (the ground truth is the whole sequence's: its coverage would be the clip's share)
+        f"; poses evaluated {min(settled(d, i + 1, s, 'matched') / max(r['frames'], 1) for i, (r, s) in enumerate(zip(runs, seqs))):.3f} of the frames at least" +
         (f"; settled {open(settle).read().strip()} s after the last client" if os.path.exists(settle) else ""))
     waited = [r for r in runs if r.get("mapping_wait_ms", {}).get("count", 0) > 0]
     if waited:  # MAPPING_WAIT_MS: each session's waits for its keyframes' local BA

@@ -482,10 +482,18 @@ std::vector<DatasetRunReport> run_stereo_datasets(const DatasetRunOptions& optio
     }
   }
   if (options.slam.final_global_ba && mapping) {
-    // --final-ba: the sessions' maps, once the mapping they shared has stopped (each map once).
+    // --final-ba: the sessions' maps, once the mapping they shared has stopped
+    // (each map once). A failure leaves the maps as mapped and is reported;
+    // the trajectories and the checkpoint still follow.
     std::set<MapId> maps;
     for (const auto& slam : slams) maps.merge(slam->tracked_maps());
-    slams.front()->adjust_maps_globally(maps);
+    try {
+      slams.front()->adjust_maps_globally(maps);
+    } catch (const std::exception& e) {
+      log_warn(std::string("final global BA of the recordings' maps failed: ") + e.what());
+      for (auto& r : reports)
+        if (r.failed.empty()) r.failed = std::string("final global BA: ") + e.what();
+    }
   }
   finish_storage(checkpointer.get(), stored.lock.get(), reports[0]);
   const double wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
