@@ -6,12 +6,16 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <map>
 #include <set>
 #include <sstream>
 #include <string>
+#include <mutex>
+#include <thread>
+#include <vector>
 
 #include "core/common/error.h"
 #include "core/persistence/pg_db.h"
@@ -154,6 +158,47 @@ TEST_F(PgSchemaTest, ANewerSchemaIsRefused) {
       .bind_int64(1, latest_postgres_schema_version() + 1)
       .run();
   EXPECT_THROW(check_postgres_schema_supported(*db_), DataError);
+}
+
+// Replicas starting together on an empty database: one migrates while the
+// others check what the database holds. A check that read "no
+// schema_migrations" and then "16 tables" (the first migration committed
+// between its two statements) refused the atlas as another application's (a
+// CI run of ServerProcess.TwoLiveReplicasMappingOnePlaceEndInOneMap). Each
+// round migrates a fresh database while three connections check it over and
+// over until it is migrated: no check may refuse it.
+TEST_F(PgSchemaTest, AReplicaCheckingWhileAnotherMigratesNeverRefusesTheAtlas) {
+  constexpr int kRounds = 10, kCheckers = 3;
+  std::atomic<int> checks = 0, refusals = 0;
+  std::string first_refusal;
+  std::mutex mutex;
+  for (int round = 0; round < kRounds; ++round) {
+    const std::string name = name_ + "_together_" + std::to_string(round);
+    cluster().create_database(name);
+    std::atomic<bool> migrated = false;
+    std::vector<std::thread> checkers;
+    for (int c = 0; c < kCheckers; ++c)
+      checkers.emplace_back([&] {
+        PgDb db(cluster().conninfo(name));
+        while (!migrated) {
+          try {
+            check_postgres_schema_supported(db);
+          } catch (const DataError& e) {
+            const std::lock_guard lock(mutex);
+            if (refusals++ == 0) first_refusal = e.what();
+          }
+          ++checks;
+        }
+      });
+    {
+      PgDb db(cluster().conninfo(name));
+      migrate_postgres_schema(db, 1);
+    }
+    migrated = true;
+    for (std::thread& checker : checkers) checker.join();
+  }
+  EXPECT_GT(checks, kRounds * kCheckers);
+  EXPECT_EQ(refusals, 0) << "of " << checks << " checks; the first: " << first_refusal;
 }
 
 }  // namespace

@@ -25,17 +25,27 @@ int read_postgres_schema_version(PgDb& db) {
 }
 
 void check_postgres_schema_supported(PgDb& db) {
+  // Whether schema_migrations exists and how many tables there are, in one
+  // statement (one snapshot): another replica may commit the first migration
+  // between two statements, and "no schema_migrations" then "16 tables" would
+  // refuse the atlas as another application's database.
+  PgStatement tables = db.prepare(
+      "SELECT count(*) FILTER (WHERE table_name = 'schema_migrations'), count(*) FROM information_schema.tables "
+      "WHERE table_schema = current_schema()");
+  ORBATLAS_CHECK(tables.step(), db.description() << ": cannot list the database's tables");
+  const bool migrated = tables.int64(0) > 0;
+  const std::int64_t table_count = tables.int64(1);
+  tables.reset();
+  ORBATLAS_DATA_CHECK(migrated || table_count == 0, db.description()
+                                                        << ": a PostgreSQL database that is not an orbatlas atlas ("
+                                                        << table_count << " tables but no schema_migrations)");
+  if (!migrated) return;
+  // Once there, schema_migrations stays: its version is read on its own.
   const int version = read_postgres_schema_version(db);
   ORBATLAS_DATA_CHECK(version <= latest_postgres_schema_version(),
                       db.description() << ": atlas schema version " << version
                                        << " is newer than this build understands (up to "
                                        << latest_postgres_schema_version() << "); use a newer orbatlas");
-  if (version == 0) {
-    const std::int64_t tables =
-        db.query_int64("SELECT count(*) FROM information_schema.tables WHERE table_schema = current_schema()");
-    ORBATLAS_DATA_CHECK(tables == 0, db.description() << ": a PostgreSQL database that is not an orbatlas atlas ("
-                                                      << tables << " tables but no schema_migrations)");
-  }
 }
 
 void migrate_postgres_schema(PgDb& db, TimestampNs now_ns) {
