@@ -12,6 +12,7 @@
 
 #include "core/features/intensity_centroid.h"
 #include "core/features/keypoint.h"
+#include "core/features/linear_resize.h"
 #include "core/features/rotated_brief.h"
 
 namespace orbatlas {
@@ -94,7 +95,8 @@ class OrbExtractor {
   std::vector<int> features_per_level_;
   std::vector<cv::Mat> pyramid_;
   // Scratch kept between calls so that extraction does not allocate.
-  std::vector<cv::Mat> bordered_;  // level buffers; pyramid_[l] views their interior
+  std::vector<cv::Mat> bordered_;     // level buffers; pyramid_[l] views their interior
+  std::vector<LinearResize> shrink_;  // level l - 1 to level l (cv::resize's result), [0] unused
   cv::Size pyramid_size_;
   IntensityCentroid centroid_;  // orientation
   RotatedBrief brief_{opencv_brief_pattern()};
