@@ -5,7 +5,6 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
-#include <regex>
 #include <sstream>
 
 #include "core/common/data_paths.h"
@@ -13,22 +12,16 @@
 #include "core/common/process_memory.h"
 #include "core/io/tum_trajectory.h"
 #include "core/persistence/atlas_store.h"
-#include "core/place/relocalizer.h"
 #include "core/persistence/map_rigs.h"
 #include "core/slam/mono_localizer.h"
-#include "core/tracking/mono_frontend.h"
-#include "core/tracking/rgbd_frontend.h"
 #include "core/slam/slam_stats.h"
 #include "core/slam/stereo_slam.h"
 #include "core/server/service_error.h"
 #include "core/server/session_rules.h"
-#include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
 
 namespace orbatlas {
 namespace {
-
-namespace fs = std::filesystem;
 
 TimestampNs unix_now_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
@@ -36,42 +29,6 @@ TimestampNs unix_now_ns() {
 }
 
 }  // namespace
-
-struct AtlasService::LocalizerContext {
-  // A stereo rig localises a pair or its left image; a single camera one image.
-  // An RGB-D camera localises one image; its maps' keyframes are of the
-  // undistorted camera its depth front end tracks with (map_cam: what merging
-  // the maps works with).
-  explicit LocalizerContext(const SlamSettings& settings) {
-    if (settings.is_stereo()) {
-      stereo.emplace(settings, false);
-      cam = stereo->frame_camera();
-      T_b_c = stereo->calibration().T_b_c;
-    } else {
-      mono.emplace(settings);
-      cam = mono->frame_camera();
-      T_b_c = mono->calibration().T_b_c;
-    }
-    map_cam = cam;
-    if (settings.is_rgbd()) {
-      rgbd.emplace(settings);
-      map_cam = rgbd->frame_camera();
-    }
-  }
-  Frame make_frame(const cv::Mat& left, const cv::Mat& right) {
-    if (mono) {
-      ORBATLAS_DATA_CHECK(right.empty(), "the config is a single camera: send one image, not a pair");
-      return mono->make_frame(0, left);
-    }
-    return right.empty() ? stereo->make_left_frame(0, left) : stereo->make_frame(0, left, right);
-  }
-  std::mutex mutex;  // a frontend has scratch buffers: one request at a time per configuration
-  std::optional<StereoFrontend> stereo;
-  std::optional<MonoFrontend> mono;
-  std::optional<RgbdFrontend> rgbd;
-  FrameCamera cam, map_cam;
-  Pose3 T_b_c;
-};
 
 void AtlasServiceOptions::check() const {
   ORBATLAS_CHECK(!db.empty(), "the server needs a database path (--db)");
@@ -236,72 +193,6 @@ AtlasService::~AtlasService() {
   } catch (const std::exception& e) {
     log_warn(std::string("server shutdown: ") + e.what());
   }
-}
-
-fs::path AtlasService::config_dir() const {
-  return options_.config_dir.empty() ? shipped_config_dir() : options_.config_dir;
-}
-
-AtlasService::LoadedSettings AtlasService::load_settings(const SettingsSource& source) const {
-  if (!source.config.empty() && !source.settings_yaml.empty())
-    throw_bad_request("give either 'config' or 'settings_yaml', not both");
-  if (source.config.empty() && source.settings_yaml.empty())
-    throw_bad_request("a configuration is needed: 'config' (a name such as \"euroc/stereo\") or 'settings_yaml'");
-  try {
-    if (!source.config.empty()) {
-      static const std::regex kName("[A-Za-z0-9_\\-]+(/[A-Za-z0-9_\\-]+)*");
-      if (!std::regex_match(source.config, kName))
-        throw_bad_request("config name '" + source.config + "' is not of the form \"euroc/stereo\"");
-      const fs::path file = config_dir() / (source.config + ".yaml");
-      if (!fs::is_regular_file(file)) throw_not_found("no config named '" + source.config + "'");
-      try {
-        return {read_settings(file), source.config};
-      } catch (const std::exception& e) {
-        // Named by the config, not by the server's file path.
-        std::string message = e.what();
-        if (const auto at = message.find(file.string()); at != std::string::npos)
-          message.replace(at, file.string().size(), "config '" + source.config + "'");
-        throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", "unusable settings: " + message);
-      }
-    }
-    // Parsed in memory: no file is written for a request's text.
-    ORBATLAS_DATA_CHECK(source.settings_yaml.size() <= kMaxSettingsBytes,
-                        "settings_yaml has " << source.settings_yaml.size() << " bytes; at most " << kMaxSettingsBytes);
-    return {read_settings_text(source.settings_yaml, "settings_yaml"), "inline"};
-  } catch (const ServiceError&) {
-    throw;
-  } catch (const std::exception& e) {
-    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", std::string("unusable settings: ") + e.what());
-  }
-}
-
-SensorType AtlasService::request_sensor(const SessionRequest& request) const {
-  const LoadedSettings loaded = load_settings(request.settings);
-  return session_sensor(request.sensor, loaded.settings);
-}
-
-void AtlasService::check_upload(const SessionRequest& request) const {
-  check_session_name(request.name);
-  const LoadedSettings loaded = load_settings(request.settings);
-  const SensorType sensor = session_sensor(request.sensor, loaded.settings);
-  const SessionMode mode = session_mode(request.mode, sensor, loaded.settings);  // 400 for an unknown one
-  if (sensor == SensorType::kRgbd || loaded.settings.is_rgbd()) {
-    if (sensor != SensorType::kRgbd || !loaded.settings.is_rgbd())
-      throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
-                         "sensor '" + std::string(sensor_type_name(sensor)) + "' with config '" + loaded.label +
-                             "': an RGB-D recording needs an rgbd config and the reverse");
-    return;  // a TUM RGB-D recording, mapped as an rgbd session
-  }
-  if (is_single_camera(sensor)) {
-    if (mode != SessionMode::kMap)
-      throw ServiceError(ServiceErrorKind::kUnprocessable, "unsupported_sensor",
-                         "uploads are mapped; this single camera only localises in stored maps (stream it as a "
-                         "session, or upload it with a mono config to map it)");
-    return;  // cam0 of an ASL recording, mapped as a monocular session
-  }
-  if (!loaded.settings.is_stereo())
-    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
-                       "config '" + loaded.label + "' is not a stereo rig (Camera2.* missing)");
 }
 
 std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const MapRig& rig,
@@ -509,144 +400,6 @@ std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
   return held;
 }
 
-std::shared_ptr<const FrameCamera> AtlasService::merge_camera(const SettingsSource& settings) {
-  const std::shared_ptr<LocalizerContext> context = localizer_for(settings);
-  // The camera shares the context's ownership: it lives while a request holds it.
-  return std::shared_ptr<const FrameCamera>(context, &context->map_cam);
-}
-
-void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
-  if ((!merger_ && !shared_merges_) || maps.empty()) return;
-  SessionStart start;
-  bool shutting_down = false;
-  {
-    std::lock_guard lock(mutex_);
-    const auto it = session_starts_.find(id);
-    if (it == session_starts_.end()) return;
-    start = it->second;
-    shutting_down = shut_down_;
-  }
-  // A shared atlas keeps the work in the database: the merge-work thread
-  // claims it for this replica's worker, or hands the map to a replica that
-  // asks for it (also when this replica does not merge, or stops first).
-  std::vector<MapId> direct = maps;
-  if (shared_merges_) {
-    direct.clear();
-    for (const MapId map : maps) {
-      try {
-        shared_merges_->add(
-            StoredMerge{map, start.settings, start.first_keyframe, start.inertial, start.rig.monocular});
-      } catch (const std::exception& e) {
-        log_warn("map merging: cannot store the merge work of map " + std::to_string(map) +
-                 " (done here): " + e.what());
-        direct.push_back(map);
-      }
-    }
-    wake_merge_work();
-  }
-  if (!merger_ || shutting_down || direct.empty()) return;
-  std::shared_ptr<const FrameCamera> cam;
-  try {
-    cam = merge_camera(start.settings);
-  } catch (const std::exception& e) {
-    log_warn("session " + std::to_string(id) + ": no merging (" + e.what() + ")");
-    return;
-  }
-  for (const MapId map : direct)
-    merger_->submit(MergeRequest{map, cam, start.first_keyframe, start.inertial, start.rig.monocular});
-}
-
-bool AtlasService::rigs_match(MapId source, MapId target) const {
-  // A shared atlas: only maps this replica writes are merged; a place found in
-  // another replica's map puts the work off until that map is handed over
-  // (MapMergeWorker::set_put_off).
-  if (ownership_ && !ownership_->owns(source)) return false;
-  // Maps of one rig; a single camera's map goes into a stereo one of its rig,
-  // not the other way (merge_maps gives the first the target's scale). Maps
-  // of single-camera sessions have a rig only in the server run that made
-  // them (record_map_rigs).
-  std::lock_guard lock(rigs_mutex_);
-  const auto a = map_rigs_.find(source);
-  const auto b = map_rigs_.find(target);
-  return a != map_rigs_.end() && b != map_rigs_.end() && (a->second.monocular || !b->second.monocular) &&
-         same_rig(a->second.cameras, b->second.cameras);
-}
-
-bool AtlasService::cameras_match(const CameraRig& cameras, MapId target) const {
-  std::lock_guard lock(rigs_mutex_);
-  const auto b = map_rigs_.find(target);
-  return b != map_rigs_.end() && same_rig(cameras, b->second.cameras);
-}
-
-bool AtlasService::mapping_rig_matches(const MapRig& rig, MapId target) const {
-  if (ownership_ && !ownership_->owns(target)) return false;  // another replica's map: read, never mapped
-  {
-    std::lock_guard lock(rigs_mutex_);
-    const auto b = map_rigs_.find(target);
-    if (b == map_rigs_.end() || !may_map_into(rig, b->second)) return false;
-  }
-  // One local mapping per map: the sessions mapping in it now map as `rig` does
-  // (a monocular session and a stereo one never map one map at once).
-  for (const SessionId holder : leases_.holders(target))
-    if (holder != kMergeWorkerLease && !same_mapping_rig(mapping_rig(holder), rig)) return false;
-  return true;
-}
-
-MapRig AtlasService::mapping_rig(SessionId id) const {
-  std::lock_guard lock(mutex_);
-  const auto it = session_starts_.find(id);
-  if (it != session_starts_.end()) return it->second.rig;
-  const auto s = sessions_.find(id);  // a stored session (this run did not start it)
-  if (s == sessions_.end()) return {};
-  const SensorType sensor = s->second->info().sensor;
-  return MapRig{s->second->info().cameras, sensor == SensorType::kStereoInertial, is_single_camera(sensor)};
-}
-
-void AtlasService::merged_live(const LiveMerge& merge) {
-  // The sessions that were in the merged map (they hold the joined one now).
-  const std::vector<SessionId> moved = leases_.holders(merge.merge.source);
-  const SessionId session = moved.empty() ? kInvalidSessionId : moved.front();
-  leases_.forget(merge.merge.source);
-  {
-    std::lock_guard lock(rigs_mutex_);
-    map_rigs_.erase(merge.merge.source);
-  }
-  {
-    // Its own leaf lock, not mutex_: this runs on the loop-closing thread, which a
-    // session's finish waits for while holding that session's mutex, and mutex_ is
-    // held while sessions are asked for their state (a cycle if taken here).
-    std::lock_guard lock(live_merges_mutex_);
-    push_recent(live_merges_, LiveMergeRecord{session, merge});
-    ++live_merges_total_;
-  }
-  // Stored by the next periodic checkpoint (not waited for here: this is the
-  // loop-closing thread every session shares).
-  checkpointer_->notify_keyframe();
-}
-
-void AtlasService::merged(const MergeRecord& record) {
-  {
-    std::lock_guard lock(rigs_mutex_);
-    map_rigs_.erase(record.merge.source);
-  }
-  if (!checkpointer_->checkpoint_now())
-    log_warn("the merge of map " + std::to_string(record.merge.source) +
-             " is not stored yet: " + checkpointer_->stats().last_error + " (retried at the next checkpoint)");
-}
-
-MergesReport AtlasService::merges() const {
-  MergesReport out;
-  if (!merger_) return out;
-  out.enabled = true;
-  {
-    std::lock_guard lock(live_merges_mutex_);
-    out.live_merges = live_merges_;
-    out.live_merges_total = live_merges_total_;
-  }
-  out.worker = merger_->stats();
-  return out;
-}
-
 FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
   const auto live = session(id);
   FrameReply reply;
@@ -724,137 +477,6 @@ SessionStatus AtlasService::finish_session(SessionId id, const std::string& ende
     release_free_heap();
   }
   return live->status();
-}
-
-SessionTrajectory AtlasService::trajectory(SessionId id) const {
-  const auto live = session(id);
-  std::vector<FrameAnchor> anchors = live->anchors();
-  if (!live->has_anchors()) {
-    // An ended session's frames are in the database (a reader next to the
-    // checkpointer's connection; WAL lets both work at once).
-    std::lock_guard lock(store_mutex_);
-    if (!store_) throw ServiceError(ServiceErrorKind::kUnavailable, "shutting_down", "the server is shutting down");
-    anchors = store_->load_trajectory(id);
-  }
-  SessionTrajectory out;
-  out.frames = anchors.size();
-  for (const FrameAnchor& a : anchors) {
-    if (const auto located = atlas_.locate_frame(a)) {
-      out.poses.push_back({a.t_ns, located->second});
-      out.maps.push_back(located->first);
-    } else {
-      ++out.unresolved;
-    }
-  }
-  return out;
-}
-
-std::vector<MapSummary> AtlasService::maps() const {
-  std::vector<MapSummary> out;
-  for (const auto& map : atlas_.maps()) {
-    try {
-      out.push_back(this->map(map->id()));
-    } catch (const ServiceError&) {
-      // merged away since the list was taken
-    }
-  }
-  return out;
-}
-
-std::vector<SessionId> AtlasService::sessions_in(MapId map) const {
-  std::vector<SessionId> in;
-  std::lock_guard lock(mutex_);
-  for (const auto& [id, s] : sessions_)
-    if (s->current_map() == map) in.push_back(id);
-  return in;
-}
-
-MapSummary AtlasService::map(MapId id) const {
-  const auto map = atlas_.map(id);
-  if (!map) throw_not_found("no map " + std::to_string(id));
-  MapSummary out;
-  out.id = id;
-  out.keyframes = map->keyframe_count();
-  out.map_points = map->map_point_count();
-  if (const auto holders = leases_.holders(id); !holders.empty() && holders.front() != kMergeWorkerLease)
-    out.live_session = holders.front();
-  out.sessions = sessions_in(id);
-  out.writable = !ownership_ || ownership_->owns(id);
-  const auto points = map->map_points();
-  if (!points.empty()) {
-    MapSummary::Bounds bounds{Eigen::Vector3d::Constant(1e300), Eigen::Vector3d::Constant(-1e300)};
-    for (const auto& p : points) {
-      bounds.min = bounds.min.cwiseMin(p->p_w());
-      bounds.max = bounds.max.cwiseMax(p->p_w());
-    }
-    out.bounds_m = bounds;
-  }
-  return out;
-}
-
-MapPointCloud AtlasService::map_points(MapId id) const {
-  const auto map = atlas_.map(id);
-  if (!map) throw_not_found("no map " + std::to_string(id));
-  MapPointCloud out;
-  out.map = id;
-  for (const auto& p : map->map_points())
-    if (!p->is_bad()) out.points.push_back(p->p_w());
-  return out;
-}
-
-std::shared_ptr<AtlasService::LocalizerContext> AtlasService::localizer_for(const SettingsSource& source) {
-  const std::string key = source.config.empty() ? "yaml:" + source.settings_yaml : "config:" + source.config;
-  {
-    std::lock_guard lock(localizers_mutex_);
-    if (const auto it = localizers_.find(key); it != localizers_.end()) return it->second;
-  }
-  // Read and built outside the (leaf) lock: a config file on a slow disk holds
-  // up no other localisation. Two first requests may both build; one is kept.
-  const LoadedSettings loaded = load_settings(source);
-  std::shared_ptr<LocalizerContext> context;
-  try {
-    context = std::make_shared<LocalizerContext>(loaded.settings);
-  } catch (const std::exception& e) {
-    throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config", std::string("unusable settings: ") + e.what());
-  }
-  std::lock_guard lock(localizers_mutex_);
-  if (const auto it = localizers_.find(key); it != localizers_.end()) return it->second;
-  if (localizers_.size() >= kMaxLocalizers) localizers_.erase(localizers_.begin());
-  localizers_[key] = context;
-  return context;
-}
-
-cv::Size AtlasService::localize_image_size(const SettingsSource& settings) {
-  const Camera& camera = *localizer_for(settings)->cam.camera;
-  return {camera.calibration().width, camera.calibration().height};
-}
-
-LocalizeReply AtlasService::localize(const LocalizeRequest& request) {
-  const auto start = std::chrono::steady_clock::now();
-  if (request.map && !atlas_.map(*request.map)) throw_not_found("no map " + std::to_string(*request.map));
-  const std::shared_ptr<LocalizerContext> context = localizer_for(request.settings);
-  LocalizeReply reply;
-  {
-    std::lock_guard lock(context->mutex);
-    Frame frame = context->make_frame(request.left, request.right);
-    RelocalizationOptions options;
-    options.only_map = request.map;
-    // No merge half-way through while the maps are read (a merge moves a map's
-    // keyframes and points into another's frame): one waits for the other.
-    const auto whole = atlas_.lock_maps_shared();
-    const RelocalizationResult r =
-        relocalize(frame, vocabulary_, atlas_.keyframe_index(), context->cam, context->T_b_c, options);
-    reply.recognised = r.success;
-    reply.map = r.map;
-    reply.T_w_b = r.T_w_b;
-    reply.inliers = r.inliers;
-    reply.candidates = r.candidates;
-  }
-  reply.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  localize_requests_.Increment();
-  if (reply.recognised) localize_recognised_.Increment();
-  localize_latency_.Observe(reply.ms / 1000.0);
-  return reply;
 }
 
 void AtlasService::shutdown() {
