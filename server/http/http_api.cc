@@ -2,7 +2,6 @@
 
 #include <chrono>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <memory>
 #include <regex>
@@ -10,7 +9,6 @@
 #include <nlohmann/json.hpp>
 #include <prometheus/text_serializer.h>
 
-#include "core/archive/tar_stream_extractor.h"
 #include "core/common/log.h"
 #include "core/common/timestamp.h"
 #include "core/io/settings.h"
@@ -24,149 +22,17 @@
 #include "server/http/service_json.h"
 #include "wire/pose_json.h"
 #include "core/server/upload_jobs.h"
-#include "core/server/viewer_data.h"
 
-// Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
-#include <httplib.h>
+// Last: it includes <httplib.h>, which pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
+#include "server/http/http_router.h"
 
 namespace orbatlas {
+
+using namespace http_detail;  // NOLINT(google-build-using-namespace): the routes' shared helpers
+
 namespace {
 
-using httplib::Request;
-using httplib::Response;
 using HandlerResponse = httplib::Server::HandlerResponse;
-using json = nlohmann::json;
-
-void reply_json(Response& res, const json& body, int status = 200) {
-  res.status = status;
-  // Text that is not UTF-8 (from an older database) is replaced, never a 500.
-  res.set_content(body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
-}
-
-using Redactions = std::vector<std::pair<std::string, std::string>>;
-
-std::string redacted(std::string message, const Redactions& redactions) {
-  for (const auto& [from, to] : redactions) {
-    if (from.empty()) continue;
-    for (std::size_t at = 0; (at = message.find(from, at)) != std::string::npos; at += to.size())
-      message.replace(at, from.size(), to);
-  }
-  return message;
-}
-
-// Set once by install_http_api, read by every handler (the options outlive the server).
-struct ErrorContext {
-  Redactions redactions;
-};
-
-// The HTTP status of each kind of service error (docs/api.md, "Errors").
-int http_status(ServiceErrorKind kind) {
-  switch (kind) {
-    case ServiceErrorKind::kBadRequest:
-      return 400;
-    case ServiceErrorKind::kNotFound:
-      return 404;
-    case ServiceErrorKind::kConflict:
-      return 409;
-    case ServiceErrorKind::kTooLarge:
-      return 413;
-    case ServiceErrorKind::kUnprocessable:
-      return 422;
-    case ServiceErrorKind::kFailed:
-      return 500;
-    case ServiceErrorKind::kUnavailable:
-      return 503;
-  }
-  return 500;
-}
-
-void reply_error(Response& res, int status, const std::string& code, const std::string& message) {
-  reply_json(res, {{"error", {{"code", code}, {"message", message}}}}, status);
-}
-
-// Every handler runs inside this: service errors become JSON replies, with no
-// server path in their messages.
-void run_guarded(const ErrorContext& context, const Request& req, Response& res, const std::function<void()>& handler) {
-  const auto error = [&](int status, const std::string& code, const std::string& message) {
-    reply_error(res, status, code, redacted(message, context.redactions));
-  };
-  try {
-    handler();
-  } catch (const ServiceError& e) {
-    error(http_status(e.kind()), e.code(), e.what());
-  } catch (const DataError& e) {
-    error(422, "bad_input", e.what());
-  } catch (const json::exception& e) {
-    error(400, "bad_json", std::string("malformed request: ") + e.what());
-  } catch (const std::bad_alloc&) {
-    log_warn(req.method + " " + req.path + ": out of memory");
-    error(503, "unavailable", "the server ran out of memory for this request");
-  } catch (const std::exception& e) {
-    log_warn(req.method + " " + req.path + ": " + e.what());
-    error(500, "internal", e.what());
-  }
-}
-
-// The routes, for telling a wrong method (405) from a wrong path (404).
-struct RouteTable {
-  std::vector<std::pair<std::regex, std::string>> routes;  // pattern, method
-  std::vector<std::string> methods_for(const std::string& path) const {
-    std::vector<std::string> out;
-    for (const auto& [pattern, method] : routes)
-      if (std::regex_match(path, pattern) && std::find(out.begin(), out.end(), method) == out.end())
-        out.push_back(method);
-    return out;
-  }
-};
-
-// Registers a route on the server and in the table.
-class Router {
- public:
-  Router(httplib::Server& server, std::shared_ptr<ErrorContext> context, std::shared_ptr<RouteTable> table)
-      : server_(server), context_(std::move(context)), table_(std::move(table)) {}
-
-  template <class Handler>
-  void get(const std::string& pattern, Handler handler) {
-    table_->routes.emplace_back(std::regex(pattern), "GET");
-    server_.Get(pattern, guarded(handler));
-  }
-  template <class Handler>
-  void post(const std::string& pattern, Handler handler) {
-    table_->routes.emplace_back(std::regex(pattern), "POST");
-    server_.Post(pattern, guarded(handler));
-  }
-  // A POST route that reads its body itself (uploads).
-  void post_streaming(const std::string& pattern, httplib::Server::HandlerWithContentReader handler) {
-    table_->routes.emplace_back(std::regex(pattern), "POST");
-    server_.Post(pattern, std::move(handler));
-  }
-  const ErrorContext& context() const { return *context_; }
-
- private:
-  template <class Handler>
-  auto guarded(Handler handler) {
-    return [handler, context = context_](const Request& req, Response& res) {
-      run_guarded(*context, req, res, [&] { handler(req, res); });
-    };
-  }
-  httplib::Server& server_;
-  std::shared_ptr<ErrorContext> context_;
-  std::shared_ptr<RouteTable> table_;
-};
-
-std::uint64_t id_from(const Request& req, std::size_t group, const char* what) {
-  const std::string& text = req.matches[group];
-  const auto id = parse_integer<std::uint64_t>(text);
-  if (!id) throw_not_found(std::string("no ") + what + " " + text);
-  return *id;
-}
-
-json parse_json_body(const Request& req) {
-  if (req.body.empty()) throw_bad_request("the request needs a JSON body");
-  json body = json::parse(req.body);  // json::exception: 400
-  if (!body.is_object()) throw_bad_request("the JSON body must be an object");
-  return body;
-}
 
 std::string optional_string(const json& body, const char* key) {
   if (!body.contains(key)) return {};
@@ -375,158 +241,6 @@ void install_map_routes(Router& router, AtlasService& service) {
                 }
                 reply_json(res, body);
               }));
-}
-
-// The map viewer (docs/viewer.md): its page and scripts, which hold no data
-// and need no token, and its data routes, which do.
-const std::vector<std::pair<std::string, std::string>>& viewer_files() {
-  static const std::vector<std::pair<std::string, std::string>> files = {
-      {"/", "text/html; charset=utf-8"},
-      {"/viewer/app.js", "text/javascript; charset=utf-8"},
-      {"/viewer/style.css", "text/css; charset=utf-8"},
-      {"/viewer/three.min.js", "text/javascript; charset=utf-8"},
-      {"/viewer/OrbitControls.js", "text/javascript; charset=utf-8"}};
-  return files;
-}
-
-bool is_viewer_file(const std::string& path) {
-  for (const auto& [file, _] : viewer_files())
-    if (path == file) return true;
-  return false;
-}
-
-std::filesystem::path viewer_file_path(const std::string& route, const HttpApiOptions& opts) {
-  if (route == "/") return opts.viewer_dir / "index.html";
-  const std::string name = route.substr(std::string("/viewer/").size());
-  if (name == "three.min.js") return opts.three_js_dir / "three.min.js";
-  if (name == "OrbitControls.js") return opts.three_js_dir / "examples" / "js" / "controls" / "OrbitControls.js";
-  return opts.viewer_dir / name;
-}
-
-json pose_view(const Pose3& T) {
-  return {{"p", {T.t.x(), T.t.y(), T.t.z()}}, {"q", {T.q.w(), T.q.x(), T.q.y(), T.q.z()}}};
-}
-
-void install_viewer_routes(Router& router, AtlasService& service, const HttpApiOptions& opts) {
-  for (const auto& [route, type] : viewer_files()) {
-    const std::string escaped = std::regex_replace(route, std::regex(R"([.])"), R"(\.)");
-    router.get(escaped, ([route = route, type = type, opts](const Request&, Response& res) {
-                 std::ifstream in(viewer_file_path(route, opts), std::ios::binary);
-                 if (!in) throw_not_found("the viewer's file " + route + " is not installed on this server");
-                 res.set_content(std::string(std::istreambuf_iterator<char>(in), {}), type);
-                 res.set_header("Cache-Control", "no-cache");
-               }));
-  }
-  router.get(R"(/v1/maps/(\d+)/keyframes)", ([&service](const Request& req, Response& res) {
-               const MapKeyframesView view = map_keyframes_view(service.atlas(), id_from(req, 1, "map"));
-               json keyframes = json::array();
-               for (const auto& kf : view.keyframes) {
-                 json j = pose_view(kf.T_w_c);
-                 j["id"] = kf.id;
-                 j["parent"] = kf.parent ? json(*kf.parent) : json(nullptr);
-                 keyframes.push_back(std::move(j));
-               }
-               json loops = json::array();
-               for (const auto& [a, b] : view.loop_edges) loops.push_back({a, b});
-               reply_json(res, {{"map", view.map}, {"keyframes", keyframes}, {"loop_edges", loops}});
-             }));
-  router.get(R"(/v1/maps/(\d+)/points\.bin)", ([&service](const Request& req, Response& res) {
-               std::size_t max_points = 200000;
-               if (req.has_param("max")) {
-                 const std::string text = req.get_param_value("max");
-                 const auto parsed = parse_integer<std::size_t>(text);
-                 if (!parsed || *parsed < 1 || *parsed > 5000000)
-                   throw_bad_request("max must be a whole number of points in 1..5000000, not '" + text + "'");
-                 max_points = *parsed;
-               }
-               const MapPointCloud cloud = service.map_points(id_from(req, 1, "map"));
-               const std::vector<float> xyz = point_buffer(cloud, max_points);
-               res.set_header("X-Points-Total", std::to_string(cloud.points.size()));
-               res.set_header("X-Points-Sent", std::to_string(xyz.size() / 3));
-               res.set_content(std::string(reinterpret_cast<const char*>(xyz.data()), xyz.size() * sizeof(float)),
-                               "application/octet-stream");
-             }));
-  router.get("/v1/live", ([&service](const Request&, Response& res) {
-               json sessions = json::array();
-               for (const LiveSessionView& v : live_sessions_view(service)) {
-                 json j = to_json(v.status);
-                 j["pose"] = v.T_w_b ? pose_view(*v.T_w_b) : json(nullptr);
-                 j["tracking_p50_ms"] =
-                     v.status.tracking_ms.empty() ? json(nullptr) : json(percentiles(v.status.tracking_ms).p50);
-                 sessions.push_back(std::move(j));
-               }
-               reply_json(res, {{"sessions", sessions}});
-             }));
-}
-
-void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jobs, std::uint64_t max_bytes) {
-  router.post_streaming("/v1/uploads", [&service, jobs, max_bytes, &context = router.context()](
-                                           const Request& req, Response& res, const httplib::ContentReader& reader) {
-    // A refusal comes before the body is read; what is left of it must not be
-    // taken for the next request on this connection: the client closes it.
-    res.set_header("Connection", "close");
-    run_guarded(context, req, res, [&] {
-      if (!jobs) throw ServiceError(ServiceErrorKind::kUnavailable, "unavailable", "this server takes no uploads");
-      SessionRequest request;
-      request.name = req.get_param_value("name");
-      request.settings.config = req.has_param("config") ? req.get_param_value("config") : "euroc/stereo";
-      if (req.has_param("sensor")) request.sensor = req.get_param_value("sensor");
-      if (req.has_param("mode")) request.mode = req.get_param_value("mode");
-      service.check_upload(request);  // before receiving gigabytes for nothing
-      // Extracted while it arrives: no copy of the archive on disk. Its files may
-      // not add up to more than the upload limit (sparse entries could).
-      const std::filesystem::path folder = jobs->new_upload_folder();
-      struct Discard {  // the extracted files, unless a job took them
-        std::filesystem::path path;
-        bool keep = false;
-        ~Discard() {
-          std::error_code ec;
-          if (!keep) std::filesystem::remove_all(path, ec);
-        }
-      } discard{folder};
-      TarLimits limits;
-      limits.max_total_bytes = max_bytes;
-      TarStreamExtractor extractor(folder, limits, "the upload");
-      std::uint64_t bytes = 0;
-      bool too_large = false;
-      const bool complete = reader([&](const char* data, std::size_t n) {
-        bytes += n;
-        if (bytes > max_bytes) {
-          too_large = true;
-          return false;
-        }
-        return extractor.write(data, n);  // false once the archive proved bad
-      });
-      if (too_large) {
-        extractor.cancel();
-        throw ServiceError(ServiceErrorKind::kTooLarge, "too_large",
-                           "uploads are limited to " + std::to_string(max_bytes) + " bytes");
-      }
-      if (bytes == 0) {
-        extractor.cancel();
-        throw_bad_request("the upload is empty: send a tar of an EuRoC ASL folder");
-      }
-      if (!complete && extractor.state() == TarStreamExtractor::State::kReading) {  // the client stopped
-        extractor.cancel();
-        throw_bad_request("the upload was cut short after " + std::to_string(bytes) + " bytes");
-      }
-      const TarExtractReport report = extractor.finish();  // a bad archive: DataError, 400
-      const JobId id = jobs->submit(folder, request, report.archive_bytes);
-      discard.keep = true;
-      reply_json(res, {{"job", id}, {"status", to_json(jobs->job(id))}}, 202);
-    });
-  });
-  router.get("/v1/jobs", ([jobs](const Request&, Response& res) {
-               json list = json::array();
-               if (jobs)
-                 for (const StoredJob& job : jobs->jobs()) list.push_back(to_json(job));
-               reply_json(res, {{"jobs", list}});
-             }));
-  router.get(R"(/v1/jobs/(\d+))", ([jobs](const Request& req, Response& res) {
-               const JobId id = id_from(req, 1, "job");
-               if (!jobs) throw_not_found("no job " + std::to_string(id));
-               reply_json(res, to_json(jobs->job(id)));
-             }));
 }
 
 }  // namespace
