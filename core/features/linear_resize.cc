@@ -37,8 +37,8 @@ std::int16_t saturate_s16(int v) { return static_cast<std::int16_t>(std::clamp(v
 
 // OpenCV's VResizeLinearVec_32s8u, one column: both sums shifted to 16 bits,
 // high halves of the products, a saturating add, then (v + 2) >> 2. OpenCV
-// 4.6 blends every column so, the last ones of a row too (its row buffers are
-// padded); its scalar FixedPtCast, which rounds the exact sum, is never reached.
+// 4.6's results match this in every column, the last ones of a row too (the
+// tests: its scalar FixedPtCast, which rounds the exact sum, would differ).
 std::uint8_t blend_simd(std::int32_t s0, std::int32_t s1, std::int16_t b0, std::int16_t b1) {
   const int m0 = (saturate_s16(s0 >> 4) * b0) >> 16, m1 = (saturate_s16(s1 >> 4) * b1) >> 16;
   return saturate_u8(saturate_s16(saturate_s16(m0 + m1) + 2) >> 2);
