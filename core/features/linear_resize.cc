@@ -97,17 +97,16 @@ LinearResize::LinearResize(cv::Size from, cv::Size to) : from_(from), to_(to) {
     source_position(dx, scale_x, &sx, &fx);
     if (sx < 0) fx = 0.f, sx = 0;
     int second = sx + 1;
-    if (sx + 1 >= from.width) {
+    if (second >= from.width) {
       // OpenCV takes the last column alone (times 2048); its second tap here is
       // the same column with weight 0, so that no tap leaves the row.
-      if (sx >= from.width - 1) fx = 0.f, sx = from.width - 1;
+      fx = 0.f, sx = from.width - 1;
       second = sx;
     }
     xofs_[2 * dx] = sx;
     xofs_[2 * dx + 1] = second;
     alpha_[2 * dx] = weight(1.f - fx);
     alpha_[2 * dx + 1] = weight(fx);
-    if (second == sx) alpha_[2 * dx] = kCoefScale, alpha_[2 * dx + 1] = 0;
   }
   yofs_.resize(static_cast<std::size_t>(to.height));
   beta_.resize(2 * static_cast<std::size_t>(to.height));

@@ -317,7 +317,7 @@ void OrbExtractor::build_pyramid(const cv::Mat& image) {
     // Each level from the one before, as ORB-SLAM (cv::resize, INTER_LINEAR, bit
     // for bit): the interior only (it never reads outside its source), the border
     // filled afterwards.
-    shrink_[l](pyramid_[l - 1], pyramid_[l]);
+    shrink_[l](pyramid_[l - 1], pyramid_[l], options_.use_avx2);
     fill_border(bordered_[l]);
   }
 }
