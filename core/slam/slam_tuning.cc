@@ -38,6 +38,10 @@ const std::vector<Binding>& bindings() {
       ORBATLAS_TUNING("Tracker.MaxMappingWaitMs", 0, 10000, false,
                       "the frame after a keyframe waits this long at most for local mapping to adjust it (0: never)",
                       tracker.max_mapping_wait_ms),
+      ORBATLAS_TUNING("Tracker.OwnClosePoints", 0, 1, true,
+                      "1: the keyframe decision counts as tracked only the close points the session's own keyframes "
+                      "observe (maps several sessions map)",
+                      tracker.own_close_points),
       ORBATLAS_TUNING("Tracker.MaxLocalKeyframes", 5, 1000, true, "keyframes of the local map a frame is tracked in",
                       tracker.max_local_keyframes),
       ORBATLAS_TUNING("Tracker.MinKeyframesToKeepMap", 0, 1000, true,

@@ -9,6 +9,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <unordered_set>
 #include <vector>
 
 #include "core/common/flat_id_set.h"
@@ -28,8 +29,17 @@ enum class TrackingState { kNotInitialized, kOk, kRecentlyLost, kLost };
 const char* tracking_state_name(TrackingState state);
 
 struct TrackerOptions {
-  int min_init_stereo_points = 500;       // stereo matches needed to start a map
-  double th_depth_m = 3.5;                // close / far stereo points (ORB-SLAM's ThDepth * baseline)
+  int min_init_stereo_points = 500;  // stereo matches needed to start a map
+  double th_depth_m = 3.5;           // close / far stereo points (ORB-SLAM's ThDepth * baseline)
+  // The keyframe decision's tracked close points (ORB-SLAM's nTrackedClose)
+  // are only those a keyframe of this session observes: in a map that other
+  // sessions map too, a close point only their keyframes hold counts as not
+  // yet tracked, so a session flying through another's map still makes the
+  // keyframes whose close stereo observations tie its path to the map (without
+  // them its path came out 0.1-0.2 % short; docs/mapping.md, "A session's own
+  // close points"). A session alone owns every point: nothing changes.
+  // false: ORB-SLAM's count.
+  bool own_close_points = true;
   int max_frames_between_keyframes = 20;  // a keyframe at least this often (the frame rate)
   // Visual-inertial sessions (ORB-SLAM3): a keyframe at least every this many
   // seconds while local mapping takes one, so the IMU between keyframes stays
@@ -156,6 +166,7 @@ class Tracker {
   bool track_local_map(Frame& frame);
   void update_local_map(const Frame& frame);
   bool need_new_keyframe(const Frame& frame, int inliers) const;
+  bool observed_by_own_keyframe(const MapPoint& point) const;
   void create_keyframe(Frame& frame, bool all_stereo_points);
   std::shared_ptr<KeyFrame> new_keyframe(Frame& frame);    // in the map, with no points yet
   void keyframe_made(std::shared_ptr<KeyFrame> keyframe);  // the listener, the sink, the bookkeeping
@@ -189,7 +200,8 @@ class Tracker {
   std::optional<Pose3> imu_prediction_;   // of this frame's T_w_b, by the IMU
   std::shared_ptr<KeyFrame> reference_;
   std::shared_ptr<KeyFrame> last_keyframe_;
-  std::optional<KeyframeId> last_reference_;  // of the last frame, for its pose refresh
+  std::unordered_set<KeyframeId> own_keyframes_;  // every keyframe this tracker made (own_close_points)
+  std::optional<KeyframeId> last_reference_;      // of the last frame, for its pose refresh
   Pose3 T_ref_last_;
   double reference_units_ = 1.0;  // the units of the last frame's reference keyframe then
   std::vector<std::shared_ptr<KeyFrame>> local_keyframes_;
