@@ -9,7 +9,6 @@
 #include <functional>
 #include <memory>
 #include <optional>
-#include <unordered_set>
 #include <vector>
 
 #include "core/common/flat_id_set.h"
@@ -200,8 +199,8 @@ class Tracker {
   std::optional<Pose3> imu_prediction_;   // of this frame's T_w_b, by the IMU
   std::shared_ptr<KeyFrame> reference_;
   std::shared_ptr<KeyFrame> last_keyframe_;
-  std::unordered_set<KeyframeId> own_keyframes_;  // every keyframe this tracker made (own_close_points)
-  std::optional<KeyframeId> last_reference_;      // of the last frame, for its pose refresh
+  FlatIdSet own_keyframes_;                   // ids of every keyframe this tracker made (own_close_points)
+  std::optional<KeyframeId> last_reference_;  // of the last frame, for its pose refresh
   Pose3 T_ref_last_;
   double reference_units_ = 1.0;  // the units of the last frame's reference keyframe then
   std::vector<std::shared_ptr<KeyFrame>> local_keyframes_;

@@ -12,7 +12,7 @@ namespace orbatlas {
 bool Tracker::observed_by_own_keyframe(const MapPoint& point) const {
   bool own = false;
   point.for_each_observer(
-      [&](KeyframeId id, const std::weak_ptr<KeyFrame>&) { own = own || own_keyframes_.count(id) > 0; });
+      [&](KeyframeId id, const std::weak_ptr<KeyFrame>&) { own = own || own_keyframes_.contains(id); });
   return own;
 }
 
@@ -35,6 +35,7 @@ bool Tracker::need_new_keyframe(const Frame& frame, int inliers) const {
   for (std::size_t i = 0; i < frame.size(); ++i) {
     const float z = frame.depth[i];
     if (z <= 0.0f || z >= options_.th_depth_m) continue;
+    if (tracked_close >= 100) break;  // need_close is false whatever follows
     if (frame.map_points[i] && !frame.outlier[i]) {
       if (options_.own_close_points && !observed_by_own_keyframe(*frame.map_points[i])) {
         ++untracked_close;  // a keyframe here adds this session's observation of it
