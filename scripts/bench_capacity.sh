@@ -147,6 +147,29 @@ run_sessions() {
 
 MAX_N=1
 for n in "${N_LIST[@]}"; do [ "$n" -gt "$MAX_N" ] && MAX_N=$n; done
+# machine_check WHEN: is each of the two cores a whole core right now? ORB
+# extraction (`orbatlas bench features`, one thread) timed alone and then as
+# two jobs at once; on two whole cores both give the same figures. A virtual
+# machine whose second core is shared with another tenant shows the two jobs
+# slower, and then live sessions are late more often with the same code
+# (docs/benchmarks.md, stop 52). MACHINE_CHECK=0 skips it.
+machine_check() {
+  [ "${MACHINE_CHECK:-1}" = 0 ] && return 0
+  local data
+  data="$(dataset MH_01)"
+  orb() { "$OA" bench features --dataset "$data" --frames 300 2>&1 | sed -n 's/.*ORB extraction *p50 \([0-9.]*\) ms *p95 \([0-9.]*\) ms.*/\1\/\2/p'; }
+  local one two_a two_b
+  one=$(orb)
+  orb > "$OUT/.machine_check_a" &
+  two_b=$(orb)
+  wait
+  two_a=$(cat "$OUT/.machine_check_a")
+  rm -f "$OUT/.machine_check_a"
+  echo "machine check ($1): ORB extraction p50/p95 [ms] one job $one; two jobs at once $two_a and $two_b" | tee -a "$OUT/machine_check.txt"
+}
+rm -f "$OUT/machine_check.txt"
+machine_check before
+
 for ((k = 0; k < MAX_N; ++k)); do
   seq=${SEQUENCES[$k]}
   [ -f "$OUT/alone_$seq/1_$seq.json" ] && [ -n "${KEEP_ALONE:-}" ] && continue
@@ -158,6 +181,8 @@ for n in "${N_LIST[@]}"; do
   echo "== $n sessions at once"
   run_sessions "n$n" "${SEQUENCES[@]:0:$n}"
 done
+
+machine_check after
 
 /usr/bin/python3 - "$OUT" "${N_LIST[*]}" "${SEQUENCES[*]}" <<'PY'
 import json, sys, os
@@ -199,3 +224,4 @@ for n in ns:
             f"{r['mapping_wait_ms']['p50']:.0f}/{r['mapping_wait_ms']['p95']:.0f}/{r['mapping_wait_ms']['max']:.0f}, "
             f"{r['mapping_waits_cut']}" for r in waited))
 PY
+if [ -f "$OUT/machine_check.txt" ]; then cat "$OUT/machine_check.txt"; fi

@@ -258,10 +258,12 @@ TEST(AtlasSessions, ASessionInAnothersMapMakesKeyframesForItsOwnClosePoints) {
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   test::ClipCleanup cleanup_dir{dir};
-  const auto run = [&](bool own, const std::vector<std::filesystem::path>& clips, const std::string& name) {
+  const auto run = [&](bool own, const std::vector<std::filesystem::path>& clips, const std::string& name,
+                       int max_local_keyframes = TrackerOptions{}.max_local_keyframes) {
     DatasetRunOptions options = options_for(clips.front(), dir / (name + ".db"));
     options.slam.synchronous_mapping = true;
     options.slam.tracker.own_close_points = own;
+    options.slam.tracker.max_local_keyframes = max_local_keyframes;
     return run_stereo_datasets(options, clips);
   };
   const auto with = run(true, {a, b}, "with");
@@ -304,6 +306,33 @@ TEST(AtlasSessions, ASessionInAnothersMapMakesKeyframesForItsOwnClosePoints) {
               *alone_without[0].ate_rmse_m, largest);
   EXPECT_NEAR(*alone_with[0].ate_rmse_m, *alone_without[0].ate_rmse_m, 0.0005);
   EXPECT_LT(largest, 0.005);
+
+  // The local map a frame is tracked in: in the shared map MH_02's frames see
+  // MH_01's keyframes too. At most max_local_keyframes keyframes, those that
+  // observe the frame's points included (the ones sharing most points first).
+  const auto local_keyframes = [](const DatasetRunReport& r) { return percentiles(r.stats.local_map_keyframes); };
+  const auto local_points = [](const DatasetRunReport& r) { return percentiles(r.stats.local_map_points); };
+  for (const auto* reports : {&with, &alone_with})
+    for (const auto& r : *reports) {
+      EXPECT_GT(local_keyframes(r).count, r.stats.tracked * 9 / 10);  // nearly every frame is tracked in one
+      EXPECT_LE(local_keyframes(r).max, 80.0);
+      EXPECT_GT(local_points(r).p50, 100.0);
+    }
+  std::printf("local map of MH_02's frames, shared map: %.0f keyframes p50 (max %.0f), %.0f points; alone MH_01 %.0f\n",
+              local_keyframes(with[1]).p50, local_keyframes(with[1]).max, local_points(with[1]).p50,
+              local_keyframes(alone_with[0]).p50);
+  EXPECT_GT(local_keyframes(with[1]).max, 8.0);
+  const auto capped = run(true, {a, b}, "capped", 8);
+  ASSERT_EQ(capped.size(), 2u);
+  std::printf("at most 8 local keyframes: ATE %.4f, %.4f m\n", capped[0].ate_rmse_m.value_or(-1.0),
+              capped[1].ate_rmse_m.value_or(-1.0));
+  for (const auto& r : capped) {
+    EXPECT_TRUE(r.failed.empty()) << r.failed;
+    EXPECT_LE(local_keyframes(r).max, 8.0);
+    EXPECT_GT(local_keyframes(r).count, r.stats.tracked * 9 / 10);
+    ASSERT_TRUE(r.ate_rmse_m.has_value());
+    EXPECT_LT(*r.ate_rmse_m, 0.0075);
+  }
 }
 
 }  // namespace

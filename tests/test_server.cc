@@ -1018,16 +1018,23 @@ TEST(ServerMerging, ASessionOfAnotherRigStaysOutOfStoredMaps) {
   yaml.replace(yaml.find(fx), fx.size(), "Camera1.fx: 459.654");
   const std::uint64_t id =
       client.post_json("/v1/sessions", {{"name", "other rig"}, {"settings_yaml", yaml}}).at("id").get<std::uint64_t>();
-  std::size_t tracked = 0;
+  std::size_t tracked = 0, in_local_map = 0;
   const auto frames = test::stereo_frames(clip);
   for (const auto& f : frames) {
     const auto reply = client.post_frame(id, f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
                                          cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
     if (!reply["tracked"].get<bool>()) continue;
     ++tracked;
+    // The local map it was tracked in (none for the frame that starts the map).
+    const int local_keyframes = reply.at("local_keyframes").get<int>();
+    const int local_points = reply.at("local_points").get<int>();
+    EXPECT_LE(local_keyframes, 80);
+    EXPECT_EQ(local_keyframes > 0, local_points > 0) << reply.dump();
+    if (local_points > 0) ++in_local_map;
     EXPECT_NE(reply["map"].get<std::uint64_t>(), stored_map) << "tracked in the other rig's map at " << f.t_ns;
   }
   EXPECT_EQ(tracked, frames.size());
+  EXPECT_GE(in_local_map + 1, frames.size());
   client.finish_session(id);
   const auto merges = wait_for_merges(client);
   EXPECT_TRUE(merges.at("merges").empty()) << merges.dump();

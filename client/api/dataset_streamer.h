@@ -70,6 +70,7 @@ struct StreamReport {
     double round_trip_ms = 0.0, server_ms = 0.0, tracking_ms = 0.0;
     bool late = false;  // its reply came after the next frame was due
     bool skipped = false, keyframe = false;
+    int local_keyframes = 0, local_points = 0;  // the local map the server tracked the frame in
   };
   std::vector<FrameTiming> frame_timings;
   double wall_s = 0.0;

@@ -50,6 +50,8 @@ SlamStats MonoLocalizer::stats() const {
   s.relocalizations = tracker_->relocalizations();
   add_atlas_counts(atlas_, s);
   s.tracking_ms = frames_.tracking_ms();
+  s.local_map_keyframes = frames_.local_keyframes();
+  s.local_map_points = frames_.local_points();
   return s;
 }
 

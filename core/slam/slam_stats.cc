@@ -86,6 +86,8 @@ nlohmann::json to_json(const SlamStats& s) {
   }
   j["live_merges"] = s.loop.merges.size();
   j["tracking_ms"] = summary(s.tracking_ms);
+  j["local_map_keyframes"] = summary(s.local_map_keyframes);
+  j["local_map_points"] = summary(s.local_map_points);
   j["mapping_wait_ms"] = summary(s.mapping_wait_ms);
   j["mapping_waits_cut"] = s.mapping_waits_cut;
   j["local_mapping_ms_per_kf"] = summary(s.mapping.keyframe_ms);

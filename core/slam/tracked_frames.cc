@@ -26,6 +26,10 @@ TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, const Atlas& atl
     result.state = tracker.state();
   }
   tracking_ms_.add(ms_since(started));
+  if (result.local_points > 0) {
+    local_keyframes_.add(result.local_keyframes);
+    local_points_.add(result.local_points);
+  }
   ++frames_;
   if (result.tracked && tracker.last_anchor()) {
     std::lock_guard lock(anchors_mutex_);

@@ -41,11 +41,15 @@ class TrackedFrames {
   std::size_t tracked() const { return tracked_; }                // visually
   std::size_t tracked_by_imu() const { return tracked_by_imu_; }  // by the IMU alone (they have anchors too)
   const SampleSummary& tracking_ms() const { return tracking_ms_; }
+  // Per frame tracked in a local map: its keyframes and projected points (TrackResult).
+  const SampleSummary& local_keyframes() const { return local_keyframes_; }
+  const SampleSummary& local_points() const { return local_points_; }
   WorkerErrorCounts errors() const { return errors_.counts(); }
 
  private:
   WorkerErrors errors_{"tracking"};
   SampleSummary tracking_ms_;
+  SampleSummary local_keyframes_, local_points_;
   std::size_t frames_ = 0, tracked_ = 0, tracked_by_imu_ = 0;
   mutable std::mutex anchors_mutex_;
   std::deque<FrameAnchor> anchors_;  // one per tracked frame, for other threads (a deque: no copy as it grows)

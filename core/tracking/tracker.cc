@@ -89,6 +89,7 @@ TrackResult Tracker::track(Frame frame) {
   imu_prediction_.reset();
   TrackResult result;
   result.t_ns = frame.t_ns;
+  local_points_ = 0;
 
   follow_merged_map();
   adopt_reference_units();
@@ -251,6 +252,10 @@ void Tracker::after_tracked(Frame& frame, TrackResult& result) {
 void Tracker::finish_frame(Frame frame, bool ok, TrackResult& result) {
   result.state = state_;
   result.map = map_ ? map_->id() : 0;
+  if (local_points_ > 0) {
+    result.local_keyframes = static_cast<int>(local_keyframes_.size());
+    result.local_points = local_points_;
+  }
   result.tracked = ok;
   if (ok) {
     result.T_w_b = frame.T_w_b;
@@ -435,8 +440,6 @@ void Tracker::update_local_map(const Frame& frame) {
   if (counts.empty()) return;
   local_keyframes_.clear();
   std::unordered_set<KeyframeId> in_local;
-  std::shared_ptr<KeyFrame> best;
-  int best_count = 0;
   std::vector<std::pair<int, std::shared_ptr<KeyFrame>>> sorted;
   for (auto& [id, entry] : counts) {
     auto kf = entry.first.lock();
@@ -446,15 +449,16 @@ void Tracker::update_local_map(const Frame& frame) {
   std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) {
     return a.first != b.first ? a.first > b.first : a.second->id() < b.second->id();
   });
+  // The keyframes sharing the most points first, at most max_local_keyframes
+  // of them: in a map several sessions map, far more keyframes than that see
+  // the same points (measured up to 110), and each brings its points to the search.
+  const std::size_t max_kfs = static_cast<std::size_t>(options_.max_local_keyframes);
+  const std::shared_ptr<KeyFrame> best = sorted.empty() ? nullptr : sorted.front().second;
   for (auto& [count, kf] : sorted) {
-    if (count > best_count) {
-      best_count = count;
-      best = kf;
-    }
+    if (local_keyframes_.size() >= max_kfs) break;
     in_local.insert(kf->id());
     local_keyframes_.push_back(kf);
   }
-  const std::size_t max_kfs = static_cast<std::size_t>(options_.max_local_keyframes);
   const std::size_t first_ring = local_keyframes_.size();
   auto add = [&](const std::shared_ptr<KeyFrame>& kf) {
     if (kf && !kf->is_bad() && local_keyframes_.size() < max_kfs && in_local.insert(kf->id()).second)
@@ -494,6 +498,7 @@ bool Tracker::track_local_map(Frame& frame) {
       candidates.push_back(std::move(pp));
     });
   }
+  local_points_ = static_cast<int>(candidates.size());
   float th = 1.0f;
   if (frame_index_ < last_recovery_index_ + 2) th = 5.0f;
   if (state_ == TrackingState::kRecentlyLost) th = 15.0f;

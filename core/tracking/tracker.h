@@ -60,6 +60,7 @@ struct TrackerOptions {
   // BA outlasts a frame interval (docs/mapping.md, "Tracking's wait for its
   // keyframe"). 0 (the default): tracking never waits, as ORB-SLAM.
   double max_mapping_wait_ms = 0.0;
+  // At most this many keyframes in a frame's local map, those observing its points first.
   int max_local_keyframes = 80;
   int min_keyframes_to_keep_map = 10;  // a map lost with fewer keyframes goes straight to LOST
   // Localisation on stored maps: no keyframe and no map is ever made; the first
@@ -90,6 +91,10 @@ struct TrackResult {
   bool keyframe = false;       // a keyframe was made from this frame
   KeyframeId keyframe_id = 0;  // its id, when `keyframe`
   int inliers = 0;
+  // The local map the frame was tracked in (0 when it was not tracked in one):
+  // its keyframes, and the map points of theirs projected into the frame.
+  int local_keyframes = 0;
+  int local_points = 0;
 };
 
 class Tracker {
@@ -214,6 +219,7 @@ class Tracker {
   std::size_t mapping_waits_cut_ = 0;
   std::optional<FrameAnchor> last_anchor_;
   FlatIdSet local_points_seen_;  // track_local_map's points already taken, kept between frames
+  int local_points_ = 0;         // the last track_local_map's projected points (TrackResult::local_points)
 };
 
 }  // namespace orbatlas

@@ -146,10 +146,16 @@ void install_session_routes(Router& router, AtlasService& service) {
                       : cv::Mat();
         }
         const FrameReply r = service.process_frame(id, t_ns, left, right);
-        json body = {{"t_ns", r.result.t_ns},         {"state", tracking_state_name(r.result.state)},
-                     {"tracked", r.result.tracked},   {"by_imu", r.result.by_imu},
-                     {"keyframe", r.result.keyframe}, {"inliers", r.result.inliers},
-                     {"tracking_ms", r.tracking_ms},  {"skipped", r.skipped}};
+        json body = {{"t_ns", r.result.t_ns},
+                     {"state", tracking_state_name(r.result.state)},
+                     {"tracked", r.result.tracked},
+                     {"by_imu", r.result.by_imu},
+                     {"keyframe", r.result.keyframe},
+                     {"inliers", r.result.inliers},
+                     {"tracking_ms", r.tracking_ms},
+                     {"skipped", r.skipped},
+                     {"local_keyframes", r.result.local_keyframes},
+                     {"local_points", r.result.local_points}};
         if (r.result.tracked) {
           body["map"] = r.result.map;
           body["T_w_b"] = pose_to_json(r.result.T_w_b);
