@@ -42,11 +42,12 @@ struct StreamArgs {
 // One line per frame answered: several clients' logs line up on sent_unix_us.
 void write_frame_log(const std::string& path, const StreamReport& r) {
   std::ofstream out(path);
-  out << "t_ns,sent_unix_us,round_trip_ms,server_ms,tracking_ms,late,skipped,keyframe,local_keyframes,local_points\n";
+  out << "t_ns,sent_unix_us,round_trip_ms,server_ms,tracking_ms,late,skipped,keyframe,local_keyframes,local_points,"
+         "maps_wait_ms\n";
   for (const StreamReport::FrameTiming& f : r.frame_timings)
     out << f.t_ns << ',' << f.sent_unix_us << ',' << f.round_trip_ms << ',' << f.server_ms << ',' << f.tracking_ms
         << ',' << f.late << ',' << f.skipped << ',' << f.keyframe << ',' << f.local_keyframes << ',' << f.local_points
-        << '\n';
+        << ',' << f.maps_wait_ms << '\n';
   if (!out) throw Error("cannot write the frame log " + path);
 }
 

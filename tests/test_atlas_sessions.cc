@@ -317,6 +317,7 @@ TEST(AtlasSessions, ASessionInAnothersMapMakesKeyframesForItsOwnClosePoints) {
       EXPECT_GT(local_keyframes(r).count, r.stats.tracked * 9 / 10);  // nearly every frame is tracked in one
       EXPECT_LE(local_keyframes(r).max, 80.0);
       EXPECT_GT(local_points(r).p50, 100.0);
+      EXPECT_EQ(r.stats.maps_wait_ms.count(), r.stats.frames);  // every frame's wait for the maps
     }
   std::printf("local map of MH_02's frames, shared map: %.0f keyframes p50 (max %.0f), %.0f points; alone MH_01 %.0f\n",
               local_keyframes(with[1]).p50, local_keyframes(with[1]).max, local_points(with[1]).p50,

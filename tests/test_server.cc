@@ -1031,6 +1031,8 @@ TEST(ServerMerging, ASessionOfAnotherRigStaysOutOfStoredMaps) {
     EXPECT_LE(local_keyframes, 80);
     EXPECT_EQ(local_keyframes > 0, local_points > 0) << reply.dump();
     if (local_points > 0) ++in_local_map;
+    EXPECT_GE(reply.at("maps_wait_ms").get<double>(), 0.0);  // in tracking_ms
+    EXPECT_LE(reply.at("maps_wait_ms").get<double>(), reply.at("tracking_ms").get<double>());
     EXPECT_NE(reply["map"].get<std::uint64_t>(), stored_map) << "tracked in the other rig's map at " << f.t_ns;
   }
   EXPECT_EQ(tracked, frames.size());

@@ -71,6 +71,7 @@ struct StreamReport {
     bool late = false;  // its reply came after the next frame was due
     bool skipped = false, keyframe = false;
     int local_keyframes = 0, local_points = 0;  // the local map the server tracked the frame in
+    double maps_wait_ms = 0.0;                  // the server's wait for its maps (in tracking_ms)
   };
   std::vector<FrameTiming> frame_timings;
   double wall_s = 0.0;

@@ -52,6 +52,7 @@ SlamStats MonoLocalizer::stats() const {
   s.tracking_ms = frames_.tracking_ms();
   s.local_map_keyframes = frames_.local_keyframes();
   s.local_map_points = frames_.local_points();
+  s.maps_wait_ms = frames_.maps_wait_ms();
   return s;
 }
 

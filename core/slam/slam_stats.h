@@ -29,6 +29,9 @@ struct SlamStats {
   // Per frame tracked in a local map: its keyframes, and the map points of
   // theirs projected into the frame (what the local-map search costs).
   SampleSummary local_map_keyframes, local_map_points;
+  // Per frame: the wait for the atlas's maps (an edit of loop closing,
+  // merging or a global BA holds them), in tracking_ms.
+  SampleSummary maps_wait_ms;
   // Before the frame after each keyframe: the wait for local mapping to adjust
   // it (TrackerOptions::max_mapping_wait_ms), and the waits cut at that bound.
   SampleSummary mapping_wait_ms;
@@ -74,7 +77,7 @@ struct SlamStats {
 std::size_t worker_error_total(const SlamStats& stats);
 
 // Keys: frames, tracked, lost, maps, keyframes, mappoints, tracking_ms{p50,p95,max,mean},
-// local_map_keyframes{p50,p95,max,mean,count}, local_map_points{...},
+// local_map_keyframes{p50,p95,max,mean,count}, local_map_points{...}, maps_wait_ms{...},
 // mapping_wait_ms{p50,p95,max,mean,count}, mapping_waits_cut,
 // local_mapping_ms_per_kf{p50,p95,max}, local_ba_ms{p50,p95,max}, culling_scheme,
 // culling_ms_per_kf (the scheme in use), culling_ms_per_kf_by_scheme{scan,incremental},

@@ -11,8 +11,11 @@ TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, const Atlas& atl
                                  std::chrono::steady_clock::time_point started) {
   const TimestampNs t_ns = frame.t_ns;
   TrackResult result;
+  double maps_wait_ms = 0.0;
   try {
+    const auto waiting = std::chrono::steady_clock::now();
     const auto whole = atlas.lock_maps_shared();
+    maps_wait_ms = ms_since(waiting);
     result = tracker.track(std::move(frame));
     errors_.succeeded();
   } catch (const DataError&) {
@@ -25,6 +28,8 @@ TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, const Atlas& atl
     result.t_ns = t_ns;
     result.state = tracker.state();
   }
+  result.maps_wait_ms = maps_wait_ms;
+  maps_wait_ms_.add(maps_wait_ms);
   tracking_ms_.add(ms_since(started));
   if (result.local_points > 0) {
     local_keyframes_.add(result.local_keyframes);

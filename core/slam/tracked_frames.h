@@ -44,12 +44,13 @@ class TrackedFrames {
   // Per frame tracked in a local map: its keyframes and projected points (TrackResult).
   const SampleSummary& local_keyframes() const { return local_keyframes_; }
   const SampleSummary& local_points() const { return local_points_; }
+  const SampleSummary& maps_wait_ms() const { return maps_wait_ms_; }  // per frame, before tracking it
   WorkerErrorCounts errors() const { return errors_.counts(); }
 
  private:
   WorkerErrors errors_{"tracking"};
   SampleSummary tracking_ms_;
-  SampleSummary local_keyframes_, local_points_;
+  SampleSummary local_keyframes_, local_points_, maps_wait_ms_;
   std::size_t frames_ = 0, tracked_ = 0, tracked_by_imu_ = 0;
   mutable std::mutex anchors_mutex_;
   std::deque<FrameAnchor> anchors_;  // one per tracked frame, for other threads (a deque: no copy as it grows)

@@ -95,6 +95,9 @@ struct TrackResult {
   // its keyframes, and the map points of theirs projected into the frame.
   int local_keyframes = 0;
   int local_points = 0;
+  // The wait for the atlas's maps before tracking (TrackedFrames: a loop
+  // correction, a merge or a global BA's result being applied holds them).
+  double maps_wait_ms = 0.0;
 };
 
 class Tracker {

@@ -155,7 +155,8 @@ void install_session_routes(Router& router, AtlasService& service) {
                      {"tracking_ms", r.tracking_ms},
                      {"skipped", r.skipped},
                      {"local_keyframes", r.result.local_keyframes},
-                     {"local_points", r.result.local_points}};
+                     {"local_points", r.result.local_points},
+                     {"maps_wait_ms", r.result.maps_wait_ms}};
         if (r.result.tracked) {
           body["map"] = r.result.map;
           body["T_w_b"] = pose_to_json(r.result.T_w_b);
