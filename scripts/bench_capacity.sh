@@ -23,6 +23,7 @@
 #   SERVER_CPUS=1 CLIENT_CPUS=0 NS=1 scripts/bench_capacity.sh  # the server on one core (taskset -c)
 #   MAPPING_WAIT_MS=250 NS="1 4" scripts/bench_capacity.sh  # tracking waits for its keyframe's local BA (docs/mapping.md)
 #   SETTINGS="Orbatlas.Tracker.MaxLocalKeyframes: 40" NS=4 scripts/bench_capacity.sh  # other settings (';' between them)
+#   MACHINE_CHECK=0 NS=4 scripts/bench_capacity.sh  # without the check of the two cores before and after (see machine_check)
 # PHASES: 'together' (default) starts every client at one instant, so the N
 # cameras' frames arrive at the same moments (the worst case: N frames at once,
 # then nothing for 50 ms); 'spread' starts client i of N i/N of a frame interval
