@@ -49,10 +49,7 @@ SlamStats MonoLocalizer::stats() const {
   s.tracking_errors = frames_.errors();
   s.relocalizations = tracker_->relocalizations();
   add_atlas_counts(atlas_, s);
-  s.tracking_ms = frames_.tracking_ms();
-  s.local_map_keyframes = frames_.local_keyframes();
-  s.local_map_points = frames_.local_points();
-  s.maps_wait_ms = frames_.maps_wait_ms();
+  frames_.report(s);
   return s;
 }
 

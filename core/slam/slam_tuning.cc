@@ -42,8 +42,10 @@ const std::vector<Binding>& bindings() {
                       "1: the keyframe decision counts as tracked only the close points the session's own keyframes "
                       "observe (maps several sessions map)",
                       tracker.own_close_points),
-      ORBATLAS_TUNING("Tracker.MaxLocalKeyframes", 5, 1000, true, "keyframes of the local map a frame is tracked in",
-                      tracker.max_local_keyframes),
+      ORBATLAS_TUNING(
+          "Tracker.MaxLocalKeyframes", 5, 1000, true,
+          "at most this many keyframes in the local map a frame is tracked in, those observing its points first",
+          tracker.max_local_keyframes),
       ORBATLAS_TUNING("Tracker.MinKeyframesToKeepMap", 0, 1000, true,
                       "a map lost with fewer keyframes is given up at once", tracker.min_keyframes_to_keep_map),
       ORBATLAS_TUNING("Tracker.Relocalization", 0, 1, true, "1: a lost session relocalises in every map of the atlas",

@@ -283,10 +283,7 @@ SlamStats StereoSlam::stats() const {
   }
   s.keyframes_made = keyframes_made_;
   add_atlas_counts(atlas_, s);
-  s.tracking_ms = frames_.tracking_ms();
-  s.local_map_keyframes = frames_.local_keyframes();
-  s.local_map_points = frames_.local_points();
-  s.maps_wait_ms = frames_.maps_wait_ms();
+  frames_.report(s);
   if (mapping_) {
     s.mapping = mapping_->mapping_stats();
     if (mapping_->loop_closing()) {

@@ -44,6 +44,13 @@ TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, const Atlas& atl
   return result;
 }
 
+void TrackedFrames::report(SlamStats& stats) const {
+  stats.tracking_ms = tracking_ms_;
+  stats.local_map_keyframes = local_keyframes_;
+  stats.local_map_points = local_points_;
+  stats.maps_wait_ms = maps_wait_ms_;
+}
+
 std::vector<FrameAnchor> TrackedFrames::anchors_from(std::size_t first) const {
   std::lock_guard lock(anchors_mutex_);
   if (first >= anchors_.size()) return {};

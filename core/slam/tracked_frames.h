@@ -20,6 +20,7 @@
 #include "core/common/worker_errors.h"
 #include "core/map/atlas.h"
 #include "core/map/frame_anchor.h"
+#include "core/slam/slam_stats.h"
 #include "core/tracking/tracker.h"
 
 namespace orbatlas {
@@ -40,11 +41,9 @@ class TrackedFrames {
   std::size_t frames() const { return frames_; }
   std::size_t tracked() const { return tracked_; }                // visually
   std::size_t tracked_by_imu() const { return tracked_by_imu_; }  // by the IMU alone (they have anchors too)
-  const SampleSummary& tracking_ms() const { return tracking_ms_; }
-  // Per frame tracked in a local map: its keyframes and projected points (TrackResult).
-  const SampleSummary& local_keyframes() const { return local_keyframes_; }
-  const SampleSummary& local_points() const { return local_points_; }
-  const SampleSummary& maps_wait_ms() const { return maps_wait_ms_; }  // per frame, before tracking it
+  // The per-frame figures into `stats`: tracking_ms, the local maps' keyframes
+  // and projected points (frames tracked in one), the waits for the maps.
+  void report(SlamStats& stats) const;
   WorkerErrorCounts errors() const { return errors_.counts(); }
 
  private:

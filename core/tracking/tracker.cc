@@ -454,10 +454,10 @@ void Tracker::update_local_map(const Frame& frame) {
   // the same points (measured up to 110), and each brings its points to the search.
   const std::size_t max_kfs = static_cast<std::size_t>(options_.max_local_keyframes);
   const std::shared_ptr<KeyFrame> best = sorted.empty() ? nullptr : sorted.front().second;
-  for (auto& [count, kf] : sorted) {
+  for (auto& entry : sorted) {
     if (local_keyframes_.size() >= max_kfs) break;
-    in_local.insert(kf->id());
-    local_keyframes_.push_back(kf);
+    in_local.insert(entry.second->id());
+    local_keyframes_.push_back(std::move(entry.second));
   }
   const std::size_t first_ring = local_keyframes_.size();
   auto add = [&](const std::shared_ptr<KeyFrame>& kf) {
