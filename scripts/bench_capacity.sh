@@ -79,6 +79,9 @@ stop_server() {
 trap stop_server EXIT
 
 cpu_ticks() { awk '{print $14 + $15}' "/proc/$1/stat"; }  # utime + stime of the whole process
+written_bytes() { awk '/^wchar:/ {print $2}' "/proc/$1/io"; }  # bytes the process has written (files, sockets)
+# metric NAME: a counter of the server's /metrics (0 when it cannot be read)
+metric() { curl -s --max-time 5 "$url/metrics" | awk -v m="$1" '$1 == m {print $2; f = 1} END {if (!f) print 0}'; }
 
 # run_sessions NAME SEQ...: a fresh server, one real-time session per SEQ at
 # once; writes $OUT/NAME/{server.json, SEQ_i.json}.
@@ -114,19 +117,29 @@ run_sessions() {
   done
   wait_s=$(( start_at - $(date +%s) ))
   [ "$wait_s" -gt 0 ] && sleep "$wait_s"
-  local ticks0 t0
+  local ticks0 t0 wchar0 checkpoints0 rows0
   ticks0=$(cpu_ticks "$SERVER_PID")
+  wchar0=$(written_bytes "$SERVER_PID")
+  checkpoints0=$(metric orbatlas_checkpoints_total)
+  rows0=$(metric orbatlas_checkpoint_rows_total)
   t0=$(date +%s.%N)
   for p in "${pids[@]}"; do wait "$p"; done
   if grep -l "start time had passed" "$dir"/*.txt > /dev/null 2>&1; then
     echo "bench_capacity: a client was not ready at the start time (raise PRELOAD_S)" >&2
   fi
-  local t1 ticks1 hwm
+  local t1 ticks1 hwm wchar1 checkpoints1 rows1
   t1=$(date +%s.%N)
   ticks1=$(cpu_ticks "$SERVER_PID")
+  wchar1=$(written_bytes "$SERVER_PID")
+  checkpoints1=$(metric orbatlas_checkpoints_total)
+  rows1=$(metric orbatlas_checkpoint_rows_total)
   hwm=$(awk '/VmHWM/ {print $2}' "/proc/$SERVER_PID/status")
+  # written_mb: every byte the server wrote while the clients streamed (the
+  # atlas's checkpoints, its log, the replies); checkpoints and the rows they
+  # wrote from its /metrics.
   awk -v t0="$t0" -v t1="$t1" -v c0="$ticks0" -v c1="$ticks1" -v hz="$(getconf CLK_TCK)" -v hwm="$hwm" -v n="$#" \
-      'BEGIN { printf "{\"wall_s\": %.3f, \"cpu_s\": %.3f, \"peak_rss_kb\": %d, \"sessions\": %d}\n", t1 - t0, (c1 - c0) / hz, hwm, n }' \
+      -v w0="$wchar0" -v w1="$wchar1" -v k0="$checkpoints0" -v k1="$checkpoints1" -v r0="$rows0" -v r1="$rows1" \
+      'BEGIN { printf "{\"wall_s\": %.3f, \"cpu_s\": %.3f, \"peak_rss_kb\": %d, \"sessions\": %d, \"written_mb\": %.1f, \"checkpoints\": %d, \"checkpoint_rows\": %d}\n", t1 - t0, (c1 - c0) / hz, hwm, n, (w1 - w0) / 1048576, k1 - k0, r1 - r0 }' \
       > "$dir/server.json"
   # The trajectories as the atlas holds them once its end-of-session work is
   # done (the merging worker's search and global BA of each finished session's
@@ -219,6 +232,9 @@ for n in ns:
         # (the ground truth is the whole sequence's: its coverage would be the clip's share)
         f"; poses evaluated {min(settled(d, i + 1, s, 'matched') / max(r['frames'], 1) for i, (r, s) in enumerate(zip(runs, seqs))):.3f} of the frames at least" +
         (f"; settled {open(settle).read().strip()} s after the last client" if os.path.exists(settle) else ""))
+    if "written_mb" in server:
+        print(f"    server wrote {server['written_mb']:.0f} MB while they streamed; {server['checkpoints']} checkpoints "
+              f"wrote {server['checkpoint_rows']} rows")
     waited = [r for r in runs if r.get("mapping_wait_ms", {}).get("count", 0) > 0]
     if waited:  # MAPPING_WAIT_MS: each session's waits for its keyframes' local BA
         print("    mapping waits p50/p95/max [ms], cut: " + "; ".join(

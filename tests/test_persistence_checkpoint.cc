@@ -3,6 +3,7 @@
 // failed checkpoint keeps the last good state and the next one catches up.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <future>
 #include <mutex>
@@ -12,6 +13,7 @@
 #include <unordered_set>
 
 #include "core/common/error.h"
+#include "core/common/thread_priority.h"
 #include "core/persistence/atlas_checkpointer.h"
 #include "core/persistence/atlas_store.h"
 #include "tests/persistence_backends.h"
@@ -374,6 +376,29 @@ TEST_P(CheckpointTest, KeyframeCountAndTimerTriggerCheckpoints) {
   Atlas loaded;
   AtlasStore::open(location(), test_vocabulary().hash()).load_atlas(loaded, nullptr);
   EXPECT_EQ(count_keyframes(loaded), 4u);
+}
+
+// A map server's checkpoints run at its background threads' nice value, so
+// that writing the database leaves the cores to tracking first (issue 21).
+TEST_P(CheckpointTest, TheCheckpointThreadRunsAtItsNiceValue) {
+  Atlas atlas;
+  const auto map = atlas.create_map();
+  std::mt19937_64 rng(27);
+  add_random_keyframe(*map, rng, nullptr, 10, true);
+  std::atomic<int> seen{-1};
+  CheckpointOptions options;
+  options.every_keyframes = 0;
+  options.every_seconds = 0;
+  options.worker_nice = 7;
+  options.before_transaction = [&] { seen.store(current_thread_nice()); };
+  const int own = current_thread_nice();
+  AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), options);
+  EXPECT_TRUE(checkpointer.checkpoint_now());
+  EXPECT_EQ(seen.load(), 7);
+  EXPECT_EQ(current_thread_nice(), own);  // the caller's thread is left as it was
+
+  options.worker_nice = 20;
+  EXPECT_THROW(AtlasCheckpointer(atlas, location(), test_vocabulary().hash(), options), Error);
 }
 
 // Checkpoints while another thread edits the atlas: every checkpoint commits

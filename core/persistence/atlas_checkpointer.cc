@@ -7,6 +7,7 @@
 
 #include "core/common/error.h"
 #include "core/common/log.h"
+#include "core/common/thread_priority.h"
 #include "core/persistence/atlas_location.h"
 
 namespace orbatlas {
@@ -17,6 +18,8 @@ void CheckpointOptions::check() const {
   ORBATLAS_CHECK(!std::isnan(every_seconds),
                  "atlas checkpoints: every_seconds (--checkpoint-seconds) must be a number (<= 0: no timer), not "
                      << every_seconds);
+  ORBATLAS_CHECK(worker_nice >= 0 && worker_nice <= 19,
+                 "atlas checkpoints: worker_nice must be in 0..19, not " << worker_nice);
 }
 
 AtlasCheckpointer::AtlasCheckpointer(const Atlas& atlas, const std::filesystem::path& path,
@@ -102,6 +105,7 @@ CheckpointStats AtlasCheckpointer::stats() const {
 }
 
 void AtlasCheckpointer::run() {
+  set_current_thread_nice(options_.worker_nice);
   const bool timed = options_.every_seconds > 0;
   // At most a year: a longer period would overflow the clock's deadline arithmetic.
   const auto period = std::chrono::duration_cast<Clock::duration>(

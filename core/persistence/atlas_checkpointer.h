@@ -26,6 +26,10 @@ namespace orbatlas {
 struct CheckpointOptions {
   std::size_t every_keyframes = 10;  // checkpoint after this many notify_keyframe(); 0: never for that reason
   double every_seconds = 5.0;        // and at the latest this long after the previous one; <= 0: no timer
+  // The checkpoint thread's nice value (0..19, thread_priority.h): a map
+  // server gives it its background threads' value, so that writing the
+  // database does not compete with tracking for the cores (issue 21).
+  int worker_nice = 0;
   // Called on the checkpoint thread just before a checkpoint opens its write
   // transaction (instrumentation; the crash-safety test marks it in a pipe).
   std::function<void()> before_transaction;

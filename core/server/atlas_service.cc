@@ -53,6 +53,7 @@ AtlasServiceOptions with_background_nice(AtlasServiceOptions options) {
   options.slam.mapper.worker_nice = options.background_nice;
   options.slam.loop.worker_nice = options.background_nice;
   options.merging.worker_nice = options.background_nice;
+  options.checkpoints.worker_nice = options.background_nice;
   return options;
 }
 

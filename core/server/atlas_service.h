@@ -72,7 +72,7 @@ struct AtlasServiceOptions {
   std::size_t loop_queue = 64;
   MapMergeWorkerOptions merging;
   // The nice value (0..19) of every background thread: local mapping, loop
-  // closing and its global BAs, map merging (thread_priority.h); above 0 the
+  // closing and its global BAs, map merging, checkpoints (thread_priority.h); above 0 the
   // sessions' tracking is served first on a loaded machine, mapping takes the
   // cores' rest. For live sessions at the camera's rate, 10 measured best: four
   // sessions on two cores were late 4.7 % of the time at 0, 1.4-1.6 % at 10
