@@ -61,6 +61,11 @@ AtlasStore AtlasStore::open(const std::filesystem::path& path, const std::string
 
   // 2. Connection settings, then the first writes.
   db->exec("PRAGMA foreign_keys = ON");  // per connection, off by default in SQLite
+  // Statement journals (and temporary tables) in memory: a checkpoint's
+  // statements each journal the pages they change for a statement rollback,
+  // and in a temporary file that was gigabytes of writes per minute with four
+  // live sessions in one map (issue 21, docs/benchmarks.md).
+  db->exec("PRAGMA temp_store = MEMORY");
   {
     // WAL: readers do not block the writer and a crash mid-save leaves the last
     // committed atlas intact. Persistent: recorded in the file header.
