@@ -117,7 +117,10 @@ run_sessions() {
   done
   wait_s=$(( start_at - $(date +%s) ))
   [ "$wait_s" -gt 0 ] && sleep "$wait_s"
-  local ticks0 t0 wchar0 checkpoints0 rows0
+  local ticks0 t0 wchar0 checkpoints0 rows0 sampler
+  # CPU by thread name while they stream (tracking: the HTTP threads; scripts/thread_cpu.py)
+  /usr/bin/python3 "$ROOT/scripts/thread_cpu.py" "$SERVER_PID" "$dir/threads.json" &
+  sampler=$!
   ticks0=$(cpu_ticks "$SERVER_PID")
   wchar0=$(written_bytes "$SERVER_PID")
   checkpoints0=$(metric orbatlas_checkpoints_total)
@@ -128,6 +131,8 @@ run_sessions() {
     echo "bench_capacity: a client was not ready at the start time (raise PRELOAD_S)" >&2
   fi
   local t1 ticks1 hwm wchar1 checkpoints1 rows1
+  kill -TERM "$sampler" 2>/dev/null || true
+  wait "$sampler" 2>/dev/null || true
   t1=$(date +%s.%N)
   ticks1=$(cpu_ticks "$SERVER_PID")
   wchar1=$(written_bytes "$SERVER_PID")
@@ -232,6 +237,11 @@ for n in ns:
         # (the ground truth is the whole sequence's: its coverage would be the clip's share)
         f"; poses evaluated {min(settled(d, i + 1, s, 'matched') / max(r['frames'], 1) for i, (r, s) in enumerate(zip(runs, seqs))):.3f} of the frames at least" +
         (f"; settled {open(settle).read().strip()} s after the last client" if os.path.exists(settle) else ""))
+    threads = os.path.join(out, d, "threads.json")
+    if os.path.exists(threads):  # CPU by thread name, in cores
+        wall = server["wall_s"]
+        print("    cores by thread: " + ", ".join(
+            f"{'tracking and HTTP' if k == 'orbatlas-server' else k} {v / wall:.2f}" for k, v in json.load(open(threads)).items()))
     if "written_mb" in server:
         print(f"    server wrote {server['written_mb']:.0f} MB while they streamed; {server['checkpoints']} checkpoints "
               f"wrote {server['checkpoint_rows']} rows")

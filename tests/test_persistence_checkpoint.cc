@@ -16,6 +16,7 @@
 #include <unordered_set>
 
 #include "core/common/error.h"
+#include "core/common/thread_name.h"
 #include "core/common/thread_priority.h"
 #include "core/persistence/atlas_checkpointer.h"
 #include "core/persistence/atlas_store.h"
@@ -431,11 +432,16 @@ TEST_P(CheckpointTest, TheCheckpointThreadRunsAtItsNiceValue) {
   options.every_keyframes = 0;
   options.every_seconds = 0;
   options.worker_nice = 7;
-  options.before_transaction = [&] { seen.store(current_thread_nice()); };
+  std::string name;
+  options.before_transaction = [&] {
+    seen.store(current_thread_nice());
+    name = current_thread_name();
+  };
   const int own = current_thread_nice();
   AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), options);
   EXPECT_TRUE(checkpointer.checkpoint_now());
   EXPECT_EQ(seen.load(), 7);
+  EXPECT_EQ(name, "checkpoints");
   EXPECT_EQ(current_thread_nice(), own);  // the caller's thread is left as it was
 
   options.worker_nice = 20;

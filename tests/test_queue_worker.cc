@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/common/queue_worker.h"
+#include "core/common/thread_name.h"
 #include "core/common/thread_priority.h"
 
 namespace orbatlas {
@@ -99,6 +100,32 @@ TEST(QueueWorker, AWorkersThreadRunsAtItsNiceValue) {
   done.get_future().wait();
   if (own <= 3) EXPECT_EQ(serial_seen.load(), 3);
   EXPECT_GE(serial_seen.load(), 3);
+}
+
+// Background threads carry their worker's name (thread_name.h: `top -H`, perf,
+// and the capacity benchmark's CPU by thread); names longer than Linux keeps
+// are cut at 15 bytes; the creating thread keeps its own.
+TEST(QueueWorker, AWorkersThreadCarriesItsName) {
+  const std::string own = current_thread_name();
+  std::string seen;
+  {
+    QueueWorker<int> worker(
+        QueueWorkerOptions::own_thread("local mapping", 4), [&](int&) { seen = current_thread_name(); },
+        [](const int& i) { return std::to_string(i); });
+    worker.push(1);
+    worker.wait_until_idle();
+    EXPECT_EQ(seen, "local mapping");
+  }
+  std::string serial_seen;
+  std::promise<void> done;
+  SerialWorker serial(2, 0, "a name longer than fifteen bytes");
+  ASSERT_TRUE(serial.try_post([&] {
+    serial_seen = current_thread_name();
+    done.set_value();
+  }));
+  done.get_future().wait();
+  EXPECT_EQ(serial_seen, "a name longer t");
+  EXPECT_EQ(current_thread_name(), own);
 }
 
 TEST(QueueWorker, TryPushRefusesWhenFullWithoutBlocking) {

@@ -26,6 +26,7 @@
 #include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/common/serial_worker.h"
+#include "core/common/thread_name.h"
 #include "core/common/thread_priority.h"
 #include "core/common/worker_errors.h"
 
@@ -73,6 +74,7 @@ class QueueWorker {
     if (!options_.shared)
       thread_ = std::thread([this] {
         set_current_thread_nice(options_.nice);
+        set_current_thread_name(options_.name);
         run();
       });
   }

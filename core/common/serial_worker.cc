@@ -1,13 +1,15 @@
 #include "core/common/serial_worker.h"
 
 #include "core/common/log.h"
+#include "core/common/thread_name.h"
 #include "core/common/thread_priority.h"
 
 namespace orbatlas {
 
-SerialWorker::SerialWorker(std::size_t capacity, int nice) : queue_(capacity) {
-  thread_ = std::thread([this, nice] {
+SerialWorker::SerialWorker(std::size_t capacity, int nice, std::string name) : queue_(capacity) {
+  thread_ = std::thread([this, nice, name = std::move(name)] {
     set_current_thread_nice(nice);
+    if (!name.empty()) set_current_thread_name(name);
     while (auto task = queue_.pop()) {
       try {
         (*task)();

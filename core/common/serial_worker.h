@@ -5,6 +5,7 @@
 // task and the producer decides what that means. stop() lets the thread finish
 // what is queued, then joins it; later posts are refused.
 #include <functional>
+#include <string>
 #include <thread>
 
 #include "core/common/bounded_queue.h"
@@ -13,8 +14,9 @@ namespace orbatlas {
 
 class SerialWorker {
  public:
-  // `nice`: the thread's nice value (thread_priority.h; 0: as created).
-  explicit SerialWorker(std::size_t capacity, int nice = 0);
+  // `nice`: the thread's nice value (thread_priority.h; 0: as created);
+  // `name`: the thread's name (thread_name.h; empty: the process's).
+  explicit SerialWorker(std::size_t capacity, int nice = 0, std::string name = {});
   ~SerialWorker();  // stop()
   SerialWorker(const SerialWorker&) = delete;
   SerialWorker& operator=(const SerialWorker&) = delete;

@@ -1,3 +1,4 @@
+#include "core/common/thread_name.h"
 #include "core/common/thread_priority.h"
 #include "core/loop/loop_closer.h"
 
@@ -298,6 +299,7 @@ void LoopCloser::start_global_adjustment(MapId map_id, GlobalAdjustmentCause cau
   if (const auto map = atlas_.map(map_id)) since_global_[map_id] = {map->keyframe_count(), {}};
   global_thread_ = std::thread([this, map_id, cause] {
     set_current_thread_nice(options_.worker_nice);
+    set_current_thread_name("global BA");
     try {
       const auto map = atlas_.map(map_id);
       if (map) {

@@ -7,6 +7,7 @@
 
 #include "core/common/error.h"
 #include "core/common/log.h"
+#include "core/common/thread_name.h"
 #include "core/common/thread_priority.h"
 #include "core/persistence/atlas_location.h"
 
@@ -106,6 +107,7 @@ CheckpointStats AtlasCheckpointer::stats() const {
 
 void AtlasCheckpointer::run() {
   set_current_thread_nice(options_.worker_nice);
+  set_current_thread_name("checkpoints");
   const bool timed = options_.every_seconds > 0;
   // At most a year: a longer period would overflow the clock's deadline arithmetic.
   const auto period = std::chrono::duration_cast<Clock::duration>(

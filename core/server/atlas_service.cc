@@ -66,7 +66,7 @@ AtlasService::AtlasService(AtlasServiceOptions options)
       ownership_(replica_->shared() ? std::make_unique<MapOwnership>(*replica_, options_.db.string()) : nullptr),
       shared_merges_(replica_->shared() ? std::make_unique<SharedMerges>(options_.db.string()) : nullptr),
       vocabulary_(Vocabulary::load(options_.vocabulary.empty() ? default_vocabulary_path() : options_.vocabulary)),
-      loop_worker_(std::make_shared<SerialWorker>(options_.loop_queue, options_.background_nice)) {
+      loop_worker_(std::make_shared<SerialWorker>(options_.loop_queue, options_.background_nice, "loop closing")) {
   const auto start = std::chrono::steady_clock::now();
   {
     // A shared atlas: the maps nobody owns and those of dead replicas are

@@ -5,6 +5,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/common/log.h"
+#include "core/common/thread_name.h"
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
 #include "core/io/imu_batches.h"
@@ -144,7 +145,10 @@ UploadJobs::UploadJobs(AtlasService& service, UploadJobOptions options)
     jobs_[job.row.id] = std::move(job);
   }
   for (std::size_t i = 0; i < std::max<std::size_t>(1, options_.workers); ++i)
-    workers_.emplace_back([this] { shared_ ? work_shared() : work(); });
+    workers_.emplace_back([this] {
+      set_current_thread_name("uploads");
+      shared_ ? work_shared() : work();
+    });
 }
 
 UploadJobs::~UploadJobs() { stop(); }

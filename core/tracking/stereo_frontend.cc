@@ -37,7 +37,7 @@ StereoFrontend::StereoFrontend(const SlamSettings& settings, bool parallel)
       camera_(make_camera(rectifier_.rectified_left())),
       left_extractor_(orb_options_from(settings)),
       right_extractor_(orb_options_from(settings)) {
-  if (parallel) right_worker_ = std::make_unique<SerialWorker>(1);
+  if (parallel) right_worker_ = std::make_unique<SerialWorker>(1, 0, "right image");
 }
 
 Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
