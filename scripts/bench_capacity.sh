@@ -6,7 +6,8 @@
 # (`orbatlas stream --rate 1`) as a real-time session (`--max-lag`: frames that
 # arrive too late are skipped by the server and counted). Per N it prints the
 # late and skipped frames, tracking p50/p95, the server's CPU (cores, and per
-# session), its peak resident size, and each session's ATE against the same
+# session; and by thread name, scripts/thread_cpu.py), what it wrote (its
+# checkpoints), its peak resident size, and each session's ATE against the same
 # clip streamed alone (N = 1 for every sequence used): as each client got it
 # when its session finished, and as the atlas holds it once the server's
 # end-of-session work (merge search, global BA) is done. The clients read and
