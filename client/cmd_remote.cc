@@ -66,6 +66,7 @@ nlohmann::json stream_json(const StreamReport& r) {
                       {"skipped_frames", r.skipped_frames},
                       {"imu_samples", r.imu_samples},
                       {"wall_s", r.wall_s},
+                      {"finish_ms", r.finish_ms},
                       {"fps", r.fps()},
                       {"tracking_ms", to_json_summary(r.tracking_ms)},
                       {"server_ms", to_json_summary(r.server_ms)},

@@ -123,6 +123,9 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
     keyframes += f.keyframe ? 1 : 0;
   }
   EXPECT_EQ(keyframes, streamed.keyframes);
+  // The finish request stores the session's last frames (a checkpoint) before it replies.
+  EXPECT_GT(streamed.finish_ms, 0.0);
+  EXPECT_LT(streamed.finish_ms, 30000.0);
   ASSERT_EQ(streamed.trajectory.size(), offline.trajectory.size());
   ASSERT_TRUE(streamed.ate_rmse_m.has_value());
   EXPECT_LT(*streamed.ate_rmse_m, 0.004);  // measured 0.0020 m

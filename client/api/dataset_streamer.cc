@@ -211,7 +211,9 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   }
   report.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
   progress.finish();
+  const auto finishing = Clock::now();
   report.finish_status = client.finish_session(report.session);
+  report.finish_ms = ms_between(finishing, Clock::now());
   report.trajectory = parse_tum_trajectory(client.trajectory_tum(report.session),
                                            "the server's trajectory of session " + std::to_string(report.session),
                                            &report.trajectory_maps);

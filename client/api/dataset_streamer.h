@@ -75,6 +75,9 @@ struct StreamReport {
   };
   std::vector<FrameTiming> frame_timings;
   double wall_s = 0.0;
+  // How long the finish request took (the server stores the session's last
+  // frames before it replies); the trajectory is fetched right after.
+  double finish_ms = 0.0;
   Trajectory trajectory;  // the server's final trajectory (after the session finished)
   std::vector<std::uint64_t> trajectory_maps;
   std::vector<std::uint64_t> reply_maps;  // per tracked frame: the map its reply named then
