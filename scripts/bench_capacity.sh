@@ -80,9 +80,10 @@ stop_server() {
 trap stop_server EXIT
 
 cpu_ticks() { awk '{print $14 + $15}' "/proc/$1/stat"; }  # utime + stime of the whole process
-written_bytes() { awk '/^wchar:/ {print $2}' "/proc/$1/io"; }  # bytes the process has written (files, sockets)
-# metric NAME: a counter of the server's /metrics (0 when it cannot be read)
-metric() { curl -s --max-time 5 "$url/metrics" | awk -v m="$1" '$1 == m {print $2; f = 1} END {if (!f) print 0}'; }
+# bytes the process has passed to write() and pwrite() (files; socket sends are not counted)
+written_bytes() { awk '/^wchar:/ {print $2}' "/proc/$1/io"; }
+# metric URL NAME: a counter of the server's /metrics (0 when it cannot be read)
+metric() { curl -s --max-time 5 "$1/metrics" | awk -v m="$2" '$1 == m {print $2; f = 1} END {if (!f) print 0}'; }
 
 # run_sessions NAME SEQ...: a fresh server, one real-time session per SEQ at
 # once; writes $OUT/NAME/{server.json, SEQ_i.json}.
@@ -124,8 +125,8 @@ run_sessions() {
   sampler=$!
   ticks0=$(cpu_ticks "$SERVER_PID")
   wchar0=$(written_bytes "$SERVER_PID")
-  checkpoints0=$(metric orbatlas_checkpoints_total)
-  rows0=$(metric orbatlas_checkpoint_rows_total)
+  checkpoints0=$(metric "$url" orbatlas_checkpoints_total)
+  rows0=$(metric "$url" orbatlas_checkpoint_rows_total)
   t0=$(date +%s.%N)
   for p in "${pids[@]}"; do wait "$p"; done
   if grep -l "start time had passed" "$dir"/*.txt > /dev/null 2>&1; then
@@ -137,12 +138,12 @@ run_sessions() {
   t1=$(date +%s.%N)
   ticks1=$(cpu_ticks "$SERVER_PID")
   wchar1=$(written_bytes "$SERVER_PID")
-  checkpoints1=$(metric orbatlas_checkpoints_total)
-  rows1=$(metric orbatlas_checkpoint_rows_total)
+  checkpoints1=$(metric "$url" orbatlas_checkpoints_total)
+  rows1=$(metric "$url" orbatlas_checkpoint_rows_total)
   hwm=$(awk '/VmHWM/ {print $2}' "/proc/$SERVER_PID/status")
-  # written_mb: every byte the server wrote while the clients streamed (the
-  # atlas's checkpoints, its log, the replies); checkpoints and the rows they
-  # wrote from its /metrics.
+  # written_mb: what the server wrote to files while the clients streamed
+  # (the atlas's checkpoints, SQLite's temporary files, its log); checkpoints
+  # and the rows they wrote from its /metrics.
   awk -v t0="$t0" -v t1="$t1" -v c0="$ticks0" -v c1="$ticks1" -v hz="$(getconf CLK_TCK)" -v hwm="$hwm" -v n="$#" \
       -v w0="$wchar0" -v w1="$wchar1" -v k0="$checkpoints0" -v k1="$checkpoints1" -v r0="$rows0" -v r1="$rows1" \
       'BEGIN { printf "{\"wall_s\": %.3f, \"cpu_s\": %.3f, \"peak_rss_kb\": %d, \"sessions\": %d, \"written_mb\": %.1f, \"checkpoints\": %d, \"checkpoint_rows\": %d}\n", t1 - t0, (c1 - c0) / hz, hwm, n, (w1 - w0) / 1048576, k1 - k0, r1 - r0 }' \

@@ -2,13 +2,11 @@
 
 #include <pthread.h>
 
-#include <algorithm>
-
 namespace orbatlas {
 
 void set_current_thread_name(std::string_view name) {
   // pthread_setname_np refuses names of 16 bytes or more (with the terminator).
-  const std::string kept(name.substr(0, std::min<std::size_t>(name.size(), 15)));
+  const std::string kept(name.substr(0, 15));
   ::pthread_setname_np(::pthread_self(), kept.c_str());
 }
 
