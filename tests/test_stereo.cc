@@ -187,19 +187,24 @@ TEST(RectifiedStereo, TheRowSadSearchGivesEveryOffsetsZeroMeanSad) {
   cv::Mat a(60, 120, CV_8UC1), b(60, 120, CV_8UC1);
   cv::randu(a, 0, 256);
   cv::randu(b, 0, 256);
-  RowSadSearch search;
-  std::vector<int> sads;
   std::size_t compared = 0;
-  for (const int w : {1, 3, 5})
-    for (const int range : {0, 2, 7}) {
-      const int ua = 40, va = 30, ub0 = 60;
-      search.run(a, ua, va, b, ub0, range, w, sads);
-      ASSERT_EQ(sads.size(), static_cast<std::size_t>(2 * range + 1));
-      for (int k = -range; k <= range; ++k, ++compared)
-        EXPECT_EQ(sads[static_cast<std::size_t>(k + range)], zero_mean_sad(a, ua, va, b, ub0 + k, va, w))
-            << "w " << w << " offset " << k;
-    }
-  EXPECT_EQ(compared, 3u * (1 + 5 + 15));
+  // The AVX2 path (where the CPU has it) and the portable loop; ranges up to
+  // past the 16 offsets the AVX2 path takes at once (range 9: 19 offsets).
+  for (const bool avx2 : {true, false}) {
+    RowSadSearch search;
+    search.set_use_avx2(avx2);
+    std::vector<int> sads;
+    for (const int w : {1, 3, 5})
+      for (const int range : {0, 2, 7, 9}) {
+        const int ua = 40, va = 30, ub0 = 60;
+        search.run(a, ua, va, b, ub0, range, w, sads);
+        ASSERT_EQ(sads.size(), static_cast<std::size_t>(2 * range + 1));
+        for (int k = -range; k <= range; ++k, ++compared)
+          EXPECT_EQ(sads[static_cast<std::size_t>(k + range)], zero_mean_sad(a, ua, va, b, ub0 + k, va, w))
+              << "w " << w << " offset " << k << (avx2 ? " (AVX2 path)" : " (portable)");
+      }
+  }
+  EXPECT_EQ(compared, 2u * 3u * (1 + 5 + 15 + 19));
 }
 
 TEST(TriangulatedStereo, FisheyeDepthAtFiveMetres) {

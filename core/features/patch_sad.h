@@ -43,52 +43,13 @@ inline int zero_mean_sad(const cv::Mat& a, int ua, int va, const cv::Mat& b, int
 // of for every offset. Every patch must lie inside its image.
 class RowSadSearch {
  public:
-  void run(const cv::Mat& a, int ua, int va, const cv::Mat& b, int ub0, int range, int w, std::vector<int>& out) {
-    const int side = 2 * w + 1, n = side * side;
-    const int offsets = 2 * range + 1, first = ub0 - range - w, columns = offsets + side - 1;
-    // The right rows times n, and their column sums, over every column any
-    // offset's patch reads.
-    scaled_.resize(static_cast<std::size_t>(side * columns));
-    column_sums_.assign(static_cast<std::size_t>(columns), 0);
-    for (int dy = -w, r = 0; dy <= w; ++dy, ++r) {
-      const std::uint8_t* rb = b.ptr<std::uint8_t>(va + dy) + first;
-      int* row = scaled_.data() + r * columns;
-      for (int c = 0; c < columns; ++c) {
-        column_sums_[static_cast<std::size_t>(c)] += rb[c];
-        row[c] = rb[c] * n;
-      }
-    }
-    int sum_a = 0;
-    for (int dy = -w; dy <= w; ++dy) {
-      const std::uint8_t* ra = a.ptr<std::uint8_t>(va + dy) + ua;
-      for (int dx = -w; dx <= w; ++dx) sum_a += ra[dx];
-    }
-    // The offset of each patch's mean difference, slid along the row.
-    mean_offset_.resize(static_cast<std::size_t>(offsets));
-    int sum_b = 0;
-    for (int c = 0; c < side; ++c) sum_b += column_sums_[static_cast<std::size_t>(c)];
-    for (int j = 0; j < offsets; ++j) {
-      if (j > 0)
-        sum_b += column_sums_[static_cast<std::size_t>(j + side - 1)] - column_sums_[static_cast<std::size_t>(j - 1)];
-      mean_offset_[static_cast<std::size_t>(j)] = sum_a - sum_b;
-    }
-    // Pixel by pixel, every offset at once (a loop the compiler vectorises).
-    out.assign(static_cast<std::size_t>(offsets), 0);
-    int* sad = out.data();
-    const int* d = mean_offset_.data();
-    for (int dy = -w, r = 0; dy <= w; ++dy, ++r) {
-      const std::uint8_t* ra = a.ptr<std::uint8_t>(va + dy) + ua - w;
-      const int* row = scaled_.data() + r * columns;
-      for (int dx = 0; dx < side; ++dx) {
-        const int la = ra[dx] * n;
-        const int* rb = row + dx;
-        for (int j = 0; j < offsets; ++j) sad[j] += std::abs(la - rb[j] - d[j]);
-      }
-    }
-  }
+  void run(const cv::Mat& a, int ua, int va, const cv::Mat& b, int ub0, int range, int w, std::vector<int>& out);
+  // false: the portable loop even where the CPU has AVX2 (tests compare the two).
+  void set_use_avx2(bool use) { use_avx2_ = use; }
 
  private:
   std::vector<int> scaled_, column_sums_, mean_offset_;
+  bool use_avx2_ = true;
 };
 
 }  // namespace orbatlas

@@ -116,15 +116,41 @@ StereoDepths match_stereo_rectified(const ImageFeatures& left, const std::vector
                      right_pyramid.size() >= scale_factors.size(),
                  "stereo matching: pyramids and scale factors do not agree");
 
-  // Right keypoints listed by every row they may match (a band of +-2 sigma of their level).
+  // Right keypoints by the first row of the band they may match (+-2 sigma of
+  // their level): those of first row y are [by_first[y], by_first[y + 1]) in
+  // `right_rows`, each with its band's last row and what the search checks
+  // before a descriptor. A left keypoint on row v looks at first rows
+  // v - widest .. v (one pass over few, in memory order).
   const int rows = right.height > 0 ? right.height : right_pyramid[0].rows;
-  std::vector<std::vector<std::uint32_t>> by_row(static_cast<std::size_t>(rows));
-  for (std::uint32_t i = 0; i < right.keypoints.size(); ++i) {
-    const Keypoint& kp = right.keypoints[i];
+  struct RowCandidate {
+    int last_row;
+    float u;
+    int level;
+    std::uint32_t index;
+  };
+  const auto band = [&](const Keypoint& kp) {
     const float r = 2.0f * static_cast<float>(scale_factors[static_cast<std::size_t>(kp.level)]);
-    const int lo = std::max(0, static_cast<int>(std::floor(kp.uv.y() - r)));
-    const int hi = std::min(rows - 1, static_cast<int>(std::ceil(kp.uv.y() + r)));
-    for (int y = lo; y <= hi; ++y) by_row[static_cast<std::size_t>(y)].push_back(i);
+    return std::pair(std::max(0, static_cast<int>(std::floor(kp.uv.y() - r))),
+                     std::min(rows - 1, static_cast<int>(std::ceil(kp.uv.y() + r))));
+  };
+  std::vector<std::uint32_t> by_first(static_cast<std::size_t>(rows) + 1, 0);
+  int widest = 0;
+  for (const Keypoint& kp : right.keypoints) {
+    const auto [lo, hi] = band(kp);
+    if (lo > hi) continue;  // outside the image's rows
+    ++by_first[static_cast<std::size_t>(lo) + 1];
+    widest = std::max(widest, hi - lo);
+  }
+  for (std::size_t y = 0; y < static_cast<std::size_t>(rows); ++y) by_first[y + 1] += by_first[y];
+  std::vector<RowCandidate> right_rows(by_first.back());
+  {
+    std::vector<std::uint32_t> fill(by_first.begin(), by_first.end() - 1);
+    for (std::uint32_t i = 0; i < right.keypoints.size(); ++i) {
+      const Keypoint& kp = right.keypoints[i];
+      const auto [lo, hi] = band(kp);
+      if (lo > hi) continue;
+      right_rows[fill[static_cast<std::size_t>(lo)]++] = {hi, kp.uv.x(), kp.level, i};
+    }
   }
 
   const float min_disparity = 0.0f;
@@ -139,19 +165,22 @@ StereoDepths match_stereo_rectified(const ImageFeatures& left, const std::vector
     const Keypoint& kl = left.keypoints[il];
     const int row = static_cast<int>(std::lround(kl.uv.y()));
     if (row < 0 || row >= rows) continue;
-    const auto& candidates = by_row[static_cast<std::size_t>(row)];
-    if (candidates.empty()) continue;
+    const std::uint32_t begin = by_first[static_cast<std::size_t>(std::max(0, row - widest))];
+    const std::uint32_t end = by_first[static_cast<std::size_t>(row) + 1];
     const float u_min = kl.uv.x() - max_disparity, u_max = kl.uv.x() - min_disparity;
     int best = options.max_hamming + 1;
     std::size_t best_ir = 0;
-    for (const std::uint32_t ir : candidates) {
-      const Keypoint& kr = right.keypoints[ir];
+    const Descriptor& dl = left.descriptors[il];
+    for (std::uint32_t c = begin; c < end; ++c) {
+      const RowCandidate& kr = right_rows[c];
+      if (kr.last_row < row) continue;  // its band ends above this row
       if (kr.level < kl.level - 1 || kr.level > kl.level + 1) continue;
-      if (kr.uv.x() < u_min || kr.uv.x() > u_max) continue;
-      const int d = hamming(left.descriptors[il], right.descriptors[ir]);
-      if (d < best) {
+      if (kr.u < u_min || kr.u > u_max) continue;
+      // The least distance, and of equals the first keypoint (the order does not matter).
+      const int d = hamming(dl, right.descriptors[kr.index]);
+      if (d < best || (d == best && kr.index < best_ir)) {
         best = d;
-        best_ir = ir;
+        best_ir = kr.index;
       }
     }
     if (best > options.max_hamming) continue;
