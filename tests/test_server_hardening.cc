@@ -32,7 +32,10 @@ using Clock = std::chrono::steady_clock;
 
 // One raw HTTP exchange on a fresh connection: sends `request`, returns what
 // came back until the server closed or `wait` passed (status line first).
-std::string raw_exchange(int port, const std::string& request, std::chrono::milliseconds wait) {
+// Sends `request` in `pieces` equal parts, `pause` apart, then reads the reply
+// (until its JSON body has come, or `wait` without a byte).
+std::string raw_exchange(int port, const std::string& request, std::chrono::milliseconds wait, int pieces = 1,
+                         std::chrono::milliseconds pause = std::chrono::milliseconds(0)) {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
@@ -42,7 +45,16 @@ std::string raw_exchange(int port, const std::string& request, std::chrono::mill
     ::close(fd);
     return "connect failed";
   }
-  ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+  const std::size_t part = (request.size() + static_cast<std::size_t>(pieces) - 1) / static_cast<std::size_t>(pieces);
+  for (std::size_t sent = 0; sent < request.size(); sent += part) {
+    if (sent > 0) std::this_thread::sleep_for(pause);
+    const std::size_t n = std::min(part, request.size() - sent);
+    for (std::size_t done = 0; done < n;) {
+      const ssize_t k = ::send(fd, request.data() + sent + done, n - done, MSG_NOSIGNAL);
+      if (k <= 0) break;
+      done += static_cast<std::size_t>(k);
+    }
+  }
   timeval tv{static_cast<time_t>(wait.count() / 1000), static_cast<suseconds_t>((wait.count() % 1000) * 1000)};
   ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
   std::string reply;
@@ -412,6 +424,25 @@ TEST(ServerHardening, SlowClientsCannotStarveHealthChecks) {
   EXPECT_GT(cut_off.load(), 0);  // past their header deadline, or to make room
   const std::string metrics = ServerClient(server.url()).get_text("/metrics");
   EXPECT_NE(metrics.find("orbatlas_http_connections_closed_total{reason=\"slow\"}"), std::string::npos);
+}
+
+// A large body that arrives in pieces with pauses between them is read whole:
+// the connection's reads take what the socket holds without waiting, and wait
+// (with the body's deadline) only when it holds nothing.
+TEST(ServerHardening, ALargeBodyArrivingInPiecesIsReadWhole) {
+  test::TempDbPath db("pieces");
+  test::TestServer server(test::server_options(db.path));
+  const int port = port_of(server.url());
+  std::string yaml = settings_text("euroc/stereo");
+  yaml += "\n# " + std::string(600 * 1024, 'x') + "\n";  // 600 KiB: more than one read's buffer
+  const std::string body = nlohmann::json{{"name", "pieces"}, {"settings_yaml", yaml}}.dump();
+  const std::string request =
+      "POST /v1/sessions HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+      "Content-Length: " +
+      std::to_string(body.size()) + "\r\n\r\n" + body;
+  const std::string reply = raw_exchange(port, request, std::chrono::seconds(10), 7, std::chrono::milliseconds(150));
+  EXPECT_EQ(reply.substr(0, 12), "HTTP/1.1 201") << reply.substr(0, 400);
+  EXPECT_NE(reply.find("\"id\""), std::string::npos) << reply.substr(0, 400);
 }
 
 TEST(ServerHardening, HttpDetails) {
