@@ -187,6 +187,41 @@ TEST(PoseOptimizer, ChainedCostsMatchAutodiff) {
   expect_same_as_autodiff(MonoResidual<KannalaBrandt>{&kb, {}, 1.0}, kb, false, rng);
 }
 
+// The costs held in one array are make_pose_only_cost's, to the bit, for
+// both camera models, monocular and stereo; one past the room made is refused.
+TEST(PoseOptimizer, PoseOnlyCostsInOneArrayAreTheFactorysCosts) {
+  std::mt19937 rng(23);
+  for (const auto& calibration : {test::euroc_cam0(), test::fisheye_left()}) {
+    const auto camera = make_camera(calibration);
+    for (const bool stereo : {false, true}) {
+      if (stereo && camera->model() != CameraModel::kPinholeRadTan) continue;  // rectified stereo is pinhole
+      const Scene s = make_scene(*camera, {.points = 40, .stereo = stereo}, rng);
+      const PoseParameters pose = PoseParameters::from_pose(s.input.T_c_w);
+      const double* params[2] = {pose.q.data(), pose.t.data()};
+      PoseOnlyCosts held(s.input.correspondences.size());
+      for (const PoseCorrespondence& c : s.input.correspondences)
+        held.add(*camera, c.p_w, {c.uv, c.u_right, c.level_sigma2}, s.input.bf);
+      ASSERT_EQ(held.size(), s.input.correspondences.size());
+      for (std::size_t i = 0; i < held.size(); ++i) {
+        const PoseCorrespondence& c = s.input.correspondences[i];
+        const auto made = make_pose_only_cost(*camera, c.p_w, {c.uv, c.u_right, c.level_sigma2}, s.input.bf);
+        const int k = made->num_residuals();
+        ASSERT_EQ(held[i].num_residuals(), k);
+        double ra[3], rb[3], qa[12], qb[12], ta[9], tb[9];
+        double* ja[2] = {qa, ta};
+        double* jb[2] = {qb, tb};
+        ASSERT_TRUE(held[i].Evaluate(params, ra, ja));
+        ASSERT_TRUE(made->Evaluate(params, rb, jb));
+        for (int r = 0; r < k; ++r) EXPECT_EQ(ra[r], rb[r]);
+        for (int j = 0; j < 4 * k; ++j) EXPECT_EQ(qa[j], qb[j]);
+        for (int j = 0; j < 3 * k; ++j) EXPECT_EQ(ta[j], tb[j]);
+      }
+      const PoseCorrespondence& c = s.input.correspondences.front();
+      EXPECT_THROW(held.add(*camera, c.p_w, {c.uv, c.u_right, c.level_sigma2}, s.input.bf), Error);
+    }
+  }
+}
+
 TEST(PoseOptimizer, TooFewCorrespondencesLeaveThePose) {
   const auto camera = make_camera(test::euroc_cam0());
   std::mt19937 rng(3);

@@ -128,10 +128,9 @@ PoseOptimizerResult optimize_pose(const Camera& camera, const PoseOptimizerInput
   result.inliers.assign(n, 0);
   if (n < static_cast<std::size_t>(std::max(options.min_correspondences, 1))) return result;
 
-  std::vector<std::unique_ptr<ceres::CostFunction>> costs;
-  costs.reserve(n);
+  PoseOnlyCosts costs(n);
   for (const PoseCorrespondence& c : input.correspondences)
-    costs.push_back(make_pose_only_cost(camera, c.p_w, {c.uv, c.u_right, c.level_sigma2}, input.bf));
+    costs.add(camera, c.p_w, {c.uv, c.u_right, c.level_sigma2}, input.bf);
 
   PoseParameters pose = PoseParameters::from_pose(input.T_c_w);
   const double* params[2] = {pose.q.data(), pose.t.data()};
@@ -143,12 +142,12 @@ PoseOptimizerResult optimize_pose(const Camera& camera, const PoseOptimizerInput
   std::vector<std::uint8_t>& inlier = result.inliers;
   auto classify = [&] {
     for (std::size_t i = 0; i < n; ++i) {
-      const std::optional<double> chi2 = residual_chi2(*costs[i], params);
+      const std::optional<double> chi2 = residual_chi2(costs[i], params);
       inlier[i] = chi2 && *chi2 <= chi2_threshold(i) ? 1 : 0;
     }
   };
   // Every correspondence starts as an inlier, unless it cannot be projected at all.
-  for (std::size_t i = 0; i < n; ++i) inlier[i] = residual_chi2(*costs[i], params).has_value() ? 1 : 0;
+  for (std::size_t i = 0; i < n; ++i) inlier[i] = residual_chi2(costs[i], params).has_value() ? 1 : 0;
 
   std::optional<InertialBlocks> inertial;
   if (input.inertial) inertial.emplace(*input.inertial);
@@ -173,9 +172,9 @@ PoseOptimizerResult optimize_pose(const Camera& camera, const PoseOptimizerInput
       terms.reserve(n);
       for (std::size_t i = 0; i < n; ++i)
         if (inlier[i])
-          terms.push_back({costs[i].get(), !robust                            ? 0.0
-                                           : input.correspondences[i].u_right ? options.huber_stereo
-                                                                              : options.huber_mono});
+          terms.push_back({&costs[i], !robust                            ? 0.0
+                                      : input.correspondences[i].u_right ? options.huber_stereo
+                                                                         : options.huber_mono});
       if (static_cast<int>(terms.size()) < options.min_round_inliers) break;
       PoseLevenbergOptions lm;
       lm.max_iterations = options.iterations_per_round;
@@ -193,7 +192,7 @@ PoseOptimizerResult optimize_pose(const Camera& camera, const PoseOptimizerInput
       if (!inlier[i]) continue;
       ceres::LossFunction* loss = nullptr;
       if (robust) loss = input.correspondences[i].u_right ? &huber_stereo : &huber_mono;
-      problem.AddResidualBlock(costs[i].get(), loss, pose.q.data(), pose.t.data());
+      problem.AddResidualBlock(&costs[i], loss, pose.q.data(), pose.t.data());
       ++in_problem;
     }
     if (in_problem < options.min_round_inliers) break;
