@@ -48,9 +48,10 @@ void RowSadSearch::run(const cv::Mat& a, int ua, int va, const cv::Mat& b, int u
   const int side = 2 * w + 1, n = side * side;
   const int offsets = 2 * range + 1, first = ub0 - range - w, columns = offsets + side - 1;
   // The right rows times n, and their column sums, over every column any
-  // offset's patch reads (rows padded with zeros for the 16-wide path).
+  // offset's patch reads; each row has kLanes more for the 16-wide path to read
+  // (whatever they hold only reaches the lanes past `offsets`, which are dropped).
   const std::size_t stride = static_cast<std::size_t>(columns + kLanes);
-  scaled_.assign(static_cast<std::size_t>(side) * stride, 0);
+  scaled_.resize(static_cast<std::size_t>(side) * stride);
   column_sums_.assign(static_cast<std::size_t>(columns), 0);
   for (int dy = -w, r = 0; dy <= w; ++dy, ++r) {
     const std::uint8_t* rb = b.ptr<std::uint8_t>(va + dy) + first;

@@ -2,7 +2,6 @@
 
 #include <array>
 #include <cmath>
-#include <optional>
 #include <variant>
 
 #include "core/camera/kannala_brandt.h"
@@ -57,13 +56,13 @@ std::unique_ptr<ceres::CostFunction> make_pose_only_cost(const Camera& camera, c
 }
 
 struct PoseOnlyCosts::Slot {
-  // Built in place (a ceres::CostFunction cannot be moved or copied). Every
-  // residual with_residual can make is here, the padded ones too (add() never
-  // asks for them, but the dispatch is compiled for each).
-  std::optional<
-      std::variant<PoseOnlyChainCost<StereoResidual<PinholeRadTan>>, PoseOnlyChainCost<MonoResidual<PinholeRadTan>>,
-                   PoseOnlyChainCost<MonoResidual<PinholeRadTan, 3>>, PoseOnlyChainCost<StereoResidual<KannalaBrandt>>,
-                   PoseOnlyChainCost<MonoResidual<KannalaBrandt>>, PoseOnlyChainCost<MonoResidual<KannalaBrandt, 3>>>>
+  // Built in place (a ceres::CostFunction cannot be moved or copied); empty
+  // until add() fills it. Every residual with_residual can make is here, the
+  // padded ones too (add() never asks for them, but the dispatch is compiled for each).
+  std::variant<std::monostate, PoseOnlyChainCost<StereoResidual<PinholeRadTan>>,
+               PoseOnlyChainCost<MonoResidual<PinholeRadTan>>, PoseOnlyChainCost<MonoResidual<PinholeRadTan, 3>>,
+               PoseOnlyChainCost<StereoResidual<KannalaBrandt>>, PoseOnlyChainCost<MonoResidual<KannalaBrandt>>,
+               PoseOnlyChainCost<MonoResidual<KannalaBrandt, 3>>>
       cost;
 };
 
@@ -74,18 +73,13 @@ PoseOnlyCosts::PoseOnlyCosts(std::size_t capacity) : slots_(new Slot[capacity]),
 PoseOnlyCosts::~PoseOnlyCosts() = default;
 
 void PoseOnlyCosts::add(const Camera& camera, const Eigen::Vector3d& p_w, const PixelObservation& obs, double bf) {
-  ORBATLAS_CHECK(size_ < capacity_, "pose-only costs: more than the " << capacity_ << " made room for");
-  Slot& slot = slots_[size_];
+  ORBATLAS_CHECK(costs_.size() < capacity_, "pose-only costs: more than the " << capacity_ << " made room for");
+  Slot& slot = slots_[costs_.size()];
   // The same residual as make_pose_only_cost (dispatch and with_residual), built in the slot.
-  ceres::CostFunction* made = nullptr;
   dispatch(camera, obs, bf, false, [&](const auto& residual) -> std::unique_ptr<ceres::CostFunction> {
-    using Cost = PoseOnlyChainCost<std::decay_t<decltype(residual)>>;
-    slot.cost.emplace(std::in_place_type<Cost>, residual, p_w);
-    made = &std::get<Cost>(*slot.cost);
+    costs_.push_back(&slot.cost.template emplace<PoseOnlyChainCost<std::decay_t<decltype(residual)>>>(residual, p_w));
     return nullptr;
   });
-  costs_.push_back(made);
-  ++size_;
 }
 
 std::unique_ptr<ceres::CostFunction> make_pose_point_cost(const Camera& camera, const PixelObservation& obs, double bf,

@@ -125,13 +125,13 @@ class PoseOnlyCosts {
   void add(const Camera& camera, const Eigen::Vector3d& p_w, const PixelObservation& obs, double bf);
   const ceres::CostFunction& operator[](std::size_t i) const { return *costs_[i]; }
   ceres::CostFunction& operator[](std::size_t i) { return *costs_[i]; }  // ceres::Problem takes non-const
-  std::size_t size() const { return size_; }
+  std::size_t size() const { return costs_.size(); }
 
  private:
   struct Slot;  // one cost, of any of the concrete types
   std::unique_ptr<Slot[]> slots_;
   std::vector<ceres::CostFunction*> costs_;
-  std::size_t capacity_ = 0, size_ = 0;
+  std::size_t capacity_ = 0;
 };
 
 // pad_mono: a monocular observation gets 3 rows (see MonoResidual).
