@@ -314,6 +314,40 @@ TEST(MapModel, ObservationRulesAreChecked) {
   EXPECT_THROW(map->new_keyframe(bad), Error);
 }
 
+// The walk tracking's local map makes over many keyframes: each point once,
+// none already seen, and the slots' ids in step with every kind of slot edit.
+TEST(MapModel, UnseenMapPointsAreEachPointOnceThroughEverySlotEdit) {
+  Atlas atlas;
+  auto map = atlas.create_map();
+  auto a = map->new_keyframe(keyframe_data(6));
+  auto b = map->new_keyframe(keyframe_data(6));
+  std::vector<std::shared_ptr<MapPoint>> p;
+  for (int i = 0; i < 7; ++i) p.push_back(map->new_map_point({}));
+  for (std::size_t i = 0; i < 4; ++i) ASSERT_TRUE(a->add_observation(i, p[i]));  // a: p0 p1 p2 p3
+  ASSERT_TRUE(b->add_observation(0, p[2]));                                      // b: p2 p3 p4 p5
+  ASSERT_TRUE(b->add_observation(1, p[3]));
+  ASSERT_TRUE(b->add_observation(2, p[4]));
+  ASSERT_TRUE(b->add_observation(5, p[5]));
+  // The edits: a's slot 1 emptied, its slot 0 given another point (p6 for p0),
+  // b's slot 5 emptied only if it holds p5 (it does), slot 2 not if it holds p0.
+  EXPECT_EQ(a->erase_slot(1), p[1]);
+  EXPECT_TRUE(a->replace(0, p[6]));
+  b->erase_slot_if_holds(5, p[5]);
+  b->erase_slot_if_holds(2, p[0]);
+  EXPECT_EQ(b->replace_if_holds(1, p[3], p[1]), SlotEdit::kDone);  // b: p2 p1 p4
+  FlatIdSet seen;
+  seen.clear();
+  seen.insert(p[2]->id());  // the frame's own point
+  std::vector<MapPointId> walked;
+  for (const auto& kf : {a, b})
+    kf->for_each_unseen_map_point(seen, [&](const std::shared_ptr<MapPoint>& mp) { walked.push_back(mp->id()); });
+  // a: p6 (slot 0), p3 (slot 3); b: p1, p4 (p2 was seen).
+  EXPECT_EQ(walked, (std::vector<MapPointId>{p[6]->id(), p[3]->id(), p[1]->id(), p[4]->id()}));
+  walked.clear();
+  a->for_each_unseen_map_point(seen, [&](const std::shared_ptr<MapPoint>& mp) { walked.push_back(mp->id()); });
+  EXPECT_TRUE(walked.empty());  // all seen now
+}
+
 // The inertial chain (issue 19): each keyframe links to its predecessor with
 // the IMU preintegrated between them; culling a keyframe of the chain joins its
 // two increments into its successor's link, so the chain skips it and spans the

@@ -33,7 +33,8 @@ KeyFrame::KeyFrame(KeyframeId id, MapId map, KeyFrameData data, std::shared_ptr<
       has_depth_(std::any_of(data_.depth.begin(), data_.depth.end(), [](float d) { return d > 0.0f; })),
       redundant_(std::make_shared<std::atomic<int>>(0)),
       T_w_b_(data_.T_w_b),
-      slots_(data_.features.keypoints.size()) {}
+      slots_(data_.features.keypoints.size()),
+      slot_ids_(slots_.size(), kInvalidMapPointId) {}
 
 KeyFrame::~KeyFrame() {
   // Nobody else can reach this keyframe any more (weak links fail to lock), but
@@ -113,6 +114,7 @@ SlotEdit KeyFrame::try_add_observation(std::size_t slot, const std::shared_ptr<M
   const SlotEdit attached = attach_locked(slot, map_point);
   if (attached != SlotEdit::kDone) return attached;
   slots_[slot] = map_point;
+  slot_ids_[slot] = map_point->id();
   map_point_count_.fetch_add(1);
   return SlotEdit::kDone;
 }
@@ -133,6 +135,7 @@ std::shared_ptr<MapPoint> KeyFrame::erase_slot(std::size_t slot) {
     released = std::move(slots_[slot]);
     slots_[slot].reset();
     if (!released) return nullptr;
+    slot_ids_[slot] = kInvalidMapPointId;
     released->detach_observer(id_);
     map_point_count_.fetch_sub(1);
   }
@@ -145,6 +148,7 @@ void KeyFrame::erase_slot_if_holds(std::size_t slot, const std::shared_ptr<MapPo
   if (slot >= slots_.size() || slots_[slot] != map_point) return;
   released = std::move(slots_[slot]);
   slots_[slot].reset();
+  slot_ids_[slot] = kInvalidMapPointId;
   released->detach_observer(id_);
   map_point_count_.fetch_sub(1);
 }
@@ -164,6 +168,7 @@ SlotEdit KeyFrame::swap_locked(std::size_t slot, const std::shared_ptr<MapPoint>
     map_point_count_.fetch_add(1);
   }
   slots_[slot] = map_point;
+  slot_ids_[slot] = map_point->id();
   return SlotEdit::kDone;
 }
 

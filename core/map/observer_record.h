@@ -4,10 +4,10 @@
 // counter is shared so that updating it never touches (or revives) the keyframe.
 #include <atomic>
 #include <cstdint>
-#include <map>
 #include <memory>
 
 #include "core/common/ids.h"
+#include "core/common/sorted_vector_map.h"
 
 namespace orbatlas {
 
@@ -23,7 +23,9 @@ struct ObserverRecord {
   std::shared_ptr<std::atomic<int>> redundant_counter;
 };
 
-// Ordered by keyframe id, so iteration (and the reference-keyframe choice) is deterministic.
-using ObserverRecords = std::map<KeyframeId, ObserverRecord>;
+// Ordered by keyframe id, so iteration (and the reference-keyframe choice) is
+// deterministic; one vector, as tracking walks every tracked point's observers
+// each frame (a tree's nodes cost a cache miss each).
+using ObserverRecords = SortedVectorMap<KeyframeId, ObserverRecord>;
 
 }  // namespace orbatlas

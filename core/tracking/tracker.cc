@@ -489,8 +489,9 @@ bool Tracker::track_local_map(Frame& frame) {
   const Pose3 T_c_w = (frame.T_w_b * T_b_c_).inverse();
   std::vector<ProjectedPoint> candidates;
   for (const auto& kf : local_keyframes_) {
-    kf->for_each_map_point([&](const std::shared_ptr<MapPoint>& mp) {
-      if (mp->is_bad() || !seen.insert(mp->id())) return;
+    // (A culled point is marked seen and skipped: it stays culled, so no later slot of it counts.)
+    kf->for_each_unseen_map_point(seen, [&](const std::shared_ptr<MapPoint>& mp) {
+      if (mp->is_bad()) return;
       ProjectedPoint pp;
       if (!project_into_frame(*mp, T_c_w, cam_, &pp)) return;
       if (count) mp->increase_visible();
