@@ -62,6 +62,7 @@ class TestServer {
 
   std::string url() const { return "http://127.0.0.1:" + std::to_string(port_); }
   AtlasService& service() { return *service_; }
+  const GuardedHttpServer& http() const { return http_; }
 
  private:
   std::unique_ptr<AtlasService> service_;

@@ -370,6 +370,26 @@ TEST(ServerHardening, TheClientResendsOnceAfterTheServerClosedItsIdleConnection)
   EXPECT_EQ(client.finish_session(id).at("state"), "finished");
 }
 
+// A device streaming frames keeps one connection: httplib's default closed it
+// every 5 requests, four reconnections a second for a live session, each with
+// a receive window that starts small again (docs/server.md, "Connections").
+TEST(ServerHardening, OneKeptAliveConnectionCarriesManyRequests) {
+  test::TempDbPath db("keep_alive");
+  test::TestServer server(test::server_options(db.path));
+  ServerClient client(server.url());
+  for (int i = 0; i < 60; ++i) ASSERT_EQ(client.get_json("/healthz")["status"], "ok");
+  const auto connections = [&] { return server.http().connection_stats().connections; };
+  EXPECT_EQ(connections(), 1u);
+  // The bound still holds when set: three connections for 60 requests at 25 each.
+  test::TempDbPath db2("keep_alive_bound");
+  ConnectionLimits limits;
+  limits.keep_alive_requests = 25;
+  test::TestServer bounded(test::server_options(db2.path), {}, limits, 4);
+  ServerClient bounded_client(bounded.url());
+  for (int i = 0; i < 60; ++i) ASSERT_EQ(bounded_client.get_json("/healthz")["status"], "ok");
+  EXPECT_EQ(bounded.http().connection_stats().connections, 3u);
+}
+
 TEST(ServerHardening, SlowClientsCannotStarveHealthChecks) {
   // Ten connections sending one header line every 0.5 s (before: they held all
   // 8 HTTP threads, and /healthz timed out for as long as they went on).

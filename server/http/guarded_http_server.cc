@@ -143,7 +143,9 @@ Clock::duration seconds(double s) {
 
 }  // namespace
 
-GuardedHttpServer::GuardedHttpServer(ConnectionLimits limits) : limits_(std::move(limits)) {}
+GuardedHttpServer::GuardedHttpServer(ConnectionLimits limits) : limits_(std::move(limits)) {
+  set_keep_alive_max_count(std::max<std::size_t>(1, limits_.keep_alive_requests));
+}
 
 ConnectionStats GuardedHttpServer::connection_stats() const {
   std::lock_guard lock(mutex_);
