@@ -138,9 +138,9 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
     return pair;
   };
   // The frames' schedule starts at the start time itself, not when this
-  // thread wakes after it: waking up took 20-110 ms on a loaded machine, and a
+  // thread wakes after it: waking up took 5-110 ms on a loaded machine, and a
   // client's schedule anchored at its own wake-up put the cameras of "clients
-  // started together" up to 85 ms apart for the whole run.
+  // started together" up to 89 ms apart for the whole run.
   auto start = Clock::now();
   if (options.start_at_unix_s) {
     const auto at =

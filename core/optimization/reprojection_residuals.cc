@@ -66,7 +66,7 @@ struct PoseOnlyCosts::Slot {
       cost;
 };
 
-PoseOnlyCosts::PoseOnlyCosts(std::size_t capacity) : slots_(new Slot[capacity]), capacity_(capacity) {
+PoseOnlyCosts::PoseOnlyCosts(std::size_t capacity) : slots_(std::make_unique<Slot[]>(capacity)), capacity_(capacity) {
   costs_.reserve(capacity);
 }
 
