@@ -144,8 +144,9 @@ void register_stream(CLI::App& app) {
                   "the sensor's clock (counted as skipped frames) instead of falling further behind")
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--preload", args->stream.preload,
-                "Read and decode every image before the first frame is sent (memory: the clip's raw pixels), so that "
-                "the client's decoding does not compete with a server on the same machine while it streams");
+                "Read and decode every image before the first frame is sent (memory: the clip's raw pixels, held in an "
+                "in-memory file), so that the client's decoding does not compete with a server on the same machine "
+                "while it streams");
   cmd->add_option("--repeat", args->stream.repeat,
                   "Stream the clip this many times in one session, each pass's timestamps after the last's (a long "
                   "run from a short clip; sessions without an IMU)")

@@ -1,7 +1,6 @@
 #include "client/api/dataset_streamer.h"
 
 #include <chrono>
-#include <deque>
 #include <cmath>
 #include <fstream>
 #include <optional>
@@ -14,6 +13,7 @@
 #include "core/io/imu_batches.h"
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
+#include "core/io/preloaded_pairs.h"
 #include "core/io/stereo_pair_loader.h"
 #include "core/io/tum_rgbd.h"
 #include "core/io/tum_trajectory.h"
@@ -122,20 +122,19 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   const TimestampNs first_t = frames.front().t_ns;
 
   Progress progress("stream", static_cast<std::int64_t>(frames.size()), options.show_progress);
-  const std::size_t count = frames.size();
-  StereoPairLoader loaded(std::move(frames), options.preload ? count : 4,
+  StereoPairLoader loaded(std::move(frames), 4,
                           rgbd ? StereoPairLoader::Second::kDepth : StereoPairLoader::Second::kImage);
-  std::deque<LoadedStereoPair> preloaded;
+  // Preloaded pairs wait in an in-memory file, not as images in this
+  // process's memory (core/io/preloaded_pairs.h says why).
+  std::optional<PreloadedPairs> preloaded;
   if (options.preload) {
-    while (auto pair = loaded.next()) preloaded.push_back(std::move(*pair));
-    log_info("stream: " + std::to_string(preloaded.size()) + " frames read and decoded before streaming");
+    preloaded.emplace();
+    while (auto pair = loaded.next()) preloaded->push(*pair);
+    log_info("stream: " + std::to_string(preloaded->size()) + " frames read and decoded before streaming (" +
+             std::to_string(preloaded->bytes() >> 20) + " MB)");
   }
   const auto next_pair = [&]() -> std::optional<LoadedStereoPair> {
-    if (!options.preload) return loaded.next();
-    if (preloaded.empty()) return std::nullopt;
-    LoadedStereoPair pair = std::move(preloaded.front());
-    preloaded.pop_front();
-    return pair;
+    return preloaded ? preloaded->pop() : loaded.next();
   };
   // The frames' schedule starts at the start time itself, not when this
   // thread wakes after it: waking up took 5-110 ms on a loaded machine, and a
