@@ -208,8 +208,10 @@ TEST(ServerEndToEnd, AStereoInertialStreamInitialisesItsMap) {
   ServerClient client(server.url());
   StreamOptions plain = test::stream_options(clip);
   plain.duration_s = 2.0;
+  plain.preload = true;  // the pairs read back from the in-memory file (PreloadedPairs) are the clip's
   const StreamReport visual = stream_dataset(client, plain);
   ASSERT_EQ(visual.tracked, visual.frames);
+  EXPECT_EQ(visual.frames, 40u);  // 2 s at 20 Hz
   StreamOptions o = test::stream_options(clip);
   o.config = "euroc/stereo_inertial";
   const StreamReport report = stream_dataset(client, o);
