@@ -61,6 +61,8 @@ class GuardedStream : public httplib::Stream {
       : sock_(sock), read_timeout_(read_timeout), write_timeout_(write_timeout), buffer_(new char[kReadBuffer]) {}
 
   void set_deadline(std::optional<Clock::time_point> deadline) { deadline_ = deadline; }
+  // Every read and write fails from now on (what is buffered included).
+  void drop() { dropped_ = true; }
   bool deadline_passed() const { return deadline_ && Clock::now() >= *deadline_; }
   bool has_buffered() const { return begin_ < end_; }
 
@@ -73,6 +75,7 @@ class GuardedStream : public httplib::Stream {
   bool is_writable() const override { return wait_for(sock_, POLLOUT, write_timeout_); }
 
   ssize_t read(char* ptr, size_t size) override {
+    if (dropped_) return -1;
     if (!has_buffered()) {
       if (deadline_passed()) return -1;
       // What is there already, without a wait; else wait (bounded) and read.
@@ -92,7 +95,7 @@ class GuardedStream : public httplib::Stream {
   }
 
   ssize_t write(const char* ptr, size_t size) override {
-    if (!is_writable()) return -1;
+    if (dropped_ || !is_writable()) return -1;
     ssize_t n = 0;
     do {
       n = ::send(sock_, ptr, size, MSG_NOSIGNAL);
@@ -118,6 +121,7 @@ class GuardedStream : public httplib::Stream {
   std::optional<Clock::time_point> deadline_;
   std::unique_ptr<char[]> buffer_;
   std::size_t begin_ = 0, end_ = 0;
+  bool dropped_ = false;
 };
 
 // Closes after the reply without resetting it: a request refused before its body
@@ -158,15 +162,17 @@ std::vector<prometheus::MetricFamily> GuardedHttpServer::metrics() const {
     advance_counter_to(connections_total_, static_cast<double>(stats_.connections));
     advance_counter_to(closed_slow_, static_cast<double>(stats_.closed_slow));
     advance_counter_to(closed_for_room_, static_cast<double>(stats_.closed_for_room));
+    advance_counter_to(dropped_, static_cast<double>(stats_.dropped));
   }
   return metrics_.collect();
 }
 
-void GuardedHttpServer::set_waiting(std::uint64_t id, bool waiting) {
+bool GuardedHttpServer::set_waiting(std::uint64_t id, bool waiting) {
   std::lock_guard lock(mutex_);
   Connection& self = connections_.at(id);
+  if (self.closed) return false;
   self.waiting = waiting;
-  if (!waiting) return;
+  if (!waiting) return true;
   self.waiting_since = Clock::now();
   std::size_t count = 0;
   for (const auto& [_, c] : connections_) count += c.waiting && !c.closed ? 1 : 0;
@@ -183,6 +189,7 @@ void GuardedHttpServer::set_waiting(std::uint64_t id, bool waiting) {
     ++stats_.closed_for_room;
     --count;
   }
+  return true;
 }
 
 bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
@@ -201,14 +208,22 @@ bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
   bool slow = false;
   for (std::size_t left = std::max<std::size_t>(1, keep_alive_max_count_); left > 0 && svr_sock_ != INVALID_SOCKET;
        --left) {
-    set_waiting(id, true);
+    if (!set_waiting(id, true)) break;  // closed for room since the last request
     // Idle until the next request starts (httplib's keep-alive timeout).
     if (!stream.has_buffered() && !wait_for(sock, POLLIN, std::chrono::seconds(keep_alive_timeout_sec_))) break;
     stream.set_deadline(Clock::now() + header_timeout);
     bool connection_closed = false;
     ret = process_request(stream, left == 1, connection_closed, [&](httplib::Request& req) {
       // The headers are in: the request no longer waits; its body has a deadline of its own.
-      set_waiting(id, false);
+      if (!set_waiting(id, false)) {
+        // Closed for room while its headers came in (they were already
+        // received): its body cannot be read, so it is never handled, and the
+        // client's resend on a new connection is the only one taken.
+        stream.drop();
+        std::lock_guard lock(mutex_);
+        ++stats_.dropped;
+        return;
+      }
       const bool unbounded = req.path.rfind(limits_.unbounded_body_prefix, 0) == 0;
       stream.set_deadline(unbounded ? std::nullopt : std::optional<Clock::time_point>(Clock::now() + body_timeout));
     });

@@ -11,7 +11,11 @@
 //   - at most `max_waiting` connections may wait for a request (idle kept-alive
 //     ones, or ones whose headers are still coming): beyond that the one waiting
 //     longest is closed, so the other threads stay free for requests that arrive
-//     whole (a health check always gets a thread).
+//     whole (a health check always gets a thread). A request whose headers
+//     were already in when its connection was closed this way is dropped, never
+//     handled: the client cannot read a reply on that connection and sends the
+//     request again on a new one (client/api/server_client.cc), so handling the
+//     first would take a frame twice.
 // Writing a reply is bounded by httplib's write timeout only (a slow handler is
 // not the client's fault).
 #include <chrono>
@@ -45,6 +49,7 @@ struct ConnectionStats {
   std::uint64_t connections = 0;
   std::uint64_t closed_slow = 0;      // past a header or body deadline
   std::uint64_t closed_for_room = 0;  // the longest-waiting, when too many waited
+  std::uint64_t dropped = 0;          // requests whose connection was closed for room before they were handled
 };
 
 class GuardedHttpServer : public httplib::Server {
@@ -66,8 +71,8 @@ class GuardedHttpServer : public httplib::Server {
  private:
   bool process_and_close_socket(socket_t sock) override;
   // Marks the connection waiting (or not); when too many wait, shuts the one
-  // waiting longest down.
-  void set_waiting(std::uint64_t id, bool waiting);
+  // waiting longest down. False when this connection itself was shut down so.
+  bool set_waiting(std::uint64_t id, bool waiting);
 
   const ConnectionLimits limits_;
   mutable std::mutex mutex_;  // guards connections_, next_id_, stats_
@@ -87,6 +92,10 @@ class GuardedHttpServer : public httplib::Server {
       "Connections the server closed: past a header or body deadline (slow), or the longest-waiting one when too many "
       "waited (room).",
       {{"reason", "room"}});
+  prometheus::Counter& dropped_ = metrics_.counter(
+      "orbatlas_http_requests_dropped_total",
+      "Requests whose headers had arrived when their connection was closed for room: never handled (the client "
+      "sends them again on a new connection).");
 };
 
 }  // namespace orbatlas
