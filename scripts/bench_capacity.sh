@@ -101,8 +101,10 @@ run_sessions() {
   [ -s "$dir/port" ] || { cat "$dir/server.log" >&2; echo "bench_capacity: the server did not start" >&2; exit 1; }
   local url="http://127.0.0.1:$(cat "$dir/port")"
   # Every client reads and decodes its clip first (--preload: no image decoding
-  # competes with the server while it streams), then all begin at one time;
-  # the server's CPU is measured from then.
+  # competes with the server while it streams; the pixels wait in an in-memory
+  # file the client does not map, so the VM's memory monitor does not pay for
+  # them: docs/benchmarks.md, stop 56), then all begin at one time; the
+  # server's CPU is measured from then.
   local pids=() i=0 start_at wait_s
   for seq in "$@"; do dataset "$seq" > /dev/null; done  # rendered before the clock starts
   start_at=$(( $(date +%s) + PRELOAD_S ))
