@@ -12,10 +12,11 @@
 //     ones, or ones whose headers are still coming): beyond that the one waiting
 //     longest is closed, so the other threads stay free for requests that arrive
 //     whole (a health check always gets a thread). A request whose headers
-//     were already in when its connection was closed this way is dropped, never
-//     handled: the client cannot read a reply on that connection and sends the
-//     request again on a new one (client/api/server_client.cc), so handling the
-//     first would take a frame twice.
+//     were already in when its connection was closed this way gets no reply, and
+//     one with a body (a frame) is never handled: the client cannot read a reply
+//     on that connection and sends the request again on a new one
+//     (client/api/server_client.cc), so handling the first would take a frame
+//     twice. (A request without a body, a GET, may still run; it changes nothing.)
 // Writing a reply is bounded by httplib's write timeout only (a slow handler is
 // not the client's fault).
 #include <chrono>
@@ -94,8 +95,8 @@ class GuardedHttpServer : public httplib::Server {
       {{"reason", "room"}});
   prometheus::Counter& dropped_ = metrics_.counter(
       "orbatlas_http_requests_dropped_total",
-      "Requests whose headers had arrived when their connection was closed for room: never handled (the client "
-      "sends them again on a new connection).");
+      "Requests whose headers had arrived when their connection was closed for room: no reply, and never handled "
+      "when they have a body (the client sends them again on a new connection).");
 };
 
 }  // namespace orbatlas
