@@ -6,6 +6,7 @@
 #include <future>
 #include <random>
 #include <thread>
+#include <unordered_set>
 
 #include "core/common/error.h"
 #include "core/map/atlas.h"
@@ -281,6 +282,36 @@ TEST(MapReclamation, ReadersRunWhileTheMapCulls) {
     EXPECT_EQ(inc.redundant, scan.redundant);
     EXPECT_EQ(inc.map_points, scan.map_points);
   }
+}
+
+// A checkpoint snapshots a map's keyframes, then its culled keyframes' anchors.
+// A keyframe being culled meanwhile must be in one or both: in neither, the
+// checkpoint deleted its row without writing its anchor, and stored frames
+// referencing it dangled (found by ServerKill.RandomKills..., after a kill).
+TEST(MapReclamation, ASnapshotSeesACulledKeyframeAsAKeyframeOrAnAnchor) {
+  std::mt19937 rng(7);
+  Atlas atlas;
+  RandomMap rm = build_random_map(atlas, 150, 4000, 300, 200, rng);
+  const std::vector<KeyframeId> all = rm.kf_ids;
+  std::atomic<bool> stop{false};
+  std::atomic<int> snapshots{0}, missing{0};
+  std::thread checkpoint([&] {
+    while (!stop.load()) {
+      std::unordered_set<KeyframeId> seen;
+      for (const auto& kf : rm.map->keyframes()) seen.insert(kf->id());
+      for (const auto& c : rm.map->culled_keyframes()) seen.insert(c.id);
+      for (const KeyframeId id : all) missing.fetch_add(seen.count(id) ? 0 : 1);
+      snapshots.fetch_add(1);
+    }
+  });
+  while (snapshots.load() < 1) std::this_thread::yield();
+  std::shuffle(rm.kf_ids.begin() + 1, rm.kf_ids.end(), rng);  // keep the first keyframe
+  for (std::size_t i = 1; i <= 120; ++i) ASSERT_TRUE(rm.map->cull_keyframe(rm.kf_ids[i]));
+  stop.store(true);
+  checkpoint.join();
+  EXPECT_GT(snapshots.load(), 1);
+  EXPECT_EQ(missing.load(), 0) << "keyframe ids in neither snapshot, over " << snapshots.load() << " snapshots";
+  EXPECT_EQ(rm.map->culled_keyframes().size(), 120u);
 }
 
 }  // namespace

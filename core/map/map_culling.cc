@@ -15,8 +15,30 @@ bool Map::cull_keyframe(KeyframeId id) {
     std::lock_guard lock(objects_mutex_);
     const auto it = keyframes_.find(id);
     if (it == keyframes_.end()) return false;
-    kf = std::move(it->second);
-    keyframes_.erase(it);
+    kf = it->second;
+  }
+  // The anchor takes the keyframe's place in the same step: a snapshot of the
+  // keyframes, then of the anchors (a checkpoint's) sees it in one or both,
+  // never in neither. (Recorded after the detaching below, a checkpoint in
+  // between deleted the keyframe's row without writing its anchor, and the
+  // stored frames that reference it dangled until the next one; a kill then
+  // left them so in the file.) Nothing below changes what the anchor holds:
+  // its own pose, units and parent (its children get new parents, not it).
+  CulledAnchor anchor;
+  if (const auto parent = kf->parent()) {
+    const double parent_units = parent->units();
+    anchor.parent = parent->id();
+    anchor.T_parent_b = parent->T_w_b().inverse() * kf->T_w_b();
+    anchor.T_parent_b.t /= parent_units;
+    anchor.units = kf->units() / parent_units;
+  } else {
+    anchor.T_parent_b = kf->T_w_b();
+    anchor.units = kf->units();
+  }
+  {
+    std::lock_guard lock(objects_mutex_);
+    keyframes_.erase(id);
+    culled_anchors_[id] = anchor;
   }
   kf->mark_bad();  // from here on, no new observation or connection is accepted
   for (const auto& [other_id, link] : kf->take_connections())
@@ -38,21 +60,6 @@ bool Map::cull_keyframe(KeyframeId id) {
     } else {
       next->clear_inertial_link();
     }
-  }
-  {
-    CulledAnchor anchor;
-    if (const auto parent = kf->parent()) {
-      const double parent_units = parent->units();
-      anchor.parent = parent->id();
-      anchor.T_parent_b = parent->T_w_b().inverse() * kf->T_w_b();
-      anchor.T_parent_b.t /= parent_units;
-      anchor.units = kf->units() / parent_units;
-    } else {
-      anchor.T_parent_b = kf->T_w_b();
-      anchor.units = kf->units();
-    }
-    std::lock_guard lock(objects_mutex_);
-    culled_anchors_[id] = anchor;
   }
   counters_->on_culled(ObjectKind::keyframe);
   return true;
