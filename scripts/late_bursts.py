@@ -66,9 +66,11 @@ def main():
     sessions = [list(csv.DictReader(open(f))) for f in logs]
     n = min(len(s) for s in sessions)
 
-    def ms_in(intervals, a, b):
+    longest = {c: max(e - s for s, e in v) for c, v in runs.items()}  # no interval starting earlier reaches a
+
+    def ms_in(intervals, a, b, reach):
         total = 0.0
-        for s, e in intervals[max(0, bisect.bisect_left(intervals, (a - 1.0, 0.0))):]:
+        for s, e in intervals[bisect.bisect_left(intervals, (a - reach, 0.0)):]:
             if s > b:
                 break
             if e > a:
@@ -81,7 +83,7 @@ def main():
         if t0 < t_min or t0 + 0.05 > t_max:
             continue
         late = sum(s[i]["late"] == "1" for s in sessions)
-        windows.append((late, {c: ms_in(v, t0, t0 + 0.05) for c, v in runs.items()}))
+        windows.append((late, {c: ms_in(v, t0, t0 + 0.05, longest[c]) for c, v in runs.items()}))
     print(f"{len(windows)} frame instants in the trace; CPU time per 50-ms window [ms]")
     print("| windows | count | " + " | ".join(CLASSES + ["other"]) + " |")
     print("|---" * (len(CLASSES) + 3) + "|")
