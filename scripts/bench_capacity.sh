@@ -25,6 +25,7 @@
 #   MAPPING_WAIT_MS=250 NS="1 4" scripts/bench_capacity.sh  # tracking waits for its keyframe's local BA (docs/mapping.md)
 #   SETTINGS="Orbatlas.Tracker.MaxLocalKeyframes: 40" NS=4 scripts/bench_capacity.sh  # other settings (';' between them)
 #   MACHINE_CHECK=0 NS=4 scripts/bench_capacity.sh  # without the check of the two cores before and after (see machine_check)
+#   RUNS=4 NS=4 scripts/bench_capacity.sh    # the whole set four times; each clip's mean ATE against its mean alone (scripts/capacity_runs.py)
 # PHASES: 'together' (default) starts every client at one instant, so the N
 # cameras' frames arrive at the same moments (the worst case: N frames at once,
 # then nothing for 50 ms); 'spread' starts client i of N i/N of a frame interval
@@ -116,7 +117,8 @@ run_sessions() {
     [ "$PHASES" = spread ] && client_start=$(awk -v t="$start_at" -v i="$i" -v n="$#" 'BEGIN { printf "%.4f", t + (i - 1) * 0.05 / n }')
     "${CLIENT_TASKSET[@]}" "$OA" stream --server "$url" --dataset "$(dataset "$seq")" --start "$START_S" \
         --duration "$SECONDS_PER_SESSION" --rate "$RATE" --max-lag "$MAX_LAG" --preload --start-at "$client_start" --name "$name-$i-$seq" --no-progress \
-        --stats "$dir/${i}_$seq.json" --frame-log "$dir/${i}_$seq.frames.csv" > "$dir/${i}_$seq.txt" 2>&1 &
+        --stats "$dir/${i}_$seq.json" --frame-log "$dir/${i}_$seq.frames.csv" --out-trajectory "$dir/${i}_$seq.tum" \
+        > "$dir/${i}_$seq.txt" 2>&1 &
     pids+=($!)
   done
   wait_s=$(( start_at - $(date +%s) ))
@@ -193,21 +195,9 @@ machine_check() {
 rm -f "$OUT/machine_check.txt"
 machine_check before
 
-for ((k = 0; k < MAX_N; ++k)); do
-  seq=${SEQUENCES[$k]}
-  [ -f "$OUT/alone_$seq/1_$seq.json" ] && [ -n "${KEEP_ALONE:-}" ] && continue
-  echo "== alone: $seq ($LOOK look, ${SECONDS_PER_SESSION} s from ${START_S} s, rate 1)"
-  run_sessions "alone_$seq" "$seq"
-done
-for n in "${N_LIST[@]}"; do
-  [ "$n" -le 1 ] && continue
-  echo "== $n sessions at once"
-  run_sessions "n$n" "${SEQUENCES[@]:0:$n}"
-done
-
-machine_check after
-
-/usr/bin/python3 - "$OUT" "${N_LIST[*]}" "${SEQUENCES[*]}" <<'PY'
+# summarise DIR: the table of one set of runs (alone and N at once) in DIR.
+summarise() {
+/usr/bin/python3 - "$1" "${N_LIST[*]}" "${SEQUENCES[*]}" <<'PY'
 import json, sys, os
 out, ns, seqs = sys.argv[1], [int(n) for n in sys.argv[2].split()], sys.argv[3].split()
 def load(d, i, seq): return json.load(open(os.path.join(out, d, f"{i}_{seq}.json")))
@@ -255,4 +245,33 @@ for n in ns:
             f"{r['mapping_wait_ms']['p50']:.0f}/{r['mapping_wait_ms']['p95']:.0f}/{r['mapping_wait_ms']['max']:.0f}, "
             f"{r['mapping_waits_cut']}" for r in waited))
 PY
+}
+
+# RUNS=k repeats the whole set (each clip alone, then each N) k times, in
+# $OUT/run_1 ... run_k, alone and together in turn, and then compares each
+# clip's mean ATE over the N-session runs with its mean alone: one run of a
+# live session is one sample (threads and timing differ from run to run), and
+# the same clip alone spreads by about as much as the 10 % the goal allows.
+RUNS="${RUNS:-1}"
+BASE_OUT="$OUT"
+for ((run = 1; run <= RUNS; ++run)); do
+  [ "$RUNS" -gt 1 ] && { OUT="$BASE_OUT/run_$run"; mkdir -p "$OUT"; echo "== run $run of $RUNS"; }
+  for ((k = 0; k < MAX_N; ++k)); do
+    seq=${SEQUENCES[$k]}
+    [ -f "$OUT/alone_$seq/1_$seq.json" ] && [ -n "${KEEP_ALONE:-}" ] && continue
+    echo "== alone: $seq ($LOOK look, ${SECONDS_PER_SESSION} s from ${START_S} s, rate 1)"
+    run_sessions "alone_$seq" "$seq"
+  done
+  for n in "${N_LIST[@]}"; do
+    [ "$n" -le 1 ] && continue
+    echo "== $n sessions at once"
+    run_sessions "n$n" "${SEQUENCES[@]:0:$n}"
+  done
+  summarise "$OUT"
+done
+OUT="$BASE_OUT"
+
+machine_check after
+
+[ "$RUNS" -gt 1 ] && /usr/bin/python3 "$ROOT/scripts/capacity_runs.py" "$OUT" "${N_LIST[*]}" "${SEQUENCES[*]}"
 if [ -f "$OUT/machine_check.txt" ]; then cat "$OUT/machine_check.txt"; fi
