@@ -4,7 +4,8 @@
 # runs `orbatlas run` on it with the sanitizer set to stop at the first report.
 # A clean run ends with "sanitize_run: clean". Also runs the map/mapping/SLAM
 # tests under the same sanitizer. SERVER=1 adds the server's tests: three
-# concurrent sessions; the shared-map tests (eight localisations in one map, two
+# concurrent sessions; the hardening tests (the slow-client guard, kept-alive
+# connections, idle timeouts); the shared-map tests (eight localisations in one map, two
 # mapping sessions in one map, a localisation through a live merge and global
 # BA); and the replicas over one PostgreSQL atlas (the registry, the job queue,
 # and the three two-replica process tests, whose servers run under the
@@ -58,7 +59,7 @@ start=$(date +%s)
 echo "sanitize_run: orbatlas run on $SEQUENCE ($LOOK, start $START s, duration $DURATION) clean in $(( $(date +%s) - start )) s"
 for t in test_map test_mapping test_slam; do "$BUILD/tests/$t" --gtest_brief=1; done
 if [ "${SERVER:-0}" = "1" ]; then
-  "$BUILD/tests/test_server" --gtest_brief=1 --gtest_filter='ServerEndToEnd.ThreeSessionsStreamConcurrently'
+  "$BUILD/tests/test_server" --gtest_brief=1 --gtest_filter='ServerEndToEnd.ThreeSessionsStreamConcurrently:ServerHardening.*'
   "$BUILD/tests/test_server_shared_maps" --gtest_brief=1
   # Replicas over one PostgreSQL atlas (skipped without PostgreSQL). The
   # killed-replica test forks a child that starts threads: die_after_fork=0.

@@ -103,6 +103,11 @@ int main(int argc, char** argv) {
   app.add_option("--idle-timeout", service_options.idle_timeout_s,
                  "Finish a live session after this many seconds without a frame (its data is stored; 0: never)")
       ->capture_default_str();
+  app.add_option("--finish-refinement-wait", service_options.finish_refinement_wait_s,
+                 "Seconds a stereo session that ends in a map other sessions mapped too waits for a global BA of it "
+                 "(when the map grew since its last one), so its trajectory at the finish has it (0: none)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 3600.0));
   app.add_option("--background-nice", service_options.background_nice,
                  "Nice value (0-19) of local mapping, loop closing and map merging; above 0 the sessions' tracking is "
                  "served first on a loaded machine, mapping takes the rest (0: all alike)")

@@ -244,6 +244,60 @@ TEST(AtlasSessions, AMapSeveralRecordingsMapAtOnceIsAdjustedWholeAsItGrows) {
     EXPECT_LT(*r.ate_rmse_m, 0.0075);  // measured 0.0029-0.0037 m (without the rule the same, on 8-s clips)
 }
 
+// A recording that ends in a map another recording mapped too waits, in its
+// finish, for a global BA of that map (StereoSlamOptions::shared_map_finish_wait_s,
+// LoopCloser::refine_at_stream_end), the server's finish too: one, by the first
+// recording to end (the second finds the map adjusted since). None without the
+// wait, none for a map of one recording.
+TEST(AtlasSessions, ARecordingEndingInASharedMapHasTheMapAdjustedInItsFinish) {
+  const auto a = test::simulated_clip("MH_01", 46.0, 8.0);
+  test::ClipCleanup cleanup_a{a};
+  const auto b = test::simulated_clip("MH_02", 38.0, 8.0);
+  test::ClipCleanup cleanup_b{b};
+  const auto dir = std::filesystem::temp_directory_path() / ("orbatlas_test_end_ba_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  test::ClipCleanup cleanup_dir{dir};
+  const auto stream_end_runs = [](const DatasetRunReport& r) {
+    std::vector<GlobalAdjustmentRun> runs;
+    for (const auto& g : r.stats.loop.global_adjustments)
+      if (g.cause == GlobalAdjustmentCause::kStreamEnd) runs.push_back(g);
+    return runs;
+  };
+  const auto run = [&](double wait_s, const std::vector<std::filesystem::path>& clips, const std::string& name) {
+    DatasetRunOptions options = options_for(clips.front(), dir / (name + ".db"));
+    options.slam.synchronous_mapping = true;
+    options.slam.loop.shared_map_refinement_growth = 0.0;  // only merges' and the ends' global BAs
+    options.slam.loop.shared_map_refinement_min_keyframes = 8;
+    options.slam.shared_map_finish_wait_s = wait_s;
+    return run_stereo_datasets(options, clips);
+  };
+  const auto with = run(60.0, {a, b}, "with");
+  const auto without = run(0.0, {a, b}, "without");
+  const auto alone = run(60.0, {a}, "alone");
+  ASSERT_EQ(with.size(), 2u);
+  ASSERT_EQ(without.size(), 2u);
+  ASSERT_EQ(alone.size(), 1u);
+  for (const auto* reports : {&with, &without, &alone})
+    for (const auto& r : *reports) {
+      EXPECT_TRUE(r.failed.empty()) << r.failed;
+      ASSERT_TRUE(r.ate_rmse_m.has_value());
+    }
+  const auto ended = stream_end_runs(with[0]);
+  std::printf("global BAs at an end: %zu (%zu keyframes, %.2f s); ATE with %.4f, %.4f m, without %.4f, %.4f m\n",
+              ended.size(), ended.empty() ? 0 : ended[0].keyframes, ended.empty() ? 0.0 : ended[0].seconds,
+              *with[0].ate_rmse_m, *with[1].ate_rmse_m, *without[0].ate_rmse_m, *without[1].ate_rmse_m);
+  std::set<MapId> maps(with[0].trajectory_maps.begin(), with[0].trajectory_maps.end());
+  maps.insert(with[1].trajectory_maps.begin(), with[1].trajectory_maps.end());
+  ASSERT_EQ(maps.size(), 1u);  // the two recordings' map: merged, shared
+  ASSERT_EQ(ended.size(), 1u);
+  EXPECT_FALSE(ended[0].interrupted);
+  EXPECT_GE(ended[0].keyframes, 8u);
+  EXPECT_TRUE(stream_end_runs(without[0]).empty());
+  EXPECT_TRUE(stream_end_runs(alone[0]).empty());
+  for (const auto& r : with) EXPECT_LT(*r.ate_rmse_m, 0.0075);
+}
+
 // In a map another session maps too, a session's keyframe decision counts as
 // tracked only the close points its own keyframes observe
 // (TrackerOptions::own_close_points): a session flying through the other's

@@ -32,6 +32,7 @@
 #include "core/optimization/sim3_refinement.h"
 #include "core/persistence/atlas_checkpointer.h"
 #include "core/place/relocalizer.h"
+#include "core/server/atlas_service.h"
 #include "core/server/map_merge_worker.h"
 #include "core/sim/imu_synthesizer.h"
 #include "core/sim/look.h"
@@ -90,6 +91,7 @@ TEST(OptionsCheck, TrackingAndSessions) {
   refused<StereoSlamOptions>("queue_capacity", [](auto& o) { o.mapper.queue_capacity = 0; });
   refused<StereoSlamOptions>("bow_ratio", [](auto& o) { o.loop.recognition.bow_ratio = 1.5f; });
   refused<StereoSlamOptions>("num_threads", [](auto& o) { o.final_ba.num_threads = 0; });
+  refused<StereoSlamOptions>("shared_map_finish_wait_s", [](auto& o) { o.shared_map_finish_wait_s = -1.0; });
   EXPECT_NO_THROW(MonoLocalizerOptions{}.check());
   refused<MonoLocalizerOptions>("recently_lost_s", [](auto& o) { o.tracker.recently_lost_s = kNaN; });
   EXPECT_NO_THROW(DatasetRunOptions{}.check());
@@ -179,10 +181,15 @@ TEST(OptionsCheck, PlacesLoopsAndMerging) {
   refused<LoopCloserOptions>("fusion_th", [](auto& o) { o.merge.fusion_th = -1.0f; });
   refused<LoopCloserOptions>("iterations", [](auto& o) { o.global.iterations = -1; });
   refused<LoopCloserOptions>("shared_map_refinement_growth", [](auto& o) { o.shared_map_refinement_growth = -0.5; });
+  refused<LoopCloserOptions>("stream_end_refinement_growth", [](auto& o) { o.stream_end_refinement_growth = -0.1; });
   EXPECT_NO_THROW(MapMergeWorkerOptions{}.check());
   refused<MapMergeWorkerOptions>("queue_capacity", [](auto& o) { o.queue_capacity = 0; });
   refused<MapMergeWorkerOptions>("verify_matches", [](auto& o) { o.recognition.verify_matches = -1; });
   refused<MapMergeWorkerOptions>("num_threads", [](auto& o) { o.global.num_threads = 0; });
+  refused<AtlasServiceOptions>("finish_refinement_wait_s", [](auto& o) {
+    o.db = "atlas.db";
+    o.finish_refinement_wait_s = -1.0;
+  });
 }
 
 TEST(OptionsCheck, FeaturesAndVocabulary) {

@@ -209,6 +209,11 @@ TEST(SharedMaps, TwoMappingSessionsOverOnePlaceBuildOneMap) {
   test::TempDbPath db("shared_mapping");
   AtlasServiceOptions options = test::server_options(db.path);
   options.merge_maps = true;  // live merging as the server does it by default; offline merging has nothing left
+  // The clips' map is small (5 keyframes): the global BA at the first
+  // session's end (--finish-refinement-wait, by default) applies to it from 2
+  // keyframes on. Growth 0: none while they map (at 20 keyframes, never here).
+  options.slam.loop.shared_map_refinement_min_keyframes = 2;
+  options.slam.loop.shared_map_refinement_growth = 0.0;
   test::TestServer server(options);
   auto a = std::async(std::launch::async, [&] { return stream_at_camera_rate(server, first, "device a"); });
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
@@ -232,6 +237,12 @@ TEST(SharedMaps, TwoMappingSessionsOverOnePlaceBuildOneMap) {
     for (const auto m : r->trajectory_maps) EXPECT_EQ(m, shared);
   ServerClient client(server.url());
   EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
+  // The first session to end had the shared map adjusted in its finish.
+  const std::string metrics = client.get_text("/metrics");
+  const std::string end_line = "\norbatlas_stream_end_adjustments_total ";
+  const auto end = metrics.find(end_line);
+  ASSERT_NE(end, std::string::npos) << metrics;
+  EXPECT_EQ(std::stod(metrics.substr(end + end_line.size())), 1.0);
   const nlohmann::json merges = client.get_json("/v1/merges");
   std::printf("device b %s map %llu (live merges: %zu); keyframes a %zu, b %zu\n",
               rb.reply_maps.front() == shared ? "joined" : "was merged into", static_cast<unsigned long long>(shared),

@@ -47,6 +47,8 @@ const char* to_string(GlobalAdjustmentCause cause) {
       return "merge";
     case GlobalAdjustmentCause::kSharedMap:
       return "shared_map";
+    case GlobalAdjustmentCause::kStreamEnd:
+      return "stream_end";
   }
   return "?";
 }
@@ -57,6 +59,8 @@ void LoopCloserOptions::check() const {
                  "loop closing: worker_nice must be in 0..19, not " << worker_nice);
   ORBATLAS_CHECK(std::isfinite(shared_map_refinement_growth) && shared_map_refinement_growth >= 0.0,
                  "loop closing: shared_map_refinement_growth must be >= 0, not " << shared_map_refinement_growth);
+  ORBATLAS_CHECK(std::isfinite(stream_end_refinement_growth) && stream_end_refinement_growth >= 0.0,
+                 "loop closing: stream_end_refinement_growth must be >= 0, not " << stream_end_refinement_growth);
   recognition.check();
   correction.check();
   global.check();
@@ -77,7 +81,10 @@ LoopCloser::LoopCloser(Atlas& atlas, FrameCamera cam, MappingControl& mapping, L
                              .shared = wiring_.shared_worker,
                              .nice = options_.worker_nice},
           [this](Item& item) { process(item); },
-          [](const Item& item) { return "keyframe " + std::to_string(item.keyframe->id()); }) {}
+          [](const Item& item) {
+            return item.keyframe ? "keyframe " + std::to_string(item.keyframe->id())
+                                 : "the end of a session in map " + std::to_string(item.stream_end->map);
+          }) {}
 
 LoopCloser::Recognizers& LoopCloser::recognizers(std::uint64_t stream) {
   {
@@ -116,9 +123,62 @@ LoopCloser::~LoopCloser() {
 }
 
 void LoopCloser::insert(const std::shared_ptr<KeyFrame>& keyframe, std::uint64_t stream) {
-  if (worker_.try_push(Item{keyframe, stream})) return;
+  if (worker_.try_push(Item{keyframe, stream, nullptr})) return;
   std::lock_guard stats_lock(stats_mutex_);
   ++stats_.keyframes_skipped;
+}
+
+bool LoopCloser::refine_at_stream_end(MapId map, std::chrono::milliseconds max_wait) {
+  auto wait = std::make_shared<StreamEndWait>();
+  wait->map = map;
+  if (!worker_.try_push(Item{nullptr, 0, wait})) return false;
+  std::unique_lock lock(global_mutex_);
+  if (!global_cv_.wait_for(lock, max_wait, [&] { return wait->done; })) return false;
+  return wait->applied;
+}
+
+void LoopCloser::handle_stream_end(const std::shared_ptr<StreamEndWait>& wait) {
+  const auto tell = [&](bool applied) {
+    std::lock_guard lock(global_mutex_);
+    wait->done = true;
+    wait->applied = applied;
+    global_cv_.notify_all();
+  };
+  try {
+    {
+      std::lock_guard lock(global_mutex_);
+      if (global_running_ && global_map_ == wait->map) {
+        global_waits_.push_back(wait);  // the running one: told when it ends
+        return;
+      }
+    }
+    const bool due = options_.global_bundle_adjustment && options_.stream_end_refinement_growth > 0.0 &&
+                     refinement_due(wait->map, options_.stream_end_refinement_growth);
+    if (!due) return tell(true);
+    {
+      std::lock_guard lock(global_mutex_);
+      if (global_running_) return tell(false);  // another map's: this one waits for a later keyframe's turn
+    }
+    log_info("map " + std::to_string(wait->map) + ": a session ended in it, " +
+             std::to_string(since_global_[wait->map].keyframes) +
+             " keyframes at its last global bundle adjustment: " + "one more");
+    stop_global_adjustment();  // ended: joins its thread
+    start_global_adjustment(wait->map, GlobalAdjustmentCause::kStreamEnd, wait);
+  } catch (...) {
+    tell(false);
+    throw;
+  }
+}
+
+bool LoopCloser::refinement_due(MapId map_id, double growth) {
+  const auto map = atlas_.map(map_id);
+  if (!map) return false;
+  std::erase_if(since_global_, [&](const auto& entry) { return !atlas_.map(entry.first); });  // merged away
+  const auto it = since_global_.find(map_id);
+  if (it == since_global_.end()) return false;
+  const std::size_t keyframes = map->keyframe_count();
+  return it->second.streams.size() >= 2 && keyframes >= options_.shared_map_refinement_min_keyframes &&
+         static_cast<double>(keyframes) >= (1.0 + growth) * static_cast<double>(it->second.keyframes);
 }
 
 void LoopCloser::wait_until_idle() {
@@ -150,6 +210,7 @@ LoopClosingStats LoopCloser::stats() const {
 }
 
 void LoopCloser::process(const Item& item) {
+  if (item.stream_end) return handle_stream_end(item.stream_end);
   const std::shared_ptr<KeyFrame>& keyframe = item.keyframe;
   Recognizers& recognizers = this->recognizers(item.stream);
   const auto map = atlas_.map(keyframe->map_id());
@@ -190,16 +251,14 @@ void LoopCloser::process(const Item& item) {
 }
 
 void LoopCloser::refine_shared_map(const Item& item) {
-  if (!options_.global_bundle_adjustment || options_.shared_map_refinement_growth <= 0.0) return;
   const auto map = atlas_.map(item.keyframe->map_id());
   if (!map) return;
-  std::erase_if(since_global_, [&](const auto& entry) { return !atlas_.map(entry.first); });  // merged away
-  SinceGlobalAdjustment& since = since_global_[map->id()];
-  since.streams.insert(item.stream);
-  const std::size_t keyframes = map->keyframe_count();
-  if (since.streams.size() < 2 || keyframes < options_.shared_map_refinement_min_keyframes ||
-      static_cast<double>(keyframes) < (1.0 + options_.shared_map_refinement_growth) * since.keyframes)
+  since_global_[map->id()].streams.insert(item.stream);  // a stream's end asks too (handle_stream_end)
+  if (!options_.global_bundle_adjustment || options_.shared_map_refinement_growth <= 0.0 ||
+      !refinement_due(map->id(), options_.shared_map_refinement_growth))
     return;
+  const SinceGlobalAdjustment& since = since_global_[map->id()];
+  const std::size_t keyframes = map->keyframe_count();
   {
     std::lock_guard lock(global_mutex_);
     if (global_running_) return;  // that one goes on; a later keyframe asks again
@@ -291,15 +350,19 @@ void LoopCloser::stop_global_adjustment() {
   stop_global_.store(false);
 }
 
-void LoopCloser::start_global_adjustment(MapId map_id, GlobalAdjustmentCause cause) {
+void LoopCloser::start_global_adjustment(MapId map_id, GlobalAdjustmentCause cause,
+                                         std::shared_ptr<StreamEndWait> wait) {
   {
     std::lock_guard lock(global_mutex_);
     global_running_ = true;
+    global_map_ = map_id;
+    if (wait) global_waits_.push_back(std::move(wait));
   }
   if (const auto map = atlas_.map(map_id)) since_global_[map_id] = {map->keyframe_count(), {}};
   global_thread_ = std::thread([this, map_id, cause] {
     set_current_thread_nice(options_.worker_nice);
     set_current_thread_name("global BA");
+    bool applied = false;
     try {
       const auto map = atlas_.map(map_id);
       if (map) {
@@ -312,6 +375,7 @@ void LoopCloser::start_global_adjustment(MapId map_id, GlobalAdjustmentCause cau
           MappingPause pause(mapping_, map_id);
           const auto whole = atlas_.lock_maps_exclusive();  // tracking sees the map before or after
           apply_global_adjustment(*map, result, cam_.pyramid);
+          applied = true;
         }
         GlobalAdjustmentRun run{
             cause, result.keyframes, result.points, result.inertial_edges, ms_since(start) * 1e-3, result.stopped};
@@ -325,7 +389,13 @@ void LoopCloser::start_global_adjustment(MapId map_id, GlobalAdjustmentCause cau
       worker_.record_failure("global bundle adjustment of map " + std::to_string(map_id));
     }
     std::lock_guard lock(global_mutex_);
+    for (const auto& waiting : global_waits_) {
+      waiting->done = true;
+      waiting->applied = applied;
+    }
+    global_waits_.clear();
     global_running_ = false;
+    global_map_ = kInvalidMapId;
     global_cv_.notify_all();
   });
 }

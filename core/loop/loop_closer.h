@@ -10,6 +10,7 @@
 // while the session goes on (tracking follows into the joined map), then a
 // global bundle adjustment refines the joined map. See docs/loop_closing.md.
 #include <atomic>
+#include <chrono>
 #include <functional>
 #include <condition_variable>
 #include <map>
@@ -59,6 +60,12 @@ struct LoopCloserOptions {
   // without it; docs/benchmarks.md, stop 49). A map of one session is never adjusted so.
   double shared_map_refinement_growth = 0.5;
   std::size_t shared_map_refinement_min_keyframes = 20;
+  // When a stream ends in such a map (refine_at_stream_end) and the map grew by
+  // this fraction since its last global BA, one more runs at once, so that the
+  // ending session's keyframes are adjusted with the map before it reads its
+  // trajectory (0: never). Between two refinements of the rule above a shared
+  // map grows by up to half, unadjusted.
+  double stream_end_refinement_growth = 0.1;
   // The sessions' maps have no metric scale until an IMU gives them one
   // (monocular): loops and merges are then similarities (Sim(3)).
   bool monocular = false;
@@ -103,8 +110,9 @@ struct ClosedLoop {
 };
 
 // Why a global BA ran: after a loop correction, after a live merge, or for a
-// map several sessions map at once (LoopCloserOptions::shared_map_refinement_growth).
-enum class GlobalAdjustmentCause { kLoop, kMerge, kSharedMap };
+// map several sessions map at once (LoopCloserOptions::shared_map_refinement_growth),
+// or for such a map when a session ends in it (stream_end_refinement_growth).
+enum class GlobalAdjustmentCause { kLoop, kMerge, kSharedMap, kStreamEnd };
 const char* to_string(GlobalAdjustmentCause cause);
 
 struct GlobalAdjustmentRun {
@@ -146,6 +154,15 @@ class LoopCloser {
   void insert(const std::shared_ptr<KeyFrame>& keyframe, std::uint64_t stream = 0);
   // The stream has ended: its recognition state goes (any thread).
   void forget_stream(std::uint64_t stream);
+  // The stream has ended in `map`, its keyframes processed by local mapping
+  // (any thread but the worker's). When two or more streams mapped the map
+  // since its last global BA and it grew by stream_end_refinement_growth since,
+  // a global BA of the map starts now; when one of the map runs, that one is
+  // taken. Waits at most `max_wait` for it to be applied. True when it was, or
+  // none was due; false when the wait ran out (the adjustment goes on and is
+  // applied later), the request found the queue full, or the adjustment was
+  // interrupted or failed.
+  bool refine_at_stream_end(MapId map, std::chrono::milliseconds max_wait);
   // Waits until every inserted keyframe is processed and no global adjustment runs.
   void wait_until_idle();
   // Call after local mapping has finished: processes what is queued, waits for a
@@ -157,9 +174,17 @@ class LoopCloser {
   WorkerErrorCounts errors() const { return worker_.errors(); }  // cheap
 
  private:
+  // A refine_at_stream_end() caller's wait (fields under global_mutex_).
+  struct StreamEndWait {
+    MapId map = kInvalidMapId;
+    bool done = false;     // nothing more will happen for it
+    bool applied = false;  // an adjustment of the map was applied, or none was due
+  };
+  // A keyframe, or (keyframe null) a stream's end in a map.
   struct Item {
     std::shared_ptr<KeyFrame> keyframe;
     std::uint64_t stream = 0;
+    std::shared_ptr<StreamEndWait> stream_end;
   };
   // Place recognition of one stream (its pending hypotheses).
   struct Recognizers {
@@ -172,7 +197,13 @@ class LoopCloser {
   // True when the active map was merged into the match's map.
   bool merge_live(const PlaceMatch& match);
   void stop_global_adjustment();
-  void start_global_adjustment(MapId map, GlobalAdjustmentCause cause);
+  // `wait` (may be null) is told when the adjustment has ended.
+  void start_global_adjustment(MapId map, GlobalAdjustmentCause cause, std::shared_ptr<StreamEndWait> wait = nullptr);
+  // Worker thread: the stream-end request of refine_at_stream_end().
+  void handle_stream_end(const std::shared_ptr<StreamEndWait>& wait);
+  // Worker thread: a map is due a refinement when streams.size() >= 2 and it
+  // has at least min_keyframes and (1 + growth) times its keyframes then.
+  bool refinement_due(MapId map, double growth);
   // A global BA of the keyframe's map when several streams map it and it grew
   // enough since its last one (shared_map_refinement_growth); none while one runs.
   void refine_shared_map(const Item& item);
@@ -193,9 +224,11 @@ class LoopCloser {
   std::mutex forgotten_mutex_;            // leaf: guards forgotten_
   std::vector<std::uint64_t> forgotten_;  // streams to drop on the worker thread
 
-  std::mutex global_mutex_;  // leaf: guards global_running_
+  std::mutex global_mutex_;  // leaf: guards what follows, and StreamEndWait's fields
   std::condition_variable global_cv_;
   bool global_running_ = false;
+  MapId global_map_ = kInvalidMapId;                          // the running adjustment's
+  std::vector<std::shared_ptr<StreamEndWait>> global_waits_;  // told when it ends
 
   // One correction at a time touches the map with local mapping paused.
   std::mutex correction_mutex_;

@@ -34,6 +34,9 @@ void AtlasServiceOptions::check() const {
   ORBATLAS_CHECK(!db.empty(), "the server needs a database path (--db)");
   ORBATLAS_CHECK(max_live_sessions > 0, "server: max_live_sessions must be > 0, not " << max_live_sessions);
   ORBATLAS_CHECK(!std::isnan(idle_timeout_s), "server: idle_timeout_s is not a number");
+  ORBATLAS_CHECK(
+      std::isfinite(finish_refinement_wait_s) && finish_refinement_wait_s >= 0.0 && finish_refinement_wait_s <= 3600.0,
+      "server: finish_refinement_wait_s must be in 0..3600, not " << finish_refinement_wait_s);
   ORBATLAS_CHECK(max_imu_gap_s > 0.0 && std::isfinite(max_imu_gap_s),
                  "server: max_imu_gap_s must be > 0 s, not " << max_imu_gap_s);
   ORBATLAS_CHECK(loop_queue > 0, "server: loop_queue must be > 0, not " << loop_queue);
@@ -223,6 +226,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
   wiring.may_enter_map = [this, id, rig](MapId map) { return mapping_rig_matches(rig, map) && leases_.claim(id, map); };
   slam_options.tracker.start_in_stored_map = options_.start_in_stored_maps;
   slam_options.live_merging = options_.merge_maps && options_.live_merging;
+  slam_options.shared_map_finish_wait_s = options_.finish_refinement_wait_s;
   wiring.mapping = [this, rig](const FrameCamera& cam, const MappingWorkersOptions& mapping) {
     return mapping_for(rig, cam, mapping);
   };

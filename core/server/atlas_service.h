@@ -55,6 +55,11 @@ struct AtlasServiceOptions {
   // abandoned sessions cannot hold the live-session slots. <= 0: never.
   double idle_timeout_s = 300.0;
   double max_imu_gap_s = 0.05;  // EuRoC's IMU runs at 200 Hz: 10 samples missing
+  // A stereo mapping session that ends in a map other sessions mapped too
+  // waits (in its finish) at most this long for a global BA of that map when
+  // the map grew since its last one (StereoSlamOptions::shared_map_finish_wait_s),
+  // so the trajectory read after the finish has it. 0: no such adjustment.
+  double finish_refinement_wait_s = 15.0;
   // A finished session's maps are handed to the server-wide merging worker,
   // which merges them into a map of the atlas they share a place with.
   bool merge_maps = true;

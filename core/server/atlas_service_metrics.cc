@@ -1,6 +1,7 @@
 // AtlasService: what the server reports about itself: GET /healthz and the
 // figures of GET /metrics (counters counted as things happen; states read now;
 // per-map families built at each scrape).
+#include <algorithm>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -42,7 +43,7 @@ std::vector<prometheus::MetricFamily> AtlasService::metrics() const {
   }
   if (merger_) worker_errors += merger_->stats().errors;
   // The shared mappings (sessions count only their own tracking's errors in them).
-  std::size_t mapped_keyframes = 0, loops = 0, global_adjustments = 0, mappers = 0;
+  std::size_t mapped_keyframes = 0, loops = 0, global_adjustments = 0, stream_end_adjustments = 0, mappers = 0;
   {
     std::lock_guard lock(mappings_mutex_);
     for (const RigMapping& m : mappings_) {
@@ -51,6 +52,9 @@ std::vector<prometheus::MetricFamily> AtlasService::metrics() const {
       const LoopClosingStats loop = m.workers->loop_stats();
       loops += loop.loops.size();
       global_adjustments += loop.global_adjustments.size();
+      stream_end_adjustments +=
+          std::count_if(loop.global_adjustments.begin(), loop.global_adjustments.end(),
+                        [](const GlobalAdjustmentRun& g) { return g.cause == GlobalAdjustmentCause::kStreamEnd; });
       mappers += m.workers->mapped_maps().size();
     }
   }
@@ -103,8 +107,12 @@ std::vector<prometheus::MetricFamily> AtlasService::metrics() const {
         static_cast<double>(mapped_keyframes));
   total("orbatlas_loops_closed_total", "Loops closed in live sessions' maps.", static_cast<double>(loops));
   total("orbatlas_global_adjustments_total",
-        "Global bundle adjustments run after loops and live merges (interrupted ones included).",
+        "Global bundle adjustments of live sessions' maps: after loops and live merges, of maps several sessions "
+        "map (interrupted ones included).",
         static_cast<double>(global_adjustments));
+  total("orbatlas_stream_end_adjustments_total",
+        "Of those, the ones run when a session ended in a map other sessions mapped too (--finish-refinement-wait).",
+        static_cast<double>(stream_end_adjustments));
   total("orbatlas_checkpoints_total", "Checkpoints completed.", static_cast<double>(checkpoints.checkpoints));
   total("orbatlas_checkpoint_failures_total", "Checkpoints that failed (retried).",
         static_cast<double>(checkpoints.failures));

@@ -151,11 +151,26 @@ std::size_t LiveSession::add_imu(const std::vector<ImuSample>& samples, double m
 bool LiveSession::finish() { return finish(std::string()); }
 
 bool LiveSession::finish(const std::string& ended_by) {
-  std::lock_guard lock(mutex_);
+  std::function<bool()> refine;  // run once the session's lock is released
+  {
+    std::lock_guard lock(mutex_);
+    if (!finish_locked(ended_by, refine)) return false;
+  }
+  try {
+    // Status reads and the checkpoints' reads of the session do not wait for it.
+    if (refine) refine();
+  } catch (const std::exception& e) {
+    log_warn("session " + std::to_string(info_.id) + ": the global BA of its map at its end failed: " + e.what());
+  }
+  return true;
+}
+
+bool LiveSession::finish_locked(const std::string& ended_by, std::function<bool()>& refine) {
   if (state_ != SessionState::kActive) return false;
   ended_by_ = ended_by;
   try {
     slam_->finish();
+    refine = slam_->take_end_refinement();
     worker_errors_.store(slam_->worker_errors());
     const SlamStats stats = slam_->stats();
     final_counts_ =

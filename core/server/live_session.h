@@ -6,6 +6,7 @@
 // server (read from the database) is a LiveSession without SLAM, state "stored".
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -89,7 +90,10 @@ class LiveSession {
   const SessionInfo info_;
   const std::string config_;
   const std::optional<SessionMode> mode_;  // none for a stored session (the database does not keep it)
-  mutable std::mutex mutex_;               // serialises frames, IMU and finish
+  // finish() under mutex_: the SLAM objects go; `refine` gets what is left to
+  // wait for (SessionSlam::take_end_refinement), run after the lock is released.
+  bool finish_locked(const std::string& ended_by, std::function<bool()>& refine);
+  mutable std::mutex mutex_;  // serialises frames, IMU and finish
   std::unique_ptr<SessionSlam> slam_;
   // Written under mutex_; read without it (state()), so asking a session for its
   // state never waits for its frame or its finish (docs/architecture.md, locks).

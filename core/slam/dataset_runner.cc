@@ -299,6 +299,7 @@ void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame
 void finish_session(StereoSlam& slam, DatasetRunReport& report) {
   try {
     slam.finish();
+    if (const auto refine = slam.take_end_refinement()) refine();
   } catch (const WorkerFailed& e) {
     if (report.failed.empty()) report.failed = e.what();
   }

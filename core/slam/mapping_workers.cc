@@ -215,6 +215,10 @@ void MappingWorkers::wait_for_map(MapId map) {
   if (const auto mapper = mapper_for(map, false)) mapper->wait_until_idle();
 }
 
+bool MappingWorkers::refine_at_stream_end(MapId map, std::chrono::milliseconds max_wait) {
+  return !loop_closer_ || loop_closer_->refine_at_stream_end(map, max_wait);
+}
+
 void MappingWorkers::wait_until_idle() {
   std::vector<std::shared_ptr<LocalMapper>> mappers;
   {

@@ -13,6 +13,7 @@
 // Threads and locks (docs/architecture.md, "Shared maps"): mutex_ is a leaf,
 // held only to look up or change the table of mappers, never while waiting on
 // a mapper. Pausing a map (MappingControl) waits for its mapper outside it.
+#include <chrono>
 #include <cstdint>
 #include <exception>
 #include <map>
@@ -64,6 +65,11 @@ class MappingWorkers final : public MappingControl {
   // Waits until the map's mapper has processed what it was handed (a session
   // that finishes: its keyframes are complete before it is stored).
   void wait_for_map(MapId map);
+  // A session has ended in `map` (after wait_for_map): the loop closer's global
+  // BA of the map when it is shared and has grown (LoopCloser::refine_at_stream_end),
+  // waited for at most `max_wait`. True when applied or none was due (or no
+  // loop closing).
+  bool refine_at_stream_end(MapId map, std::chrono::milliseconds max_wait);
   // Waits until every mapper and the loop closer are idle (synchronous runs).
   void wait_until_idle();
   // The map's mapper stops once it has processed its queue (nobody maps the

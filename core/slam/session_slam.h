@@ -1,6 +1,7 @@
 #pragma once
 // What a session of the server drives, whatever its camera: stereo SLAM
 // (StereoSlam), or a single camera localising in stored maps (MonoLocalizer).
+#include <functional>
 #include <opencv2/core/mat.hpp>
 #include <optional>
 #include <vector>
@@ -24,6 +25,10 @@ class SessionSlam {
   virtual void add_imu(const std::vector<ImuSample>& samples) { (void)samples; }
   // Stops the session's workers; process() may not be called afterwards. Idempotent.
   virtual void finish() = 0;
+  // After finish(): what is left of the end, to run without the caller's locks
+  // (it may wait for seconds; StereoSlam: the global BA of a map other sessions
+  // mapped too). True when done; empty when nothing is left. Once.
+  virtual std::function<bool()> take_end_refinement() { return {}; }
   // The tracked frames' anchors from the first-th on (they only ever follow);
   // safe from any thread.
   virtual std::vector<FrameAnchor> anchors_from(std::size_t first) const = 0;

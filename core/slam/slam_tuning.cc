@@ -100,6 +100,10 @@ const std::vector<Binding>& bindings() {
                       "a map several sessions map at once gets a global BA each time its keyframes grew by this "
                       "fraction since its last one (0: never)",
                       loop.shared_map_refinement_growth),
+      ORBATLAS_TUNING("LoopClosing.StreamEndRefinementGrowth", 0, 100, false,
+                      "when a session ends in a map other sessions mapped too and its keyframes grew by this fraction "
+                      "since its last global BA, one more runs (the server's --finish-refinement-wait; 0: never)",
+                      loop.stream_end_refinement_growth),
       ORBATLAS_TUNING("LoopClosing.SettledInertialRefinements", 0, 1000, true,
                       "a single camera's inertial map is merged as a similarity (taking the target's scale) until "
                       "this many inertial refinements",

@@ -1,6 +1,7 @@
 #include "core/slam/stereo_slam.h"
 
 #include <chrono>
+#include <cmath>
 #include <set>
 #include <sstream>
 
@@ -18,6 +19,9 @@ void StereoSlamOptions::check() const {
   // The tracker refuses to localise without a relocaliser.
   ORBATLAS_CHECK(relocalization || !tracker.localization_only,
                  "slam: relocalization must be on when tracker.localization_only is set");
+  ORBATLAS_CHECK(
+      std::isfinite(shared_map_finish_wait_s) && shared_map_finish_wait_s >= 0.0 && shared_map_finish_wait_s <= 3600.0,
+      "slam: shared_map_finish_wait_s must be in 0..3600, not " << shared_map_finish_wait_s);
   tracker.check();
   inertial_tracking.check();
   mapper.check();
@@ -217,6 +221,15 @@ void StereoSlam::finish() {
     mapping_->finish();
   } else if (mapping_) {
     mapping_->wait_for_map(tracker_->map_id());  // its last keyframes are complete
+    if (options_.shared_map_finish_wait_s > 0.0) {
+      const auto wait = std::chrono::milliseconds(static_cast<long long>(options_.shared_map_finish_wait_s * 1000.0));
+      end_refinement_ = [mapping = mapping_, map = tracker_->map_id(), wait] {
+        if (mapping->refine_at_stream_end(map, wait)) return true;
+        log_info("map " + std::to_string(map) + ": its global bundle adjustment at a session's end was not applied " +
+                 "in time (it goes on)");
+        return false;
+      };
+    }
   }
   tracker_->release_frames();
   // Nothing else edits these maps now: mapping and loop closing have stopped.

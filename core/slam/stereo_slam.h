@@ -9,6 +9,7 @@
 #include <functional>
 #include <memory>
 #include <set>
+#include <utility>
 #include <optional>
 #include <opencv2/core/mat.hpp>
 #include <vector>
@@ -63,6 +64,11 @@ struct StereoSlamOptions {
   // of several recordings adjusts their maps once all of them ended).
   bool final_global_ba = false;
   GlobalBundleAdjustmentOptions final_ba;
+  // With a shared mapping (the server's): at the end, finish() waits at most
+  // this long for a global BA of the session's map when other sessions mapped
+  // it too and it grew since its last one (LoopCloser::refine_at_stream_end),
+  // so the trajectory read after finish() has it. 0: no such adjustment.
+  double shared_map_finish_wait_s = 0.0;
 
   // Throws Error naming the first value out of range (also of the parts).
   void check() const;
@@ -96,6 +102,10 @@ class StereoSlam final : public SessionSlam {
   // one goes on for the others) and releases the last frame (so every culled
   // object can be reclaimed). Idempotent; process() may not be called afterwards.
   void finish() override;
+  // With a shared mapping and shared_map_finish_wait_s: the wait for the global
+  // BA of the session's map at its end (MappingWorkers::refine_at_stream_end).
+  // The caller runs it after finish(), without its own locks.
+  std::function<bool()> take_end_refinement() override { return std::exchange(end_refinement_, {}); }
 
   // The maps this session's frames are in now (merges move frames).
   std::set<MapId> tracked_maps() const;
@@ -135,6 +145,7 @@ class StereoSlam final : public SessionSlam {
   std::atomic<std::size_t> imu_linked_{0};
   std::atomic<TimestampNs> first_t_ns_{-1};  // the session's first frame
   bool finished_ = false;
+  std::function<bool()> end_refinement_;  // set by finish()
   std::size_t final_ba_keyframes_ = 0, final_ba_inertial_edges_ = 0;
   double final_ba_s_ = 0.0;
   TrackedFrames frames_;
