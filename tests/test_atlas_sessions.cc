@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <fstream>
+#include <functional>
 #include <algorithm>
 #include <iterator>
 #include <set>
@@ -194,41 +195,60 @@ TEST(AtlasSessions, SeveralRecordingsAtOnceMapOnePlaceTogether) {
   EXPECT_EQ(store.load_atlas(atlas, &vocabulary).maps, 1u);
 }
 
+// Two 8-s clips whose flights cross (MH_01 from 46 s, MH_02 from 38 s), each
+// mapped with a rule on and off (`run(on, clips, name)`, an atlas per name in a
+// folder of the test's) and the first alone with it on; every run must end
+// with an ATE.
+struct RulesOverTwoRecordings {
+  std::vector<DatasetRunReport> with, without, alone;
+};
+using RecordingsRun = std::function<std::vector<DatasetRunReport>(
+    bool on, const std::vector<std::filesystem::path>& clips, const std::filesystem::path& atlas)>;
+void run_over_two_recordings(const std::string& name, const RecordingsRun& run, RulesOverTwoRecordings& out) {
+  const auto a = test::simulated_clip("MH_01", 46.0, 8.0);
+  test::ClipCleanup cleanup_a{a};
+  const auto b = test::simulated_clip("MH_02", 38.0, 8.0);
+  test::ClipCleanup cleanup_b{b};
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("orbatlas_test_" + name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  test::ClipCleanup cleanup_dir{dir};
+  out.with = run(true, {a, b}, dir / "with.db");
+  out.without = run(false, {a, b}, dir / "without.db");
+  out.alone = run(true, {a}, dir / "alone.db");
+  ASSERT_EQ(out.with.size(), 2u);
+  ASSERT_EQ(out.without.size(), 2u);
+  ASSERT_EQ(out.alone.size(), 1u);
+  for (const auto* reports : {&out.with, &out.without, &out.alone})
+    for (const auto& r : *reports) {
+      EXPECT_TRUE(r.failed.empty()) << r.failed;
+      ASSERT_TRUE(r.ate_rmse_m.has_value());
+    }
+}
+
 // Two recordings mapping one map at once re-observe each other's points, which
 // closes no loop: the map gets a global BA each time it has grown by half since
 // its last one (LoopCloserOptions::shared_map_refinement_growth); never with the
 // rule off, and never for a map of one session.
 TEST(AtlasSessions, AMapSeveralRecordingsMapAtOnceIsAdjustedWholeAsItGrows) {
-  const auto a = test::simulated_clip("MH_01", 46.0, 8.0);
-  test::ClipCleanup cleanup_a{a};
-  const auto b = test::simulated_clip("MH_02", 38.0, 8.0);
-  test::ClipCleanup cleanup_b{b};
-  const auto dir = std::filesystem::temp_directory_path() / ("orbatlas_test_shared_ba_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  test::ClipCleanup cleanup_dir{dir};
   const auto shared_map_runs = [](const DatasetRunReport& r) {
     return std::count_if(r.stats.loop.global_adjustments.begin(), r.stats.loop.global_adjustments.end(),
                          [](const GlobalAdjustmentRun& g) { return g.cause == GlobalAdjustmentCause::kSharedMap; });
   };
-  const auto run = [&](double growth, const std::vector<std::filesystem::path>& clips, const std::string& name) {
-    DatasetRunOptions options = options_for(clips.front(), dir / (name + ".db"));
-    options.slam.synchronous_mapping = true;
-    options.slam.loop.shared_map_refinement_growth = growth;
-    options.slam.loop.shared_map_refinement_min_keyframes = 8;
-    return run_stereo_datasets(options, clips);
-  };
-  const auto with = run(0.5, {a, b}, "with");
-  const auto without = run(0.0, {a, b}, "without");
-  const auto alone = run(0.5, {a}, "alone");
-  ASSERT_EQ(with.size(), 2u);
-  ASSERT_EQ(without.size(), 2u);
-  ASSERT_EQ(alone.size(), 1u);
-  for (const auto* reports : {&with, &without, &alone})
-    for (const auto& r : *reports) {
-      EXPECT_TRUE(r.failed.empty()) << r.failed;
-      ASSERT_TRUE(r.ate_rmse_m.has_value());
-    }
+  RulesOverTwoRecordings runs;
+  run_over_two_recordings(
+      "shared_ba",
+      [](bool on, const std::vector<std::filesystem::path>& clips, const std::filesystem::path& atlas) {
+        DatasetRunOptions options = options_for(clips.front(), atlas);
+        options.slam.synchronous_mapping = true;
+        options.slam.loop.shared_map_refinement_growth = on ? 0.5 : 0.0;
+        options.slam.loop.shared_map_refinement_min_keyframes = 8;
+        return run_stereo_datasets(options, clips);
+      },
+      runs);
+  if (HasFatalFailure()) return;
+  const auto& [with, without, alone] = runs;
   std::printf(
       "shared-map global BAs %td (%zu global BAs in all); ATE with %.4f, %.4f m, without %.4f, %.4f m, "
       "alone %.4f m\n",
@@ -250,39 +270,26 @@ TEST(AtlasSessions, AMapSeveralRecordingsMapAtOnceIsAdjustedWholeAsItGrows) {
 // recording to end (the second finds the map adjusted since). None without the
 // wait, none for a map of one recording.
 TEST(AtlasSessions, ARecordingEndingInASharedMapHasTheMapAdjustedInItsFinish) {
-  const auto a = test::simulated_clip("MH_01", 46.0, 8.0);
-  test::ClipCleanup cleanup_a{a};
-  const auto b = test::simulated_clip("MH_02", 38.0, 8.0);
-  test::ClipCleanup cleanup_b{b};
-  const auto dir = std::filesystem::temp_directory_path() / ("orbatlas_test_end_ba_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  test::ClipCleanup cleanup_dir{dir};
   const auto stream_end_runs = [](const DatasetRunReport& r) {
     std::vector<GlobalAdjustmentRun> runs;
     for (const auto& g : r.stats.loop.global_adjustments)
       if (g.cause == GlobalAdjustmentCause::kStreamEnd) runs.push_back(g);
     return runs;
   };
-  const auto run = [&](double wait_s, const std::vector<std::filesystem::path>& clips, const std::string& name) {
-    DatasetRunOptions options = options_for(clips.front(), dir / (name + ".db"));
-    options.slam.synchronous_mapping = true;
-    options.slam.loop.shared_map_refinement_growth = 0.0;  // only merges' and the ends' global BAs
-    options.slam.loop.shared_map_refinement_min_keyframes = 8;
-    options.slam.shared_map_finish_wait_s = wait_s;
-    return run_stereo_datasets(options, clips);
-  };
-  const auto with = run(60.0, {a, b}, "with");
-  const auto without = run(0.0, {a, b}, "without");
-  const auto alone = run(60.0, {a}, "alone");
-  ASSERT_EQ(with.size(), 2u);
-  ASSERT_EQ(without.size(), 2u);
-  ASSERT_EQ(alone.size(), 1u);
-  for (const auto* reports : {&with, &without, &alone})
-    for (const auto& r : *reports) {
-      EXPECT_TRUE(r.failed.empty()) << r.failed;
-      ASSERT_TRUE(r.ate_rmse_m.has_value());
-    }
+  RulesOverTwoRecordings runs;
+  run_over_two_recordings(
+      "end_ba",
+      [](bool on, const std::vector<std::filesystem::path>& clips, const std::filesystem::path& atlas) {
+        DatasetRunOptions options = options_for(clips.front(), atlas);
+        options.slam.synchronous_mapping = true;
+        options.slam.loop.shared_map_refinement_growth = 0.0;  // only merges' and the ends' global BAs
+        options.slam.loop.shared_map_refinement_min_keyframes = 8;
+        options.slam.shared_map_finish_wait_s = on ? 60.0 : 0.0;
+        return run_stereo_datasets(options, clips);
+      },
+      runs);
+  if (HasFatalFailure()) return;
+  const auto& [with, without, alone] = runs;
   const auto ended = stream_end_runs(with[0]);
   std::printf("global BAs at an end: %zu (%zu keyframes, %.2f s); ATE with %.4f, %.4f m, without %.4f, %.4f m\n",
               ended.size(), ended.empty() ? 0 : ended[0].keyframes, ended.empty() ? 0.0 : ended[0].seconds,
