@@ -152,12 +152,13 @@ void LoopCloser::handle_stream_end(const std::shared_ptr<StreamEndWait>& wait) {
         return;
       }
     }
+    forget_merged_maps();
     const bool due = options_.global_bundle_adjustment && options_.stream_end_refinement_growth > 0.0 &&
                      refinement_due(wait->map, options_.stream_end_refinement_growth);
     if (!due) return tell(true);
     {
       std::lock_guard lock(global_mutex_);
-      if (global_running_) return tell(false);  // another map's: this one waits for a later keyframe's turn
+      if (global_running_) return tell(false);  // another map's: none for this one now
     }
     log_info("map " + std::to_string(wait->map) + ": a session ended in it, " +
              std::to_string(since_global_[wait->map].keyframes) +
@@ -170,10 +171,13 @@ void LoopCloser::handle_stream_end(const std::shared_ptr<StreamEndWait>& wait) {
   }
 }
 
+void LoopCloser::forget_merged_maps() {
+  std::erase_if(since_global_, [&](const auto& entry) { return !atlas_.map(entry.first); });
+}
+
 bool LoopCloser::refinement_due(MapId map_id, double growth) {
   const auto map = atlas_.map(map_id);
   if (!map) return false;
-  std::erase_if(since_global_, [&](const auto& entry) { return !atlas_.map(entry.first); });  // merged away
   const auto it = since_global_.find(map_id);
   if (it == since_global_.end()) return false;
   const std::size_t keyframes = map->keyframe_count();
@@ -253,6 +257,7 @@ void LoopCloser::process(const Item& item) {
 void LoopCloser::refine_shared_map(const Item& item) {
   const auto map = atlas_.map(item.keyframe->map_id());
   if (!map) return;
+  forget_merged_maps();
   since_global_[map->id()].streams.insert(item.stream);  // a stream's end asks too (handle_stream_end)
   if (!options_.global_bundle_adjustment || options_.shared_map_refinement_growth <= 0.0 ||
       !refinement_due(map->id(), options_.shared_map_refinement_growth))

@@ -204,6 +204,8 @@ class LoopCloser {
   // Worker thread: a map is due a refinement when streams.size() >= 2 and it
   // has at least min_keyframes and (1 + growth) times its keyframes then.
   bool refinement_due(MapId map, double growth);
+  // Worker thread: drops since_global_'s entries of maps merged away.
+  void forget_merged_maps();
   // A global BA of the keyframe's map when several streams map it and it grew
   // enough since its last one (shared_map_refinement_growth); none while one runs.
   void refine_shared_map(const Item& item);
