@@ -17,6 +17,7 @@
 #   scripts/bench_capacity.sh                 # N = 1 2 3 4, 60 s each, real look
 #   NS="1 2 3 4 5 6" scripts/bench_capacity.sh
 #   SECONDS_PER_SESSION=120 LOOK=clean MAX_LAG=0.1 scripts/bench_capacity.sh
+#   SECONDS_PER_SESSION=full NS=4 scripts/bench_capacity.sh   # each whole sequence from its first frame (START_S 0)
 #   ORBATLAS_BIN=/tmp/orbatlas ORBATLAS_SERVER_BIN=/tmp/orbatlas-server scripts/bench_capacity.sh   # frozen binaries
 #   SERVER_FLAGS="--serial-stereo-frontend" KEEP_ALONE=1 NS=4 scripts/bench_capacity.sh  # server flags
 #   PHASES=spread NS=4 scripts/bench_capacity.sh   # the cameras' frames out of step (see below)
@@ -41,6 +42,13 @@ source "$ROOT/scripts/bench_env.sh"
 SERVER_BIN="${ORBATLAS_SERVER_BIN:-$BUILD_DIR/server/orbatlas-server}"
 read -r -a N_LIST <<< "${NS:-1 2 3 4}"
 SECONDS_PER_SESSION="${SECONDS_PER_SESSION:-60}"
+# full: every session streams its whole sequence (MH_01 182 s ... MH_04 99 s),
+# from its first frame unless START_S says otherwise.
+DURATION_FLAGS=(--duration "$SECONDS_PER_SESSION")
+if [ "$SECONDS_PER_SESSION" = full ]; then
+  DURATION_FLAGS=()
+  START_S="${START_S:-0}"
+fi
 START_S="${START_S:-20}"
 LOOK="${LOOK:-real}"
 MAX_LAG="${MAX_LAG:-0.1}"
@@ -53,7 +61,14 @@ BACKGROUND_NICE="${BACKGROUND_NICE:-10}"
 SERVER_TASKSET=(); [ -n "${SERVER_CPUS:-}" ] && SERVER_TASKSET=(taskset -c "$SERVER_CPUS")
 CLIENT_TASKSET=(); [ -n "${CLIENT_CPUS:-}" ] && CLIENT_TASKSET=(taskset -c "$CLIENT_CPUS")
 [ "$PHASES" = together ] || [ "$PHASES" = spread ] || { echo "bench_capacity: PHASES is together or spread" >&2; exit 1; }
-PRELOAD_S="${PRELOAD_S:-40}"  # seconds the clients get to read and decode their clips before they begin
+# PRELOAD_S: seconds the clients get to read and decode their clips before they
+# begin; unset: 40, and for whole sequences 40 + 25 per session (MH_01's 3,682
+# pairs take about 30 s of one core).
+preload_s() {
+  if [ -n "${PRELOAD_S:-}" ]; then echo "$PRELOAD_S"
+  elif [ "$SECONDS_PER_SESSION" = full ]; then echo $(( 40 + 25 * $1 ))
+  else echo 40; fi
+}
 SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05 MH_01)
 # MAPPING_WAIT_MS: the server's sessions get Orbatlas.Tracker.MaxMappingWaitMs,
 # and SETTINGS ("Name: value" entries, ';' between them) any others, through a
@@ -108,7 +123,7 @@ run_sessions() {
   # server's CPU is measured from then.
   local pids=() i=0 start_at wait_s
   for seq in "$@"; do dataset "$seq" > /dev/null; done  # rendered before the clock starts
-  start_at=$(( $(date +%s) + PRELOAD_S ))
+  start_at=$(( $(date +%s) + $(preload_s $#) ))
   local client_start
   for seq in "$@"; do
     i=$((i + 1))
@@ -116,7 +131,7 @@ run_sessions() {
     # spread: the sequences' frames are 50 ms apart (20 Hz); client i of N starts (i-1)/N of that later.
     [ "$PHASES" = spread ] && client_start=$(awk -v t="$start_at" -v i="$i" -v n="$#" 'BEGIN { printf "%.4f", t + (i - 1) * 0.05 / n }')
     "${CLIENT_TASKSET[@]}" "$OA" stream --server "$url" --dataset "$(dataset "$seq")" --start "$START_S" \
-        --duration "$SECONDS_PER_SESSION" --rate "$RATE" --max-lag "$MAX_LAG" --preload --start-at "$client_start" --name "$name-$i-$seq" --no-progress \
+        "${DURATION_FLAGS[@]}" --rate "$RATE" --max-lag "$MAX_LAG" --preload --start-at "$client_start" --name "$name-$i-$seq" --no-progress \
         --stats "$dir/${i}_$seq.json" --frame-log "$dir/${i}_$seq.frames.csv" --out-trajectory "$dir/${i}_$seq.tum" \
         > "$dir/${i}_$seq.txt" 2>&1 &
     pids+=($!)
@@ -256,8 +271,11 @@ RUNS="${RUNS:-1}"
 BASE_OUT="$OUT"
 for ((run = 1; run <= RUNS; ++run)); do
   [ "$RUNS" -gt 1 ] && { OUT="$BASE_OUT/run_$run"; mkdir -p "$OUT"; echo "== run $run of $RUNS"; }
+  declare -A alone_done=()
   for ((k = 0; k < MAX_N; ++k)); do
     seq=${SEQUENCES[$k]}
+    [ -n "${alone_done[$seq]:-}" ] && continue  # the sixth session's MH_01 is the first's clip
+    alone_done[$seq]=1
     [ -f "$OUT/alone_$seq/1_$seq.json" ] && [ -n "${KEEP_ALONE:-}" ] && continue
     echo "== alone: $seq ($LOOK look, ${SECONDS_PER_SESSION} s from ${START_S} s, rate 1)"
     run_sessions "alone_$seq" "$seq"
