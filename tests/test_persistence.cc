@@ -441,6 +441,51 @@ TEST_P(PersistenceBackends, SessionsRoundTrip) {
   expect_session_eq(*store.load_session(3), stereo);
 }
 
+// Upload jobs (job_rows.h): every field, optional ones absent and present,
+// read as a list and one by id; a row written again replaces the stored one.
+TEST_P(PersistenceBackends, JobsRoundTrip) {
+  AtlasStore store = open_store(test_vocabulary().hash());
+  SessionInfo session;  // a job's session must be stored (a foreign key)
+  session.id = 12;
+  session.name = "MH_02 upload";
+  store.save_session(session);
+  StoredJob done;
+  done.id = 7;
+  done.name = "MH_02 upload";
+  done.state = "done";
+  done.session = 12;
+  done.created_ns = 1'700'000'000'987'654'321LL;
+  done.archive_bytes = 1'234'567'890;
+  done.frames_total = 2'999;
+  done.frames_done = 2'999;
+  done.tracked = 2'990;
+  done.rejected = 3;
+  done.ate_rmse_m = 0.0071;
+  StoredJob failed;  // no session, no ATE
+  failed.id = 2;
+  failed.name = "";
+  failed.state = "failed";
+  failed.created_ns = 5;
+  failed.error = "interrupted: the server stopped";
+  store.save_job(done);
+  store.save_job(failed);
+
+  const std::vector<StoredJob> all = store.load_jobs();
+  ASSERT_EQ(all.size(), 2u);
+  EXPECT_EQ(all[0], failed);  // by id
+  EXPECT_EQ(all[1], done);
+  EXPECT_EQ(store.load_job(7), done);
+  EXPECT_EQ(store.load_job(2), failed);
+  EXPECT_FALSE(store.load_job(3).has_value());
+
+  failed.state = "queued";
+  failed.error.clear();
+  failed.frames_done = 10;
+  store.save_job(failed);
+  EXPECT_EQ(store.load_job(2), failed);
+  EXPECT_EQ(store.load_jobs().size(), 2u);
+}
+
 TEST_P(PersistenceBackends, TrajectoryRoundTrip) {
   AtlasStore store = open_store(test_vocabulary().hash());
   SessionInfo session;

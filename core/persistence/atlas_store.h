@@ -103,6 +103,7 @@ class AtlasStore {
   // --- upload jobs (job_rows.h) ---
   void save_job(const StoredJob& job) { write_job(*db_, job); }
   std::vector<StoredJob> load_jobs() { return read_jobs(*db_); }
+  std::optional<StoredJob> load_job(std::uint64_t id) { return read_job(*db_, id); }
 
  private:
   friend class AtlasCheckpointWriter;  // writes through this connection, in its own transactions

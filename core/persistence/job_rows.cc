@@ -33,29 +33,43 @@ void write_job(SqlConnection& db, const StoredJob& job) {
   upsert.bind_text(12, job.error).run();
 }
 
+namespace {
+
+constexpr const char* kJobColumns =
+    "SELECT id, name, state, session_id, created_ns, archive_bytes, frames_total, frames_done, tracked, rejected, "
+    "ate_rmse_m, error FROM upload_jobs";
+
+StoredJob job_from_row(SqlStatement& rows) {
+  StoredJob j;
+  j.id = id_column(rows, 0);
+  j.name = rows.text(1);
+  j.state = rows.text(2);
+  if (!rows.is_null(3)) j.session = id_column(rows, 3);
+  j.created_ns = rows.int64(4);
+  j.archive_bytes = id_column(rows, 5);
+  j.frames_total = id_column(rows, 6);
+  j.frames_done = id_column(rows, 7);
+  j.tracked = id_column(rows, 8);
+  j.rejected = id_column(rows, 9);
+  if (!rows.is_null(10)) j.ate_rmse_m = rows.real(10);
+  j.error = rows.text(11);
+  return j;
+}
+
+}  // namespace
+
 std::vector<StoredJob> read_jobs(SqlConnection& db) {
   std::vector<StoredJob> jobs;
-  const std::unique_ptr<SqlStatement> statement = db.prepare_statement(
-      "SELECT id, name, state, session_id, created_ns, archive_bytes, frames_total, frames_done, tracked, rejected, "
-      "ate_rmse_m, error FROM upload_jobs ORDER BY id");
-  SqlStatement& rows = *statement;
-  while (rows.step()) {
-    StoredJob j;
-    j.id = id_column(rows, 0);
-    j.name = rows.text(1);
-    j.state = rows.text(2);
-    if (!rows.is_null(3)) j.session = id_column(rows, 3);
-    j.created_ns = rows.int64(4);
-    j.archive_bytes = id_column(rows, 5);
-    j.frames_total = id_column(rows, 6);
-    j.frames_done = id_column(rows, 7);
-    j.tracked = id_column(rows, 8);
-    j.rejected = id_column(rows, 9);
-    if (!rows.is_null(10)) j.ate_rmse_m = rows.real(10);
-    j.error = rows.text(11);
-    jobs.push_back(std::move(j));
-  }
+  const std::unique_ptr<SqlStatement> statement = db.prepare_statement(std::string(kJobColumns) + " ORDER BY id");
+  while (statement->step()) jobs.push_back(job_from_row(*statement));
   return jobs;
+}
+
+std::optional<StoredJob> read_job(SqlConnection& db, std::uint64_t id) {
+  const std::unique_ptr<SqlStatement> statement = db.prepare_statement(std::string(kJobColumns) + " WHERE id = ?1");
+  statement->bind_int64(1, sql_id(id));
+  if (!statement->step()) return std::nullopt;
+  return job_from_row(*statement);
 }
 
 }  // namespace orbatlas

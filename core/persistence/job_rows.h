@@ -28,6 +28,7 @@ struct StoredJob {
 
 // Inserts or replaces the job's row (one statement: its own transaction).
 void write_job(SqlConnection& db, const StoredJob& job);
-std::vector<StoredJob> read_jobs(SqlConnection& db);  // by id
+std::vector<StoredJob> read_jobs(SqlConnection& db);                     // by id
+std::optional<StoredJob> read_job(SqlConnection& db, std::uint64_t id);  // one row; none when absent
 
 }  // namespace orbatlas

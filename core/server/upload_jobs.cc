@@ -305,8 +305,7 @@ void UploadJobs::work_shared() {
       std::optional<StoredJob> row;
       {
         std::lock_guard lock(store_mutex_);
-        for (StoredJob& r : store_->load_jobs())
-          if (r.id == claimed->id) row = std::move(r);
+        row = store_->load_job(claimed->id);
       }
       std::lock_guard lock(mutex_);
       Job& job = jobs_[claimed->id];
@@ -442,10 +441,14 @@ std::vector<prometheus::MetricFamily> UploadJobs::metrics() const {
 }
 
 StoredJob UploadJobs::job(JobId id) const {
-  if (shared_) {
-    for (StoredJob& row : jobs())
-      if (row.id == id) return std::move(row);
-    throw_not_found("no job " + std::to_string(id));
+  if (shared_) {  // any replica's, as the database has it
+    std::optional<StoredJob> row;
+    {
+      std::lock_guard lock(store_mutex_);
+      row = store_->load_job(id);
+    }
+    if (!row) throw_not_found("no job " + std::to_string(id));
+    return std::move(*row);
   }
   std::lock_guard lock(mutex_);
   const auto it = jobs_.find(id);
