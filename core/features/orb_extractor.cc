@@ -206,53 +206,106 @@ void fast_score_row(const std::uint8_t* row, const std::ptrdiff_t* offsets, int 
   for (; x < x_end; ++x) out[x] = fast_score_scalar(row + x, offsets);
 }
 
-// t[i] = s[i] if s[i] >= threshold else 0, for i in [0, w).
-void threshold_row(const std::uint8_t* s, std::uint8_t* t, int w, int threshold) {
-  int i = 0;
-#if defined(__SSE2__)
-  const __m128i th = _mm_set1_epi8(static_cast<char>(threshold));
-  for (; i + 16 <= w; i += 16) {
-    const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(s + i));
-    const __m128i keep = _mm_cmpeq_epi8(_mm_max_epu8(v, th), v);
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(t + i), _mm_and_si128(v, keep));
-  }
-#endif
-  for (; i < w; ++i) t[i] = s[i] >= threshold ? s[i] : 0;
+// ---- Non-maximum suppression, a row of a band of cells at a time ----
+//
+// cv::FAST on a cell's window keeps a corner that scores strictly above each of
+// its 8 neighbours, and sees nothing outside the window: a neighbour in another
+// cell does not count. A neighbour scoring below the threshold never decides
+// (the corner itself scores at least the threshold), so the level's scores are
+// used as they are, the neighbours across a cell's edge masked out.
+
+inline void set_bits(std::uint64_t* bits, int x, std::uint64_t mask, int lanes) {
+  const int shift = x & 63;
+  bits[x >> 6] |= mask << shift;
+  if (shift > 64 - lanes) bits[(x >> 6) + 1] |= mask >> (64 - shift);
 }
 
-// Calls found(i, score) for each i in [1, w] where row[i] is above its 8
-// neighbours in row - stride, row and row + stride (strictly; zero is no corner).
-// Reads row[-stride, w + 17) and the same range of the rows around.
-template <typename Found>
-void local_maxima_row(const std::uint8_t* row, std::size_t stride, int w, Found&& found) {
-  const std::uint8_t* up = row - stride;
-  const std::uint8_t* down = row + stride;
-#if defined(__SSE2__)
-  const auto load = [](const std::uint8_t* p) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(p)); };
-  for (int i = 1; i <= w; i += 16) {
-    const __m128i c = load(row + i);
-    __m128i m = _mm_max_epu8(load(row + i - 1), load(row + i + 1));
-    m = _mm_max_epu8(m, _mm_max_epu8(load(up + i - 1), load(up + i)));
-    m = _mm_max_epu8(m, _mm_max_epu8(load(up + i + 1), load(down + i - 1)));
-    m = _mm_max_epu8(m, _mm_max_epu8(load(down + i), load(down + i + 1)));
-    // c > m, unsigned: c - m does not saturate to zero. Lanes past w hold zeros.
-    unsigned mask =
-        ~static_cast<unsigned>(_mm_movemask_epi8(_mm_cmpeq_epi8(_mm_subs_epu8(c, m), _mm_setzero_si128()))) & 0xffffu;
-    while (mask != 0) {
-      const int bit = std::countr_zero(mask);
-      found(i + bit, row[i + bit]);
-      mask &= mask - 1;
-    }
+void maxima_row_scalar(const std::uint8_t* up, const std::uint8_t* row, const std::uint8_t* down,
+                       const std::uint8_t* left_ok, const std::uint8_t* right_ok, int x_begin, int x_end,
+                       int threshold, std::uint64_t* bits) {
+  for (int x = x_begin; x < x_end; ++x) {
+    const int c = row[x];
+    if (c < threshold) continue;
+    int m = std::max(up[x], down[x]);
+    if (left_ok[x] != 0) m = std::max({m, static_cast<int>(row[x - 1]), static_cast<int>(up[x - 1]),
+                                       static_cast<int>(down[x - 1])});
+    if (right_ok[x] != 0) m = std::max({m, static_cast<int>(row[x + 1]), static_cast<int>(up[x + 1]),
+                                        static_cast<int>(down[x + 1])});
+    if (c > m) bits[x >> 6] |= std::uint64_t{1} << (x & 63);
   }
-#else
-  for (int i = 1; i <= w; ++i) {
-    const std::uint8_t c = row[i];
-    if (c == 0) continue;
-    const bool peak = c > row[i - 1] && c > row[i + 1] && c > up[i - 1] && c > up[i] && c > up[i + 1] &&
-                      c > down[i - 1] && c > down[i] && c > down[i + 1];
-    if (peak) found(i, c);
+}
+
+#if defined(__SSE2__)
+// 16 pixels at a time (x_end - x_begin >= 16; the last block overlaps the one before).
+void maxima_row_sse2(const std::uint8_t* up, const std::uint8_t* row, const std::uint8_t* down,
+                     const std::uint8_t* left_ok, const std::uint8_t* right_ok, int x_begin, int x_end, int threshold,
+                     std::uint64_t* bits) {
+  const auto load = [](const std::uint8_t* p) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(p)); };
+  const __m128i th = _mm_set1_epi8(static_cast<char>(threshold)), zero = _mm_setzero_si128();
+  for (int x = x_begin;; x += 16) {
+    if (x + 16 > x_end) x = x_end - 16;
+    const __m128i c = load(row + x), l = load(left_ok + x), r = load(right_ok + x);
+    __m128i m = _mm_max_epu8(load(up + x), load(down + x));
+    m = _mm_max_epu8(m, _mm_and_si128(l, _mm_max_epu8(load(row + x - 1), _mm_max_epu8(load(up + x - 1), load(down + x - 1)))));
+    m = _mm_max_epu8(m, _mm_and_si128(r, _mm_max_epu8(load(row + x + 1), _mm_max_epu8(load(up + x + 1), load(down + x + 1)))));
+    // c >= threshold and c > m (unsigned: c - m does not saturate to zero).
+    const __m128i keep = _mm_andnot_si128(_mm_cmpeq_epi8(_mm_subs_epu8(c, m), zero), _mm_cmpeq_epi8(_mm_max_epu8(c, th), c));
+    const auto mask = static_cast<std::uint64_t>(static_cast<unsigned>(_mm_movemask_epi8(keep)));
+    if (mask != 0) set_bits(bits, x, mask, 16);
+    if (x + 16 == x_end) return;
+  }
+}
+#endif
+
+#if defined(ORBATLAS_FAST_AVX2)
+// The same 32 pixels at a time (x_end - x_begin >= 32).
+__attribute__((target("avx2"))) void maxima_row_avx2(const std::uint8_t* up, const std::uint8_t* row,
+                                                     const std::uint8_t* down, const std::uint8_t* left_ok,
+                                                     const std::uint8_t* right_ok, int x_begin, int x_end,
+                                                     int threshold, std::uint64_t* bits) {
+#define ORBATLAS_LOAD32(p) _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p))
+  const __m256i th = _mm256_set1_epi8(static_cast<char>(threshold)), zero = _mm256_setzero_si256();
+  for (int x = x_begin;; x += 32) {
+    if (x + 32 > x_end) x = x_end - 32;
+    const __m256i c = ORBATLAS_LOAD32(row + x), l = ORBATLAS_LOAD32(left_ok + x), r = ORBATLAS_LOAD32(right_ok + x);
+    const __m256i strong = _mm256_cmpeq_epi8(_mm256_max_epu8(c, th), c);  // c >= threshold
+    __m256i m = _mm256_max_epu8(ORBATLAS_LOAD32(up + x), ORBATLAS_LOAD32(down + x));
+    m = _mm256_max_epu8(
+        m, _mm256_and_si256(l, _mm256_max_epu8(ORBATLAS_LOAD32(row + x - 1),
+                                               _mm256_max_epu8(ORBATLAS_LOAD32(up + x - 1), ORBATLAS_LOAD32(down + x - 1)))));
+    m = _mm256_max_epu8(
+        m, _mm256_and_si256(r, _mm256_max_epu8(ORBATLAS_LOAD32(row + x + 1),
+                                               _mm256_max_epu8(ORBATLAS_LOAD32(up + x + 1), ORBATLAS_LOAD32(down + x + 1)))));
+    const __m256i keep = _mm256_andnot_si256(_mm256_cmpeq_epi8(_mm256_subs_epu8(c, m), zero), strong);
+    const auto mask = static_cast<std::uint64_t>(static_cast<unsigned>(_mm256_movemask_epi8(keep)));
+    if (mask != 0) set_bits(bits, x, mask, 32);
+    if (x + 32 == x_end) return;
+  }
+#undef ORBATLAS_LOAD32
+}
+#endif
+
+// Bit x of bits for each x in [x_begin, x_end) where row[x] is a corner of its
+// cell at `threshold` (left_ok[x] / right_ok[x]: 0xff where pixel x - 1 / x + 1
+// lies in x's cell; up / down: the rows around, zeros outside the cell). Reads
+// [x_begin - 1, x_end + 1) of each row and of the masks; sets bits, never clears them.
+void maxima_row(const std::uint8_t* up, const std::uint8_t* row, const std::uint8_t* down,
+                const std::uint8_t* left_ok, const std::uint8_t* right_ok, int x_begin, int x_end, int threshold,
+                std::uint64_t* bits, bool use_avx2) {
+#if defined(ORBATLAS_FAST_AVX2)
+  if (use_avx2 && x_end - x_begin >= 32 && cpu_has_avx2()) {
+    maxima_row_avx2(up, row, down, left_ok, right_ok, x_begin, x_end, threshold, bits);
+    return;
   }
 #endif
+  (void)use_avx2;
+#if defined(__SSE2__)
+  if (x_end - x_begin >= 16) {
+    maxima_row_sse2(up, row, down, left_ok, right_ok, x_begin, x_end, threshold, bits);
+    return;
+  }
+#endif
+  maxima_row_scalar(up, row, down, left_ok, right_ok, x_begin, x_end, threshold, bits);
 }
 
 }  // namespace
@@ -340,6 +393,7 @@ void OrbExtractor::detect_level(int level) {
   // above ini_th_fast are the same either way, so the cells around see the same.
   scores_.resize(static_cast<std::size_t>(img.rows) * static_cast<std::size_t>(img.cols));
   const auto stride = static_cast<std::size_t>(img.cols);
+  scores_stride_ = stride;
   std::ptrdiff_t offsets[16];
   for (int k = 0; k < 16; ++k)
     offsets[k] = static_cast<std::ptrdiff_t>(kCircle[k][1]) * static_cast<std::ptrdiff_t>(img.step1()) + kCircle[k][0];
@@ -352,47 +406,86 @@ void OrbExtractor::detect_level(int level) {
                      options_.min_th_fast, options_.use_avx2);
   };
 
+  // The cells' detection areas: columns [cell_x[j], cell_x[j + 1]) and rows
+  // [cell_y[i], cell_y[i + 1]); together they tile [kBorder, size - kBorder).
   const int n_cols = std::max(1, width / options_.cell_size), n_rows = std::max(1, height / options_.cell_size);
   const int cell_w = (width + n_cols - 1) / n_cols, cell_h = (height + n_rows - 1) / n_rows;
-  for (int i = 0; i < n_rows; ++i) {
-    const int y0 = min_y + i * cell_h;
-    if (y0 >= max_y - 2 * kFastRadius) continue;
-    const int y1 = std::min(y0 + cell_h + 2 * kFastRadius, max_y);
-    for (int j = 0; j < n_cols; ++j) {
-      const int x0 = min_x + j * cell_w;
-      if (x0 >= max_x - 2 * kFastRadius) continue;
-      const int x1 = std::min(x0 + cell_w + 2 * kFastRadius, max_x);
-      // The window [x0, x1) x [y0, y1) detects in its interior, 3 px in.
-      const cv::Rect area(x0 + kFastRadius, y0 + kFastRadius, x1 - x0 - 2 * kFastRadius, y1 - y0 - 2 * kFastRadius);
-      if (!cell_corners(area, stride, options_.ini_th_fast, min_x, min_y)) {
-        rescore(area);
-        cell_corners(area, stride, options_.min_th_fast, min_x, min_y);
-      }
+  const auto edges = [](int first, int cell, int n, int max) {
+    // ORB-SLAM's windows: cell i from first + i * cell, 2 * kFastRadius wider, cut at max.
+    std::vector<int> e;
+    for (int i = 0; i < n; ++i) {
+      const int w0 = first + i * cell;
+      if (w0 >= max - 2 * kFastRadius) break;
+      if (e.empty()) e.push_back(w0 + kFastRadius);
+      e.push_back(std::min(w0 + cell + 2 * kFastRadius, max) - kFastRadius);
+    }
+    return e;
+  };
+  const std::vector<int> cell_x = edges(min_x, cell_w, n_cols, max_x), cell_y = edges(min_y, cell_h, n_rows, max_y);
+  const auto cols = static_cast<std::size_t>(img.cols);
+  left_in_cell_.assign(cols + 64, 0xff);
+  right_in_cell_.assign(cols + 64, 0xff);
+  for (std::size_t j = 0; j + 1 < cell_x.size(); ++j) {
+    left_in_cell_[static_cast<std::size_t>(cell_x[j])] = 0;
+    right_in_cell_[static_cast<std::size_t>(cell_x[j + 1] - 1)] = 0;
+  }
+  zero_row_.assign(cols + 64, 0);
+  band_words_ = cols / 64 + 2;
+  // Candidates keep their detection index in 24 bits, and there is at most
+  // one corner in each 2 x 2 block of pixels.
+  ORBATLAS_CHECK(cols * static_cast<std::size_t>(img.rows) / 4 < (std::size_t{1} << 24),
+                 "ORB: a " << img.cols << "x" << img.rows << " image is too large");
+  if (candidates_.capacity() < cols * static_cast<std::size_t>(img.rows) / 4)
+    candidates_.reserve(cols * static_cast<std::size_t>(img.rows) / 4);  // at most a corner in each 2 x 2 block
+
+  for (std::size_t i = 0; i + 1 < cell_y.size(); ++i) {
+    const int y0 = cell_y[i], y1 = cell_y[i + 1];
+    band_bits_.assign(static_cast<std::size_t>(y1 - y0) * band_words_, 0);
+    band_maxima(y0, y1, cell_x.front(), cell_x.back(), options_.ini_th_fast);
+    for (std::size_t j = 0; j + 1 < cell_x.size(); ++j) {
+      const int x0 = cell_x[j], x1 = cell_x[j + 1];
+      if (take_corners(y0, y1, x0, x1, min_x, min_y)) continue;
+      // No corner at ini_th_fast (so none of the cell's bits is set): the
+      // cell's own area again at min_th_fast.
+      rescore(cv::Rect(x0, y0, x1 - x0, y1 - y0));
+      band_maxima(y0, y1, x0, x1, options_.min_th_fast);
+      take_corners(y0, y1, x0, x1, min_x, min_y);
     }
   }
 }
 
-bool OrbExtractor::cell_corners(const cv::Rect& area, std::size_t stride, int threshold, int min_x, int min_y) {
-  // The thresholded scores of the area with a frame of zeros: cv::FAST sees
-  // nothing outside its window, and a pixel below the threshold is no corner.
-  const int w = area.width, h = area.height;
-  const std::size_t tstride = static_cast<std::size_t>(((w + 2 + 15) & ~15) + 16);
-  tile_.assign((static_cast<std::size_t>(h) + 2) * tstride, 0);
-  const std::size_t before = candidates_.size();
-  for (int r = 0; r < h; ++r) {
-    const std::uint8_t* s =
-        scores_.data() + static_cast<std::size_t>(area.y + r) * stride + static_cast<std::size_t>(area.x);
-    std::uint8_t* t = tile_.data() + static_cast<std::size_t>(r + 1) * tstride + 1;
-    threshold_row(s, t, w, threshold);
+void OrbExtractor::band_maxima(int y_begin, int y_end, int x_begin, int x_end, int threshold) {
+  const auto stride = static_cast<std::size_t>(scores_stride_);
+  for (int y = y_begin; y < y_end; ++y) {
+    const std::uint8_t* row = scores_.data() + static_cast<std::size_t>(y) * stride;
+    const std::uint8_t* up = y == y_begin ? zero_row_.data() : row - stride;
+    const std::uint8_t* down = y + 1 == y_end ? zero_row_.data() : row + stride;
+    maxima_row(up, row, down, left_in_cell_.data(), right_in_cell_.data(), x_begin, x_end, threshold,
+               band_bits_.data() + static_cast<std::size_t>(y - y_begin) * band_words_, options_.use_avx2);
   }
-  // Non-maximum suppression as cv::FAST: a corner must score strictly above
-  // each of its 8 neighbours (zero when not a corner).
-  for (int r = 1; r <= h; ++r) {
-    const std::uint8_t* row = tile_.data() + static_cast<std::size_t>(r) * tstride;
-    local_maxima_row(row, tstride, w, [&](int i, std::uint8_t score) {
-      candidates_.push_back({static_cast<float>(area.x + i - 1 - min_x), static_cast<float>(area.y + r - 1 - min_y),
-                             static_cast<float>(score)});
-    });
+}
+
+bool OrbExtractor::take_corners(int y_begin, int y_end, int x_begin, int x_end, int min_x, int min_y) {
+  const std::size_t before = candidates_.size();
+  const auto stride = static_cast<std::size_t>(scores_stride_);
+  const int first_word = x_begin >> 6, last_word = (x_end - 1) >> 6;
+  const std::uint64_t first_mask = ~std::uint64_t{0} << (x_begin & 63);
+  const std::uint64_t last_mask = (x_end & 63) == 0 ? ~std::uint64_t{0} : (std::uint64_t{1} << (x_end & 63)) - 1;
+  for (int y = y_begin; y < y_end; ++y) {
+    const std::uint64_t* bits = band_bits_.data() + static_cast<std::size_t>(y - y_begin) * band_words_;
+    const std::uint8_t* scores = scores_.data() + static_cast<std::size_t>(y) * stride;
+    for (int k = first_word; k <= last_word; ++k) {
+      std::uint64_t word = bits[k];
+      if (k == first_word) word &= first_mask;
+      if (k == last_word) word &= last_mask;
+      while (word != 0) {
+        const int x = (k << 6) + std::countr_zero(word);
+        word &= word - 1;
+        const auto index = static_cast<std::uint32_t>(candidates_.size());  // < 2^24 (detect_level)
+        candidates_.push_back({static_cast<std::uint16_t>(x - min_x), static_cast<std::uint16_t>(y - min_y),
+                               (static_cast<std::uint32_t>(scores[x]) << 24) | ((1u << 24) - 1 - index)});
+      }
+    }
   }
   return candidates_.size() > before;
 }
@@ -404,7 +497,9 @@ std::vector<cv::KeyPoint> OrbExtractor::fast_corners(int level) {
   std::vector<cv::KeyPoint> out;
   out.reserve(candidates_.size());
   const float offset = static_cast<float>(kBorder - kFastRadius);
-  for (const Candidate& c : candidates_) out.emplace_back(c.x + offset, c.y + offset, 7.0f, -1.0f, c.response);
+  for (const Candidate& c : candidates_)
+    out.emplace_back(static_cast<float>(c.x) + offset, static_cast<float>(c.y) + offset, 7.0f, -1.0f,
+                     static_cast<float>(c.response()));
   return out;
 }
 
@@ -415,12 +510,11 @@ void OrbExtractor::split(std::uint32_t node_index) {
   const int half_x = (parent.x1 - parent.x0 + 1) / 2, half_y = (parent.y1 - parent.y0 + 1) / 2;
   const int mid_x = parent.x0 + half_x, mid_y = parent.y0 + half_y;
   const auto begin = order_.begin() + parent.begin, end = order_.begin() + parent.end;
-  const auto top_end =
-      std::partition(begin, end, [&](std::uint32_t c) { return candidates_[c].y < static_cast<float>(mid_y); });
-  const auto is_left = [&](std::uint32_t c) { return candidates_[c].x < static_cast<float>(mid_x); };
+  const auto top_end = std::partition(begin, end, [&](const Candidate& c) { return c.y < mid_y; });
+  const auto is_left = [&](const Candidate& c) { return c.x < mid_x; };
   const auto top_mid = std::partition(begin, top_end, is_left);
   const auto bottom_mid = std::partition(top_end, end, is_left);
-  const auto offset = [&](std::vector<std::uint32_t>::iterator it) {
+  const auto offset = [&](std::vector<Candidate>::iterator it) {
     return static_cast<std::uint32_t>(it - order_.begin());
   };
   const QuadNode children[4] = {
@@ -454,10 +548,12 @@ void OrbExtractor::distribute(int width, int height, int target) {
   const auto initial_of = [&](std::uint32_t c) {
     return std::min(n_initial - 1, static_cast<int>(static_cast<double>(candidates_[c].x) / node_w));
   };
+  // (The candidates themselves, not indices: the partitions below read them in place.)
   initial_begin_.assign(static_cast<std::size_t>(n_initial) + 1, 0);
   for (std::uint32_t c = 0; c < n; ++c) ++initial_begin_[static_cast<std::size_t>(initial_of(c)) + 1];
   for (std::size_t i = 1; i < initial_begin_.size(); ++i) initial_begin_[i] += initial_begin_[i - 1];
-  for (std::uint32_t c = 0; c < n; ++c) order_[initial_begin_[static_cast<std::size_t>(initial_of(c))]++] = c;
+  for (std::uint32_t c = 0; c < n; ++c)
+    order_[initial_begin_[static_cast<std::size_t>(initial_of(c))]++] = candidates_[c];
   // Each slot now holds the end of its node, which is where the next one begins.
   for (int i = 0; i < n_initial; ++i) {
     const std::uint32_t begin = i == 0 ? 0 : initial_begin_[static_cast<std::size_t>(i) - 1];
@@ -494,17 +590,13 @@ void OrbExtractor::distribute(int width, int height, int target) {
     }
   }
 
-  // The strongest corner of each node (ties: the first detected, i.e. the lowest index).
+  // The strongest corner of each node (ties: the first detected): the largest key.
   for (const QuadNode& node : nodes_) {
     if (!node.alive) continue;
-    std::uint32_t best = order_[node.begin];
-    for (std::uint32_t k = node.begin + 1; k < node.end; ++k) {
-      const std::uint32_t c = order_[k];
-      if (candidates_[c].response > candidates_[best].response ||
-          (candidates_[c].response == candidates_[best].response && c < best))
-        best = c;
-    }
-    selected_.push_back(best);
+    const Candidate* best = &order_[node.begin];
+    for (std::uint32_t k = node.begin + 1; k < node.end; ++k)
+      if (order_[k].key > best->key) best = &order_[k];
+    selected_.push_back(*best);
   }
 }
 
@@ -534,15 +626,14 @@ ImageFeatures OrbExtractor::extract(const cv::Mat& image) {
       RotatedBrief::blur_as_opencv(img, blurred);
     else
       RotatedBrief::blur(img, blurred, options_.use_avx2);
-    for (const std::uint32_t c : selected_) {
-      const Candidate& cand = candidates_[c];
+    for (const Candidate& cand : selected_) {
       const int x = static_cast<int>(cand.x) + min_x, y = static_cast<int>(cand.y) + min_y;
       const float angle = centroid_.angle(img, x, y, options_.use_avx2);
       Keypoint kp;
       kp.uv = Eigen::Vector2f(static_cast<float>(x) * scale, static_cast<float>(y) * scale);
       kp.level = static_cast<int>(level);
       kp.angle_deg = angle;
-      kp.response = cand.response;
+      kp.response = static_cast<float>(cand.response());
       out.keypoints.push_back(kp);
       out.descriptors.push_back(brief_.describe(blurred, x, y, angle, options_.use_avx2));
     }

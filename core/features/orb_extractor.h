@@ -70,9 +70,14 @@ class OrbExtractor {
   std::vector<cv::KeyPoint> fast_corners(int level);
 
  private:
-  // A FAST corner of one level, relative to the corner of the level's detection area.
+  // A FAST corner of one level, relative to the corner of the level's
+  // detection area, packed for the quadtree's partitions: key is the response
+  // (the FAST score) above 24 bits of 2^24 - 1 minus the detection index, so
+  // the largest key is the strongest corner, ties going to the first detected.
   struct Candidate {
-    float x, y, response;
+    std::uint16_t x, y;
+    std::uint32_t key;
+    std::uint8_t response() const { return static_cast<std::uint8_t>(key >> 24); }
   };
   // A quadtree node (ORB-SLAM's ExtractorNode): a rectangle [x0, x1) x [y0, y1)
   // and its candidates order_[begin, end).
@@ -84,8 +89,12 @@ class OrbExtractor {
 
   void build_pyramid(const cv::Mat& image);
   void detect_level(int level);  // FAST per cell -> candidates_
-  // Corners of one cell's detection area at `threshold` -> candidates_; false if none.
-  bool cell_corners(const cv::Rect& area, std::size_t stride, int threshold, int min_x, int min_y);
+  // The corners of one row band of cells at `threshold` into band_bits_ (bit x
+  // of row r: pixel x of the band's row r), for x in [x_begin, x_end).
+  void band_maxima(int y_begin, int y_end, int x_begin, int x_end, int threshold);
+  // Appends the corners band_bits_ holds in [x_begin, x_end) of the band's rows;
+  // false if there are none.
+  bool take_corners(int y_begin, int y_end, int x_begin, int x_end, int min_x, int min_y);
   // Quadtree over candidates_ in a width x height area, down to `target` nodes -> selected_.
   void distribute(int width, int height, int target);
   void split(std::uint32_t node);  // children with candidates replace the node
@@ -101,9 +110,15 @@ class OrbExtractor {
   IntensityCentroid centroid_;  // orientation
   RotatedBrief brief_{opencv_brief_pattern()};
   std::vector<cv::Mat> blurred_;             // each level blurred for the BRIEF tests
-  std::vector<std::uint8_t> scores_, tile_;  // FAST scores of a level; one cell's thresholded scores
-  std::vector<Candidate> candidates_;
-  std::vector<std::uint32_t> order_, selected_, initial_begin_;
+  std::vector<std::uint8_t> scores_;  // FAST scores of a level
+  std::size_t scores_stride_ = 0;     // its row stride (the level's width)
+  // Per column of a level: 0xff where the pixel left (right) of it lies in the
+  // same cell, else 0; a row of zeros (the rows above and below a band).
+  std::vector<std::uint8_t> left_in_cell_, right_in_cell_, zero_row_;
+  std::vector<std::uint64_t> band_bits_;  // the corners of one band of cells, a bit per pixel
+  std::size_t band_words_ = 0;            // 64-bit words per row of band_bits_
+  std::vector<Candidate> candidates_, order_, selected_;
+  std::vector<std::uint32_t> initial_begin_;
   std::vector<QuadNode> nodes_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> to_expand_, expanding_;  // (candidate count, node)
   std::uint32_t alive_nodes_ = 0;

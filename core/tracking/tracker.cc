@@ -487,7 +487,8 @@ bool Tracker::track_local_map(Frame& frame) {
     seen.insert(mp->id());
   }
   const Pose3 T_c_w = (frame.T_w_b * T_b_c_).inverse();
-  std::vector<ProjectedPoint> candidates;
+  std::vector<ProjectedPoint>& candidates = local_candidates_;
+  candidates.clear();
   for (const auto& kf : local_keyframes_) {
     // (A culled point is marked seen and skipped: it stays culled, so no later slot of it counts.)
     kf->for_each_unseen_map_point(seen, [&](const std::shared_ptr<MapPoint>& mp) {
@@ -504,6 +505,7 @@ bool Tracker::track_local_map(Frame& frame) {
   if (frame_index_ < last_recovery_index_ + 2) th = 5.0f;
   if (state_ == TrackingState::kRecentlyLost) th = 15.0f;
   search_projected_points(frame, candidates, cam_, th);
+  candidates.clear();  // the points stay alive through the frame's associations only
 
   // With the IMU (a prediction for this frame): the visual-inertial optimisation.
   const std::optional<int> inertial = inertial_ && imu_prediction_ ? inertial_->optimize(frame, cam_) : std::nullopt;

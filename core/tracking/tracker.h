@@ -222,6 +222,8 @@ class Tracker {
   std::size_t mapping_waits_cut_ = 0;
   std::optional<FrameAnchor> last_anchor_;
   FlatIdSet local_points_seen_;  // track_local_map's points already taken, kept between frames
+  // track_local_map's projected points; empty between frames (kept for its capacity).
+  std::vector<ProjectedPoint> local_candidates_;
   int local_points_ = 0;         // the last track_local_map's projected points (TrackResult::local_points)
 };
 
