@@ -14,19 +14,40 @@
 namespace orbatlas {
 namespace {
 
-TEST(StereoFrontend, RenderedPairGivesKeypointsWithDepthConsistentWithTheScene) {
-  const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
+// A rendered Machine Hall pair (MH_01 at 40 s) and the cam0 renderer's world.
+struct RenderedPair {
+  sim::World world;
+  std::unique_ptr<Camera> cam0, cam1;
+  Pose3 T_w_c0;  // where cam0 was
+  cv::Mat left, right;
+};
+
+RenderedPair render_pair(const SlamSettings& settings) {
   sim::MachineHallOptions hall;
   hall.texel_size_m = 0.01;  // quick to build
-  const sim::World world = sim::build_machine_hall(sim::load_machine_hall_trajectories(), hall);
+  RenderedPair p{sim::build_machine_hall(sim::load_machine_hall_trajectories(), hall),
+                 make_camera(settings.camera0),
+                 make_camera(*settings.camera1),
+                 {},
+                 {},
+                 {}};
   const sim::TrajectorySpline spline(sim::load_ground_truth(sim::find_sequence("MH_01")));
   const Pose3 T_w_b = spline.pose(spline.start_ns() + 40 * kNsPerSecond);
-  const auto cam0 = make_camera(settings.camera0), cam1 = make_camera(*settings.camera1);
   sim::RenderOptions ro;
-  sim::Renderer r0(world, *cam0, ro), r1(world, *cam1, ro);
-  cv::Mat left, right;
-  r0.render(T_w_b * settings.camera0.T_b_c, left, 1);
-  r1.render(T_w_b * settings.camera1->T_b_c, right, 2);
+  sim::Renderer r0(p.world, *p.cam0, ro), r1(p.world, *p.cam1, ro);
+  p.T_w_c0 = T_w_b * settings.camera0.T_b_c;
+  r0.render(p.T_w_c0, p.left, 1);
+  r1.render(T_w_b * settings.camera1->T_b_c, p.right, 2);
+  return p;
+}
+
+TEST(StereoFrontend, RenderedPairGivesKeypointsWithDepthConsistentWithTheScene) {
+  const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
+  const RenderedPair pair = render_pair(settings);
+  sim::Renderer r0(pair.world, *pair.cam0, sim::RenderOptions{});
+  cv::Mat rendered;
+  r0.render(pair.T_w_c0, rendered, 1);  // the left image again, for its depth buffer
+  const cv::Mat &left = pair.left, &right = pair.right;
 
   StereoFrontend frontend(settings);
   const Frame f = frontend.make_frame(123, left, right);
@@ -51,6 +72,33 @@ TEST(StereoFrontend, RenderedPairGivesKeypointsWithDepthConsistentWithTheScene) 
   std::nth_element(rel.begin(), rel.begin() + static_cast<std::ptrdiff_t>(rel.size() / 2), rel.end());
   std::cout << rel.size() << " stereo keypoints checked, median relative depth error " << rel[rel.size() / 2] << "\n";
   EXPECT_LT(rel[rel.size() / 2], 0.01);
+}
+
+// The right image on the second thread, or taken back by the caller's thread
+// when the worker has not started it: the same frame either way, as a serial
+// front end makes it; every pair is counted, and a serial one never uses a worker.
+TEST(StereoFrontend, ParallelAndSerialFrontEndsMakeTheSameFrames) {
+  const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
+  const RenderedPair pair = render_pair(settings);
+  StereoFrontend parallel(settings, true), serial(settings, false);
+  constexpr int kFrames = 30;
+  for (int k = 0; k < kFrames; ++k) {
+    const Frame a = parallel.make_frame(k + 1, pair.left, pair.right);
+    const Frame b = serial.make_frame(k + 1, pair.left, pair.right);
+    ASSERT_EQ(a.size(), b.size()) << "frame " << k;
+    ASSERT_GT(a.stereo_count(), a.size() / 3);
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      ASSERT_EQ(a.features.keypoints[i].uv, b.features.keypoints[i].uv);
+      ASSERT_EQ(a.features.descriptors[i], b.features.descriptors[i]);
+      ASSERT_EQ(a.depth[i], b.depth[i]) << "frame " << k << " keypoint " << i;
+      ASSERT_EQ(a.u_right[i], b.u_right[i]);
+    }
+  }
+  EXPECT_EQ(parallel.stereo_frames(), static_cast<std::size_t>(kFrames));
+  EXPECT_LE(parallel.right_images_on_worker(), static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(serial.stereo_frames(), static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(serial.right_images_on_worker(), 0u);
+  std::cout << parallel.right_images_on_worker() << " of " << kFrames << " right images on the worker\n";
 }
 
 TEST(StereoFrontend, RejectsBadImages) {

@@ -221,16 +221,16 @@ inline void set_bits(std::uint64_t* bits, int x, std::uint64_t mask, int lanes) 
 }
 
 void maxima_row_scalar(const std::uint8_t* up, const std::uint8_t* row, const std::uint8_t* down,
-                       const std::uint8_t* left_ok, const std::uint8_t* right_ok, int x_begin, int x_end,
-                       int threshold, std::uint64_t* bits) {
+                       const std::uint8_t* left_ok, const std::uint8_t* right_ok, int x_begin, int x_end, int threshold,
+                       std::uint64_t* bits) {
   for (int x = x_begin; x < x_end; ++x) {
     const int c = row[x];
     if (c < threshold) continue;
     int m = std::max(up[x], down[x]);
-    if (left_ok[x] != 0) m = std::max({m, static_cast<int>(row[x - 1]), static_cast<int>(up[x - 1]),
-                                       static_cast<int>(down[x - 1])});
-    if (right_ok[x] != 0) m = std::max({m, static_cast<int>(row[x + 1]), static_cast<int>(up[x + 1]),
-                                        static_cast<int>(down[x + 1])});
+    if (left_ok[x] != 0)
+      m = std::max({m, static_cast<int>(row[x - 1]), static_cast<int>(up[x - 1]), static_cast<int>(down[x - 1])});
+    if (right_ok[x] != 0)
+      m = std::max({m, static_cast<int>(row[x + 1]), static_cast<int>(up[x + 1]), static_cast<int>(down[x + 1])});
     if (c > m) bits[x >> 6] |= std::uint64_t{1} << (x & 63);
   }
 }
@@ -246,10 +246,13 @@ void maxima_row_sse2(const std::uint8_t* up, const std::uint8_t* row, const std:
     if (x + 16 > x_end) x = x_end - 16;
     const __m128i c = load(row + x), l = load(left_ok + x), r = load(right_ok + x);
     __m128i m = _mm_max_epu8(load(up + x), load(down + x));
-    m = _mm_max_epu8(m, _mm_and_si128(l, _mm_max_epu8(load(row + x - 1), _mm_max_epu8(load(up + x - 1), load(down + x - 1)))));
-    m = _mm_max_epu8(m, _mm_and_si128(r, _mm_max_epu8(load(row + x + 1), _mm_max_epu8(load(up + x + 1), load(down + x + 1)))));
+    m = _mm_max_epu8(
+        m, _mm_and_si128(l, _mm_max_epu8(load(row + x - 1), _mm_max_epu8(load(up + x - 1), load(down + x - 1)))));
+    m = _mm_max_epu8(
+        m, _mm_and_si128(r, _mm_max_epu8(load(row + x + 1), _mm_max_epu8(load(up + x + 1), load(down + x + 1)))));
     // c >= threshold and c > m (unsigned: c - m does not saturate to zero).
-    const __m128i keep = _mm_andnot_si128(_mm_cmpeq_epi8(_mm_subs_epu8(c, m), zero), _mm_cmpeq_epi8(_mm_max_epu8(c, th), c));
+    const __m128i keep =
+        _mm_andnot_si128(_mm_cmpeq_epi8(_mm_subs_epu8(c, m), zero), _mm_cmpeq_epi8(_mm_max_epu8(c, th), c));
     const auto mask = static_cast<std::uint64_t>(static_cast<unsigned>(_mm_movemask_epi8(keep)));
     if (mask != 0) set_bits(bits, x, mask, 16);
     if (x + 16 == x_end) return;
@@ -270,12 +273,12 @@ __attribute__((target("avx2"))) void maxima_row_avx2(const std::uint8_t* up, con
     const __m256i c = ORBATLAS_LOAD32(row + x), l = ORBATLAS_LOAD32(left_ok + x), r = ORBATLAS_LOAD32(right_ok + x);
     const __m256i strong = _mm256_cmpeq_epi8(_mm256_max_epu8(c, th), c);  // c >= threshold
     __m256i m = _mm256_max_epu8(ORBATLAS_LOAD32(up + x), ORBATLAS_LOAD32(down + x));
-    m = _mm256_max_epu8(
-        m, _mm256_and_si256(l, _mm256_max_epu8(ORBATLAS_LOAD32(row + x - 1),
-                                               _mm256_max_epu8(ORBATLAS_LOAD32(up + x - 1), ORBATLAS_LOAD32(down + x - 1)))));
-    m = _mm256_max_epu8(
-        m, _mm256_and_si256(r, _mm256_max_epu8(ORBATLAS_LOAD32(row + x + 1),
-                                               _mm256_max_epu8(ORBATLAS_LOAD32(up + x + 1), ORBATLAS_LOAD32(down + x + 1)))));
+    m = _mm256_max_epu8(m, _mm256_and_si256(l, _mm256_max_epu8(ORBATLAS_LOAD32(row + x - 1),
+                                                               _mm256_max_epu8(ORBATLAS_LOAD32(up + x - 1),
+                                                                               ORBATLAS_LOAD32(down + x - 1)))));
+    m = _mm256_max_epu8(m, _mm256_and_si256(r, _mm256_max_epu8(ORBATLAS_LOAD32(row + x + 1),
+                                                               _mm256_max_epu8(ORBATLAS_LOAD32(up + x + 1),
+                                                                               ORBATLAS_LOAD32(down + x + 1)))));
     const __m256i keep = _mm256_andnot_si256(_mm256_cmpeq_epi8(_mm256_subs_epu8(c, m), zero), strong);
     const auto mask = static_cast<std::uint64_t>(static_cast<unsigned>(_mm256_movemask_epi8(keep)));
     if (mask != 0) set_bits(bits, x, mask, 32);
@@ -289,9 +292,9 @@ __attribute__((target("avx2"))) void maxima_row_avx2(const std::uint8_t* up, con
 // cell at `threshold` (left_ok[x] / right_ok[x]: 0xff where pixel x - 1 / x + 1
 // lies in x's cell; up / down: the rows around, zeros outside the cell). Reads
 // [x_begin - 1, x_end + 1) of each row and of the masks; sets bits, never clears them.
-void maxima_row(const std::uint8_t* up, const std::uint8_t* row, const std::uint8_t* down,
-                const std::uint8_t* left_ok, const std::uint8_t* right_ok, int x_begin, int x_end, int threshold,
-                std::uint64_t* bits, bool use_avx2) {
+void maxima_row(const std::uint8_t* up, const std::uint8_t* row, const std::uint8_t* down, const std::uint8_t* left_ok,
+                const std::uint8_t* right_ok, int x_begin, int x_end, int threshold, std::uint64_t* bits,
+                bool use_avx2) {
 #if defined(ORBATLAS_FAST_AVX2)
   if (use_avx2 && x_end - x_begin >= 32 && cpu_has_avx2()) {
     maxima_row_avx2(up, row, down, left_ok, right_ok, x_begin, x_end, threshold, bits);

@@ -109,7 +109,7 @@ class OrbExtractor {
   cv::Size pyramid_size_;
   IntensityCentroid centroid_;  // orientation
   RotatedBrief brief_{opencv_brief_pattern()};
-  std::vector<cv::Mat> blurred_;             // each level blurred for the BRIEF tests
+  std::vector<cv::Mat> blurred_;      // each level blurred for the BRIEF tests
   std::vector<std::uint8_t> scores_;  // FAST scores of a level
   std::size_t scores_stride_ = 0;     // its row stride (the level's width)
   // Per column of a level: 0xff where the pixel left (right) of it lies in the

@@ -1,6 +1,7 @@
 #include "core/tracking/stereo_frontend.h"
 
 #include <algorithm>
+#include <atomic>
 #include <future>
 
 #include "core/camera/camera_factory.h"
@@ -48,17 +49,28 @@ Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv
                       "stereo pair of " << l.cols << "x" << l.rows << " and " << r.cols << "x" << r.rows
                                         << " pixels; the calibration says " << c0.width << "x" << c0.height);
   // The right image on a second thread (as ORB-SLAM): the two extractions are
-  // independent and together are most of a frame's cost.
+  // independent and together are most of a frame's cost. Whichever thread
+  // claims the right image first extracts it: when the worker has not started
+  // by the time the left image is done (an idle core of a virtual machine can
+  // take milliseconds to wake), this thread takes it back, so a frame never
+  // waits longer than both images on one thread.
   auto right_side = [&] {
     rectifier_.rectify_right(r, right_rect_);
     return right_extractor_.extract(right_rect_);
   };
   std::future<ImageFeatures> right_job;
+  const auto claimed = std::make_shared<std::atomic<bool>>(false);
   if (right_worker_) {
     auto task = std::make_shared<std::packaged_task<ImageFeatures()>>(right_side);
     right_job = task->get_future();
-    if (!right_worker_->try_post([task] { (*task)(); })) right_job = {};  // busy: done here below
+    // (Once this thread has claimed it, the worker drops the task untouched.)
+    if (!right_worker_->try_post([task, claimed] {
+          if (!claimed->exchange(true)) (*task)();
+        }))
+      right_job = {};  // busy: done here below
   }
+  // True when the worker is extracting (or has extracted) the right image.
+  const auto worker_has_it = [&] { return right_job.valid() && claimed->exchange(true); };
   Frame f;
   f.t_ns = t_ns;
   ImageFeatures right_features;
@@ -66,10 +78,16 @@ Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv
     rectifier_.rectify_left(l, left_rect_);
     f.features = left_extractor_.extract(left_rect_);
   } catch (...) {
-    if (right_job.valid()) right_job.wait();  // never leave the job running on our buffers
+    if (worker_has_it()) right_job.wait();  // never leave the job running on our buffers
     throw;
   }
-  right_features = right_job.valid() ? right_job.get() : right_side();
+  ++stereo_frames_;
+  if (worker_has_it()) {
+    ++right_by_worker_;
+    right_features = right_job.get();
+  } else {
+    right_features = right_side();
+  }
   StereoDepths depths =
       match_stereo_rectified(f.features, left_extractor_.pyramid(), right_features, right_extractor_.pyramid(),
                              left_extractor_.scale_factors(), bf(), baseline());

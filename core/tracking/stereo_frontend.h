@@ -2,6 +2,7 @@
 // Turns a raw stereo pair into a Frame: rectification (pinhole pairs), ORB
 // on both images, stereo matching, keypoint geometry and the search grid. One
 // frontend per session: it owns the extractors' scratch buffers.
+#include <cstddef>
 #include <memory>
 #include <opencv2/core/mat.hpp>
 
@@ -42,12 +43,18 @@ class StereoFrontend final : public FrameFrontend {
   // What tracking and mapping work with: the rectified camera, bf and the ORB
   // scale pyramid (the camera is this front end's: it must outlive the result).
   FrameCamera frame_camera() const override;
+  // Stereo pairs made so far, and how many of their right images the second
+  // thread extracted (the rest were done on the caller's thread: serial, the
+  // worker busy, or not started by the time the left image was done).
+  std::size_t stereo_frames() const { return stereo_frames_; }
+  std::size_t right_images_on_worker() const { return right_by_worker_; }
 
  private:
   StereoRectifier rectifier_;
   std::unique_ptr<Camera> camera_;
   OrbExtractor left_extractor_, right_extractor_;
   cv::Mat left_rect_, right_rect_, left_gray_, right_gray_;
+  std::size_t stereo_frames_ = 0, right_by_worker_ = 0;
   std::unique_ptr<SerialWorker> right_worker_;  // when parallel; last: stopped before the buffers go
 };
 

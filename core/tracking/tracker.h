@@ -224,7 +224,7 @@ class Tracker {
   FlatIdSet local_points_seen_;  // track_local_map's points already taken, kept between frames
   // track_local_map's projected points; empty between frames (kept for its capacity).
   std::vector<ProjectedPoint> local_candidates_;
-  int local_points_ = 0;         // the last track_local_map's projected points (TrackResult::local_points)
+  int local_points_ = 0;  // the last track_local_map's projected points (TrackResult::local_points)
 };
 
 }  // namespace orbatlas
