@@ -51,9 +51,9 @@ Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv
   // The right image on a second thread (as ORB-SLAM): the two extractions are
   // independent and together are most of a frame's cost. Whichever thread
   // claims the right image first extracts it: when the worker has not started
-  // by the time the left image is done (an idle core of a virtual machine can
-  // take milliseconds to wake), this thread takes it back, so a frame never
-  // waits longer than both images on one thread.
+  // by the time the left image is done (every core busy with other sessions),
+  // this thread takes it back, so a frame never waits longer than both images
+  // on one thread.
   auto right_side = [&] {
     rectifier_.rectify_right(r, right_rect_);
     return right_extractor_.extract(right_rect_);
