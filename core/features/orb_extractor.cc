@@ -9,17 +9,10 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define ORBATLAS_FAST_AVX2 1
-#endif
 #include <opencv2/imgproc.hpp>
 
 #include "core/common/error.h"
-#include "core/features/cpu_features.h"
+#include "core/features/fast_kernels.h"
 
 namespace orbatlas {
 namespace {
@@ -53,262 +46,39 @@ void fill_border(cv::Mat& whole) {
   }
 }
 
-// ---- FAST-9 on the 16-pixel circle ----
-//
-// A pixel is a corner at threshold t when 9 contiguous pixels of the circle are
-// all brighter than centre + t, or all darker than centre - t. Its score (what
-// cv::FAST reports as the response) is the largest t at which it still is one:
-// the best over the 16 arcs of 9 of the arc's smallest difference, minus 1.
-
-// The Bresenham circle of radius 3, in order around the centre (dx, dy).
-constexpr int kCircle[16][2] = {{0, 3},  {1, 3},   {2, 2},   {3, 1},   {3, 0},  {3, -1}, {2, -2}, {1, -3},
-                                {0, -3}, {-1, -3}, {-2, -2}, {-3, -1}, {-3, 0}, {-3, 1}, {-2, 2}, {-1, 3}};
-
-std::uint8_t fast_score_scalar(const std::uint8_t* p, const std::ptrdiff_t* offsets) {
-  const int v = p[0];
-  int bright[16], dark[16];
-  for (int k = 0; k < 16; ++k) {
-    const int c = p[offsets[k]];
-    bright[k] = std::max(c - v, 0);
-    dark[k] = std::max(v - c, 0);
-  }
-  int best = 0;
-  for (int s = 0; s < 16; ++s) {
-    int b = 255, d = 255;
-    for (int j = 0; j < 9; ++j) {
-      b = std::min(b, bright[(s + j) & 15]);
-      d = std::min(d, dark[(s + j) & 15]);
+// ORB-SLAM's FAST windows on a level of `size`: cells of about cell_size over
+// [min, max) of the level, each window 3 px wider on every side than its cell.
+// cv::FAST finds nothing in a window's outer 3 px, so the detection areas of the
+// cells tile [kBorder, size - kBorder). Empty edges for a level too small.
+OrbExtractor::LevelCells level_cells(cv::Size size, int cell_size) {
+  OrbExtractor::LevelCells cells;
+  const int min_x = kBorder - kFastRadius, min_y = kBorder - kFastRadius;
+  const int max_x = size.width - kBorder + kFastRadius, max_y = size.height - kBorder + kFastRadius;
+  const int width = max_x - min_x, height = max_y - min_y;
+  if (width < 2 * kFastRadius + 1 || height < 2 * kFastRadius + 1) return cells;
+  const int n_cols = std::max(1, width / cell_size), n_rows = std::max(1, height / cell_size);
+  const int cell_w = (width + n_cols - 1) / n_cols, cell_h = (height + n_rows - 1) / n_rows;
+  const auto edges = [](int first, int cell, int n, int max) {
+    // Cell i from first + i * cell, 2 * kFastRadius wider, cut at max.
+    std::vector<int> e;
+    for (int i = 0; i < n; ++i) {
+      const int w0 = first + i * cell;
+      if (w0 >= max - 2 * kFastRadius) break;
+      if (e.empty()) e.push_back(w0 + kFastRadius);
+      e.push_back(std::min(w0 + cell + 2 * kFastRadius, max) - kFastRadius);
     }
-    best = std::max(best, std::max(b, d));
+    return e;
+  };
+  cells.x_edges = edges(min_x, cell_w, n_cols, max_x);
+  cells.y_edges = edges(min_y, cell_h, n_rows, max_y);
+  const auto cols = static_cast<std::size_t>(size.width);
+  cells.left_in_cell.assign(cols + 64, 0xff);
+  cells.right_in_cell.assign(cols + 64, 0xff);
+  for (std::size_t j = 0; j + 1 < cells.x_edges.size(); ++j) {
+    cells.left_in_cell[static_cast<std::size_t>(cells.x_edges[j])] = 0;
+    cells.right_in_cell[static_cast<std::size_t>(cells.x_edges[j + 1] - 1)] = 0;
   }
-  return static_cast<std::uint8_t>(std::max(best - 1, 0));
-}
-
-#if defined(__SSE2__)
-// Per lane: the best over the 16 arcs of 9 of the arc's minimum (saturated differences).
-inline __m128i best_arc(const __m128i x[16]) {
-  __m128i m2[16], m4[16];
-  for (int k = 0; k < 16; ++k) m2[k] = _mm_min_epu8(x[k], x[(k + 1) & 15]);
-  for (int k = 0; k < 16; ++k) m4[k] = _mm_min_epu8(m2[k], m2[(k + 2) & 15]);
-  __m128i best = _mm_setzero_si128();
-  for (int k = 0; k < 16; ++k)
-    best = _mm_max_epu8(best, _mm_min_epu8(_mm_min_epu8(m4[k], m4[(k + 4) & 15]), x[(k + 8) & 15]));
-  return best;
-}
-
-// Scores of the 16 pixels p[0..15]; all zero when none can be a corner at min_t.
-inline __m128i fast_scores16(const std::uint8_t* p, const std::ptrdiff_t* offsets, __m128i min_t) {
-  const auto load = [&](std::ptrdiff_t o) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(p + o)); };
-  const __m128i zero = _mm_setzero_si128();
-  const __m128i v = load(0);
-  // FAST's quick test: a corner has two neighbouring compass points of the
-  // circle (pixels 0, 4, 8, 12) both beyond the threshold in the same direction.
-  const __m128i hi = _mm_adds_epu8(v, min_t), lo = _mm_subs_epu8(v, min_t);
-  __m128i b[4], d[4];
-  for (int q = 0; q < 4; ++q) {
-    const __m128i c = load(offsets[4 * q]);
-    b[q] = _mm_subs_epu8(c, hi);
-    d[q] = _mm_subs_epu8(lo, c);
-  }
-  __m128i any = zero;
-  for (int q = 0; q < 4; ++q) {
-    any = _mm_max_epu8(any, _mm_min_epu8(b[q], b[(q + 1) & 3]));
-    any = _mm_max_epu8(any, _mm_min_epu8(d[q], d[(q + 1) & 3]));
-  }
-  if (_mm_movemask_epi8(_mm_cmpeq_epi8(any, zero)) == 0xffff) return zero;
-  __m128i x[16];
-  for (int k = 0; k < 16; ++k) x[k] = _mm_subs_epu8(load(offsets[k]), v);
-  const __m128i bright = best_arc(x);
-  for (int k = 0; k < 16; ++k) x[k] = _mm_subs_epu8(v, load(offsets[k]));
-  const __m128i dark = best_arc(x);
-  return _mm_subs_epu8(_mm_max_epu8(bright, dark), _mm_set1_epi8(1));
-}
-#endif
-
-#if defined(ORBATLAS_FAST_AVX2)
-// The same as best_arc and fast_scores16 on 32 pixels at once, for CPUs with
-// AVX2 (chosen at run time; the results are the same bytes).
-__attribute__((target("avx2"))) inline __m256i best_arc32(const __m256i x[16]) {
-  __m256i m2[16], m4[16];
-  for (int k = 0; k < 16; ++k) m2[k] = _mm256_min_epu8(x[k], x[(k + 1) & 15]);
-  for (int k = 0; k < 16; ++k) m4[k] = _mm256_min_epu8(m2[k], m2[(k + 2) & 15]);
-  __m256i best = _mm256_setzero_si256();
-  for (int k = 0; k < 16; ++k)
-    best = _mm256_max_epu8(best, _mm256_min_epu8(_mm256_min_epu8(m4[k], m4[(k + 4) & 15]), x[(k + 8) & 15]));
-  return best;
-}
-
-__attribute__((target("avx2"))) inline __m256i fast_scores32(const std::uint8_t* p, const std::ptrdiff_t* offsets,
-                                                             __m256i min_t) {
-  // (No lambda: it would not inherit the function's target.)
-#define ORBATLAS_LOAD32(o) _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + (o)))
-  const __m256i zero = _mm256_setzero_si256();
-  const __m256i v = ORBATLAS_LOAD32(0);
-  const __m256i hi = _mm256_adds_epu8(v, min_t), lo = _mm256_subs_epu8(v, min_t);
-  __m256i b[4], d[4];
-  for (int q = 0; q < 4; ++q) {
-    const __m256i c = ORBATLAS_LOAD32(offsets[4 * q]);
-    b[q] = _mm256_subs_epu8(c, hi);
-    d[q] = _mm256_subs_epu8(lo, c);
-  }
-  __m256i any = zero;
-  for (int q = 0; q < 4; ++q) {
-    any = _mm256_max_epu8(any, _mm256_min_epu8(b[q], b[(q + 1) & 3]));
-    any = _mm256_max_epu8(any, _mm256_min_epu8(d[q], d[(q + 1) & 3]));
-  }
-  if (static_cast<unsigned>(_mm256_movemask_epi8(_mm256_cmpeq_epi8(any, zero))) == 0xffffffffu) return zero;
-  __m256i x[16];
-  for (int k = 0; k < 16; ++k) x[k] = _mm256_subs_epu8(ORBATLAS_LOAD32(offsets[k]), v);
-  const __m256i bright = best_arc32(x);
-  for (int k = 0; k < 16; ++k) x[k] = _mm256_subs_epu8(v, ORBATLAS_LOAD32(offsets[k]));
-  const __m256i dark = best_arc32(x);
-#undef ORBATLAS_LOAD32
-  return _mm256_subs_epu8(_mm256_max_epu8(bright, dark), _mm256_set1_epi8(1));
-}
-
-// Scores of row[x_begin, x_end) 32 at a time (x_end - x_begin >= 32).
-__attribute__((target("avx2"))) void fast_score_row_avx2(const std::uint8_t* row, const std::ptrdiff_t* offsets,
-                                                         int x_begin, int x_end, std::uint8_t* out, int min_threshold) {
-  const __m256i min_t = _mm256_set1_epi8(static_cast<char>(min_threshold));
-  for (int x = x_begin;; x += 32) {
-    if (x + 32 > x_end) x = x_end - 32;  // the last block overlaps the one before
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + x), fast_scores32(row + x, offsets, min_t));
-    if (x + 32 == x_end) return;
-  }
-}
-
-#endif
-
-// Scores of row[x_begin, x_end) into out[x_begin, x_end). Pixels that cannot be
-// corners at min_threshold may get 0 instead of their score.
-void fast_score_row(const std::uint8_t* row, const std::ptrdiff_t* offsets, int x_begin, int x_end, std::uint8_t* out,
-                    int min_threshold, bool use_avx2) {
-  int x = x_begin;
-#if defined(ORBATLAS_FAST_AVX2)
-  if (use_avx2 && x_end - x_begin >= 32 && cpu_has_avx2()) {
-    fast_score_row_avx2(row, offsets, x_begin, x_end, out, min_threshold);
-    return;
-  }
-#endif
-#if defined(__SSE2__)
-  if (x_end - x_begin >= 16) {
-    const __m128i min_t = _mm_set1_epi8(static_cast<char>(min_threshold));
-    for (;; x += 16) {
-      if (x + 16 > x_end) x = x_end - 16;  // the last block overlaps the one before
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(out + x), fast_scores16(row + x, offsets, min_t));
-      if (x + 16 == x_end) return;
-    }
-  }
-#else
-  (void)min_threshold;
-#endif
-  (void)use_avx2;
-  for (; x < x_end; ++x) out[x] = fast_score_scalar(row + x, offsets);
-}
-
-// ---- Non-maximum suppression, a row of a band of cells at a time ----
-//
-// cv::FAST on a cell's window keeps a corner that scores strictly above each of
-// its 8 neighbours, and sees nothing outside the window: a neighbour in another
-// cell does not count. A neighbour scoring below the threshold never decides
-// (the corner itself scores at least the threshold), so the level's scores are
-// used as they are, the neighbours across a cell's edge masked out.
-
-inline void set_bits(std::uint64_t* bits, int x, std::uint64_t mask, int lanes) {
-  const int shift = x & 63;
-  bits[x >> 6] |= mask << shift;
-  if (shift > 64 - lanes) bits[(x >> 6) + 1] |= mask >> (64 - shift);
-}
-
-void maxima_row_scalar(const std::uint8_t* up, const std::uint8_t* row, const std::uint8_t* down,
-                       const std::uint8_t* left_ok, const std::uint8_t* right_ok, int x_begin, int x_end, int threshold,
-                       std::uint64_t* bits) {
-  for (int x = x_begin; x < x_end; ++x) {
-    const int c = row[x];
-    if (c < threshold) continue;
-    int m = std::max(up[x], down[x]);
-    if (left_ok[x] != 0)
-      m = std::max({m, static_cast<int>(row[x - 1]), static_cast<int>(up[x - 1]), static_cast<int>(down[x - 1])});
-    if (right_ok[x] != 0)
-      m = std::max({m, static_cast<int>(row[x + 1]), static_cast<int>(up[x + 1]), static_cast<int>(down[x + 1])});
-    if (c > m) bits[x >> 6] |= std::uint64_t{1} << (x & 63);
-  }
-}
-
-#if defined(__SSE2__)
-// 16 pixels at a time (x_end - x_begin >= 16; the last block overlaps the one before).
-void maxima_row_sse2(const std::uint8_t* up, const std::uint8_t* row, const std::uint8_t* down,
-                     const std::uint8_t* left_ok, const std::uint8_t* right_ok, int x_begin, int x_end, int threshold,
-                     std::uint64_t* bits) {
-  const auto load = [](const std::uint8_t* p) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(p)); };
-  const __m128i th = _mm_set1_epi8(static_cast<char>(threshold)), zero = _mm_setzero_si128();
-  for (int x = x_begin;; x += 16) {
-    if (x + 16 > x_end) x = x_end - 16;
-    const __m128i c = load(row + x), l = load(left_ok + x), r = load(right_ok + x);
-    __m128i m = _mm_max_epu8(load(up + x), load(down + x));
-    m = _mm_max_epu8(
-        m, _mm_and_si128(l, _mm_max_epu8(load(row + x - 1), _mm_max_epu8(load(up + x - 1), load(down + x - 1)))));
-    m = _mm_max_epu8(
-        m, _mm_and_si128(r, _mm_max_epu8(load(row + x + 1), _mm_max_epu8(load(up + x + 1), load(down + x + 1)))));
-    // c >= threshold and c > m (unsigned: c - m does not saturate to zero).
-    const __m128i keep =
-        _mm_andnot_si128(_mm_cmpeq_epi8(_mm_subs_epu8(c, m), zero), _mm_cmpeq_epi8(_mm_max_epu8(c, th), c));
-    const auto mask = static_cast<std::uint64_t>(static_cast<unsigned>(_mm_movemask_epi8(keep)));
-    if (mask != 0) set_bits(bits, x, mask, 16);
-    if (x + 16 == x_end) return;
-  }
-}
-#endif
-
-#if defined(ORBATLAS_FAST_AVX2)
-// The same 32 pixels at a time (x_end - x_begin >= 32).
-__attribute__((target("avx2"))) void maxima_row_avx2(const std::uint8_t* up, const std::uint8_t* row,
-                                                     const std::uint8_t* down, const std::uint8_t* left_ok,
-                                                     const std::uint8_t* right_ok, int x_begin, int x_end,
-                                                     int threshold, std::uint64_t* bits) {
-#define ORBATLAS_LOAD32(p) _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p))
-  const __m256i th = _mm256_set1_epi8(static_cast<char>(threshold)), zero = _mm256_setzero_si256();
-  for (int x = x_begin;; x += 32) {
-    if (x + 32 > x_end) x = x_end - 32;
-    const __m256i c = ORBATLAS_LOAD32(row + x), l = ORBATLAS_LOAD32(left_ok + x), r = ORBATLAS_LOAD32(right_ok + x);
-    const __m256i strong = _mm256_cmpeq_epi8(_mm256_max_epu8(c, th), c);  // c >= threshold
-    __m256i m = _mm256_max_epu8(ORBATLAS_LOAD32(up + x), ORBATLAS_LOAD32(down + x));
-    m = _mm256_max_epu8(m, _mm256_and_si256(l, _mm256_max_epu8(ORBATLAS_LOAD32(row + x - 1),
-                                                               _mm256_max_epu8(ORBATLAS_LOAD32(up + x - 1),
-                                                                               ORBATLAS_LOAD32(down + x - 1)))));
-    m = _mm256_max_epu8(m, _mm256_and_si256(r, _mm256_max_epu8(ORBATLAS_LOAD32(row + x + 1),
-                                                               _mm256_max_epu8(ORBATLAS_LOAD32(up + x + 1),
-                                                                               ORBATLAS_LOAD32(down + x + 1)))));
-    const __m256i keep = _mm256_andnot_si256(_mm256_cmpeq_epi8(_mm256_subs_epu8(c, m), zero), strong);
-    const auto mask = static_cast<std::uint64_t>(static_cast<unsigned>(_mm256_movemask_epi8(keep)));
-    if (mask != 0) set_bits(bits, x, mask, 32);
-    if (x + 32 == x_end) return;
-  }
-#undef ORBATLAS_LOAD32
-}
-#endif
-
-// Bit x of bits for each x in [x_begin, x_end) where row[x] is a corner of its
-// cell at `threshold` (left_ok[x] / right_ok[x]: 0xff where pixel x - 1 / x + 1
-// lies in x's cell; up / down: the rows around, zeros outside the cell). Reads
-// [x_begin - 1, x_end + 1) of each row and of the masks; sets bits, never clears them.
-void maxima_row(const std::uint8_t* up, const std::uint8_t* row, const std::uint8_t* down, const std::uint8_t* left_ok,
-                const std::uint8_t* right_ok, int x_begin, int x_end, int threshold, std::uint64_t* bits,
-                bool use_avx2) {
-#if defined(ORBATLAS_FAST_AVX2)
-  if (use_avx2 && x_end - x_begin >= 32 && cpu_has_avx2()) {
-    maxima_row_avx2(up, row, down, left_ok, right_ok, x_begin, x_end, threshold, bits);
-    return;
-  }
-#endif
-  (void)use_avx2;
-#if defined(__SSE2__)
-  if (x_end - x_begin >= 16) {
-    maxima_row_sse2(up, row, down, left_ok, right_ok, x_begin, x_end, threshold, bits);
-    return;
-  }
-#endif
-  maxima_row_scalar(up, row, down, left_ok, right_ok, x_begin, x_end, threshold, bits);
+  return cells;
 }
 
 }  // namespace
@@ -365,6 +135,8 @@ void OrbExtractor::build_pyramid(const cv::Mat& image) {
     shrink_.assign(pyramid_.size(), LinearResize());
     for (std::size_t l = 1; l < pyramid_.size(); ++l)
       shrink_[l] = LinearResize(pyramid_[l - 1].size(), pyramid_[l].size());
+    cells_.resize(pyramid_.size());
+    for (std::size_t l = 0; l < pyramid_.size(); ++l) cells_[l] = level_cells(pyramid_[l].size(), options_.cell_size);
     pyramid_size_ = image.size();
   }
   image.copyTo(pyramid_[0]);
@@ -381,13 +153,12 @@ void OrbExtractor::build_pyramid(const cv::Mat& image) {
 void OrbExtractor::detect_level(int level) {
   const cv::Mat& img = pyramid_[static_cast<std::size_t>(level)];
   candidates_.clear();
-  // ORB-SLAM's FAST windows: cells of about cell_size over [min, max) of the level,
-  // each window 3 px wider on every side than its cell. cv::FAST finds nothing in
-  // a window's outer 3 px, so the detection areas of the cells tile [kBorder, size - kBorder).
+  // The cells, their edges and masks (level_cells, once per image size).
+  const LevelCells& cells = cells_[static_cast<std::size_t>(level)];
+  const std::vector<int>& cell_x = cells.x_edges;
+  const std::vector<int>& cell_y = cells.y_edges;
+  if (cell_x.empty() || cell_y.empty()) return;  // a level too small for one cell
   const int min_x = kBorder - kFastRadius, min_y = kBorder - kFastRadius;
-  const int max_x = img.cols - kBorder + kFastRadius, max_y = img.rows - kBorder + kFastRadius;
-  const int width = max_x - min_x, height = max_y - min_y;
-  if (width < 2 * kFastRadius + 1 || height < 2 * kFastRadius + 1) return;
 
   // Scores of the whole detection area once, at ini_th_fast: 32-pixel blocks
   // where no pixel passes FAST's quick test at that threshold are skipped, and
@@ -398,8 +169,7 @@ void OrbExtractor::detect_level(int level) {
   const auto stride = static_cast<std::size_t>(img.cols);
   scores_stride_ = stride;
   std::ptrdiff_t offsets[16];
-  for (int k = 0; k < 16; ++k)
-    offsets[k] = static_cast<std::ptrdiff_t>(kCircle[k][1]) * static_cast<std::ptrdiff_t>(img.step1()) + kCircle[k][0];
+  fast_circle_offsets(static_cast<std::ptrdiff_t>(img.step1()), offsets);
   for (int y = kBorder; y < img.rows - kBorder; ++y)
     fast_score_row(img.ptr<std::uint8_t>(y), offsets, kBorder, img.cols - kBorder, scores_.data() + y * stride,
                    options_.ini_th_fast, options_.use_avx2);
@@ -409,29 +179,7 @@ void OrbExtractor::detect_level(int level) {
                      options_.min_th_fast, options_.use_avx2);
   };
 
-  // The cells' detection areas: columns [cell_x[j], cell_x[j + 1]) and rows
-  // [cell_y[i], cell_y[i + 1]); together they tile [kBorder, size - kBorder).
-  const int n_cols = std::max(1, width / options_.cell_size), n_rows = std::max(1, height / options_.cell_size);
-  const int cell_w = (width + n_cols - 1) / n_cols, cell_h = (height + n_rows - 1) / n_rows;
-  const auto edges = [](int first, int cell, int n, int max) {
-    // ORB-SLAM's windows: cell i from first + i * cell, 2 * kFastRadius wider, cut at max.
-    std::vector<int> e;
-    for (int i = 0; i < n; ++i) {
-      const int w0 = first + i * cell;
-      if (w0 >= max - 2 * kFastRadius) break;
-      if (e.empty()) e.push_back(w0 + kFastRadius);
-      e.push_back(std::min(w0 + cell + 2 * kFastRadius, max) - kFastRadius);
-    }
-    return e;
-  };
-  const std::vector<int> cell_x = edges(min_x, cell_w, n_cols, max_x), cell_y = edges(min_y, cell_h, n_rows, max_y);
   const auto cols = static_cast<std::size_t>(img.cols);
-  left_in_cell_.assign(cols + 64, 0xff);
-  right_in_cell_.assign(cols + 64, 0xff);
-  for (std::size_t j = 0; j + 1 < cell_x.size(); ++j) {
-    left_in_cell_[static_cast<std::size_t>(cell_x[j])] = 0;
-    right_in_cell_[static_cast<std::size_t>(cell_x[j + 1] - 1)] = 0;
-  }
   zero_row_.assign(cols + 64, 0);
   band_words_ = cols / 64 + 2;
   // Candidates keep their detection index in 24 bits, and there is at most
@@ -444,26 +192,26 @@ void OrbExtractor::detect_level(int level) {
   for (std::size_t i = 0; i + 1 < cell_y.size(); ++i) {
     const int y0 = cell_y[i], y1 = cell_y[i + 1];
     band_bits_.assign(static_cast<std::size_t>(y1 - y0) * band_words_, 0);
-    band_maxima(y0, y1, cell_x.front(), cell_x.back(), options_.ini_th_fast);
+    band_maxima(cells, y0, y1, cell_x.front(), cell_x.back(), options_.ini_th_fast);
     for (std::size_t j = 0; j + 1 < cell_x.size(); ++j) {
       const int x0 = cell_x[j], x1 = cell_x[j + 1];
       if (take_corners(y0, y1, x0, x1, min_x, min_y)) continue;
       // No corner at ini_th_fast (so none of the cell's bits is set): the
       // cell's own area again at min_th_fast.
       rescore(cv::Rect(x0, y0, x1 - x0, y1 - y0));
-      band_maxima(y0, y1, x0, x1, options_.min_th_fast);
+      band_maxima(cells, y0, y1, x0, x1, options_.min_th_fast);
       take_corners(y0, y1, x0, x1, min_x, min_y);
     }
   }
 }
 
-void OrbExtractor::band_maxima(int y_begin, int y_end, int x_begin, int x_end, int threshold) {
+void OrbExtractor::band_maxima(const LevelCells& cells, int y_begin, int y_end, int x_begin, int x_end, int threshold) {
   const auto stride = static_cast<std::size_t>(scores_stride_);
   for (int y = y_begin; y < y_end; ++y) {
     const std::uint8_t* row = scores_.data() + static_cast<std::size_t>(y) * stride;
     const std::uint8_t* up = y == y_begin ? zero_row_.data() : row - stride;
     const std::uint8_t* down = y + 1 == y_end ? zero_row_.data() : row + stride;
-    maxima_row(up, row, down, left_in_cell_.data(), right_in_cell_.data(), x_begin, x_end, threshold,
+    maxima_row(up, row, down, cells.left_in_cell.data(), cells.right_in_cell.data(), x_begin, x_end, threshold,
                band_bits_.data() + static_cast<std::size_t>(y - y_begin) * band_words_, options_.use_avx2);
   }
 }

@@ -2,9 +2,12 @@
 // ORB features the ORB-SLAM way: a scale pyramid, FAST per grid cell with a
 // high threshold and a low fallback, a quadtree that spreads the keypoints over
 // the image down to the requested count, orientation by intensity centroid and
-// 256-bit rotated BRIEF. OpenCV does the pyramid resize and the blur; FAST (a
-// SIMD score map giving exactly cv::FAST's corners per cell), the distribution
-// logic and the BRIEF tests (OpenCV's bits, eight at a time) are ours. One extractor per thread (scratch buffers).
+// 256-bit rotated BRIEF. All of it is ours, bit for bit what ORB-SLAM gets from
+// OpenCV: the pyramid's resize (linear_resize.h), FAST (fast_kernels.h: a SIMD
+// score map giving exactly cv::FAST's corners per cell), the distribution, the
+// orientation and the BRIEF tests (OpenCV's bits, eight at a time); only the
+// descriptors' blur is a faster one unless opencv_blur asks for cv::GaussianBlur's.
+// One extractor per thread (scratch buffers).
 #include <cstdint>
 #include <opencv2/core/mat.hpp>
 #include <utility>
@@ -69,6 +72,14 @@ class OrbExtractor {
   // finds nothing. For tests and tools; throws Error before the first extract().
   std::vector<cv::KeyPoint> fast_corners(int level);
 
+  // The FAST cells of one level: detection areas of columns [x_edges[j],
+  // x_edges[j + 1]) and rows [y_edges[i], y_edges[i + 1]), and per column 0xff
+  // where the pixel left (right) of it lies in the same cell, else 0.
+  struct LevelCells {
+    std::vector<int> x_edges, y_edges;
+    std::vector<std::uint8_t> left_in_cell, right_in_cell;
+  };
+
  private:
   // A FAST corner of one level, relative to the corner of the level's
   // detection area, packed for the quadtree's partitions: key is the response
@@ -91,7 +102,7 @@ class OrbExtractor {
   void detect_level(int level);  // FAST per cell -> candidates_
   // The corners of one row band of cells at `threshold` into band_bits_ (bit x
   // of row r: pixel x of the band's row r), for x in [x_begin, x_end).
-  void band_maxima(int y_begin, int y_end, int x_begin, int x_end, int threshold);
+  void band_maxima(const LevelCells& cells, int y_begin, int y_end, int x_begin, int x_end, int threshold);
   // Appends the corners band_bits_ holds in [x_begin, x_end) of the band's rows;
   // false if there are none.
   bool take_corners(int y_begin, int y_end, int x_begin, int x_end, int min_x, int min_y);
@@ -109,12 +120,11 @@ class OrbExtractor {
   cv::Size pyramid_size_;
   IntensityCentroid centroid_;  // orientation
   RotatedBrief brief_{opencv_brief_pattern()};
-  std::vector<cv::Mat> blurred_;      // each level blurred for the BRIEF tests
-  std::vector<std::uint8_t> scores_;  // FAST scores of a level
-  std::size_t scores_stride_ = 0;     // its row stride (the level's width)
-  // Per column of a level: 0xff where the pixel left (right) of it lies in the
-  // same cell, else 0; a row of zeros (the rows above and below a band).
-  std::vector<std::uint8_t> left_in_cell_, right_in_cell_, zero_row_;
+  std::vector<cv::Mat> blurred_;          // each level blurred for the BRIEF tests
+  std::vector<std::uint8_t> scores_;      // FAST scores of a level
+  std::size_t scores_stride_ = 0;         // its row stride (the level's width)
+  std::vector<LevelCells> cells_;         // per level, for pyramid_size_
+  std::vector<std::uint8_t> zero_row_;    // a row of zeros (the rows above and below a band)
   std::vector<std::uint64_t> band_bits_;  // the corners of one band of cells, a bit per pixel
   std::size_t band_words_ = 0;            // 64-bit words per row of band_bits_
   std::vector<Candidate> candidates_, order_, selected_;
