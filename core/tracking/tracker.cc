@@ -504,8 +504,14 @@ bool Tracker::track_local_map(Frame& frame) {
   float th = 1.0f;
   if (frame_index_ < last_recovery_index_ + 2) th = 5.0f;
   if (state_ == TrackingState::kRecentlyLost) th = 15.0f;
-  search_projected_points(frame, candidates, cam_, th);
-  candidates.clear();  // the points stay alive through the frame's associations only
+  // The points stay alive through the frame's associations only, also when the search throws.
+  try {
+    search_projected_points(frame, candidates, cam_, th);
+  } catch (...) {
+    candidates.clear();
+    throw;
+  }
+  candidates.clear();
 
   // With the IMU (a prediction for this frame): the visual-inertial optimisation.
   const std::optional<int> inertial = inertial_ && imu_prediction_ ? inertial_->optimize(frame, cam_) : std::nullopt;
