@@ -118,7 +118,6 @@ OrbExtractor::OrbExtractor(const OrbExtractorOptions& options) : options_(option
 
   pyramid_.resize(levels);
   bordered_.resize(levels);
-  blurred_.resize(levels);
 }
 
 void OrbExtractor::build_pyramid(const cv::Mat& image) {
@@ -137,6 +136,7 @@ void OrbExtractor::build_pyramid(const cv::Mat& image) {
       shrink_[l] = LinearResize(pyramid_[l - 1].size(), pyramid_[l].size());
     cells_.resize(pyramid_.size());
     for (std::size_t l = 0; l < pyramid_.size(); ++l) cells_[l] = level_cells(pyramid_[l].size(), options_.cell_size);
+    blur_buffer_.create(image.size(), CV_8UC1);
     pyramid_size_ = image.size();
   }
   image.copyTo(pyramid_[0]);
@@ -372,7 +372,9 @@ ImageFeatures OrbExtractor::extract(const cv::Mat& image) {
 
     const auto scale = static_cast<float>(scale_factors_[level]);
     // Rotated BRIEF on the blurred level (cv::ORB's bits with opencv_blur).
-    cv::Mat& blurred = blurred_[level];
+    // (One buffer for every level, a view of its corner: the levels are blurred
+    // one after another, and what was blurred last is still in the cache.)
+    cv::Mat blurred = blur_buffer_(cv::Rect(0, 0, img.cols, img.rows));
     if (options_.opencv_blur)
       RotatedBrief::blur_as_opencv(img, blurred);
     else

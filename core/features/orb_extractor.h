@@ -120,7 +120,7 @@ class OrbExtractor {
   cv::Size pyramid_size_;
   IntensityCentroid centroid_;  // orientation
   RotatedBrief brief_{opencv_brief_pattern()};
-  std::vector<cv::Mat> blurred_;          // each level blurred for the BRIEF tests
+  cv::Mat blur_buffer_;                   // a level blurred for the BRIEF tests (level 0's size)
   std::vector<std::uint8_t> scores_;      // FAST scores of a level
   std::size_t scores_stride_ = 0;         // its row stride (the level's width)
   std::vector<LevelCells> cells_;         // per level, for pyramid_size_
