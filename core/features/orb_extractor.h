@@ -127,7 +127,7 @@ class OrbExtractor {
   std::vector<std::uint8_t> zero_row_;    // a row of zeros (the rows above and below a band)
   std::vector<std::uint64_t> band_bits_;  // the corners of one band of cells, a bit per pixel
   std::size_t band_words_ = 0;            // 64-bit words per row of band_bits_
-  std::vector<Candidate> candidates_, order_, selected_;
+  std::vector<Candidate> candidates_, order_, selected_, split_scratch_;
   std::vector<std::uint32_t> initial_begin_;
   std::vector<QuadNode> nodes_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> to_expand_, expanding_;  // (candidate count, node)
