@@ -27,6 +27,7 @@
 #   SETTINGS="Orbatlas.Tracker.MaxLocalKeyframes: 40" NS=4 scripts/bench_capacity.sh  # other settings (';' between them)
 #   MACHINE_CHECK=0 NS=4 scripts/bench_capacity.sh  # without the check of the two cores before and after (see machine_check)
 #   RUNS=4 NS=4 scripts/bench_capacity.sh    # the whole set four times; each clip's mean ATE against its mean alone (scripts/capacity_runs.py)
+#   ALONE_ONLY=1 NS=5 SECONDS_PER_SESSION=full scripts/bench_capacity.sh  # MH_01..MH_05 each alone, no N at once
 # PHASES: 'together' (default) starts every client at one instant, so the N
 # cameras' frames arrive at the same moments (the worst case: N frames at once,
 # then nothing for 50 ms); 'spread' starts client i of N i/N of a frame interval
@@ -221,6 +222,19 @@ def settled(d, i, seq, key):  # NaN for runs made before this measurement, or wh
     except (OSError, ValueError, KeyError): return float("nan")
 def settled_ate(d, i, seq): return settled(d, i, seq, "ate_rmse_m")
 alone = {s: load(f"alone_{s}", 1, s) for s in seqs[:max(ns)]}
+# Each clip alone: the single-session figures (tracking p50 is the issue's
+# one-session goal); the sixth session's MH_01 is the first's clip.
+print(f"{'alone':>6} {'frames':>7} {'late':>5} {'skipped':>7} {'track p50/p95 [ms]':>19} {'cores':>6} "
+      f"{'peak RSS [MB]':>13}  ATE at finish / settled [m], poses evaluated")
+for s in dict.fromkeys(seqs[:max(ns)]):
+    r = alone[s]
+    server = json.load(open(os.path.join(out, f"alone_{s}", "server.json")))
+    print(f"{s:>6} {r['frames'] + r['skipped_frames']:>7} {r['late_frames']:>5} {r['skipped_frames']:>7} "
+          f"{r['tracking_ms']['p50']:>10.1f}/{r['tracking_ms']['p95']:<8.1f} {server['cpu_s'] / server['wall_s']:>6.2f} "
+          f"{server['peak_rss_kb'] / 1024.0:>13.0f}  {r.get('ate_rmse_m', float('nan')):.4f} / "
+          f"{settled_ate(f'alone_{s}', 1, s):.4f}, {settled(f'alone_{s}', 1, s, 'matched') / max(r['frames'], 1):.3f}")
+if os.environ.get("ALONE_ONLY") == "1":
+    sys.exit(0)
 print(f"{'N':>2} {'frames':>7} {'late':>6} {'late%':>6} {'skipped':>7} {'skip%':>6} {'track p50/p95 [ms]':>19} "
       f"{'cores':>6} {'cores/session':>13} {'peak RSS [MB]':>13} {'RSS/session':>11}  ATE per session [m] (alone)")
 for n in ns:
@@ -282,6 +296,7 @@ for ((run = 1; run <= RUNS; ++run)); do
   done
   for n in "${N_LIST[@]}"; do
     [ "$n" -le 1 ] && continue
+    [ "${ALONE_ONLY:-0}" = 1 ] && break
     echo "== $n sessions at once"
     run_sessions "n$n" "${SEQUENCES[@]:0:$n}"
   done
