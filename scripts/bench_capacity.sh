@@ -221,6 +221,7 @@ def settled(d, i, seq, key):  # NaN for runs made before this measurement, or wh
     try: return json.load(open(os.path.join(out, d, f"{i}_{seq}.settled.json")))[key]
     except (OSError, ValueError, KeyError): return float("nan")
 def settled_ate(d, i, seq): return settled(d, i, seq, "ate_rmse_m")
+def server_stats(d): return json.load(open(os.path.join(out, d, "server.json")))
 alone = {s: load(f"alone_{s}", 1, s) for s in seqs[:max(ns)]}
 # Each clip alone: the single-session figures (tracking p50 is the issue's
 # one-session goal); the sixth session's MH_01 is the first's clip.
@@ -228,7 +229,7 @@ print(f"{'alone':>6} {'frames':>7} {'late':>5} {'skipped':>7} {'track p50/p95 [m
       f"{'peak RSS [MB]':>13}  ATE at finish / settled [m], poses evaluated")
 for s in dict.fromkeys(seqs[:max(ns)]):
     r = alone[s]
-    server = json.load(open(os.path.join(out, f"alone_{s}", "server.json")))
+    server = server_stats(f"alone_{s}")
     print(f"{s:>6} {r['frames'] + r['skipped_frames']:>7} {r['late_frames']:>5} {r['skipped_frames']:>7} "
           f"{r['tracking_ms']['p50']:>10.1f}/{r['tracking_ms']['p95']:<8.1f} {server['cpu_s'] / server['wall_s']:>6.2f} "
           f"{server['peak_rss_kb'] / 1024.0:>13.0f}  {r.get('ate_rmse_m', float('nan')):.4f} / "
@@ -239,7 +240,7 @@ print(f"{'N':>2} {'frames':>7} {'late':>6} {'late%':>6} {'skipped':>7} {'skip%':
       f"{'cores':>6} {'cores/session':>13} {'peak RSS [MB]':>13} {'RSS/session':>11}  ATE per session [m] (alone)")
 for n in ns:
     d = f"alone_{seqs[0]}" if n == 1 else f"n{n}"
-    server = json.load(open(os.path.join(out, d, "server.json")))
+    server = server_stats(d)
     runs = [load(d, i + 1, s) for i, s in enumerate(seqs[:n])]
     sent = sum(r["frames"] + r["skipped_frames"] for r in runs)
     late = sum(r["late_frames"] for r in runs)
@@ -295,8 +296,7 @@ for ((run = 1; run <= RUNS; ++run)); do
     run_sessions "alone_$seq" "$seq"
   done
   for n in "${N_LIST[@]}"; do
-    [ "$n" -le 1 ] && continue
-    [ "${ALONE_ONLY:-0}" = 1 ] && break
+    [ "$n" -le 1 ] || [ "${ALONE_ONLY:-0}" = 1 ] && continue
     echo "== $n sessions at once"
     run_sessions "n$n" "${SEQUENCES[@]:0:$n}"
   done
@@ -306,5 +306,6 @@ OUT="$BASE_OUT"
 
 machine_check after
 
-[ "$RUNS" -gt 1 ] && /usr/bin/python3 "$ROOT/scripts/capacity_runs.py" "$OUT" "${N_LIST[*]}" "${SEQUENCES[*]}"
+# (ALONE_ONLY: no N at once to compare with the clips alone.)
+[ "$RUNS" -gt 1 ] && [ "${ALONE_ONLY:-0}" != 1 ] && /usr/bin/python3 "$ROOT/scripts/capacity_runs.py" "$OUT" "${N_LIST[*]}" "${SEQUENCES[*]}"
 if [ -f "$OUT/machine_check.txt" ]; then cat "$OUT/machine_check.txt"; fi
