@@ -101,6 +101,32 @@ TEST(StereoFrontend, ParallelAndSerialFrontEndsMakeTheSameFrames) {
   std::cout << parallel.right_images_on_worker() << " of " << kFrames << " right images on the worker\n";
 }
 
+// The warm-up before a session's first frame (a textured pair of the
+// calibrated size through the front end) changes no frame made afterwards and
+// is not counted as a stereo pair.
+TEST(StereoFrontend, WarmUpChangesNoFrameAndIsNotCounted) {
+  const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
+  const RenderedPair pair = render_pair(settings);
+  StereoFrontend warm(settings, true), cold(settings, true);
+  warm.warm_up();
+  EXPECT_EQ(warm.stereo_frames(), 0u);
+  EXPECT_EQ(warm.right_images_on_worker(), 0u);
+  for (int k = 0; k < 3; ++k) {
+    const Frame a = warm.make_frame(k + 1, pair.left, pair.right);
+    const Frame b = cold.make_frame(k + 1, pair.left, pair.right);
+    ASSERT_EQ(a.size(), b.size()) << "frame " << k;
+    ASSERT_GT(a.stereo_count(), a.size() / 3);
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      ASSERT_EQ(a.features.keypoints[i].uv, b.features.keypoints[i].uv);
+      ASSERT_EQ(a.features.keypoints[i].angle_deg, b.features.keypoints[i].angle_deg);
+      ASSERT_EQ(a.features.descriptors[i], b.features.descriptors[i]);
+      ASSERT_EQ(a.depth[i], b.depth[i]) << "frame " << k << " keypoint " << i;
+      ASSERT_EQ(a.u_right[i], b.u_right[i]);
+    }
+  }
+  EXPECT_EQ(warm.stereo_frames(), 3u);
+}
+
 TEST(StereoFrontend, RejectsBadImages) {
   const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
   StereoFrontend frontend(settings);

@@ -37,6 +37,7 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
       rgbd_(settings.is_rgbd()),
       monocular_(frontend_->baseline() <= 0.0) {
   cam_ = frontend_->frame_camera();
+  frontend_->warm_up();  // the session's first frame costs what the others do
   options_.tracker.th_depth_m = settings.stereo_th_depth * frontend_->baseline();
   options_.tracker.max_frames_between_keyframes = std::max(1, static_cast<int>(std::lround(settings.fps)));
   if (monocular_) {

@@ -28,6 +28,10 @@ class FrameFrontend {
   // While a map is starting (tracking not initialised): a single camera
   // extracts more features then (its map starts from two views' matches).
   virtual void set_map_starting(bool /*starting*/) {}
+  // Before the first frame: whatever the first frame of this size would set up
+  // (scratch buffers allocated and first touched), so that the first frame
+  // costs what the others do. Changes no frame made afterwards.
+  virtual void warm_up() {}
 };
 
 // A stereo front end for stereo settings, an RGB-D one for rgbd settings, a

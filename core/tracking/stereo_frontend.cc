@@ -4,6 +4,9 @@
 #include <atomic>
 #include <future>
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
 #include "core/camera/camera_factory.h"
 #include "core/common/error.h"
 #include "core/features/keypoint_geometry.h"
@@ -95,6 +98,25 @@ Frame StereoFrontend::make_frame(TimestampNs t_ns, const cv::Mat& left, const cv
   f.u_right = std::move(depths.u_right);
   finish_frame(*camera_, f);
   return f;
+}
+
+void StereoFrontend::warm_up() {
+  const CameraCalibration& c0 = rectifier_.rectified_left();
+  // Blurred noise: corners about as dense as a textured scene's (raw noise
+  // would grow the candidate buffers far beyond what real images need).
+  cv::Mat noise(c0.height, c0.width, CV_8UC1), left, right;
+  cv::RNG rng(0x5eed);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(noise, left, cv::Size(0, 0), 1.5);
+  cv::normalize(left, left, 0, 255, cv::NORM_MINMAX);
+  // The right image: the left one 8 pixels to the left (a disparity of 8).
+  right = cv::Mat(left.size(), CV_8UC1, cv::Scalar(0));
+  const int shift = std::min(8, c0.width - 1);
+  left.colRange(shift, left.cols).copyTo(right.colRange(0, left.cols - shift));
+  const std::size_t frames = stereo_frames_, by_worker = right_by_worker_;
+  (void)make_frame(0, left, right);
+  stereo_frames_ = frames;
+  right_by_worker_ = by_worker;
 }
 
 Frame StereoFrontend::make_left_frame(TimestampNs t_ns, const cv::Mat& left) {

@@ -32,6 +32,14 @@ class StereoFrontend final : public FrameFrontend {
   // The left image alone (relocalising a single image): no stereo depth, every
   // keypoint a bearing only. Same checks as make_frame.
   Frame make_left_frame(TimestampNs t_ns, const cv::Mat& left);
+  // One stereo pair of textured images of the calibrated size through
+  // make_frame, not counted in stereo_frames(): the extractors' pyramids, FAST
+  // scores, cells and quadtree buffers, the rectified images and the right
+  // image's thread are set up and touched here. The first real pair otherwise
+  // took 12.6 ms of extraction for the left image against 2.7 for the next
+  // (measured, clean MH_01), and 46-65 ms of make_frame each when five
+  // sessions started at once (docs/benchmarks.md, stop 63).
+  void warm_up() override;
 
   // The rectified left camera tracking works with (pinhole, no distortion), its
   // pose in the body, and stereo constants.
