@@ -43,10 +43,14 @@ echo "== one session (MH_01, ${SECONDS_PER_SESSION} s, as fast as the server ans
 "$OA" stream --dataset $(clip MH_01) --name one --no-progress --stats "$OUT/one.json"
 
 echo "== three sessions at once (MH_01, MH_02, MH_03)"
+# Every clip rendered first: rendered inside the loop, a clip already there
+# streamed while the others were still rendering, and the three did not overlap.
+declare -A CLIP
+for SEQ in MH_01 MH_02 MH_03; do CLIP[$SEQ]="$(clip $SEQ)"; done
 PIDS=()
 for SEQ in MH_01 MH_02 MH_03; do
-  # shellcheck disable=SC2046
-  "$OA" stream --dataset $(clip $SEQ) --name "three-$SEQ" --no-progress --stats "$OUT/three_$SEQ.json" > "$OUT/three_$SEQ.txt" &
+  # shellcheck disable=SC2086
+  "$OA" stream --dataset ${CLIP[$SEQ]} --name "three-$SEQ" --no-progress --stats "$OUT/three_$SEQ.json" > "$OUT/three_$SEQ.txt" &
   PIDS+=($!)
 done
 for P in "${PIDS[@]}"; do wait "$P"; done
