@@ -41,6 +41,20 @@ RenderedPair render_pair(const SlamSettings& settings) {
   return p;
 }
 
+// Frame k of two front ends: the same keypoints, descriptors and stereo
+// depths, most keypoints with depth.
+void expect_same_frame(const Frame& a, const Frame& b, int k) {
+  ASSERT_EQ(a.size(), b.size()) << "frame " << k;
+  ASSERT_GT(a.stereo_count(), a.size() / 3);
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a.features.keypoints[i].uv, b.features.keypoints[i].uv);
+    ASSERT_EQ(a.features.keypoints[i].angle_deg, b.features.keypoints[i].angle_deg);
+    ASSERT_EQ(a.features.descriptors[i], b.features.descriptors[i]);
+    ASSERT_EQ(a.depth[i], b.depth[i]) << "frame " << k << " keypoint " << i;
+    ASSERT_EQ(a.u_right[i], b.u_right[i]);
+  }
+}
+
 TEST(StereoFrontend, RenderedPairGivesKeypointsWithDepthConsistentWithTheScene) {
   const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
   const RenderedPair pair = render_pair(settings);
@@ -85,14 +99,7 @@ TEST(StereoFrontend, ParallelAndSerialFrontEndsMakeTheSameFrames) {
   for (int k = 0; k < kFrames; ++k) {
     const Frame a = parallel.make_frame(k + 1, pair.left, pair.right);
     const Frame b = serial.make_frame(k + 1, pair.left, pair.right);
-    ASSERT_EQ(a.size(), b.size()) << "frame " << k;
-    ASSERT_GT(a.stereo_count(), a.size() / 3);
-    for (std::size_t i = 0; i < a.size(); ++i) {
-      ASSERT_EQ(a.features.keypoints[i].uv, b.features.keypoints[i].uv);
-      ASSERT_EQ(a.features.descriptors[i], b.features.descriptors[i]);
-      ASSERT_EQ(a.depth[i], b.depth[i]) << "frame " << k << " keypoint " << i;
-      ASSERT_EQ(a.u_right[i], b.u_right[i]);
-    }
+    ASSERT_NO_FATAL_FAILURE(expect_same_frame(a, b, k));
   }
   EXPECT_EQ(parallel.stereo_frames(), static_cast<std::size_t>(kFrames));
   EXPECT_LE(parallel.right_images_on_worker(), static_cast<std::size_t>(kFrames));
@@ -114,15 +121,7 @@ TEST(StereoFrontend, WarmUpChangesNoFrameAndIsNotCounted) {
   for (int k = 0; k < 3; ++k) {
     const Frame a = warm.make_frame(k + 1, pair.left, pair.right);
     const Frame b = cold.make_frame(k + 1, pair.left, pair.right);
-    ASSERT_EQ(a.size(), b.size()) << "frame " << k;
-    ASSERT_GT(a.stereo_count(), a.size() / 3);
-    for (std::size_t i = 0; i < a.size(); ++i) {
-      ASSERT_EQ(a.features.keypoints[i].uv, b.features.keypoints[i].uv);
-      ASSERT_EQ(a.features.keypoints[i].angle_deg, b.features.keypoints[i].angle_deg);
-      ASSERT_EQ(a.features.descriptors[i], b.features.descriptors[i]);
-      ASSERT_EQ(a.depth[i], b.depth[i]) << "frame " << k << " keypoint " << i;
-      ASSERT_EQ(a.u_right[i], b.u_right[i]);
-    }
+    ASSERT_NO_FATAL_FAILURE(expect_same_frame(a, b, k));
   }
   EXPECT_EQ(warm.stereo_frames(), 3u);
 }
