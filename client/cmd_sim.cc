@@ -18,6 +18,11 @@ void register_sim_command(CLI::App& app) {
   auto depth = std::make_shared<bool>(false);
   auto depth_options = std::make_shared<sim::DepthSensorOptions>();
   auto bag = std::make_shared<std::string>();
+  auto imu_model = std::make_shared<std::string>();
+  auto imu_offset_ms = std::make_shared<double>(0.0);
+  auto imu_vibration = std::make_shared<double>(-1.0);
+  auto imu_scale_error = std::make_shared<double>(-1.0);
+  auto imu_extrinsic_error = std::make_shared<double>(-1.0);
   auto* cmd = app.add_subcommand(
       "sim", "Render an EuRoC ASL dataset (stereo, IMU, ground truth) along a real EuRoC trajectory");
   cmd->add_option("--sequence", opts->sequence, "MH_01..MH_05 (one shared Machine Hall) or V1_01")
@@ -27,9 +32,30 @@ void register_sim_command(CLI::App& app) {
   cmd->add_option("--duration", opts->duration_s, "Seconds to render (default: to the end)");
   cmd->add_option("--every", opts->every, "Keep every n-th camera frame")->capture_default_str();
   cmd->add_option("--scene-seed", opts->scene_seed, "Seed of the hall (same seed, same hall)")->capture_default_str();
-  cmd->add_option("--imu", *imu, "IMU source: synthetic, or real (the real MH_05 IMU)")
+  cmd->add_option("--imu", *imu,
+                  "IMU source: synthetic, or real (the real IMU of the flight: MH_05, or MH_01's lossy copy)")
       ->check(CLI::IsMember({"synthetic", "real"}))
       ->capture_default_str();
+  cmd->add_option("--imu-model", *imu_model,
+                  "Synthetic IMU: ideal (the settings' noise, small biases) or realistic (the real EuRoC IMU's noise, "
+                  "biases, vibration while the motors run, scale and mounting errors); default: ideal for the clean "
+                  "look, realistic for the real look (docs/simulator.md)")
+      ->check(CLI::IsMember({"ideal", "realistic"}));
+  cmd->add_option(
+         "--imu-time-offset-ms", *imu_offset_ms,
+         "The IMU's clock is late by this against the cameras' (the sample stamped t measured time t - offset)")
+      ->check(CLI::Range(-200.0, 200.0))
+      ->capture_default_str();
+  cmd->add_option("--imu-vibration", *imu_vibration,
+                  "Scale of the real flights' vibration while the motors run (realistic model: 1; 0: none)")
+      ->check(CLI::Range(0.0, 10.0));
+  cmd->add_option("--imu-scale-error", *imu_scale_error,
+                  "Sigma of each IMU axis' scale factor error (realistic model: 0.002)")
+      ->check(CLI::Range(0.0, 0.05));
+  cmd->add_option("--imu-extrinsic-error", *imu_extrinsic_error,
+                  "Scale of the IMU mounting's error against the calibration (realistic model: 1 = 0.05 deg and 1 mm "
+                  "per axis)")
+      ->check(CLI::Range(0.0, 20.0));
   cmd->add_option("--look", *look,
                   "clean: dense procedural texture, constant exposure, Gaussian noise; real: sparse texture, "
                   "auto exposure, vignetting, motion blur, signal-dependent noise, darker MH_04/MH_05, "
@@ -61,12 +87,27 @@ void register_sim_command(CLI::App& app) {
   cmd->add_option("--bag", *bag,
                   "Also write the recording as a ROS 1 bag here (/cam0/image_raw, /cam1/image_raw: sensor_msgs/Image "
                   "mono8; /imu0: sensor_msgs/Imu), as EuRoC distributes its sequences");
+  cmd->add_option("--images-from", opts->images_from,
+                  "Link the images of an earlier rendering of the same sequence, look and range instead of rendering "
+                  "them (an IMU variant: --imu, --imu-model, --imu-time-offset-ms ...)");
   cmd->add_option("--threads", opts->threads, "Render threads (default: all cores)");
   cmd->add_flag("!--no-progress", opts->show_progress, "Do not print progress");
-  cmd->callback([opts, imu, look, calib_error, illumination, depth, depth_options, bag]() {
+  cmd->callback([opts, imu, look, calib_error, illumination, depth, depth_options, bag, imu_model, imu_offset_ms,
+                 imu_vibration, imu_scale_error, imu_extrinsic_error]() {
     if (*depth) opts->depth = *depth_options;
     opts->imu = *imu == "real" ? sim::ImuSource::kReal : sim::ImuSource::kSynthetic;
     opts->look = sim::parse_look(*look);
+    const bool realistic = imu_model->empty() ? opts->look == sim::Look::kReal : *imu_model == "realistic";
+    sim::ImuErrorModel errors = realistic ? sim::realistic_imu_errors() : sim::ideal_imu_errors();
+    errors.time_offset_s = *imu_offset_ms * 1e-3;
+    if (*imu_vibration >= 0.0) errors.vibration = *imu_vibration;
+    if (*imu_scale_error >= 0.0) errors.scale_error = *imu_scale_error;
+    if (*imu_extrinsic_error >= 0.0) {
+      const sim::ImuErrorModel r = sim::realistic_imu_errors();
+      errors.extrinsic_rotation_deg = *imu_extrinsic_error * r.extrinsic_rotation_deg;
+      errors.extrinsic_translation_m = *imu_extrinsic_error * r.extrinsic_translation_m;
+    }
+    opts->imu_errors = errors;
     if ((*calib_error >= 0.0 || *illumination > 0.0) && opts->look != sim::Look::kReal)
       throw Error("--calib-error and --illumination belong to --look real");
     if (opts->look == sim::Look::kReal) {

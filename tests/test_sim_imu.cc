@@ -1,9 +1,14 @@
 // Synthetic IMU against the trajectory it comes from.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <random>
+#include <vector>
+
 #include "core/geometry/so3.h"
 #include "core/sim/euroc_sequences.h"
 #include "core/sim/imu_synthesizer.h"
+#include "core/sim/imu_vibration.h"
 #include "core/sim/trajectory_spline.h"
 
 namespace orbatlas {
@@ -97,35 +102,142 @@ TEST(ImuSynthesizer, NoiseHasTheRequestedDensity) {
   EXPECT_GT((noisy.states.back().gyro_bias - noisy.states.front().gyro_bias).norm(), 0.0);
 }
 
-// The real look's vibration: with the noise off, what it adds is exactly the
-// vibration, whose power is that of three sinusoids of amplitude A/sqrt(3)
-// (mean square A^2/2 over the three axes together); the noise sequence is the
-// same with or without it.
-TEST(ImuSynthesizer, VibrationAddsSinusoidsOfTheRequestedAmplitude) {
-  const auto& spline = mh01_spline();
-  const TimestampNs t0 = spline.start_ns() + 10 * kNsPerSecond;
-  sim::ImuSynthesisOptions quiet;
-  quiet.add_noise = false;
-  sim::ImuSynthesisOptions shaking = quiet;
-  shaking.vibration_accel = 0.3;
-  shaking.vibration_gyro = 0.02;
-  const sim::SyntheticImu a = sim::synthesize_imu(spline, t0, t0 + 20 * kNsPerSecond, quiet);
-  const sim::SyntheticImu b = sim::synthesize_imu(spline, t0, t0 + 20 * kNsPerSecond, shaking);
-  ASSERT_EQ(a.samples.size(), b.samples.size());
-  double sq_a = 0, sq_g = 0;
-  for (std::size_t k = 0; k < a.samples.size(); ++k) {
-    sq_a += (b.samples[k].accel - a.samples[k].accel).squaredNorm();
-    sq_g += (b.samples[k].gyro - a.samples[k].gyro).squaredNorm();
+// Mean power per band of a sampled signal (one axis), from its discrete
+// Fourier transform: the one-sided power spectral density averaged over
+// [lo_hz, hi_hz).
+double band_density(const std::vector<double>& x, double rate_hz, double lo_hz, double hi_hz) {
+  const std::size_t n = x.size();
+  double sum = 0.0;
+  int bins = 0;
+  for (std::size_t k = 1; k < n / 2; ++k) {
+    const double hz = rate_hz * static_cast<double>(k) / static_cast<double>(n);
+    if (hz < lo_hz || hz >= hi_hz) continue;
+    double re = 0.0, im = 0.0;
+    for (std::size_t j = 0; j < n; ++j) {
+      const double phase = 2.0 * M_PI * static_cast<double>(k * j % n) / static_cast<double>(n);
+      re += x[j] * std::cos(phase);
+      im -= x[j] * std::sin(phase);
+    }
+    sum += 2.0 * (re * re + im * im) / (rate_hz * static_cast<double>(n));
+    ++bins;
   }
-  const double n = static_cast<double>(a.samples.size());
-  EXPECT_NEAR(std::sqrt(sq_a / n), 0.3 / std::sqrt(2.0), 0.3 * 0.15);
-  EXPECT_NEAR(std::sqrt(sq_g / n), 0.02 / std::sqrt(2.0), 0.02 * 0.15);
-  // With noise on, the noise itself is unchanged by the vibration.
-  sim::ImuSynthesisOptions noisy, noisy_shaking;
-  noisy_shaking.vibration_accel = 0.3;
-  const sim::SyntheticImu c = sim::synthesize_imu(spline, t0, t0 + kNsPerSecond, noisy);
-  const sim::SyntheticImu d = sim::synthesize_imu(spline, t0, t0 + kNsPerSecond, noisy_shaking);
-  EXPECT_EQ(c.states.back().accel_bias, d.states.back().accel_bias);
+  return std::sqrt(sum / bins);
+}
+
+// The shaped noise has the density of each band it was asked for (and none
+// outside), per axis.
+TEST(ImuVibration, ShapedNoiseHasTheRequestedSpectrum) {
+  const std::vector<Eigen::Vector3d> density = {{0.1, 0.02, 0.0}, {0.0, 0.05, 0.2}};  // 10-20 Hz, 20-30 Hz
+  std::mt19937_64 rng(7);
+  const auto noise = sim::shaped_noise(density, 10.0, 10.0, 4000, 200.0, rng);
+  ASSERT_EQ(noise.size(), 4000u);
+  for (int axis = 0; axis < 3; ++axis) {
+    std::vector<double> x;
+    for (const auto& v : noise) x.push_back(v[axis]);
+    for (int band = 0; band < 2; ++band) {
+      const double want = density[band][axis];
+      const double got = band_density(x, 200.0, 10.0 + 10.0 * band, 20.0 + 10.0 * band);
+      EXPECT_NEAR(got, want, 0.12 * want + 1e-4) << "axis " << axis << " band " << band;
+    }
+    EXPECT_LT(band_density(x, 200.0, 40.0, 100.0), 1e-4) << "axis " << axis << ": power outside the bands";
+  }
+}
+
+// The real flights' spectrum: the root mean square it gives above 5 Hz is the
+// real MH_05 IMU's in flight (scripts/imu_spectrum.py: accelerometer 1.00 /
+// 0.50 / 0.66 m/s^2, gyro 0.027 / 0.054 / 0.049 rad/s).
+TEST(ImuVibration, TheFlightSpectrumHasTheRealMagnitude) {
+  const auto& spectrum = sim::euroc_flight_vibration();
+  const Eigen::Vector3d accel = spectrum.accel_rms(100.0), gyro = spectrum.gyro_rms(100.0);
+  EXPECT_NEAR(accel.x(), 1.00, 0.02);
+  EXPECT_NEAR(accel.y(), 0.50, 0.02);
+  EXPECT_NEAR(accel.z(), 0.66, 0.02);
+  EXPECT_NEAR(gyro.x(), 0.027, 0.001);
+  EXPECT_NEAR(gyro.y(), 0.054, 0.001);
+  EXPECT_NEAR(gyro.z(), 0.049, 0.001);
+}
+
+// MH_01 is set down on the floor 19 s in and takes off 43.6 s in (the real
+// IMU's vibration starts then): no vibration while parked, the flight's after.
+TEST(ImuVibration, MotorsRunFromTakeOffOnly) {
+  const auto& spline = mh01_spline();
+  const sim::MotorSchedule motors = sim::motor_schedule(spline);
+  EXPECT_NEAR(ns_to_s(motors.takeoff_ns - spline.start_ns()), 43.6, 0.5);
+  EXPECT_GT(motors.landing_ns, spline.end_ns());  // MH_01 ends in the air
+  EXPECT_EQ(motors.level(spline.start_ns() + s_to_ns(30.0)), 0.0);
+  EXPECT_NEAR(motors.level(motors.takeoff_ns - s_to_ns(2.0)), motors.idle_level, 1e-12);
+  EXPECT_EQ(motors.level(motors.takeoff_ns + s_to_ns(1.0)), 1.0);
+
+  // The synthesised IMU: with the noise of the ideal model and the vibration
+  // on, what differs from the model without vibration is the vibration, nil
+  // while parked and of the flight's magnitude in the air.
+  sim::ImuSynthesisOptions calm;
+  calm.seed = 3;
+  sim::ImuSynthesisOptions shaking = calm;
+  shaking.errors.vibration = 1.0;
+  const TimestampNs t0 = spline.start_ns() + s_to_ns(25.0);
+  const sim::SyntheticImu a = sim::synthesize_imu(spline, t0, t0 + s_to_ns(60.0), calm);
+  const sim::SyntheticImu b = sim::synthesize_imu(spline, t0, t0 + s_to_ns(60.0), shaking);
+  ASSERT_EQ(a.samples.size(), b.samples.size());
+  Eigen::Vector3d parked = Eigen::Vector3d::Zero(), flying = Eigen::Vector3d::Zero();
+  int n_flying = 0;
+  for (std::size_t k = 0; k < a.samples.size(); ++k) {
+    const Eigen::Vector3d d = b.samples[k].accel - a.samples[k].accel;
+    if (a.samples[k].t_ns < motors.idle_from_ns - kNsPerSecond) parked += d.cwiseAbs2();
+    if (a.samples[k].t_ns > motors.takeoff_ns) {
+      flying += d.cwiseAbs2();
+      ++n_flying;
+    }
+  }
+  EXPECT_EQ(parked.norm(), 0.0);
+  const Eigen::Vector3d rms = (flying / n_flying).cwiseSqrt();
+  const Eigen::Vector3d want = sim::euroc_flight_vibration().accel_rms(100.0);
+  for (int axis = 0; axis < 3; ++axis) EXPECT_NEAR(rms[axis], want[axis], 0.1 * want[axis]) << "axis " << axis;
+  EXPECT_EQ(a.states.back().accel_bias, b.states.back().accel_bias) << "the noise must not change with vibration";
+}
+
+// The realistic model: biases near the real device's, noise of the densities
+// measured on the real IMU (not the calibration's), scale and mounting errors
+// of the size asked for, and a clock offset: the sample stamped t is the
+// ideal measurement at t - offset.
+TEST(ImuSynthesizer, TheRealisticModelHasTheRealDevicesErrors) {
+  const auto& spline = mh01_spline();
+  sim::ImuSynthesisOptions options;
+  options.seed = 11;
+  options.errors = sim::realistic_imu_errors();
+  options.errors.vibration = 0.0;  // the white noise alone
+  const TimestampNs t0 = spline.start_ns() + s_to_ns(60.0);
+  const sim::SyntheticImu imu = sim::synthesize_imu(spline, t0, t0 + s_to_ns(30.0), options);
+  const auto& first = imu.states.front();
+  EXPECT_LT((first.gyro_bias - options.errors.gyro_bias_mean).cwiseAbs().maxCoeff(), 4.0 * 0.002);
+  EXPECT_GT(first.gyro_bias.norm(), 0.07);  // the real device's 0.08 rad/s
+  EXPECT_GT(first.accel_bias.norm(), 0.03);
+  EXPECT_NE(imu.gyro_scale, Eigen::Vector3d::Ones());
+  EXPECT_LT((imu.gyro_scale - Eigen::Vector3d::Ones()).cwiseAbs().maxCoeff(), 4.0 * 0.002);
+  const double mount_deg = rotation_angle(imu.true_T_b_i.q) * 180.0 / M_PI;
+  EXPECT_GT(mount_deg, 0.0);
+  EXPECT_LT(mount_deg, 0.25);
+  double sq_g = 0.0, sq_a = 0.0;
+  for (std::size_t k = 0; k < imu.samples.size(); ++k) {
+    const ImuSample ideal = sim::ideal_imu_sample(spline, imu.samples[k].t_ns, imu.true_T_b_i);
+    sq_g += (imu.samples[k].gyro - imu.gyro_scale.cwiseProduct(ideal.gyro) - imu.states[k].gyro_bias).squaredNorm();
+    sq_a += (imu.samples[k].accel - imu.accel_scale.cwiseProduct(ideal.accel) - imu.states[k].accel_bias).squaredNorm();
+  }
+  const double n = 3.0 * static_cast<double>(imu.samples.size()), dt = 1.0 / options.calibration.rate_hz;
+  EXPECT_NEAR(std::sqrt(sq_g / n) * std::sqrt(dt), 2.7e-4, 0.05 * 2.7e-4);
+  EXPECT_NEAR(std::sqrt(sq_a / n) * std::sqrt(dt), 4.5e-3, 0.05 * 4.5e-3);
+
+  sim::ImuSynthesisOptions late;
+  late.add_noise = false;
+  late.errors.time_offset_s = 0.005;
+  const sim::SyntheticImu shifted = sim::synthesize_imu(spline, t0, t0 + kNsPerSecond, late);
+  for (std::size_t k = 0; k < shifted.samples.size(); k += 37) {
+    const TimestampNs t = shifted.samples[k].t_ns;
+    const ImuSample measured = sim::ideal_imu_sample(spline, t - 5'000'000, Pose3());
+    EXPECT_LT((shifted.samples[k].gyro - measured.gyro).norm(), 1e-12);
+    EXPECT_LT((shifted.samples[k].accel - measured.accel).norm(), 1e-12);
+    EXPECT_LT((shifted.states[k].T_w_b.t - spline.pose(t).t).norm(), 1e-12) << "ground truth in the cameras' time";
+  }
 }
 
 TEST(ImuSynthesizer, GravityAtRestPointsUpInTheBody) {

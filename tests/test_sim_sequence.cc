@@ -2,6 +2,7 @@
 // back whole, consistent with the real trajectory; bad options are clear errors.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 
 #include "core/common/error.h"
@@ -61,11 +62,11 @@ TEST(SequenceSimulator, BadOptionsAreClearErrors) {
   o.show_progress = false;
   o.sequence = "MH_09";
   EXPECT_THROW(sim::simulate_sequence(o), Error);
-  o.sequence = "MH_01";
+  o.sequence = "MH_02";
   o.imu = sim::ImuSource::kReal;
   try {
     sim::simulate_sequence(o);
-    FAIL() << "--imu real is MH_05 only";
+    FAIL() << "--imu real is MH_01 and MH_05 only";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("MH_05"), std::string::npos) << e.what();
   }
@@ -91,6 +92,49 @@ TEST(SequenceSimulator, RealMh05ImuIsUsedVerbatim) {
   for (const auto& s : ds.imu) mean_norm += s.accel.norm() / static_cast<double>(ds.imu.size());
   EXPECT_NEAR(mean_norm, 9.8, 1.0);
   std::filesystem::remove_all(o.out_dir);
+}
+
+// The real MH_01 IMU (the lossy copy) as recorded, shifted by a clock offset
+// when one is asked for; a variant's images are the first rendering's, linked.
+TEST(SequenceSimulator, RealMh01ImuAndAVariantSharingTheImages) {
+  sim::SimulationOptions o;
+  o.sequence = "MH_01";
+  o.imu = sim::ImuSource::kReal;
+  o.out_dir = fresh_dir("mh01_real_imu");
+  o.start_s = 60.0;
+  o.duration_s = 0.2;
+  o.show_progress = false;
+  sim::simulate_sequence(o);
+  const EurocDataset real = read_euroc_dataset(o.out_dir);
+  ASSERT_GT(real.imu.size(), 200u);
+  // A row of data/euroc/imu/MH_01_imu0_lossy.txt.gz, as it is there.
+  const auto row = std::find_if(real.imu.begin(), real.imu.end(),
+                                [](const ImuSample& s) { return s.t_ns == 1403636639903555000LL; });
+  ASSERT_NE(row, real.imu.end());
+  EXPECT_NEAR(row->gyro.x(), 0.0628319, 1e-7);
+  EXPECT_NEAR(row->accel.z(), -2.86845, 1e-5);
+
+  sim::SimulationOptions variant = o;
+  variant.out_dir = fresh_dir("mh01_variant");
+  variant.images_from = o.out_dir;
+  sim::ImuErrorModel errors;
+  errors.time_offset_s = 0.005;
+  variant.imu_errors = errors;
+  sim::simulate_sequence(variant);
+  const EurocDataset shifted = read_euroc_dataset(variant.out_dir);
+  ASSERT_EQ(shifted.cameras[0].frames.size(), real.cameras[0].frames.size());
+  EXPECT_TRUE(std::filesystem::equivalent(shifted.cameras[1].frames.back().path, real.cameras[1].frames.back().path));
+  const auto moved = std::find_if(shifted.imu.begin(), shifted.imu.end(),
+                                  [](const ImuSample& s) { return s.t_ns == 1403636639908555000LL; });
+  ASSERT_NE(moved, shifted.imu.end());
+  EXPECT_EQ(moved->gyro, row->gyro) << "the sample 5 ms late";
+
+  // Linking needs every image there.
+  sim::SimulationOptions longer = variant;
+  longer.out_dir = fresh_dir("mh01_longer");
+  longer.duration_s = 1.0;
+  EXPECT_THROW(sim::simulate_sequence(longer), Error);
+  for (const auto& dir : {o.out_dir, variant.out_dir, longer.out_dir}) std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -36,8 +36,6 @@ void RealLookOptions::check() const {
   camera.check();
   ORBATLAS_CHECK(std::isfinite(calibration_error) && calibration_error >= 0.0,
                  "real look: calibration_error (--calib-error) must be a finite value >= 0, not " << calibration_error);
-  ORBATLAS_CHECK(std::isfinite(imu_vibration) && imu_vibration >= 0.0,
-                 "real look: imu_vibration must be a finite value >= 0, not " << imu_vibration);
 }
 
 const char* look_name(Look look) { return look == Look::kReal ? "real" : "clean"; }

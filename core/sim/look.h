@@ -5,8 +5,9 @@
 // large weakly textured surfaces with sparse high-contrast details, auto
 // exposure that drifts over time and differs between the two cameras,
 // vignetting, motion blur over the exposure time along the true trajectory,
-// signal-dependent noise, clipping, darker MH_04/MH_05, a calibration that is
-// slightly off from the one written to sensor.yaml, and IMU vibration.
+// signal-dependent noise, clipping, darker MH_04/MH_05 and, as an option, a
+// calibration slightly off from the one written to sensor.yaml. Its IMU is the
+// realistic one (imu_synthesizer.h, realistic_imu_errors()).
 // See docs/simulator.md.
 #include <cstdint>
 #include <string>
@@ -52,7 +53,6 @@ struct RealLookOptions {
   // few tenths of a pixel alone triples the ATE of a dark MH_04; --calib-error 1
   // adds it, see sequence_simulator.cc).
   double calibration_error = 0.0;
-  double imu_vibration = 1.0;  // scale of the IMU vibration (0: none)
 
   // Throws Error naming the first value out of range.
   void check() const;

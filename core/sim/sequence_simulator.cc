@@ -31,8 +31,18 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-std::vector<ImuSample> load_real_mh05_imu(TimestampNs first, TimestampNs last) {
-  const auto path = shipped_data_dir() / "euroc" / "imu" / "MH_05_imu0.txt.gz";
+// The real IMU of a sequence (shipped for MH_05, and MH_01's lossy copy), its
+// stamps shifted by `offset`.
+std::filesystem::path real_imu_path(const std::string& sequence) {
+  const auto dir = shipped_data_dir() / "euroc" / "imu";
+  if (sequence == "MH_05") return dir / "MH_05_imu0.txt.gz";
+  if (sequence == "MH_01") return dir / "MH_01_imu0_lossy.txt.gz";
+  return {};
+}
+
+std::vector<ImuSample> load_real_imu(const std::string& sequence, TimestampNs first, TimestampNs last,
+                                     TimestampNs offset) {
+  const auto path = real_imu_path(sequence);
   std::vector<ImuSample> out;
   for_each_line(path, [&](const TextLine& line) {
     const auto text = trim(line.text);
@@ -40,7 +50,7 @@ std::vector<ImuSample> load_real_mh05_imu(TimestampNs first, TimestampNs last) {
     const auto f = split_fields(text, " ,\t", true);
     if (f.size() != 7) throw DataError(path.string() + ":" + std::to_string(line.number) + ": expected 7 columns");
     ImuSample s;
-    s.t_ns = parse_int64(f[0], path, line.number);
+    s.t_ns = parse_int64(f[0], path, line.number) + offset;
     if (s.t_ns < first || s.t_ns > last) return;
     s.gyro = {parse_double(f[1], path, line.number), parse_double(f[2], path, line.number),
               parse_double(f[3], path, line.number)};
@@ -94,6 +104,8 @@ void SimulationOptions::check() const {
   ORBATLAS_CHECK(look == Look::kClean || look == Look::kReal,
                  "sim: look (--look) must be clean or real, not " << static_cast<int>(look));
   if (real) real->check();
+  if (imu_errors) imu_errors->check();
+  ORBATLAS_CHECK(images_from.empty() || !depth, "sim: --images-from cannot go with --depth");
   ORBATLAS_CHECK(threads >= 0, "sim: threads (--threads) must be >= 0 (0: all cores), not " << threads);
 }
 
@@ -110,8 +122,8 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   options.check();
   SimulationReport report;
   const SequenceInfo sequence = find_sequence(options.sequence);
-  ORBATLAS_CHECK(options.imu == ImuSource::kSynthetic || sequence.name == "MH_05",
-                 "sim: --imu real is only available for MH_05 (the only real IMU shipped); use --imu synthetic");
+  ORBATLAS_CHECK(options.imu == ImuSource::kSynthetic || !real_imu_path(sequence.name).empty(),
+                 "sim: --imu real is only available for MH_01 and MH_05 (the real IMUs shipped); use --imu synthetic");
   const auto settings_path =
       options.settings.empty() ? shipped_config_dir() / "euroc" / "stereo_inertial.yaml" : options.settings;
   const SlamSettings settings = read_settings(settings_path, SensorType::kStereoInertial);
@@ -174,16 +186,13 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   ImuSynthesisOptions imu_options;
   imu_options.calibration = imu_cal;
   imu_options.seed = sensor_seed;
-  if (real) {
-    imu_options.vibration_accel = 0.3 * look.imu_vibration;
-    imu_options.vibration_gyro = 0.02 * look.imu_vibration;
-  }
+  imu_options.errors = options.imu_errors.value_or(real ? realistic_imu_errors() : ideal_imu_errors());
   // The grid runs through the first camera timestamp, like EuRoC's triggered cameras.
   const TimestampNs period = s_to_ns(1.0 / imu_cal.rate_hz);
   const TimestampNs grid_first = stamps.front() - ((stamps.front() - imu_first) / period) * period;
   SyntheticImu imu = synthesize_imu(spline, grid_first, imu_last, imu_options);
   if (options.imu == ImuSource::kReal) {
-    imu.samples = load_real_mh05_imu(imu_first, imu_last);
+    imu.samples = load_real_imu(sequence.name, imu_first, imu_last, s_to_ns(imu_options.errors.time_offset_s));
     imu.states.clear();  // ground truth at the real IMU times; biases unknown (zero)
     for (const ImuSample& s : imu.samples) {
       if (!spline.covers(s.t_ns)) continue;
@@ -282,8 +291,25 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
       next = stamps.size();
     }
   };
+  if (!options.images_from.empty()) {
+    // An IMU variant of an earlier rendering: its images, linked.
+    for (const TimestampNs t : stamps) {
+      for (int c = 0; c < static_cast<int>(cams.size()); ++c) {
+        const auto target = writer.image_path(c, t);
+        const auto source = options.images_from / std::filesystem::relative(target, options.out_dir);
+        ORBATLAS_CHECK(std::filesystem::is_regular_file(source),
+                       "sim: --images-from " << options.images_from.string() << " has no " << source.string()
+                                             << " (render the same sequence, look and range there first)");
+        std::error_code error;
+        std::filesystem::create_hard_link(source, target, error);
+        if (error) std::filesystem::copy_file(source, target);
+      }
+      progress.advance();
+    }
+    next = stamps.size();
+  }
   std::vector<std::thread> pool;
-  for (int k = 0; k < threads; ++k) pool.emplace_back(worker);
+  for (int k = 0; k < threads && next < stamps.size(); ++k) pool.emplace_back(worker);
   for (auto& th : pool) th.join();
   progress.finish();
   if (!first_error.empty()) throw Error("sim: " + first_error);

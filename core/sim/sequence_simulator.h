@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/sim/depth_sensor.h"
+#include "core/sim/imu_synthesizer.h"
 #include "core/sim/look.h"
 
 namespace orbatlas::sim {
@@ -20,9 +21,15 @@ struct SimulationOptions {
   double duration_s = -1.0;  // render this long; negative: to the end
   int every = 1;             // keep every n-th camera frame (sparse datasets, e.g. vocabulary training)
   std::uint64_t scene_seed = 1;
-  ImuSource imu = ImuSource::kSynthetic;  // kReal: the real MH_05 IMU (MH_05 only)
-  double noise_sigma = 2.0;               // image noise, grey levels
-  std::uint64_t sensor_seed = 0;          // IMU and image noise; 0: derived from the sequence name
+  // kReal: the real IMU recorded in that flight (MH_05, and MH_01's lossy
+  // copy: timestamps rounded to microseconds, values to about 6 digits, gaps).
+  ImuSource imu = ImuSource::kSynthetic;
+  // What the synthetic IMU adds to the ideal measurement; empty: by the look
+  // (clean: ideal_imu_errors(), real: realistic_imu_errors()). With the real
+  // IMU only its time_offset_s is used (the real stamps shifted by it).
+  std::optional<ImuErrorModel> imu_errors;
+  double noise_sigma = 2.0;       // image noise, grey levels
+  std::uint64_t sensor_seed = 0;  // IMU and image noise; 0: derived from the sequence name
   // Calibration of the rendered rig (ORB-SLAM3-style settings, stereo); empty:
   // the shipped config/euroc/stereo_inertial.yaml (the real EuRoC calibration).
   std::filesystem::path settings;
@@ -33,6 +40,10 @@ struct SimulationOptions {
   // beside the ASL one (rgb.txt listing mav0/cam0's images, depth/, depth.txt,
   // groundtruth.txt of the body): what an rgbd config (config/euroc/rgbd.yaml) reads.
   std::optional<DepthSensorOptions> depth;
+  // The images of an earlier rendering of the same sequence, look, range and
+  // seeds, linked (or copied) instead of rendered again: a variant of its IMU.
+  // Each image must be there (Error otherwise); not with `depth`.
+  std::filesystem::path images_from;
   int threads = 0;  // 0: all cores
   bool show_progress = true;
 
@@ -53,8 +64,9 @@ struct SimulationReport {
   std::size_t depth_images = 0;  // with `depth`
 };
 
-// Throws Error on bad options (unknown sequence, --imu real for a sequence other
-// than MH_05, an output folder that already holds a dataset, an empty time range).
+// Throws Error on bad options (unknown sequence, --imu real for a sequence
+// whose real IMU is not shipped (MH_01 and MH_05 are), an output folder that already holds a dataset, an empty time
+// range).
 SimulationReport simulate_sequence(const SimulationOptions& options);
 
 }  // namespace orbatlas::sim
