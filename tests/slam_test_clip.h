@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "core/io/euroc_reader.h"
@@ -11,13 +12,18 @@
 
 namespace orbatlas::test {
 
-// With `depth`, also the depth camera's TUM RGB-D layout (sim --depth).
+// With `depth`, also the depth camera's TUM RGB-D layout (sim --depth). With
+// `imu_errors`, the synthetic IMU carries them (else the look's: the clean
+// look's IMU is ideal); `imu_name` tells such clips apart.
 inline std::filesystem::path simulated_clip(const std::string& sequence, double start_s, double duration_s,
-                                            bool depth = false) {
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("orbatlas_test_slam_" + std::to_string(::getpid()) + "_" + sequence + "_" +
-                    std::to_string(static_cast<int>(start_s * 10)) + "_" +
-                    std::to_string(static_cast<int>(duration_s * 10)) + (depth ? "_depth" : ""));
+                                            bool depth = false,
+                                            const std::optional<sim::ImuErrorModel>& imu_errors = std::nullopt,
+                                            const std::string& imu_name = "") {
+  const auto dir =
+      std::filesystem::temp_directory_path() /
+      ("orbatlas_test_slam_" + std::to_string(::getpid()) + "_" + sequence + "_" +
+       std::to_string(static_cast<int>(start_s * 10)) + "_" + std::to_string(static_cast<int>(duration_s * 10)) +
+       (depth ? "_depth" : "") + (imu_errors ? "_imu_" + imu_name : ""));
   if (std::filesystem::exists(dir / "mav0" / "cam1" / "data.csv") &&
       (!depth || std::filesystem::exists(dir / "depth.txt")))
     return dir;
@@ -29,6 +35,7 @@ inline std::filesystem::path simulated_clip(const std::string& sequence, double 
   o.duration_s = duration_s;
   o.show_progress = false;
   if (depth) o.depth = sim::DepthSensorOptions{};
+  o.imu_errors = imu_errors;
   sim::simulate_sequence(o);
   return dir;
 }

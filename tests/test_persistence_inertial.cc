@@ -11,6 +11,8 @@
 #include "core/common/error.h"
 #include "core/persistence/atlas_checkpoint_writer.h"
 #include "core/persistence/atlas_store.h"
+#include "core/persistence/blob_codec.h"
+#include "core/persistence/inertial_blob.h"
 #include "tests/persistence_backends.h"
 #include "tests/test_persistence_expect.h"
 #include "tests/test_persistence_random_atlas.h"
@@ -25,7 +27,11 @@ std::shared_ptr<const Preintegration> random_increments(std::mt19937_64& rng, in
   ImuBias bias;
   bias.gyro = Eigen::Vector3d(0.001, -0.002, 0.003);
   bias.accel = Eigen::Vector3d(0.02, 0.01, -0.03);
-  auto pre = std::make_shared<Preintegration>(bias, ImuNoise{});
+  // With the vibration measured in flight (stored since blob version 2).
+  ImuNoise noise;
+  noise.vibration.rotation_var = Eigen::Vector3d(1.1e-7, 5.8e-7, 6.1e-7);
+  noise.vibration.velocity_var = Eigen::Vector3d(6.1e-5, 1.0e-5, 2.3e-5);
+  auto pre = std::make_shared<Preintegration>(bias, noise);
   for (int i = 0; i < steps; ++i)
     pre->integrate(Eigen::Vector3d(n(rng), n(rng), n(rng)) * 0.3, Eigen::Vector3d(n(rng), n(rng), 9.81 + n(rng)),
                    0.005);
@@ -155,6 +161,34 @@ TEST_P(PersistenceInertial, LinksAndStatesRoundTripAndFollowCulling) {
     FAIL() << "a corrupt increments blob was loaded";
   } catch (const DataError& e) {
     EXPECT_NE(std::string(e.what()).find("inertial link"), std::string::npos) << e.what();
+  }
+}
+
+// A version-1 blob (written before the vibration was stored) reads with no
+// vibration and the same measurements; version 2 keeps the vibration exactly.
+TEST(IncrementsBlob, VersionOneReadsWithoutVibrationAndVersionTwoKeepsIt) {
+  std::mt19937_64 rng(3);
+  const auto pre = random_increments(rng, 40);
+  const Preintegration again = decode_increments(encode_increments(*pre), "link 1");
+  EXPECT_EQ(again.noise().vibration, pre->noise().vibration);
+  EXPECT_EQ(again.covariance(), pre->covariance());
+  EXPECT_GT((pre->covariance() - pre->white_covariance()).norm(), 0.0);
+
+  std::vector<double> v = decode_doubles(encode_increments(*pre), "link 1");
+  v[0] = 1.0;
+  v.erase(v.begin() + 11, v.begin() + 17);  // the vibration's six values
+  const Preintegration old = decode_increments(encode_doubles(v), "link 1");
+  EXPECT_EQ(old.noise().vibration, ImuVibration{});
+  EXPECT_EQ(old.delta_v(), pre->delta_v());
+  EXPECT_EQ(old.covariance(), pre->white_covariance());
+
+  v = decode_doubles(encode_increments(*pre), "link 1");
+  v[14] = -1e-6;  // a negative velocity variance
+  try {
+    decode_increments(encode_doubles(v), "link 1");
+    FAIL() << "a negative vibration variance was decoded";
+  } catch (const DataError& e) {
+    EXPECT_NE(std::string(e.what()).find("vibration variance"), std::string::npos) << e.what();
   }
 }
 

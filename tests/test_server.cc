@@ -232,6 +232,21 @@ TEST(ServerEndToEnd, AStereoInertialStreamInitialisesItsMap) {
   const std::uint64_t id = other.create_session("euroc/stereo");
   EXPECT_EQ(other.post_imu(id, {ImuSample{1, Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 9.81)}})["accepted"], 1);
   other.finish_session(id);
+
+  // An inertial session whose IMU pauses for 0.9 s takes the samples and
+  // says so in its status; a stream back in time is refused whole.
+  const std::uint64_t inertial = other.create_session("euroc/stereo_inertial");
+  const ImuSample a{1'000'000'000, Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 9.81)};
+  ImuSample b = a;
+  b.t_ns += 900'000'000;
+  EXPECT_EQ(other.post_imu(inertial, {a, b})["accepted"], 2);
+  const std::string path = "/v1/sessions/" + std::to_string(inertial);
+  const nlohmann::json status = other.get_json(path);
+  ASSERT_TRUE(status.contains("imu_warnings")) << status.dump();
+  ASSERT_EQ(status["imu_warnings"].size(), 1u);
+  EXPECT_NE(status["imu_warnings"][0].get<std::string>().find("IMU gap of 900 ms"), std::string::npos) << status.dump();
+  EXPECT_THROW(other.post_imu(inertial, {a}), ServerError);
+  other.finish_session(inertial);
 }
 
 // An RGB-D session over HTTP (issue 20): orbatlas stream sends each colour

@@ -226,7 +226,7 @@ TEST(ServerOptions, CheckThemselves) {
   expect_refused(
       service, [](auto& o) { o.max_live_sessions = 0; }, "max_live_sessions");
   expect_refused(
-      service, [](auto& o) { o.max_imu_gap_s = 0.0; }, "max_imu_gap_s");
+      service, [](auto& o) { o.slam.imu_input.stuck_samples = 1; }, "stuck_samples");
   expect_refused(
       service, [](auto& o) { o.loop_queue = 0; }, "loop_queue");
   expect_refused(

@@ -4,10 +4,11 @@
 #include <limits>
 
 #include "core/common/error.h"
+#include "core/imu/vibration_estimate.h"
 
 namespace orbatlas {
 
-ImuBuffer::ImuBuffer(double keep_s) : keep_s_(keep_s) {
+ImuBuffer::ImuBuffer(double keep_s, bool measure_vibration) : keep_s_(keep_s), measure_vibration_(measure_vibration) {
   ORBATLAS_CHECK(keep_s > 0.0, "imu buffer: keep_s must be > 0, not " << keep_s);
 }
 
@@ -30,12 +31,17 @@ void ImuBuffer::add(const std::vector<ImuSample>& samples) {
     samples_.erase(samples_.begin(), keep);  // amortised: at most every other call moves the rest
 }
 
+ImuVibration ImuBuffer::vibration(TimestampNs t, const ImuNoise& noise) const {
+  return measure_vibration_ ? estimate_vibration(samples_, t + time_offset_ns_, noise) : ImuVibration{};
+}
+
 std::optional<Preintegration> ImuBuffer::between(TimestampNs t0, TimestampNs t1, const ImuBias& bias,
-                                                 const ImuNoise& noise, double max_gap_s) {
+                                                 const ImuNoise& noise, double max_gap_s) const {
   try {
-    return Preintegration::between(samples_, t0, t1, bias, noise, max_gap_s);
+    ImuNoise measured = noise;
+    measured.vibration = vibration(t1, noise);
+    return Preintegration::between(samples_, t0 + time_offset_ns_, t1 + time_offset_ns_, bias, measured, max_gap_s);
   } catch (const DataError&) {
-    ++uncovered_;
     return std::nullopt;
   }
 }

@@ -21,6 +21,9 @@ void ImuNoise::check() const {
                                     std::pair{"IMU.GyroWalk", gyro_walk}, std::pair{"IMU.AccWalk", accel_walk}})
     ORBATLAS_CHECK(std::isfinite(value) && value > 0.0,
                    "imu: " << name << " must be a finite value > 0, not " << value);
+  ORBATLAS_CHECK(vibration.rotation_var.allFinite() && vibration.rotation_var.minCoeff() >= 0.0 &&
+                     vibration.velocity_var.allFinite() && vibration.velocity_var.minCoeff() >= 0.0,
+                 "imu: the vibration's variances must be finite and >= 0");
 }
 
 }  // namespace orbatlas

@@ -15,11 +15,22 @@ struct ImuBias {
   bool operator==(const ImuBias&) const = default;
 };
 
+// What vibration adds at each end of an interval to the error of the
+// integrated rotation and velocity, per axis of the IMU frame (variances, rad^2
+// and (m/s)^2; core/imu/vibration_estimate.h measures it).
+struct ImuVibration {
+  Eigen::Vector3d rotation_var = Eigen::Vector3d::Zero();
+  Eigen::Vector3d velocity_var = Eigen::Vector3d::Zero();
+
+  bool operator==(const ImuVibration&) const = default;
+};
+
 struct ImuNoise {
   double gyro_density = 1.6968e-04;   // rad/s/sqrt(Hz)
   double accel_density = 2.0000e-03;  // m/s^2/sqrt(Hz)
   double gyro_walk = 1.9393e-05;      // rad/s^2/sqrt(Hz)
   double accel_walk = 3.0000e-03;     // m/s^3/sqrt(Hz)
+  ImuVibration vibration;             // zero: the densities alone (an IMU without vibration)
 
   static ImuNoise from(const ImuCalibration& calibration);
 
@@ -30,7 +41,8 @@ struct ImuNoise {
   double gyro_walk_variance(double dt) const { return gyro_walk * gyro_walk * dt; }
   double accel_walk_variance(double dt) const { return accel_walk * accel_walk * dt; }
 
-  // Throws Error naming the first value that is not finite and > 0.
+  // Throws Error naming the first value that is not finite and > 0 (the
+  // vibration's: finite and >= 0).
   void check() const;
 };
 

@@ -4,6 +4,7 @@
 #include <ceres/rotation.h>
 
 #include <cmath>
+#include <limits>
 #include <memory>
 
 #include "core/common/error.h"
@@ -69,6 +70,9 @@ void InertialInitOptions::check() const {
   ORBATLAS_CHECK(std::isfinite(accel_bias_prior) && accel_bias_prior >= 0.0,
                  "inertial init: accel_bias_prior must be >= 0, not " << accel_bias_prior);
   ORBATLAS_CHECK(max_iterations > 0, "inertial init: max_iterations must be > 0, not " << max_iterations);
+  ORBATLAS_CHECK(std::isfinite(visual_rotation_sigma) && visual_rotation_sigma >= 0.0 &&
+                     std::isfinite(visual_position_sigma) && visual_position_sigma >= 0.0,
+                 "inertial init: the visual sigmas must be >= 0");
 }
 
 InertialInitResult initialize_inertial(const std::vector<Pose3>& T_w_b,
@@ -112,6 +116,8 @@ InertialInitResult initialize_inertial(const std::vector<Pose3>& T_w_b,
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
+  std::vector<ceres::ResidualBlockId> links;
+  std::vector<Eigen::Matrix<double, 9, 9>> weights;
   for (std::size_t k = 0; k + 1 < n; ++k) {
     const Preintegration& pre = preintegrated[k];
     ORBATLAS_CHECK(pre.bias() == bias0, "inertial init: the preintegrations must share one bias");
@@ -124,12 +130,14 @@ InertialInitResult initialize_inertial(const std::vector<Pose3>& T_w_b,
     edge->lever_i = lever[k];
     edge->lever_j = lever[k + 1];
     edge->weight = whitening<9>(pre.covariance());
+    weights.push_back(edge->weight);
     edge->R_wg0 = R_wg0;
     edge->gravity = options.gravity;
     costs.push_back(std::make_unique<ceres::AutoDiffCostFunction<InertialEdge, 9, 3, 3, 3, 3, 2, 1>>(
         edge.release()));  // the cost owns its functor
-    problem.AddResidualBlock(costs.back().get(), nullptr, result.velocities[k].data(), result.velocities[k + 1].data(),
-                             bg.data(), ba.data(), gdir.data(), log_s.data());
+    links.push_back(problem.AddResidualBlock(costs.back().get(), nullptr, result.velocities[k].data(),
+                                             result.velocities[k + 1].data(), bg.data(), ba.data(), gdir.data(),
+                                             log_s.data()));
   }
   costs.push_back(std::make_unique<ceres::AutoDiffCostFunction<BiasPrior, 3, 3>>(
       std::make_unique<BiasPrior>(BiasPrior{std::sqrt(options.gyro_bias_prior)}).release()));
@@ -160,6 +168,23 @@ InertialInitResult initialize_inertial(const std::vector<Pose3>& T_w_b,
   result.final_cost = summary.final_cost;
   result.iterations = static_cast<int>(summary.iterations.size());
   result.converged = summary.termination_type == ceres::CONVERGENCE;
+  for (std::size_t k = 0; k < links.size(); ++k) {
+    Eigen::Matrix<double, 9, 1> whitened;
+    if (!problem.EvaluateResidualBlock(links[k], false, nullptr, whitened.data(), nullptr)) {
+      result.link_chi2.push_back(std::numeric_limits<double>::infinity());
+      result.link_rotation_chi2.push_back(std::numeric_limits<double>::infinity());
+      continue;
+    }
+    // The raw residual back from the whitened one, under the increments'
+    // covariance and the two keyframe poses' error.
+    const Eigen::Matrix<double, 9, 1> r = weights[k].lu().solve(whitened);
+    Eigen::Matrix<double, 9, 9> cov = preintegrated[k].covariance();
+    cov.diagonal().head<3>().array() += 2.0 * options.visual_rotation_sigma * options.visual_rotation_sigma;
+    cov.diagonal().tail<3>().array() += 2.0 * options.visual_position_sigma * options.visual_position_sigma;
+    result.link_chi2.push_back(r.dot(cov.ldlt().solve(r)));
+    const Eigen::Matrix3d rotation_cov = cov.topLeftCorner<3, 3>();
+    result.link_rotation_chi2.push_back(r.head<3>().dot(rotation_cov.ldlt().solve(r.head<3>())));
+  }
   return result;
 }
 

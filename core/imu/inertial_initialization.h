@@ -24,6 +24,11 @@ struct InertialInitOptions {
   double gyro_bias_prior = 1e2;
   double accel_bias_prior = 1e5;
   int max_iterations = 200;
+  // The keyframe poses' own error (each end of a link), for the chi2 that
+  // InertialInitResult reports: the residuals there are the IMU's and the
+  // visual poses' disagreement.
+  double visual_rotation_sigma = 5e-4;  // rad
+  double visual_position_sigma = 5e-3;  // m
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -36,6 +41,13 @@ struct InertialInitResult {
   ImuBias bias;
   double scale = 1.0;
   double initial_cost = 0.0, final_cost = 0.0;
+  // Per link (k to k+1): the chi2 of its inertial residual (9 degrees of
+  // freedom) at the solution, under the increments' covariance and the
+  // keyframe poses' error (InertialInitOptions::visual_*_sigma).
+  std::vector<double> link_chi2;
+  // The same of the rotation residual alone (3 degrees of freedom): the gyro
+  // against the visual rotation, whatever the accelerometer bias's prior holds.
+  std::vector<double> link_rotation_chi2;
   int iterations = 0;
   bool converged = false;
 };

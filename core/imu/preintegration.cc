@@ -163,6 +163,22 @@ Eigen::Vector3d Preintegration::delta_p(const ImuBias& bias) const {
   return delta_p_ + dp_dbg_ * (bias.gyro - bias_.gyro) + dp_dba_ * (bias.accel - bias_.accel);
 }
 
+Preintegration::Matrix9 Preintegration::covariance() const {
+  const ImuVibration& v = noise_.vibration;
+  if (v.rotation_var.isZero() && v.velocity_var.isZero()) return covariance_;
+  // The rotation residual is in the end's IMU frame (the start's error turned
+  // by the increment), the velocity residual in the start's (the end's turned).
+  const Eigen::Matrix3d R_diag = v.rotation_var.asDiagonal(), V_diag = v.velocity_var.asDiagonal();
+  Matrix9 c = covariance_;
+  c.block<3, 3>(0, 0) += R_diag + delta_R_.transpose() * R_diag * delta_R_;
+  c.block<3, 3>(3, 3) += V_diag + delta_R_ * V_diag * delta_R_.transpose();
+  // The velocity error it leaves inside the interval, integrated: correlated
+  // over about kVibrationCorrelationS.
+  constexpr double kVibrationCorrelationS = 0.02;
+  c.block<3, 3>(6, 6).diagonal().array() += 2.0 * v.velocity_var.maxCoeff() * kVibrationCorrelationS * dt_;
+  return c;
+}
+
 Eigen::Matrix<double, 6, 1> Preintegration::bias_walk_variance() const {
   Eigen::Matrix<double, 6, 1> v;
   v.head<3>().setConstant(noise_.gyro_walk_variance(dt_));

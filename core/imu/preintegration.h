@@ -68,8 +68,12 @@ class Preintegration {
   Eigen::Vector3d delta_v(const ImuBias& bias) const;
   Eigen::Vector3d delta_p(const ImuBias& bias) const;
 
-  // Covariance of the increments' error (rotation, velocity, position).
-  const Matrix9& covariance() const { return covariance_; }
+  // Covariance of the increments' error (rotation, velocity, position): the
+  // white noise's, propagated over the measurements, and the vibration's at
+  // both ends (noise().vibration; its position part grows with dt()).
+  Matrix9 covariance() const;
+  // The white noise's part alone.
+  const Matrix9& white_covariance() const { return covariance_; }
   // Covariance of the biases' drift over dt() (gyro, accel; diagonal).
   Eigen::Matrix<double, 6, 1> bias_walk_variance() const;
 

@@ -155,8 +155,8 @@ BagUnpackReport unpack_bag(const fs::path& bag, const BagTopics& topics, const B
           s.t_ns = m.t_ns;
           s.gyro = Eigen::Vector3d(m.gyro[0], m.gyro[1], m.gyro[2]);
           s.accel = Eigen::Vector3d(m.accel[0], m.accel[1], m.accel[2]);
-          ORBATLAS_DATA_CHECK(s.gyro.allFinite() && s.accel.allFinite(),
-                              bag.string() << ": " << imu_topic << ": a sample at " << m.t_ns << " ns is not finite");
+          // A sample that is not finite is kept as read: the session drops it and says so
+          // (core/imu/imu_input_check.h).
           imu.push_back(s);
         });
   } catch (const std::runtime_error& e) {

@@ -60,12 +60,14 @@ class TimestampOrder {
   std::size_t previous_line_ = 0;
 };
 
+// `finite_only`: "nan" and "inf" refused (an IMU's reading of them is kept:
+// the session drops such samples and says so, core/imu/imu_input_check.h).
 Eigen::Vector3d parse_vec3(const std::vector<std::string_view>& f, std::size_t first, const fs::path& csv,
-                           std::size_t line) {
+                           std::size_t line, bool finite_only = true) {
   Eigen::Vector3d v;
   for (int i = 0; i < 3; ++i) {
     v[i] = parse_double(f[first + static_cast<std::size_t>(i)], csv, line);
-    if (!std::isfinite(v[i])) fail_at(csv, line, "non-finite value");
+    if (finite_only && !std::isfinite(v[i])) fail_at(csv, line, "non-finite value");
   }
   return v;
 }
@@ -115,8 +117,8 @@ std::vector<ImuSample> read_imu_csv(const fs::path& csv) {
     ImuSample s;
     s.t_ns = parse_int64(f[0], csv, line.number);
     order.check(s.t_ns, line.number);
-    s.gyro = parse_vec3(f, 1, csv, line.number);
-    s.accel = parse_vec3(f, 4, csv, line.number);
+    s.gyro = parse_vec3(f, 1, csv, line.number, /*finite_only=*/false);
+    s.accel = parse_vec3(f, 4, csv, line.number, /*finite_only=*/false);
     samples.push_back(s);
   });
   return samples;

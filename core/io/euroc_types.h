@@ -26,6 +26,10 @@ struct ImuCalibration {
   double gyro_random_walk = 1.9393e-05;     // rad/s^2/sqrt(Hz)
   double accel_noise_density = 2.0000e-03;  // m/s^2/sqrt(Hz)
   double accel_random_walk = 3.0000e-03;    // m/s^3/sqrt(Hz)
+  // The sensor's range (IMU.GyroRange, IMU.AccRange; 0: not given): readings
+  // at it are saturated (core/imu/imu_input_check.h).
+  double gyro_range = 0.0;   // rad/s
+  double accel_range = 0.0;  // m/s^2
 };
 
 // One row of state_groundtruth_estimate0/data.csv.

@@ -302,6 +302,8 @@ SlamSettings read(const SettingsFile& file, std::optional<SensorType> hint) {
     imu.accel_noise_density = file.positive("IMU.NoiseAcc");
     imu.gyro_random_walk = file.positive("IMU.GyroWalk");
     imu.accel_random_walk = file.positive("IMU.AccWalk");
+    imu.gyro_range = in.positive_or("IMU.GyroRange", 0.0);
+    imu.accel_range = in.positive_or("IMU.AccRange", 0.0);
     s.imu = imu;
   }
 

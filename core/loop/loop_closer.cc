@@ -49,6 +49,8 @@ const char* to_string(GlobalAdjustmentCause cause) {
       return "shared_map";
     case GlobalAdjustmentCause::kStreamEnd:
       return "stream_end";
+    case GlobalAdjustmentCause::kInertial:
+      return "inertial";
   }
   return "?";
 }
@@ -251,7 +253,19 @@ void LoopCloser::process(const Item& item) {
     close_loop(*step.match);
     return;
   }
+  if (adjust_inertial_map(item)) return;
   refine_shared_map(item);
+}
+
+bool LoopCloser::adjust_inertial_map(const Item& item) {
+  const auto map = atlas_.map(item.keyframe->map_id());
+  if (!map || !options_.global_bundle_adjustment || !map->take_inertial_adjustment_request()) return false;
+  // A running adjustment was solved before the map's new inertial state (and
+  // in its former frame, which apply_global_adjustment drops): this one
+  // replaces it.
+  stop_global_adjustment();
+  start_global_adjustment(map->id(), GlobalAdjustmentCause::kInertial);
+  return true;
 }
 
 void LoopCloser::refine_shared_map(const Item& item) {

@@ -112,7 +112,9 @@ struct ClosedLoop {
 // Why a global BA ran: after a loop correction, after a live merge, or for a
 // map several sessions map at once (LoopCloserOptions::shared_map_refinement_growth),
 // or for such a map when a session ends in it (stream_end_refinement_growth).
-enum class GlobalAdjustmentCause { kLoop, kMerge, kSharedMap, kStreamEnd };
+// kInertial: a map's full visual-inertial BA after its inertial
+// initialisation or a refinement (Map::request_inertial_adjustment).
+enum class GlobalAdjustmentCause { kLoop, kMerge, kSharedMap, kStreamEnd, kInertial };
 const char* to_string(GlobalAdjustmentCause cause);
 
 struct GlobalAdjustmentRun {
@@ -199,6 +201,9 @@ class LoopCloser {
   void stop_global_adjustment();
   // `wait` (may be null) is told when the adjustment has ended.
   void start_global_adjustment(MapId map, GlobalAdjustmentCause cause, std::shared_ptr<StreamEndWait> wait = nullptr);
+  // Worker thread: the full visual-inertial BA the keyframe's map asked for,
+  // started; false when it asked for none.
+  bool adjust_inertial_map(const Item& item);
   // Worker thread: the stream-end request of refine_at_stream_end().
   void handle_stream_end(const std::shared_ptr<StreamEndWait>& wait);
   // Worker thread: a map is due a refinement when streams.size() >= 2 and it

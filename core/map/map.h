@@ -106,6 +106,11 @@ class Map {
   };
   std::optional<InertialState> inertial_state() const;
   void set_inertial_state(const InertialState& state);
+  // A full visual-inertial BA of the map is wanted (its inertial state was
+  // just set): local mapping asks, the loop closer's background adjustment
+  // takes the request (docs/inertial.md). Any thread.
+  void request_inertial_adjustment() { inertial_adjustment_requested_.store(true); }
+  bool take_inertial_adjustment_request() { return inertial_adjustment_requested_.exchange(false); }
 
   // Expresses the whole map in a new world frame: every keyframe pose, point,
   // viewing direction and root anchor becomes T_new_old * it, and frame_epoch()
@@ -154,6 +159,7 @@ class Map {
   std::optional<InertialState> inertial_;  // guarded by objects_mutex_
   bool measured_depth_ = false;            // a keyframe with depths was added; guarded by objects_mutex_
   std::atomic<std::uint64_t> frame_epoch_{0};
+  std::atomic<bool> inertial_adjustment_requested_{false};
 };
 
 }  // namespace orbatlas

@@ -32,6 +32,13 @@ void InertialInitializationOptions::check() const {
   ORBATLAS_CHECK(
       std::isfinite(reintegrate_gyro_bias_change) && reintegrate_gyro_bias_change >= 0.0,
       "inertial initialisation: reintegrate_gyro_bias_change must be >= 0, not " << reintegrate_gyro_bias_change);
+  for (const auto& [name, value] :
+       {std::pair{"max_gyro_bias", max_gyro_bias}, std::pair{"max_accel_bias", max_accel_bias},
+        std::pair{"max_median_link_chi2", max_median_link_chi2},
+        std::pair{"max_median_rotation_chi2", max_median_rotation_chi2},
+        std::pair{"max_refinement_turn_deg", max_refinement_turn_deg}})
+    ORBATLAS_CHECK(std::isfinite(value) && value > 0.0,
+                   "inertial initialisation: " << name << " must be a finite value > 0, not " << value);
   solver.check();
 }
 
@@ -60,11 +67,41 @@ std::size_t reintegrate_far_links(const std::vector<std::shared_ptr<KeyFrame>>& 
 // frame, which the alignment does not change) and biases, then the map turned
 // so that gravity points along -z (its yaw kept) and `state` (biases filled in
 // here) set. `what` names the step in the log.
+double median_of(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
+  return values[values.size() / 2];
+}
+
+// Why an estimate is not to be kept (empty: it may be): biases out of range,
+// inertial residuals that do not fit, a refinement that would turn the map far.
+std::string implausible(const InertialInitResult& r, const InertialInitializationOptions& options,
+                        const InertialInitOptions& solver, bool refinement) {
+  std::ostringstream why;
+  if (r.bias.gyro.norm() > options.max_gyro_bias)
+    why << "gyro bias " << r.bias.gyro.norm() << " rad/s (at most " << options.max_gyro_bias << ")";
+  else if (r.bias.accel.norm() > options.max_accel_bias)
+    why << "accelerometer bias " << r.bias.accel.norm() << " m/s^2 (at most " << options.max_accel_bias << ")";
+  if (why.tellp() > 0) return why.str();
+  if (const double median = median_of(r.link_rotation_chi2); !(median <= options.max_median_rotation_chi2))
+    return "the gyro disagrees with the visual rotation (median rotation chi2 " + std::to_string(median) +
+           " per link, at most " + std::to_string(options.max_median_rotation_chi2) + ")";
+  if (const double median = median_of(r.link_chi2);
+      solver.accel_bias_prior <= 1.0 && !(median <= options.max_median_link_chi2))
+    return "the IMU disagrees with the visual motion (median inertial chi2 " + std::to_string(median) +
+           " per link, at most " + std::to_string(options.max_median_link_chi2) + ")";
+  const double turn_deg = Eigen::AngleAxisd(r.R_w_g).angle() * 180.0 / M_PI;
+  if (refinement && turn_deg > options.max_refinement_turn_deg)
+    return "it would turn the map's gravity by " + std::to_string(turn_deg) + " deg (at most " +
+           std::to_string(options.max_refinement_turn_deg) + ")";
+  return {};
+}
+
 std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector<std::shared_ptr<KeyFrame>>& chain,
                                                      const ImuBias& linearisation, Map::InertialState state,
                                                      const InertialInitializationOptions& options,
                                                      const InertialInitOptions& solver, Atlas* atlas,
-                                                     const std::string& what) {
+                                                     const std::string& what, bool refinement) {
   std::vector<Pose3> poses;
   std::vector<Preintegration> increments;
   for (std::size_t k = 0; k < chain.size(); ++k) {
@@ -79,8 +116,14 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
   const bool finite = std::all_of(result.velocities.begin(), result.velocities.end(),
                                   [](const Eigen::Vector3d& v) { return v.allFinite(); }) &&
                       result.bias.gyro.allFinite() && result.bias.accel.allFinite();
+  const std::string refused = what + " of map " + std::to_string(map.id()) + " refused";
+  const std::string after = refinement ? " (the map keeps its estimate)" : " (retried)";
   if (!finite || !result.gravity_w.allFinite() || result.final_cost > result.initial_cost) {
-    log_warn(what + " of map " + std::to_string(map.id()) + " found no consistent solution (retried)");
+    log_warn(refused + ": no consistent solution" + after);
+    return std::nullopt;
+  }
+  if (const std::string why = implausible(result, options, solver, refinement); !why.empty()) {
+    log_warn(refused + ": " + why + after);
     return std::nullopt;
   }
   // A monocular map is made metric: scaled by what the IMU says (its
@@ -112,7 +155,10 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
        << result.gravity_w.transpose() << ") m/s^2 in the map (turned by " << turn_deg
        << " deg to point it along -z); gyro bias (" << result.bias.gyro.transpose() << ") rad/s, accelerometer bias ("
        << result.bias.accel.transpose() << ") m/s^2; " << result.iterations << " iterations; " << reintegrated
-       << " links integrated again at the gyro bias found";
+       << " links integrated again at the gyro bias found; chi2 per link median " << median_of(result.link_chi2)
+       << " (rotation " << median_of(result.link_rotation_chi2) << ")"
+       << ", max "
+       << (result.link_chi2.empty() ? 0.0 : *std::max_element(result.link_chi2.begin(), result.link_chi2.end()));
   if (solver.estimate_scale) line << "; scale " << result.scale << " applied";
   log_info(line.str());
   return state;
@@ -140,7 +186,7 @@ std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::s
   state.keyframes = chain.size();
   state.span_s = span_s;
   return estimate_and_apply(map, chain, chain[1]->inertial_link()->from_previous->bias(), state, options,
-                            solver_for(map, options.solver), atlas, "inertial initialisation");
+                            solver_for(map, options.solver), atlas, "inertial initialisation", false);
 }
 
 std::optional<Map::InertialState> refine_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
@@ -168,7 +214,7 @@ std::optional<Map::InertialState> refine_map_inertial(Map& map, const std::share
   solver.gyro_bias_prior = step.gyro_bias_prior;
   solver.accel_bias_prior = step.accel_bias_prior;
   auto applied = estimate_and_apply(map, chain, state->bias, estimate, options, solver, atlas,
-                                    "inertial refinement " + std::to_string(refined.refinements));
+                                    "inertial refinement " + std::to_string(refined.refinements), true);
   if (!applied) map.set_inertial_state(refined);
   return applied;
 }

@@ -52,6 +52,20 @@ struct InertialInitializationOptions {
   // integrated again at it (ORB-SLAM3's 0.01 rad/s): the rotation increment
   // is corrected to first order only, which a larger change leaves off.
   double reintegrate_gyro_bias_change = 0.01;
+  // An estimate is kept only when it is plausible (else the initialisation is
+  // retried at a later keyframe, a refinement leaves the map as it was): biases
+  // of at most these norms (a MEMS IMU's are a few hundredths; EuRoC's 0.08
+  // rad/s and 0.15 m/s^2); the chain's rotation residuals with a median chi2 of
+  // at most this (3 degrees of freedom: the gyro agrees with the visual
+  // rotation within what its noise, vibration included, allows), and once the
+  // accelerometer bias is free (its prior at most 1: the refinements from the
+  // second on) the whole inertial residuals' (9 degrees of freedom) too; a
+  // refinement turning the map's gravity by at most this.
+  double max_gyro_bias = 0.5;             // rad/s
+  double max_accel_bias = 1.0;            // m/s^2
+  double max_median_rotation_chi2 = 9.0;  // 3 x the degrees of freedom
+  double max_median_link_chi2 = 27.0;     // 3 x the degrees of freedom
+  double max_refinement_turn_deg = 2.0;
 
   // Throws Error naming the first value out of range.
   void check() const;

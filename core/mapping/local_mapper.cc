@@ -165,6 +165,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
   bool culling_ran = false;
   bool interrupted = false;
   std::size_t inertial_bas = 0, inertial_refinements = 0;
+  std::optional<double> inertial_chi2_median;
   std::optional<GlobalBundleAdjustmentResult> full_ba;
   if (!hurry(source) && !abort_ba_.load()) {
     if (options_.run_bundle_adjustment && map->keyframe_count() > 2) {
@@ -185,6 +186,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
       interrupted = stats.stopped;
       if (stats.inertial_edges > 0) {
         ++inertial_bas;
+        inertial_chi2_median = stats.inertial_chi2_median;
         // Tracking predicts with the newest keyframe's biases.
         if (const auto imu = keyframe->imu_state(); imu && inertial_state) {
           Map::InertialState refined = *inertial_state;
@@ -213,7 +215,13 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
       } else {
         set = initialize_map_inertial(*map, keyframe, options_.inertial, &atlas_);
       }
-      if (set && options_.full_inertial_ba_iterations > 0) full_ba = full_inertial_ba(*map, keyframe, *set);
+      if (set && options_.full_inertial_ba_iterations > 0) {
+        if (options_.defer_full_inertial_ba) {
+          map->request_inertial_adjustment();
+        } else {
+          full_ba = full_inertial_ba(*map, keyframe, *set);
+        }
+      }
     } catch (const Error& e) {
       log_warn(std::string("inertial ") + (initialised ? "refinement" : "initialisation") + " of map " +
                std::to_string(map->id()) + " failed: " + e.what() + (initialised ? "" : " (retried)"));
@@ -230,6 +238,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
   }
   if (interrupted) ++board_->stats.bundle_adjustments_interrupted;
   board_->stats.inertial_bundle_adjustments += inertial_bas;
+  if (inertial_chi2_median) board_->stats.inertial_chi2_median.add(*inertial_chi2_median);
   board_->stats.inertial_refinements += inertial_refinements;
   if (full_ba && !full_ba->stopped) {
     ++board_->stats.full_inertial_bundle_adjustments;

@@ -54,6 +54,12 @@ struct LocalMapperOptions {
   // visual-inertial BA (every keyframe and point, the chain's IMU states;
   // ORB-SLAM3's FullInertialBA); iterations 0: none.
   int full_inertial_ba_iterations = 20;
+  // The full BA is asked of the loop closer's background adjustment
+  // (Map::request_inertial_adjustment) instead of run here: local mapping goes
+  // on meanwhile (a full BA over 50-120 keyframes takes seconds, while the rig
+  // moves on into places without points). Set by MappingWorkers when its loop
+  // closer runs global BAs.
+  bool defer_full_inertial_ba = false;
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -78,6 +84,7 @@ struct LocalMapperStats {
   std::size_t points_triangulated = 0, points_fused = 0, observations_fused = 0, recent_points_culled = 0;
   std::size_t bundle_adjustments_interrupted = 0;
   std::size_t inertial_bundle_adjustments = 0;  // local BAs with inertial edges
+  SampleSummary inertial_chi2_median;           // each of those BAs' median inertial chi2 (9 dof) after it
   std::size_t inertial_refinements = 0;         // of maps' inertial initialisation
   std::size_t full_inertial_bundle_adjustments = 0;
   SampleSummary full_inertial_ba_ms;

@@ -1,5 +1,7 @@
 #include "core/optimization/inertial_window.h"
 
+#include <cmath>
+
 #include <algorithm>
 #include <limits>
 
@@ -41,6 +43,7 @@ void InertialWindowOptions::check() const {
   ORBATLAS_CHECK(temporal_keyframes >= 2,
                  "visual-inertial BA: temporal_keyframes must be >= 2, not " << temporal_keyframes);
   ORBATLAS_CHECK(gravity_w.allFinite() && gravity_w.norm() > 0.0, "visual-inertial BA: gravity must be finite, not 0");
+  ORBATLAS_CHECK(std::isfinite(huber) && huber >= 0.0, "visual-inertial BA: huber must be >= 0, not " << huber);
 }
 
 InertialChainWindow inertial_chain_window(const std::shared_ptr<KeyFrame>& current,
@@ -108,6 +111,7 @@ InertialWindow add_inertial_window(BundleProblem& lp, const InertialChainWindow&
     inertial.blocks = {
         lp.poses[a].q.data(), lp.poses[a].t.data(), va, lp.poses[b].q.data(), lp.poses[b].t.data(), vb, ba};
     inertial.keyframes = {a, b};
+    inertial.huber = options.huber;
     w.inertial_terms.push_back(lp.extra_terms.size());
     lp.extra_terms.push_back(std::move(inertial));
     BundleExtraTerm walk;

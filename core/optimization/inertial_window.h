@@ -7,6 +7,7 @@
 // at the first keyframe's biases) and to each other by the biases' random walk
 // (make_bias_walk_cost). The keyframe before the window, when it has an IMU
 // state, joins fixed (pose, velocity and biases): the window's anchor.
+#include <cmath>
 #include <cstddef>
 #include <memory>
 #include <utility>
@@ -16,6 +17,7 @@
 #include "core/imu/imu_noise.h"
 #include "core/map/keyframe.h"
 #include "core/optimization/bundle_problem.h"
+#include "core/optimization/chi2.h"
 
 namespace orbatlas {
 
@@ -26,6 +28,10 @@ struct InertialWindowOptions {
   Eigen::Vector3d gravity_w = Eigen::Vector3d::Zero();  // in the map
   ImuBias map_bias;                                     // for keyframes without an IMU state
   std::size_t temporal_keyframes = 10;                  // ORB-SLAM3: 10
+  // A Huber kernel of this width on each link's whitened inertial residual
+  // (the global BA's; 0: none): a link that does not fit (a knock, a bad
+  // stretch of IMU) weighs as a robust term, not as a square.
+  double huber = std::sqrt(kChi2Inertial95);
 
   // Throws Error naming the first value out of range.
   void check() const;

@@ -119,8 +119,12 @@ LocalBundleAdjustmentStats local_bundle_adjustment(Map& map, const std::shared_p
   write_back(lp);
   if (options.inertial) {
     write_back_inertial_window(lp, inertial, *options.inertial);
-    for (const double chi2 : inertial_window_chi2(lp, inertial))
-      stats.inertial_chi2_max = std::max(stats.inertial_chi2_max, chi2);
+    std::vector<double> chi2 = inertial_window_chi2(lp, inertial);
+    for (const double c : chi2) stats.inertial_chi2_max = std::max(stats.inertial_chi2_max, c);
+    if (!chi2.empty()) {
+      std::nth_element(chi2.begin(), chi2.begin() + static_cast<std::ptrdiff_t>(chi2.size() / 2), chi2.end());
+      stats.inertial_chi2_median = chi2[chi2.size() / 2];
+    }
   }
   stats.time_ms = ms_since(start);
   return stats;

@@ -10,11 +10,12 @@
 
 namespace orbatlas {
 
-inline constexpr double kIncrementsBlobVersion = 1.0;
+inline constexpr double kIncrementsBlobVersion = 2.0;  // 1: without the vibration's variances (read as zero)
 
 std::string encode_increments(const Preintegration& increments);
 // Throws DataError naming `what` for an unknown version, a size that is not
-// 11 + 7 per measurement, a value that is not finite, a dt or density <= 0.
+// 17 (version 1: 11) + 7 per measurement, a value that is not finite, a dt or
+// density <= 0, a vibration variance < 0.
 Preintegration decode_increments(std::string_view blob, const std::string& what);
 
 }  // namespace orbatlas

@@ -37,8 +37,6 @@ void AtlasServiceOptions::check() const {
   ORBATLAS_CHECK(
       std::isfinite(finish_refinement_wait_s) && finish_refinement_wait_s >= 0.0 && finish_refinement_wait_s <= 3600.0,
       "server: finish_refinement_wait_s must be in 0..3600, not " << finish_refinement_wait_s);
-  ORBATLAS_CHECK(max_imu_gap_s > 0.0 && std::isfinite(max_imu_gap_s),
-                 "server: max_imu_gap_s must be > 0 s, not " << max_imu_gap_s);
   ORBATLAS_CHECK(loop_queue > 0, "server: loop_queue must be > 0, not " << loop_queue);
   ORBATLAS_CHECK(background_nice >= 0 && background_nice <= 19,
                  "server: background_nice must be in 0..19, not " << background_nice);
@@ -453,7 +451,7 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
 }
 
 std::size_t AtlasService::add_imu(SessionId id, const std::vector<ImuSample>& samples) {
-  return session(id)->add_imu(samples, options_.max_imu_gap_s);
+  return session(id)->add_imu(samples);
 }
 
 SessionStatus AtlasService::finish_session(SessionId id) { return finish_session(id, std::string()); }

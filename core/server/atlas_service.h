@@ -54,7 +54,6 @@ struct AtlasServiceOptions {
   // the server (stored like any other, status "ended_by": "idle_timeout"), so
   // abandoned sessions cannot hold the live-session slots. <= 0: never.
   double idle_timeout_s = 300.0;
-  double max_imu_gap_s = 0.05;  // EuRoC's IMU runs at 200 Hz: 10 samples missing
   // A stereo mapping session that ends in a map other sessions mapped too
   // waits (in its finish) at most this long for a global BA of that map when
   // the map grew since its last one (StereoSlamOptions::shared_map_finish_wait_s),

@@ -56,10 +56,11 @@ class LiveSession {
   // frame that came soonest after its capture sets the clock offset), is
   // skipped: not tracked, counted (`skipped_frames`), the reply says so.
   FrameOutcome process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
-  // A batch of IMU samples, checked (finite, strictly increasing across
-  // batches, no gap over `max_gap_s`) and counted; DataError otherwise, and then
-  // none of the batch is taken. Stereo tracking does not use them yet.
-  std::size_t add_imu(const std::vector<ImuSample>& samples, double max_gap_s);
+  // A batch of IMU samples, checked (valid stamps, strictly increasing across
+  // batches: DataError otherwise, and then none of the batch is taken), counted
+  // and handed to the session, which drops what it cannot use and says so in
+  // the status's imu_warnings (sessions without an IMU ignore them).
+  std::size_t add_imu(const std::vector<ImuSample>& samples);
   // Lets mapping finish what is queued, stops it and drops the SLAM objects
   // (the frames' anchors stay). Idempotent; false when it was not active.
   bool finish();

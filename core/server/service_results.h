@@ -37,6 +37,9 @@ struct SessionStatus {
   std::size_t frames = 0, tracked = 0, keyframes = 0, rejected_frames = 0, imu_samples = 0;
   std::size_t skipped_frames = 0;  // too late for a real-time session (max_lag_s)
   std::size_t worker_errors = 0;
+  // What was wrong with the session's IMU stream (gaps, dropped samples, its
+  // rate, frames it does not cover), one line per kind; empty when nothing.
+  std::vector<std::string> imu_warnings;
   std::string config;    // the config name it was started with ("" for inline settings)
   std::string error;     // why it failed ("" unless failed)
   std::string ended_by;  // who ended it when not the client ("idle_timeout"; "" otherwise)
@@ -53,6 +56,7 @@ struct SessionStatus {
     // its first frame), and the biases found.
     std::optional<double> imu_initialized_at_s;
     ImuBias imu_bias;
+    std::optional<double> imu_time_offset_ms;  // the camera-IMU clock offset estimated
     // The frames after its keyframes waiting for local mapping to adjust them
     // (TrackerOptions::max_mapping_wait_ms), and the waits cut at that bound.
     SampleSummary mapping_wait_ms;

@@ -203,9 +203,19 @@ SessionWiring run_wiring(const StoredAtlas& stored) {
   return wiring;
 }
 
-// The SLAM options of this run: a localisation changes nothing.
+constexpr double kOfflineMappingWaitMs = 10000.0;  // the bound TrackerOptions allows
+
+// The SLAM options of this run: a localisation changes nothing. Offline (not
+// --realtime) tracking waits for local mapping to adjust each keyframe
+// (TrackerOptions::max_mapping_wait_ms, unless set): frames come as fast as
+// they are tracked, and a run that outpaced its mapping would track on into
+// places its map has no points for yet (a visual-inertial local BA takes
+// several frame intervals); the figures are then those of a machine whose
+// mapping keeps up, whatever this one's speed.
 StereoSlamOptions run_slam_options(const DatasetRunOptions& options) {
   StereoSlamOptions slam_options = options.slam;
+  if (!options.realtime && slam_options.tracker.max_mapping_wait_ms == 0.0)
+    slam_options.tracker.max_mapping_wait_ms = kOfflineMappingWaitMs;
   if (options.localize_only) {
     slam_options.tracker.localization_only = true;
     slam_options.relocalization = true;

@@ -72,11 +72,22 @@ class MappingWorkers::Sink final : public KeyframeSink {
   const std::uint64_t stream_;
 };
 
+namespace {
+
+// With a loop closer that runs global BAs, a map's full visual-inertial BA is
+// one of them (in the background) rather than a stall of its local mapping.
+MappingWorkersOptions with_deferred_inertial_ba(MappingWorkersOptions options) {
+  options.mapper.defer_full_inertial_ba = options.loop_closing && options.loop.global_bundle_adjustment;
+  return options;
+}
+
+}  // namespace
+
 MappingWorkers::MappingWorkers(Atlas& atlas, FrameCamera cam, MappingWorkersOptions options, LoopCloserWiring wiring)
     : atlas_(atlas),
       camera_(copy_camera(cam)),
       cam_(with_camera(std::move(cam), camera_.get())),
-      options_((options.check(), std::move(options))) {
+      options_((options.check(), with_deferred_inertial_ba(std::move(options)))) {
   if (options_.loop_closing)
     loop_closer_ = std::make_unique<LoopCloser>(atlas_, cam_, *this, options_.loop, std::move(wiring));
 }

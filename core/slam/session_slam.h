@@ -20,9 +20,13 @@ class SessionSlam {
   // one image is expected or the reverse, a timestamp that does not increase).
   virtual TrackResult process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) = 0;
   // IMU samples up to (and just past) the next frame, in time order (DataError
-  // for one that is not after the previous or not finite). A session without an
-  // IMU in its settings, or that does not fuse it yet, ignores them.
+  // for one that is not after the previous, keeping none of the batch). A
+  // session without an IMU in its settings, or that does not fuse it yet,
+  // ignores them; one that fuses it drops samples it cannot use (not finite,
+  // a stuck axis, saturated) and says so in imu_warnings().
   virtual void add_imu(const std::vector<ImuSample>& samples) { (void)samples; }
+  // What was wrong with the IMU stream so far, one line per kind (any thread).
+  virtual std::vector<std::string> imu_warnings() const { return {}; }
   // Stops the session's workers; process() may not be called afterwards. Idempotent.
   virtual void finish() = 0;
   // After finish(): what is left of the end, to run without the caller's locks

@@ -68,15 +68,31 @@ nlohmann::json to_json(const SlamStats& s) {
   j["relocalizations"] = s.relocalizations;
   j["maps_started"] = s.maps_started;
   if (s.inertial) {
+    // Full visual-inertial BAs: local mapping's own, and those it asked of the
+    // loop closer (global adjustments of cause "inertial", in the background).
+    std::size_t full_bas = s.mapping.full_inertial_bundle_adjustments;
+    for (const GlobalAdjustmentRun& g : s.loop.global_adjustments)
+      if (g.cause == GlobalAdjustmentCause::kInertial && !g.interrupted) ++full_bas;
     j["imu"] = {{"samples", s.imu_samples},
                 {"linked_keyframes", s.imu_linked_keyframes},
                 {"uncovered_keyframes", s.imu_uncovered_keyframes},
                 {"frames_optimized", s.frames_optimized_with_imu},
                 {"local_bas", s.mapping.inertial_bundle_adjustments},
+                {"local_ba_chi2_median", summary(s.mapping.inertial_chi2_median)},
                 {"refinements", s.mapping.inertial_refinements},
-                {"full_bas", s.mapping.full_inertial_bundle_adjustments},
+                {"full_bas", full_bas},
                 {"full_ba_ms", summary(s.mapping.full_inertial_ba_ms)}};
     j["frames_tracked_by_imu"] = s.frames_tracked_by_imu;
+    if (s.imu_time_offset_ms) j["imu_time_offset_ms"] = *s.imu_time_offset_ms;
+    const ImuInputHealth& h = s.imu_input;
+    j["imu_input"] = {{"dropped_non_finite", h.non_finite},
+                      {"dropped_stuck", h.stuck},
+                      {"dropped_saturated", h.saturated},
+                      {"gaps", h.gaps},
+                      {"longest_gap_ms", h.longest_gap_s * 1e3},
+                      {"frames_outside", h.frames_outside},
+                      {"warnings", h.warnings}};
+    if (h.rate_hz) j["imu_input"]["rate_hz"] = *h.rate_hz;
     if (s.imu_initialized_at_s) {
       const auto v = [](const Eigen::Vector3d& x) { return nlohmann::json::array({x.x(), x.y(), x.z()}); };
       j["imu_initialized_at_s"] = *s.imu_initialized_at_s;

@@ -9,6 +9,7 @@
 #include "core/common/sample_summary.h"
 #include "core/map/atlas.h"
 #include "core/map/object_counters.h"
+#include "core/imu/imu_input_check.h"
 #include "core/imu/imu_noise.h"
 #include "core/loop/loop_closer.h"
 #include "core/mapping/local_mapper.h"
@@ -69,6 +70,12 @@ struct SlamStats {
   std::size_t frames_tracked_by_imu = 0, frames_optimized_with_imu = 0;
   std::size_t imu_samples = 0, imu_linked_keyframes = 0, imu_uncovered_keyframes = 0;
   std::optional<double> imu_initialized_at_s;
+  // The camera-IMU clock offset estimated (an image's IMU time is its stamp
+  // plus this), once the session has one.
+  std::optional<double> imu_time_offset_ms;
+  // What the IMU stream carried that could not be used (dropped samples,
+  // gaps, its rate; core/imu/imu_input_check.h), and the warnings given.
+  ImuInputHealth imu_input;
   Eigen::Vector3d imu_gravity_w = Eigen::Vector3d::Zero();
   ImuBias imu_bias;
 };
@@ -89,7 +96,9 @@ std::size_t worker_error_total(const SlamStats& stats);
 // worker_errors (total), worker_errors_by{tracking, local_mapping, loop_closing},
 // last_worker_error (when any), slot_races; monocular{attempts, starts} (a single
 // camera that maps); with an IMU: imu{samples, linked_keyframes,
-// uncovered_keyframes, frames_optimized}, frames_tracked_by_imu, imu_initialized_at_s, imu_gravity_w, imu_bias{gyro,
+// uncovered_keyframes, frames_optimized}, imu_input{dropped_non_finite, dropped_stuck,
+// dropped_saturated, gaps, longest_gap_ms, frames_outside, rate_hz, warnings},
+// imu_time_offset_ms (once estimated), frames_tracked_by_imu, imu_initialized_at_s, imu_gravity_w, imu_bias{gyro,
 // acc} (once initialised). Fills maps, keyframes, mappoints (maps holding keyframes) and the object counters from the
 // atlas as it is now.
 void add_atlas_counts(const Atlas& atlas, SlamStats& stats);

@@ -31,6 +31,12 @@ const std::vector<Binding>& bindings() {
                       "map points a tracked frame needs after the local-map search", tracker.min_inliers),
       ORBATLAS_TUNING("Tracker.MinInliersAfterRecovery", 5, 10000, true,
                       "the same during the first second after a relocalisation", tracker.min_inliers_after_recovery),
+      ORBATLAS_TUNING("Tracker.MinInliersInertial", 5, 10000, true,
+                      "the same with the IMU (a frame predicted in an inertially initialised map)",
+                      tracker.min_inliers_inertial),
+      ORBATLAS_TUNING("Tracker.MinInliersInertialRecentlyLost", 5, 10000, true,
+                      "the same while recently lost, when the IMU's prediction is searched from",
+                      tracker.min_inliers_inertial_recently_lost),
       ORBATLAS_TUNING("Tracker.MaxFramesBetweenKeyframes", 1, 10000, true,
                       "a keyframe at least this often (default: the frame rate)", tracker.max_frames_between_keyframes),
       ORBATLAS_TUNING("Tracker.RecentlyLostSeconds", 0, 3600, false,
@@ -84,6 +90,14 @@ const std::vector<Binding>& bindings() {
                       "links linearised at a gyro bias this far [rad/s] from the one an initialisation or refinement "
                       "finds are integrated again (10: never)",
                       mapper.inertial.reintegrate_gyro_bias_change),
+      ORBATLAS_TUNING("LocalMapping.InertialMaxMedianRotationChi2", 1, 1e6, false,
+                      "an inertial initialisation or refinement is kept only when its links' median rotation chi2 "
+                      "(3 degrees of freedom) is at most this",
+                      mapper.inertial.max_median_rotation_chi2),
+      ORBATLAS_TUNING("LocalMapping.InertialMaxMedianChi2", 1, 1e6, false,
+                      "a refinement with the accelerometer bias free is kept only when its links' median inertial "
+                      "chi2 (9 degrees of freedom) is at most this",
+                      mapper.inertial.max_median_link_chi2),
       ORBATLAS_TUNING("LocalMapping.InertialRefinementMinSpan", 0, 1, false,
                       "an inertial refinement runs on a chain spanning at least this fraction of the window the "
                       "map's estimate came from (0: always)",

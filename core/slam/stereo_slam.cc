@@ -24,6 +24,8 @@ void StereoSlamOptions::check() const {
       "slam: shared_map_finish_wait_s must be in 0..3600, not " << shared_map_finish_wait_s);
   tracker.check();
   inertial_tracking.check();
+  imu_time_offset.check();
+  imu_input.check();
   mapper.check();
   loop.check();
   final_ba.check();
@@ -35,7 +37,8 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
       options_(std::move(options)),
       frontend_(make_frame_frontend(settings, options_.parallel_stereo_frontend)),
       rgbd_(settings.is_rgbd()),
-      monocular_(frontend_->baseline() <= 0.0) {
+      monocular_(frontend_->baseline() <= 0.0),
+      time_offset_(options_.imu_time_offset) {
   cam_ = frontend_->frame_camera();
   frontend_->warm_up();  // the session's first frame costs what the others do
   options_.tracker.th_depth_m = settings.stereo_th_depth * frontend_->baseline();
@@ -63,8 +66,15 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
   const Pose3 T_b_i =
       settings.imu ? (monocular_ ? frontend_->calibration().T_b_c.inverse() * settings.imu->T_b_i : settings.imu->T_b_i)
                    : Pose3();
+  T_b_i_ = T_b_i;
   if (options_.inertial && settings.imu && !options_.tracker.localization_only) {
     imu_noise_ = ImuNoise::from(*settings.imu);
+    ImuInputCheckOptions input = options_.imu_input;
+    input.rate_hz = settings.imu->rate_hz;
+    input.gyro_range = settings.imu->gyro_range;
+    input.accel_range = settings.imu->accel_range;
+    imu_input_ = std::make_unique<ImuInputCheck>(input);
+    imu_input_->set_warning_sink([](const std::string& w) { log_warn(w); });
     options_.mapper.inertial.enabled = true;
     options_.mapper.inertial.T_b_i = T_b_i;
     // A single camera's map gets its metric scale from the IMU (ORB-SLAM3's
@@ -166,7 +176,10 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
             if (const auto state = map->inertial_state()) bias = state->bias;
           }
           auto increments = imu_.between(previous->timestamp_ns(), made->timestamp_ns(), bias, *imu_noise_);
-          if (!increments) return;  // not covered (counted by the buffer)
+          if (!increments) {
+            ++imu_uncovered_;
+            return;
+          }
           made->set_inertial_link(previous, std::make_shared<const Preintegration>(std::move(*increments)), T_c_i);
           ++imu_linked_;
         });
@@ -174,7 +187,7 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
 }
 
 void StereoSlam::add_imu(const std::vector<ImuSample>& samples) {
-  if (imu_noise_) imu_.add(samples);
+  if (imu_noise_) imu_.add(imu_input_->filter(samples));
 }
 
 StereoSlam::~StereoSlam() {
@@ -198,6 +211,7 @@ TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv:
   frontend_->set_map_starting(tracker_->state() == TrackingState::kNotInitialized ||
                               tracker_->state() == TrackingState::kLost);
   Frame frame = frontend_->make_frame(t_ns, left, right);
+  if (imu_input_) imu_input_->check_frame(t_ns, imu_.time_offset());
   if (first_t_ns_.load() < 0) first_t_ns_.store(t_ns);
   // The front end does not read the map, so it runs while local mapping may
   // still adjust the session's last keyframe; tracking proper waits for that
@@ -208,11 +222,29 @@ TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv:
         std::chrono::duration<double, std::milli>(*waited));
   }
   const TrackResult result = frames_.track(*tracker_, std::move(frame), atlas_, start);
+  if (imu_noise_) follow_imu_clock(result);
   if (result.keyframe) {
     ++keyframes_made_;
     if (options_.synchronous_mapping && mapping_) mapping_->wait_until_idle();
   }
   return result;
+}
+
+void StereoSlam::follow_imu_clock(const TrackResult& result) {
+  if (result.map != time_offset_map_) {  // another map: its poses are in another frame
+    time_offset_.reset();
+    time_offset_map_ = result.map;
+  }
+  if (!result.tracked || result.by_imu) return;
+  time_offset_.add_frame(result.t_ns, (result.T_w_b * T_b_i_).q);
+  if (!time_offset_.update(imu_.samples())) return;
+  const TimestampNs offset = s_to_ns(*time_offset_.offset_s());
+  if (!time_offset_known_.load() || std::abs(offset - time_offset_ns_.load()) >= 500'000)
+    log_info("camera-IMU clock offset: " + std::to_string(ns_to_s(offset) * 1e3).substr(0, 6) + " ms (from " +
+             std::to_string(time_offset_.windows()) + " windows of the gyro against the images' rotation)");
+  imu_.set_time_offset(offset);
+  time_offset_ns_.store(offset);
+  time_offset_known_.store(true);
 }
 
 void StereoSlam::finish() {
@@ -310,8 +342,10 @@ SlamStats StereoSlam::stats() const {
     s.inertial = true;
     s.imu_samples = imu_.total();
     s.imu_linked_keyframes = imu_linked_.load();
-    s.imu_uncovered_keyframes = imu_.uncovered();
+    s.imu_uncovered_keyframes = imu_uncovered_.load();
     s.frames_optimized_with_imu = inertial_tracking_ ? inertial_tracking_->optimized_frames() : 0;
+    if (time_offset_known_.load()) s.imu_time_offset_ms = ns_to_s(time_offset_ns_.load()) * 1e3;
+    s.imu_input = imu_input_->health();
     // The map the session tracked in last (after merges: the one it is in now).
     if (const auto last = frames_.last_anchor())
       if (const auto located = atlas_.locate_frame(*last))

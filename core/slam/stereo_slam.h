@@ -15,6 +15,8 @@
 #include <vector>
 
 #include "core/imu/imu_buffer.h"
+#include "core/imu/imu_input_check.h"
+#include "core/imu/time_offset_estimate.h"
 #include "core/io/settings.h"
 #include "core/map/atlas.h"
 #include "core/slam/mapping_workers.h"
@@ -49,6 +51,14 @@ struct StereoSlamOptions {
   // (gravity, biases; issue 19, first stage). Off: the IMU is ignored.
   bool inertial = true;
   InertialTrackingOptions inertial_tracking;
+  // The camera-IMU clock offset, estimated from the visually tracked frames'
+  // rotations and the gyro (core/imu/time_offset_estimate.h) and applied to
+  // every increment once known; stats: imu_time_offset_ms.
+  ImuTimeOffsetOptions imu_time_offset;
+  // What the session's IMU stream may not carry in (core/imu/imu_input_check.h;
+  // its rate and ranges come from the settings): dropped, warned of in the
+  // stats and the session's status.
+  ImuInputCheckOptions imu_input;
   // A stereo front end extracts the right image's features on a second thread
   // while the left image's are extracted (lower latency on an idle machine).
   // Off: one after the other on the tracking thread (no hand-over between
@@ -122,6 +132,9 @@ class StereoSlam final : public SessionSlam {
   std::vector<FrameAnchor> anchors_from(std::size_t first) const override;
   std::optional<FrameAnchor> last_anchor() const override { return frames_.last_anchor(); }
   SlamStats stats() const override;
+  std::vector<std::string> imu_warnings() const override {
+    return imu_input_ ? imu_input_->health().warnings : std::vector<std::string>{};
+  }
   std::size_t worker_errors() const override;  // tracking's, and its mapping's when its own
   const FrameFrontend& frontend() const { return *frontend_; }
 
@@ -141,8 +154,14 @@ class StereoSlam final : public SessionSlam {
   // noise, and the keyframes linked so far (tracking thread).
   std::optional<ImuNoise> imu_noise_;
   ImuBuffer imu_;
+  std::unique_ptr<ImuInputCheck> imu_input_;             // with imu_noise_: what add_imu() lets into imu_
   std::unique_ptr<InertialTracking> inertial_tracking_;  // the tracker's (~StereoSlam drops the tracker first)
-  std::atomic<std::size_t> imu_linked_{0};
+  Pose3 T_b_i_;                                          // the IMU in the session's body
+  ImuTimeOffset time_offset_;                            // tracking thread
+  MapId time_offset_map_ = kInvalidMapId;                // the map its frames were tracked in
+  std::atomic<bool> time_offset_known_{false};
+  std::atomic<TimestampNs> time_offset_ns_{0};
+  std::atomic<std::size_t> imu_linked_{0}, imu_uncovered_{0};
   std::atomic<TimestampNs> first_t_ns_{-1};  // the session's first frame
   bool finished_ = false;
   std::function<bool()> end_refinement_;  // set by finish()
@@ -151,6 +170,10 @@ class StereoSlam final : public SessionSlam {
   TrackedFrames frames_;
   std::size_t keyframes_made_ = 0;
   SampleSummary mapping_wait_ms_;  // Tracker::wait_for_mapping, each wait
+
+  // After each frame: a visually tracked one feeds the clock offset's
+  // estimate, which the IMU buffer follows once known.
+  void follow_imu_clock(const TrackResult& result);
 };
 
 }  // namespace orbatlas

@@ -61,12 +61,9 @@ std::optional<Pose3> InertialTracking::predict(const Map& map, const Frame& last
   auto state = map.inertial_state();
   if (!state) return std::nullopt;
   if (own_bias) state->bias = *own_bias;
-  std::optional<Preintegration> increments;
-  try {
-    increments = Preintegration::between(imu_.samples(), last.t_ns, t_ns, state->bias, noise_);
-  } catch (const DataError&) {
-    return std::nullopt;  // the IMU does not cover the interval: visual tracking only
-  }
+  // Empty when the IMU does not cover the interval: visual tracking only.
+  std::optional<Preintegration> increments = imu_.between(last.t_ns, t_ns, state->bias, noise_);
+  if (!increments) return std::nullopt;
   Prediction p;
   p.t_ns = t_ns;
   p.map = *state;

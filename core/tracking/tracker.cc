@@ -40,6 +40,8 @@ void TrackerOptions::check() const {
   ORBATLAS_CHECK(min_inliers >= 0, "tracker: min_inliers must be >= 0, not " << min_inliers);
   ORBATLAS_CHECK(min_inliers_after_recovery >= 0,
                  "tracker: min_inliers_after_recovery must be >= 0, not " << min_inliers_after_recovery);
+  ORBATLAS_CHECK(min_inliers_inertial >= 0 && min_inliers_inertial_recently_lost >= 0,
+                 "tracker: min_inliers_inertial and min_inliers_inertial_recently_lost must be >= 0");
   ORBATLAS_CHECK(recently_lost_s >= 0.0, "tracker: recently_lost_s must be >= 0, not " << recently_lost_s);
   ORBATLAS_CHECK(
       new_map_after_failed_relocalizations >= 0,
@@ -194,8 +196,9 @@ bool Tracker::track_from_last_frame(Frame& frame) {
     // not found again (ORB-SLAM3 goes on to the local map the same way).
     if (!ok && imu_prediction_) return track_from_imu_prediction(frame);
   } else {  // kRecentlyLost
+    // Found again from the IMU's prediction: not a relocalisation (whose
+    // first frames need more points), the IMU vouches for the pose.
     if (imu_prediction_ && track_from_imu_prediction(frame)) {
-      last_recovery_index_ = frame_index_;
       failed_relocalizations_ = 0;
       return true;
     }
@@ -524,7 +527,9 @@ bool Tracker::track_local_map(Frame& frame) {
     if (mp->observation_count() > 0) ++inliers;
   }
   const bool recovering = frame_index_ < last_recovery_index_ + options_.max_frames_between_keyframes;
-  return inliers >= (recovering ? options_.min_inliers_after_recovery : options_.min_inliers);
+  if (recovering) return inliers >= options_.min_inliers_after_recovery;
+  if (inertial && state_ == TrackingState::kRecentlyLost) return inliers >= options_.min_inliers_inertial_recently_lost;
+  return inliers >= (inertial ? options_.min_inliers_inertial : options_.min_inliers);
 }
 
 }  // namespace orbatlas

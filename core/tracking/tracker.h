@@ -45,8 +45,13 @@ struct TrackerOptions {
   // short to preintegrate. 0: off.
   double max_keyframe_interval_s = 0.0;
   int min_inliers = 30;                 // after the local-map search
-  int min_inliers_after_recovery = 50;  // during the first second after recovering
-  double recently_lost_s = 5.0;         // then LOST and a new map
+  int min_inliers_after_recovery = 50;  // during the first second after a relocalisation
+  // With the IMU (a frame predicted in an inertially initialised map; ORB-SLAM3's
+  // stereo- and monocular-inertial rules): the IMU holds the pose, so fewer
+  // points do; while recently lost, more than 10 bring the session back.
+  int min_inliers_inertial = 15;
+  int min_inliers_inertial_recently_lost = 11;
+  double recently_lost_s = 5.0;  // then LOST and a new map
   // When > 0: LOST (and a new map) after this many frames in a row that the
   // relocaliser did not place, however short the time. For sessions whose
   // maps are merged live (the new map joins the old one when a place is

@@ -1,5 +1,6 @@
 #include "server/http/http_api.h"
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <functional>
@@ -173,7 +174,8 @@ void install_session_routes(Router& router, AtlasService& service) {
           throw_bad_request("'samples' must be an array of [t_ns, gx, gy, gz, ax, ay, az]");
         std::vector<ImuSample> samples;
         for (const json& row : body["samples"]) {
-          if (!row.is_array() || row.size() != 7 || !row[0].is_number_integer())
+          if (!row.is_array() || row.size() != 7 || !row[0].is_number_integer() ||
+              !std::all_of(row.begin() + 1, row.end(), [](const json& v) { return v.is_number(); }))
             throw_bad_request("each IMU sample is [t_ns (integer), gx, gy, gz (rad/s), ax, ay, az (m/s^2)]");
           // An integer above INT64_MAX would wrap around into a negative time.
           if (row[0].is_number_unsigned() && row[0].get<std::uint64_t>() > static_cast<std::uint64_t>(kMaxTimestampNs))

@@ -23,6 +23,7 @@ nlohmann::json to_json(const SessionStatus& s) {
   if (!s.config.empty()) j["config"] = s.config;
   if (!s.error.empty()) j["error"] = s.error;
   if (!s.ended_by.empty()) j["ended_by"] = s.ended_by;
+  if (!s.imu_warnings.empty()) j["imu_warnings"] = s.imu_warnings;
   if (s.map) j["map"] = *s.map;
   if (s.last_frame) j["last_frame"] = {{"t_ns", s.last_frame->t_ns}, {"tracked", s.last_frame->tracked}};
   if (!s.tracking_ms.empty()) j["tracking_ms"] = to_json_summary(s.tracking_ms);
@@ -36,6 +37,7 @@ nlohmann::json to_json(const SessionStatus& s) {
       j["slam"]["imu_initialized_at_s"] = *s.slam->imu_initialized_at_s;
       j["slam"]["imu_bias"] = {{"gyro", v(s.slam->imu_bias.gyro)}, {"acc", v(s.slam->imu_bias.accel)}};
     }
+    if (s.slam->imu_time_offset_ms) j["slam"]["imu_time_offset_ms"] = *s.slam->imu_time_offset_ms;
   }
   return j;
 }

@@ -1,0 +1,111 @@
+// The vibration an IMU measures on a flying multirotor, in the increments'
+// covariance (core/imu/vibration_estimate.h): the residuals of the true states
+// must fit the covariance (their chi2 that of its degrees of freedom) with the
+// real flights' vibration, which the white-noise model alone is far from; an
+// IMU without vibration measures (almost) none.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+#include "core/imu/imu_buffer.h"
+#include "core/imu/vibration_estimate.h"
+#include "core/sim/euroc_sequences.h"
+#include "core/sim/imu_synthesizer.h"
+#include "core/sim/trajectory_spline.h"
+
+namespace orbatlas {
+namespace {
+
+const sim::TrajectorySpline& mh01_spline() {
+  static const sim::TrajectorySpline spline(sim::load_ground_truth(sim::find_sequence("MH_01")));
+  return spline;
+}
+
+ImuState state_at(const sim::TrajectorySpline& spline, TimestampNs t) {
+  const sim::SplineState s = spline.evaluate(t);  // body = IMU (T_b_i identity)
+  return {s.T_w_b.q.toRotationMatrix(), s.T_w_b.t, s.v_w};
+}
+
+// MH_01 in flight (60-120 s), the settings' white noise and, with
+// `vibration`, the real flights' vibration.
+sim::SyntheticImu flight_imu(double vibration) {
+  const auto& spline = mh01_spline();
+  sim::ImuSynthesisOptions o;
+  o.seed = 5;
+  o.errors.vibration = vibration;
+  return sim::synthesize_imu(spline, spline.start_ns() + s_to_ns(60.0), spline.start_ns() + s_to_ns(120.0), o);
+}
+
+// The mean chi2 of the rotation and velocity residuals (6 degrees of freedom)
+// of the true states, at the true biases, over intervals of `span_s` every 0.5 s.
+double mean_chi2(const sim::SyntheticImu& imu, double span_s, bool measure_vibration) {
+  ImuBuffer buffer(60.0, measure_vibration);
+  buffer.add(imu.samples);
+  const auto& spline = mh01_spline();
+  double sum = 0.0;
+  int n = 0;
+  for (std::size_t k = 600; k + 400 < imu.samples.size(); k += 100) {
+    const TimestampNs t0 = imu.samples[k].t_ns + 1'234'567, t1 = t0 + s_to_ns(span_s);
+    const ImuBias bias{imu.states[k].gyro_bias, imu.states[k].accel_bias};
+    const auto pre = buffer.between(t0, t1, bias, ImuNoise{});
+    EXPECT_TRUE(pre.has_value());
+    if (!pre) continue;
+    const Preintegration::Vector9 r =
+        pre->residual(state_at(spline, t0), state_at(spline, t1), bias, Eigen::Vector3d(0.0, 0.0, -sim::kGravity));
+    const Eigen::Matrix<double, 6, 6> c = pre->covariance().topLeftCorner<6, 6>();
+    sum += r.head<6>().dot(c.ldlt().solve(r.head<6>()));
+    ++n;
+  }
+  return sum / n;
+}
+
+TEST(VibrationEstimate, TheIncrementsCovarianceFitsTheFlightsVibration) {
+  const sim::SyntheticImu shaking = flight_imu(1.0);
+  for (const double span_s : {0.05, 0.5}) {
+    const double measured = mean_chi2(shaking, span_s, true), white = mean_chi2(shaking, span_s, false);
+    std::printf("vibration, %.2f s intervals: mean chi2 (6 dof) %.2f with the vibration measured, %.1f without\n",
+                span_s, measured, white);
+    EXPECT_GT(measured, 3.0);  // measured 6.6 (0.05 s) and 5.3 (0.5 s)
+    EXPECT_LT(measured, 12.0);
+    EXPECT_GT(white, 60.0) << "the white-noise model alone should not fit a vibrating IMU";
+  }
+  // What it measured in flight: about a milliradian and 5 mm/s per axis.
+  ImuBuffer buffer;
+  buffer.add(shaking.samples);
+  const ImuVibration v = buffer.vibration(shaking.samples[6000].t_ns, ImuNoise{});
+  std::printf("vibration measured at 90 s: rotation %.2f %.2f %.2f mrad, velocity %.1f %.1f %.1f mm/s\n",
+              1e3 * std::sqrt(v.rotation_var.x()), 1e3 * std::sqrt(v.rotation_var.y()),
+              1e3 * std::sqrt(v.rotation_var.z()), 1e3 * std::sqrt(v.velocity_var.x()),
+              1e3 * std::sqrt(v.velocity_var.y()), 1e3 * std::sqrt(v.velocity_var.z()));
+  EXPECT_GT(std::sqrt(v.rotation_var.maxCoeff()), 3e-4);
+  EXPECT_LT(std::sqrt(v.rotation_var.maxCoeff()), 3e-3);
+  EXPECT_GT(std::sqrt(v.velocity_var.maxCoeff()), 2e-3);
+  EXPECT_LT(std::sqrt(v.velocity_var.maxCoeff()), 2e-2);
+}
+
+TEST(VibrationEstimate, AnIdealImuMeasuresNone) {
+  const sim::SyntheticImu calm = flight_imu(0.0);
+  ImuBuffer buffer;
+  buffer.add(calm.samples);
+  double worst_rotation = 0.0, worst_velocity = 0.0;
+  for (std::size_t k = 600; k < calm.samples.size(); k += 200) {
+    const ImuVibration v = buffer.vibration(calm.samples[k].t_ns, ImuNoise{});
+    worst_rotation = std::max(worst_rotation, std::sqrt(v.rotation_var.maxCoeff()));
+    worst_velocity = std::max(worst_velocity, std::sqrt(v.velocity_var.maxCoeff()));
+  }
+  std::printf("no vibration: worst measured %.3f mrad, %.2f mm/s\n", 1e3 * worst_rotation, 1e3 * worst_velocity);
+  // What it takes for vibration is the trajectory's own motion above the corner.
+  EXPECT_LT(worst_rotation, 6e-4);    // measured 3.3e-4 rad
+  EXPECT_LT(worst_velocity, 3.5e-3);  // measured 1.7e-3 m/s
+  // The model fits that IMU nearly as the white noise alone does.
+  const double chi2 = mean_chi2(calm, 0.5, true), white = mean_chi2(calm, 0.5, false);
+  std::printf("no vibration, 0.5 s intervals: mean chi2 (6 dof) %.2f measured, %.2f white noise alone\n", chi2, white);
+  EXPECT_GT(chi2, 3.0);
+  EXPECT_LT(chi2, 10.0);
+  // Too few samples, or a gap: nothing measured.
+  EXPECT_EQ(estimate_vibration({calm.samples.begin(), calm.samples.begin() + 30}, calm.samples[29].t_ns, ImuNoise{}),
+            ImuVibration{});
+}
+
+}  // namespace
+}  // namespace orbatlas
