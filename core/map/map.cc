@@ -236,4 +236,15 @@ void Map::set_inertial_state(const InertialState& state) {
   inertial_ = state;
 }
 
+void Map::clear_inertial_state(TimestampNs at_ns) {
+  std::lock_guard lock(objects_mutex_);
+  inertial_.reset();
+  inertial_cleared_at_ns_ = at_ns;
+}
+
+TimestampNs Map::inertial_cleared_at() const {
+  std::lock_guard lock(objects_mutex_);
+  return inertial_cleared_at_ns_;
+}
+
 }  // namespace orbatlas

@@ -106,6 +106,11 @@ class Map {
   };
   std::optional<InertialState> inertial_state() const;
   void set_inertial_state(const InertialState& state);
+  // The map's IMU disagreed with its vision (mapping/inertial_consistency.h)
+  // at keyframe time `at_ns`: tracked and adjusted visually until it is
+  // initialised again, from keyframes after that time only.
+  void clear_inertial_state(TimestampNs at_ns);
+  TimestampNs inertial_cleared_at() const;  // 0: never
   // A full visual-inertial BA of the map is wanted (its inertial state was
   // just set): local mapping asks, the loop closer's background adjustment
   // takes the request (docs/inertial.md). Any thread.
@@ -156,8 +161,9 @@ class Map {
   std::unordered_map<MapPointId, std::shared_ptr<MapPoint>> map_points_;
   std::unordered_map<KeyframeId, std::shared_ptr<KeyFrame>> keyframes_;
   std::unordered_map<KeyframeId, CulledAnchor> culled_anchors_;
-  std::optional<InertialState> inertial_;  // guarded by objects_mutex_
-  bool measured_depth_ = false;            // a keyframe with depths was added; guarded by objects_mutex_
+  std::optional<InertialState> inertial_;   // guarded by objects_mutex_
+  TimestampNs inertial_cleared_at_ns_ = 0;  // guarded by objects_mutex_
+  bool measured_depth_ = false;             // a keyframe with depths was added; guarded by objects_mutex_
   std::atomic<std::uint64_t> frame_epoch_{0};
   std::atomic<bool> inertial_adjustment_requested_{false};
 };

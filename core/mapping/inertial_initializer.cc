@@ -177,7 +177,10 @@ InertialInitOptions solver_for(const Map& map, InertialInitOptions solver) {
 std::optional<Map::InertialState> initialize_map_inertial(Map& map, const std::shared_ptr<KeyFrame>& newest,
                                                           const InertialInitializationOptions& options, Atlas* atlas) {
   if (!options.enabled || map.inertial_state() || !newest || newest->is_bad()) return std::nullopt;
-  const auto chain = inertial_chain(newest);
+  auto chain = inertial_chain(newest);
+  // After the map's IMU was found to disagree: from the keyframes after that only.
+  const TimestampNs cleared_at = map.inertial_cleared_at();
+  std::erase_if(chain, [cleared_at](const auto& kf) { return kf->timestamp_ns() < cleared_at; });
   if (chain.size() < options.min_keyframes) return std::nullopt;
   const double span_s = ns_to_s(chain.back()->timestamp_ns() - chain.front()->timestamp_ns());
   if (span_s < options.after_s) return std::nullopt;
@@ -196,7 +199,9 @@ std::optional<Map::InertialState> refine_map_inertial(Map& map, const std::share
     return std::nullopt;
   const InertialRefinement& step = options.refinements[state->refinements];
   if (ns_to_s(newest->timestamp_ns() - state->initialized_at_ns) < step.after_s) return std::nullopt;
-  const auto chain = inertial_chain(newest, options.refinement_max_keyframes);
+  auto chain = inertial_chain(newest, options.refinement_max_keyframes);
+  const TimestampNs cleared_at = map.inertial_cleared_at();  // the keyframes before an IMU reset are not used
+  std::erase_if(chain, [cleared_at](const auto& kf) { return kf->timestamp_ns() < cleared_at; });
   Map::InertialState refined = *state;
   ++refined.refinements;  // tried once: a chain too short (a session that joined the map late) is not waited for
   const double span_s = chain.empty() ? 0.0 : ns_to_s(chain.back()->timestamp_ns() - chain.front()->timestamp_ns());

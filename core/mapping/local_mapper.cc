@@ -39,6 +39,7 @@ void LocalMapperOptions::check() const {
   culling.check();
   bundle_adjustment.check();
   inertial.check();
+  inertial_consistency.check();
   ORBATLAS_CHECK(inertial_window_keyframes >= 2,
                  "local mapping: inertial_window_keyframes must be >= 2, not " << inertial_window_keyframes);
   ORBATLAS_CHECK(full_inertial_ba_iterations >= 0,
@@ -164,7 +165,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
   KeyframeCullingResult culling;
   bool culling_ran = false;
   bool interrupted = false;
-  std::size_t inertial_bas = 0, inertial_refinements = 0;
+  std::size_t inertial_bas = 0, inertial_refinements = 0, inertial_resets = 0, inertial_given_up = 0;
   std::optional<double> inertial_chi2_median;
   std::optional<GlobalBundleAdjustmentResult> full_ba;
   if (!hurry(source) && !abort_ba_.load()) {
@@ -187,8 +188,21 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
       if (stats.inertial_edges > 0) {
         ++inertial_bas;
         inertial_chi2_median = stats.inertial_chi2_median;
-        // Tracking predicts with the newest keyframe's biases.
-        if (const auto imu = keyframe->imu_state(); imu && inertial_state) {
+        const auto verdict = consistency_.add(map->id(), stats.inertial_chi2_median);
+        if (verdict != InertialConsistency::Verdict::kKeep) {
+          map->clear_inertial_state(keyframe->timestamp_ns());
+          // What the IMU bent, a visual global BA straightens (the loop closer's, in the background).
+          if (options_.defer_full_inertial_ba) map->request_inertial_adjustment();
+          const bool for_good = verdict == InertialConsistency::Verdict::kGiveUp;
+          ++(for_good ? inertial_given_up : inertial_resets);
+          log_warn(
+              "map " + std::to_string(map->id()) + ": its IMU disagrees with vision (median inertial chi2 over " +
+              std::to_string(options_.inertial_consistency.max_median_chi2).substr(0, 5) +
+              " in the last local BAs, 9 dof; " + std::to_string(stats.inertial_chi2_median).substr(0, 7) +
+              " in the latest): " +
+              (for_good ? "the map stays visual-only" : "visual-only until its inertial initialisation agrees again"));
+        } else if (const auto imu = keyframe->imu_state(); imu && inertial_state) {
+          // Tracking predicts with the newest keyframe's biases.
           Map::InertialState refined = *inertial_state;
           refined.bias = imu->bias;
           map->set_inertial_state(refined);
@@ -212,7 +226,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
       if (initialised) {
         set = refine_map_inertial(*map, keyframe, options_.inertial, &atlas_);
         if (set) ++inertial_refinements;
-      } else {
+      } else if (!consistency_.given_up(map->id())) {
         set = initialize_map_inertial(*map, keyframe, options_.inertial, &atlas_);
       }
       if (set && options_.full_inertial_ba_iterations > 0) {
@@ -240,6 +254,8 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
   board_->stats.inertial_bundle_adjustments += inertial_bas;
   if (inertial_chi2_median) board_->stats.inertial_chi2_median.add(*inertial_chi2_median);
   board_->stats.inertial_refinements += inertial_refinements;
+  board_->stats.inertial_resets += inertial_resets;
+  board_->stats.inertial_given_up += inertial_given_up;
   if (full_ba && !full_ba->stopped) {
     ++board_->stats.full_inertial_bundle_adjustments;
     board_->stats.full_inertial_ba_ms.add(full_ba->time_ms);

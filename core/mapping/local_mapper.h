@@ -21,6 +21,7 @@
 #include "core/common/worker_errors.h"
 #include "core/map/atlas.h"
 #include "core/map/keyframe_index.h"
+#include "core/mapping/inertial_consistency.h"
 #include "core/mapping/inertial_initializer.h"
 #include "core/mapping/keyframe_culling.h"
 #include "core/optimization/global_bundle_adjustment.h"
@@ -60,6 +61,9 @@ struct LocalMapperOptions {
   // moves on into places without points). Set by MappingWorkers when its loop
   // closer runs global BAs.
   bool defer_full_inertial_ba = false;
+  // A map whose IMU disagrees with its vision goes visual-only and is
+  // initialised again later (inertial_consistency.h).
+  InertialConsistencyOptions inertial_consistency;
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -86,6 +90,9 @@ struct LocalMapperStats {
   std::size_t inertial_bundle_adjustments = 0;  // local BAs with inertial edges
   SampleSummary inertial_chi2_median;           // each of those BAs' median inertial chi2 (9 dof) after it
   std::size_t inertial_refinements = 0;         // of maps' inertial initialisation
+  // Maps whose inertial state was dropped because their IMU disagreed with
+  // vision (inertial_consistency.h), and of those the ones given up for good.
+  std::size_t inertial_resets = 0, inertial_given_up = 0;
   std::size_t full_inertial_bundle_adjustments = 0;
   SampleSummary full_inertial_ba_ms;
   WorkerErrorCounts errors;  // keyframes whose processing failed (given up, the mapper went on)
@@ -202,6 +209,7 @@ class LocalMapper final {
   // The keyframe local BA and culling keep fixed in each map (its spanning-tree root).
   static KeyframeId spanning_tree_root(const Map& map, const KeyFrame& keyframe);
   std::map<MapId, KeyframeId> origins_;
+  InertialConsistency consistency_{options_.inertial_consistency};
   std::vector<RecentPoint> recent_;
   std::size_t sequence_ = 0;
   bool counted_adjusted_ = false;  // the keyframe in processing has been counted adjusted

@@ -80,6 +80,8 @@ nlohmann::json to_json(const SlamStats& s) {
                 {"local_bas", s.mapping.inertial_bundle_adjustments},
                 {"local_ba_chi2_median", summary(s.mapping.inertial_chi2_median)},
                 {"refinements", s.mapping.inertial_refinements},
+                {"resets", s.mapping.inertial_resets},
+                {"given_up", s.mapping.inertial_given_up},
                 {"full_bas", full_bas},
                 {"full_ba_ms", summary(s.mapping.full_inertial_ba_ms)}};
     j["frames_tracked_by_imu"] = s.frames_tracked_by_imu;

@@ -98,6 +98,10 @@ const std::vector<Binding>& bindings() {
                       "a refinement with the accelerometer bias free is kept only when its links' median inertial "
                       "chi2 (9 degrees of freedom) is at most this",
                       mapper.inertial.max_median_link_chi2),
+      ORBATLAS_TUNING("LocalMapping.InertialConsistencyMaxChi2", 1, 1e9, false,
+                      "a map whose last 5 visual-inertial local BAs end with a median inertial chi2 (9 degrees of "
+                      "freedom) above this goes visual-only until it is initialised again (twice; then for good)",
+                      mapper.inertial_consistency.max_median_chi2),
       ORBATLAS_TUNING("LocalMapping.InertialRefinementMinSpan", 0, 1, false,
                       "an inertial refinement runs on a chain spanning at least this fraction of the window the "
                       "map's estimate came from (0: always)",
