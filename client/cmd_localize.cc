@@ -32,7 +32,7 @@ struct LocalizeArgs {
   std::string config, dataset, out_trajectory, stats, vocabulary, atlas, format = "tum";
   double start_s = 0.0, duration_s = 0.0;
   // --server mode
-  std::string server, token, image, image_right;
+  std::string server, token, ca, image, image_right;
   std::optional<std::uint64_t> map;
   std::size_t every = 10;
   BagArgs bag;
@@ -47,7 +47,7 @@ void localize_dataset_on_server(const LocalizeArgs& args) {
   const EurocDataset dataset = read_euroc_dataset(args.dataset, read_options);
   ORBATLAS_CHECK(!dataset.cameras.empty() && !dataset.cameras[0].frames.empty(), args.dataset << " has no cam0 images");
   const std::vector<ImageFrame>& images = dataset.cameras[0].frames;
-  ServerClient client(args.server, args.token);
+  ServerClient client(args.server, args.token, args.ca);
   const SettingsChoice settings = choose_settings(args.config);  // a local file is read once
   Trajectory poses;
   std::vector<std::uint64_t> maps;
@@ -91,7 +91,7 @@ void localize_on_server(const LocalizeArgs& args) {
     right = cv::imread(args.image_right, cv::IMREAD_GRAYSCALE);
     ORBATLAS_CHECK(!right.empty(), "cannot read image " << args.image_right);
   }
-  ServerClient client(args.server, args.token);
+  ServerClient client(args.server, args.token, args.ca);
   // A local YAML file travels inline; anything else is a config name the server knows.
   const auto reply = client.localize(args.config, left, right, args.map, ImageEncoding::kPng);
   if (!reply.at("recognised").get<bool>()) {
@@ -128,6 +128,8 @@ void register_localize_command(CLI::App& app) {
       ->check(CLI::IsMember({"tum", "euroc"}));
   cmd->add_option("--server", args->server, "Ask a running map server instead, e.g. http://127.0.0.1:8080");
   cmd->add_option("--token", args->token, "Bearer token of the server")->envname("ORBATLAS_TOKEN");
+  cmd->add_option("--ca", args->ca, "With an https:// server: the certificate authority (PEM) to check it against")
+      ->envname("ORBATLAS_CA");
   cmd->add_option("--image", args->image, "With --server: the (left) image to localise");
   cmd->add_option("--image-right", args->image_right, "With --server: the right image of a stereo pair");
   cmd->add_option("--map", args->map, "With --server: only this map");

@@ -23,12 +23,14 @@ namespace {
 
 struct ServerArgs {
   std::string server = "http://127.0.0.1:8080";
-  std::string token;
+  std::string token, ca;
 };
 
 void add_server_options(CLI::App* cmd, ServerArgs& args) {
   cmd->add_option("--server", args.server, "Map server URL")->envname("ORBATLAS_SERVER")->capture_default_str();
   cmd->add_option("--token", args.token, "Bearer token of the server")->envname("ORBATLAS_TOKEN");
+  cmd->add_option("--ca", args.ca, "With an https:// server: the certificate authority (PEM) to check it against")
+      ->envname("ORBATLAS_CA");
 }
 
 struct StreamArgs {
@@ -178,7 +180,7 @@ void register_stream(CLI::App& app) {
     if (options.name.empty() && bag) options.name = std::filesystem::path(args->bag.bags.front()).stem().string();
     options.encoding = args->encoding == "png" ? ImageEncoding::kPng : ImageEncoding::kRaw;
     if (args->duration_s > 0) options.duration_s = args->duration_s;
-    ServerClient client(args->server.server, args->server.token);
+    ServerClient client(args->server.server, args->server.token, args->server.ca);
     const StreamReport report = stream_dataset(client, options);
     if (!args->out_trajectory.empty())
       write_trajectory(args->out_trajectory, report.trajectory, report.trajectory_maps,
@@ -212,7 +214,7 @@ void register_upload(CLI::App& app) {
   cmd->add_flag("!--no-wait", args->wait, "Return once uploaded (do not follow the job)");
   cmd->add_flag("!--no-progress", args->progress, "Do not print progress");
   cmd->callback([args] {
-    ServerClient client(args->server.server, args->server.token);
+    ServerClient client(args->server.server, args->server.token, args->server.ca);
     std::unique_ptr<Progress> sending;
     std::int64_t sent_mb = 0;
     const auto show = [&](std::uint64_t done, std::uint64_t total) {
@@ -263,7 +265,7 @@ void register_listing(CLI::App& app, const char* name, const char* help, const c
   cmd->add_flag("--json", *json_out, "Print the server's JSON reply");
   const std::string route = path, list_key = key;
   cmd->callback([args, json_out, route, list_key] {
-    ServerClient client(args->server, args->token);
+    ServerClient client(args->server, args->token, args->ca);
     const nlohmann::json reply = client.get_json(route);
     if (*json_out) {
       std::printf("%s\n", reply.dump(2).c_str());
@@ -324,7 +326,7 @@ void register_merges(CLI::App& app) {
   cmd->add_option("--wait", *wait_s, "First wait up to this many seconds until no map waits for the merging worker")
       ->check(CLI::NonNegativeNumber);
   cmd->callback([args, json_out, wait_s] {
-    ServerClient client(args->server, args->token);
+    ServerClient client(args->server, args->token, args->ca);
     nlohmann::json reply = client.get_json("/v1/merges");
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(*wait_s);
     bool told = false;
@@ -358,7 +360,7 @@ void register_trajectory(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::IsMember({"tum", "euroc"}));
   cmd->callback([args, session, out, format] {
-    ServerClient client(args->server, args->token);
+    ServerClient client(args->server, args->token, args->ca);
     const std::string text = client.trajectory_tum(*session);
     const TrajectoryFormat chosen = parse_trajectory_format(*format);
     if (out->empty() && chosen == TrajectoryFormat::kTum) {

@@ -11,6 +11,9 @@ find_package(nlohmann_json 3.10 REQUIRED)
 find_package(opengv REQUIRED)  # P3P and pose refinement on bearing vectors (camera-model agnostic relocalisation)
 find_package(LibArchive 3.6 REQUIRED)  # tar uploads: every dialect parsed by a maintained library
 find_package(prometheus-cpp REQUIRED)  # /metrics: counters, gauges, histograms and the text format (core library only)
+# OpenSSL (libssl-dev): the clients' token digests (SHA-256) and TLS; the same
+# library Debian's cpp-httplib is built with.
+find_package(OpenSSL 3 REQUIRED)
 find_package(PkgConfig REQUIRED)
 # Debian's cpp-httplib is a compiled library without a CMake config: pkg-config carries
 # the SSL/zlib/brotli defines it was built with, which must match ours.

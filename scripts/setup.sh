@@ -9,7 +9,7 @@ PACKAGES=(build-essential cmake ninja-build pkg-config zlib1g-dev
           libeigen3-dev libopencv-dev libceres-dev libsqlite3-dev libcereal-dev
           libcpp-httplib-dev libgtest-dev libcli11-dev nlohmann-json3-dev libopengv-dev curl
           libarchive-dev prometheus-cpp-dev clang-format librosbag-dev libsensor-msgs-dev
-          libjs-three chromium postgresql libpq-dev)
+          libjs-three chromium postgresql libpq-dev libssl-dev openssl)
 
 missing=()
 for p in "${PACKAGES[@]}"; do

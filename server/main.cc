@@ -17,6 +17,7 @@
 #include "core/server/atlas_service.h"
 #include "server/http/guarded_http_server.h"
 #include "server/http/http_api.h"
+#include "server/http/tls_context.h"
 #include "core/server/upload_jobs.h"
 
 // Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
@@ -77,7 +78,22 @@ int main(int argc, char** argv) {
                  "Folder for uploads being processed, emptied at start (default: <db>.work beside an SQLite file); "
                  "required with a PostgreSQL --db: then one folder all replicas share, not emptied");
   app.add_option("--listen", listen_text, "HOST:PORT to listen on (port 0: any free port)")->capture_default_str();
-  app.add_option("--token", token, "Require 'Authorization: Bearer TOKEN' on every route but /healthz");
+  app.add_option("--token", token,
+                 "Require 'Authorization: Bearer TOKEN' on every route but /healthz (visible in ps: prefer "
+                 "--token-file or the environment variable)")
+      ->envname("ORBATLAS_TOKEN");
+  std::string tls_cert, tls_key;
+  app.add_option("--tls-cert", tls_cert, "Serve HTTPS with this certificate chain (PEM; with --tls-key)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--tls-key", tls_key, "The private key of --tls-cert (PEM)")->check(CLI::ExistingFile);
+  std::string clients_file;
+  app.add_option("--clients", clients_file,
+                 "Clients file: one 'name role sha256:<hex>' per line, roles reader, device, operator (docs/api.md); "
+                 "every route but /healthz then needs one of their tokens")
+      ->check(CLI::ExistingFile);
+  std::string token_file;
+  app.add_option("--token-file", token_file, "Read the token from this file's first line (instead of --token)")
+      ->check(CLI::ExistingFile);
   app.add_option("--workers", job_options.workers, "Background workers processing uploaded recordings")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
@@ -124,6 +140,11 @@ int main(int argc, char** argv) {
   app.add_option("--body-timeout", limits.body_timeout_s,
                  "Seconds the body of a request may take (not uploads: each of their reads is bounded)")
       ->capture_default_str();
+  double min_body_rate_kib = limits.min_body_rate_bytes_s / 1024.0;
+  app.add_option("--min-body-rate-kib", min_body_rate_kib,
+                 "KiB/s a request's body must at least arrive at, after a grace of the header timeout (0: none)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1e6));
   bool insecure = false;
   app.add_flag("--insecure", insecure, "Allow listening on a non-loopback address without --token");
   bool no_merging = false, no_live_merging = false, no_join_at_start = false;
@@ -142,6 +163,20 @@ int main(int argc, char** argv) {
                  "Read options from this file (TOML: one 'name = value' per option, as the flags are named, e.g. "
                  "max-sessions = 4); flags given on the command line override it");
   CLI11_PARSE(app, argc, argv);
+  limits.min_body_rate_bytes_s = min_body_rate_kib * 1024.0;
+  if (!token_file.empty()) {
+    if (!token.empty()) {
+      std::cerr << "orbatlas-server: give --token or --token-file, not both\n";
+      return 2;
+    }
+    std::ifstream in(token_file);
+    std::getline(in, token);
+    while (!token.empty() && (token.back() == '\r' || token.back() == ' ' || token.back() == '\t')) token.pop_back();
+    if (token.empty()) {
+      std::cerr << "orbatlas-server: --token-file " << token_file << ": no token on its first line\n";
+      return 2;
+    }
+  }
   service_options.merge_maps = !no_merging;
   service_options.live_merging = !no_live_merging;
   service_options.start_in_stored_maps = !no_join_at_start;
@@ -158,10 +193,18 @@ int main(int argc, char** argv) {
     const Listen listen = parse_listen(listen_text);
     const bool loopback = listen.host == "127.0.0.1" || listen.host == "localhost" || listen.host == "::1" ||
                           listen.host.rfind("127.", 0) == 0;
-    if (!loopback && token.empty() && !insecure)
+    if (!token.empty() && !clients_file.empty())
+      throw orbatlas::Error("give --token (one client) or --clients (several), not both");
+    const orbatlas::ClientCredentials clients =
+        clients_file.empty() ? orbatlas::ClientCredentials() : orbatlas::ClientCredentials::from_file(clients_file);
+    if (!loopback && token.empty() && clients.open() && !insecure)
       throw orbatlas::Error("--listen " + listen_text +
                             " reaches other machines: give --token (every route but /healthz then needs it), or "
                             "--insecure to serve without one");
+    if (!loopback && tls_cert.empty())
+      orbatlas::log_warn("--listen " + listen_text +
+                         " reaches other machines over plain HTTP: tokens and data cross the network in the clear "
+                         "(--tls-cert and --tls-key serve HTTPS)");
     if (threads == 0) threads = static_cast<int>(std::min<std::size_t>(256, 2 * service_options.max_live_sessions + 4));
     ORBATLAS_CHECK(threads >= 2, "--threads must be 0 (automatic) or at least 2");
     orbatlas::log_info("options in effect:\n" + orbatlas::effective_options_text(app) +
@@ -172,12 +215,16 @@ int main(int argc, char** argv) {
     // At most half the HTTP threads wait for slow or idle clients: the others
     // stay free for requests that arrive whole (health checks, frames).
     limits.max_waiting = std::max(1, threads / 2);
-    orbatlas::GuardedHttpServer server(limits);
+    if (tls_cert.empty() != tls_key.empty()) throw orbatlas::Error("--tls-cert and --tls-key go together");
+    const auto tls = tls_cert.empty() ? nullptr : std::make_shared<const orbatlas::TlsContext>(tls_cert, tls_key);
+    const std::string scheme = tls ? "https://" : "http://";
+    orbatlas::GuardedHttpServer server(limits, tls);
     server.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<std::size_t>(threads)); };
     server.set_payload_max_length(max_upload_gb << 30);  // other routes: max_body_bytes, checked per request
     server.set_tcp_nodelay(true);
     orbatlas::HttpApiOptions api_options;
     api_options.token = token;
+    api_options.clients = clients;
     api_options.max_body_bytes = max_body_mb << 20;
     api_options.max_upload_bytes = max_upload_gb << 30;
     api_options.log_requests = log_requests;
@@ -193,11 +240,14 @@ int main(int argc, char** argv) {
       std::ofstream out(port_file);
       out << port << "\n";
     }
-    orbatlas::log_info("listening on http://" + listen.host + ":" + std::to_string(port) +
-                       (token.empty() ? "" : " (bearer token required)"));
+    orbatlas::log_info(
+        "listening on " + scheme + listen.host + ":" + std::to_string(port) +
+        (token.empty() && clients.open()
+             ? ""
+             : " (bearer token required; " + std::to_string(std::max<std::size_t>(1, clients.size())) + " client(s))"));
     if (service_options.replica.url.empty()) {
       try {
-        service.replica_url("http://" + listen.host + ":" + std::to_string(port));
+        service.replica_url(scheme + listen.host + ":" + std::to_string(port));
       } catch (const std::exception& e) {
         orbatlas::log_warn(std::string("cannot record this replica's URL: ") + e.what());
       }

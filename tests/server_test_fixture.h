@@ -36,11 +36,12 @@ inline AtlasServiceOptions server_options(const std::filesystem::path& db) {
 
 class TestServer {
  public:
+  // `tls`: the server speaks HTTPS with it (url() is then https://).
   explicit TestServer(AtlasServiceOptions service_options, HttpApiOptions api = {}, ConnectionLimits limits = {},
-                      int threads = 8)
+                      int threads = 8, std::shared_ptr<const TlsContext> tls = nullptr)
       : service_(std::make_unique<AtlasService>(std::move(service_options))),
         jobs_(std::make_unique<UploadJobs>(*service_, UploadJobOptions{service_->db_path().string() + ".work", 1, 4})),
-        http_(limits) {
+        http_(limits, std::move(tls)) {
     http_.set_payload_max_length(api.max_body_bytes * 4);
     http_.set_tcp_nodelay(true);
     if (api.redactions.empty()) api.redactions = server_path_redactions(*service_);
@@ -60,7 +61,7 @@ class TestServer {
   TestServer(const TestServer&) = delete;
   TestServer& operator=(const TestServer&) = delete;
 
-  std::string url() const { return "http://127.0.0.1:" + std::to_string(port_); }
+  std::string url() const { return (http_.tls() ? "https://127.0.0.1:" : "http://127.0.0.1:") + std::to_string(port_); }
   AtlasService& service() { return *service_; }
   const GuardedHttpServer& http() const { return http_; }
 

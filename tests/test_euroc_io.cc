@@ -369,6 +369,40 @@ TEST(EurocIo, OptionalStreams) {
   EXPECT_NE(read_error(dir.path(), {.require_imu = true}).find("imu0"), std::string::npos);
 }
 
+// An upload's lists name files inside it only (issue 66: a data.csv naming
+// /other/folder/X.png or ../../X.png was tracked from another folder's images).
+TEST(EurocIo, AConfinedReadRefusesFilesOutsideTheFolder) {
+  TempDir dir;
+  write_dataset(dir.path());
+  const fs::path other = dir.path().string() + "_other";  // a sibling folder: another upload's
+  fs::create_directories(other);
+  write_png(other / "outside.png", 7);
+  const fs::path cam0 = dir.path() / "mav0" / "cam0";
+  const TimestampNs t = kT0 + kFramePeriod;
+  const auto row = [&](const std::string& name) { return std::to_string(t) + "," + name + "\n"; };
+  const EurocReadOptions confined{.confined = true};
+  // Each way out, on line 3 (the header, frame 0, then the row).
+  for (const std::string& name :
+       {(other / "outside.png").string(), "../../../../" + other.filename().string() + "/outside.png",
+        std::string("/etc/passwd")}) {
+    SCOPED_TRACE(name);
+    rewrite_csv(cam0 / "data.csv", frame_row(0) + row(name));
+    const std::string error = read_error(dir.path(), confined);
+    EXPECT_NE(error.find("data.csv:3"), std::string::npos) << error;
+    EXPECT_NE(error.find("inside its own folder"), std::string::npos) << error;
+    EXPECT_EQ(read_error(dir.path()), "") << "a local recording may name any file";
+  }
+  // Through a link inside the folder.
+  fs::create_symlink(other, cam0 / "data" / "elsewhere");
+  rewrite_csv(cam0 / "data.csv", frame_row(0) + row("elsewhere/outside.png"));
+  EXPECT_NE(read_error(dir.path(), confined).find("through a link"), std::string::npos);
+  // Names that stay inside are read as before.
+  rewrite_csv(cam0 / "data.csv", frame_row(0) + frame_row(1));
+  EXPECT_EQ(read_error(dir.path(), confined), "");
+  EXPECT_EQ(read_euroc_dataset(dir.path(), confined).cameras[0].frames.size(), 2u);
+  fs::remove_all(other);
+}
+
 TEST(EurocIo, SensorYamlRoundTripKeepsFiveRadTanCoefficients) {
   TempDir dir;
   CameraCalibration c = make_camera(0);

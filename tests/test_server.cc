@@ -247,6 +247,11 @@ TEST(ServerEndToEnd, AStereoInertialStreamInitialisesItsMap) {
   EXPECT_NE(status["imu_warnings"][0].get<std::string>().find("IMU gap of 900 ms"), std::string::npos) << status.dump();
   EXPECT_THROW(other.post_imu(inertial, {a}), ServerError);
   other.finish_session(inertial);
+  // The warnings stay in the finished session's status (before: gone with its SLAM objects).
+  const nlohmann::json finished = other.get_json(path);
+  EXPECT_EQ(finished["state"], "finished");
+  ASSERT_TRUE(finished.contains("imu_warnings")) << finished.dump();
+  EXPECT_EQ(finished["imu_warnings"], status["imu_warnings"]);
 }
 
 // An RGB-D session over HTTP (issue 20): orbatlas stream sends each colour

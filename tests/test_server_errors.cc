@@ -243,6 +243,12 @@ TEST(ServerErrors, TokenIsRequiredAndChecked) {
   ServerClient right(server.url(), "s3cret");
   EXPECT_EQ(right.get_json("/v1/sessions")["sessions"].size(), 0u);  // nothing was created by the refused requests
   EXPECT_REPLY(right.http().Get("/v1/maps"), 200, "");
+  // The scheme in any letter case (before: "bearer" was refused).
+  httplib::Client lower(server.url());
+  EXPECT_REPLY(lower.Get("/v1/maps", {{"Authorization", "bearer s3cret"}}), 200, "");
+  EXPECT_REPLY(lower.Get("/v1/maps", {{"Authorization", "BEARER s3cret"}}), 200, "");
+  EXPECT_REPLY(lower.Get("/v1/maps", {{"Authorization", "Basic s3cret"}}), 401, "unauthorized");
+  EXPECT_REPLY(lower.Get("/v1/maps", {{"Authorization", "Bearers3cret"}}), 401, "unauthorized");
 }
 
 TEST(ServerErrors, DatabaseOfAnotherVocabularyIsRefusedAndKept) {

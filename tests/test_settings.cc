@@ -335,6 +335,44 @@ TEST_F(SettingsFiles, ExtrinsicsMustBe4x4) {
   expect_error(write("t3x3.yaml", std::string(kMono) + kStereoExtrinsics3x3), {"Stereo.T_c1_c2", "4x4", "3x3"});
 }
 
+// A matrix declaring a huge shape is refused before OpenCV allocates it (found by
+// fuzz_settings: "rows: 100000000" asked for 64 GiB).
+TEST_F(SettingsFiles, AMatrixOfAHugeDeclaredShapeIsRefusedBeforeItIsRead) {
+  std::string text = std::string(kMono) + kStereoExtrinsics3x3;
+  text.replace(text.find("rows: 3"), 7, "rows: 100000000");
+  text.replace(text.find("cols: 3"), 7, "cols: 80000");
+  expect_error(write("huge.yaml", text), {"Stereo.T_c1_c2", "4x4", "100000000x80000"});
+}
+
+// Text on which OpenCV's YAML reader never returns (found by fuzz_settings):
+// refused before it is read, naming the line; a "---" document start and
+// negative numbers at the start of a matrix's continued data still read.
+TEST(Settings, TextOpenCvWouldNeverFinishReadingIsRefused) {
+  try {
+    read_settings_text("%YAML:1.0\n-----0\n-s--\ni", "inline");
+    ADD_FAILURE() << "read";
+  } catch (const DataError& e) {
+    EXPECT_NE(std::string(e.what()).find("inline: line 2: a settings file is a map of keys"), std::string::npos)
+        << e.what();
+  }
+  // Text on which OpenCV's reader throws std::length_error, not its own exception.
+  try {
+    read_settings_text("%YAML:1.\n  c:4\n  :", "inline");
+    ADD_FAILURE() << "read";
+  } catch (const DataError& e) {
+    EXPECT_NE(std::string(e.what()).find("inline: malformed YAML"), std::string::npos) << e.what();
+  }
+  std::string text = std::string(kMono) + kStereoExtrinsics3x3;
+  text.replace(text.find("%YAML:1.0\n"), 10, "%YAML:1.0\n---\n");
+  std::string error = "read without an error";
+  try {
+    read_settings_text(text, "inline");
+  } catch (const DataError& e) {
+    error = e.what();
+  }
+  EXPECT_NE(error.find("must be a 4x4 matrix, got 3x3"), std::string::npos) << error;  // read, then judged
+}
+
 TEST_F(SettingsFiles, InvalidValues) {
   const auto with = [&](const std::string& name, const std::string& from, const std::string& to) {
     std::string text = kMono;

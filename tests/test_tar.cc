@@ -457,6 +457,19 @@ TEST(TarErrors, UnsafeLongNamesAreRefused) {
   EXPECT_CONTAINS(error_of(box.archive, box.dest), "absolute path");
   EXPECT_FALSE(fs::exists("/tmp/orbatlas_absolute_evil"));
   box.expect_nothing_outside_dest();
+  // Names the file system cannot take: a DataError (422 for an upload), not an
+  // error of the server's (500).
+  const std::string long_part(300, 'n');
+  box.write(raw_entry("././@LongLink", 'L', "a/" + long_part + std::string(1, '\0')) +
+            raw_entry("innocent.txt", '0', "x") + kEnd);
+  message = error_of(box.archive, box.dest);
+  EXPECT_CONTAINS(message, "a path component of 300 bytes");
+  EXPECT_LT(message.size(), 600u) << "the whole name in the message";
+  std::string deep;
+  for (int i = 0; i < 400; ++i) deep += "dddddddddd/";
+  box.write(raw_entry("././@LongLink", 'L', deep + "f" + std::string(1, '\0')) + raw_entry("innocent.txt", '0', "x") +
+            kEnd);
+  EXPECT_CONTAINS(error_of(box.archive, box.dest), "at most 3000");
 }
 
 // GNU and pax sparse files (refused by the hand-written reader) are extracted

@@ -1,5 +1,7 @@
 #include "client/api/server_client.h"
 
+#include <filesystem>
+
 #include <functional>
 #include <opencv2/imgcodecs.hpp>
 
@@ -73,9 +75,18 @@ void throw_server_error(int status, const std::string& body) {
   throw ServerError(status, code, message);
 }
 
-ServerClient::ServerClient(const std::string& url, std::string token)
+ServerClient::ServerClient(const std::string& url, std::string token, const std::string& ca)
     : url_(url), token_(std::move(token)), client_(std::make_unique<httplib::Client>(url)) {
   ORBATLAS_CHECK(client_->is_valid(), "not a server URL: '" << url << "' (e.g. http://127.0.0.1:8080)");
+  if (url.rfind("https://", 0) == 0) {
+    client_->enable_server_certificate_verification(true);
+    if (!ca.empty()) {
+      ORBATLAS_CHECK(std::filesystem::is_regular_file(ca), "--ca " << ca << ": no such file");
+      client_->set_ca_cert_path(ca.c_str());
+    }
+  } else {
+    ORBATLAS_CHECK(ca.empty(), "--ca is for https:// servers, not '" << url << "'");
+  }
   client_->set_keep_alive(true);
   client_->set_tcp_nodelay(true);  // no 40 ms delayed-ACK stalls between a request's packets
   client_->set_connection_timeout(5);

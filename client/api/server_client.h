@@ -50,8 +50,9 @@ SettingsChoice choose_settings(const std::string& config);
 
 class ServerClient {
  public:
-  // url: "http://127.0.0.1:8080" (https needs a build with OpenSSL, as Debian's).
-  explicit ServerClient(const std::string& url, std::string token = {});
+  // url: "http://127.0.0.1:8080" or "https://..." (the server's certificate is
+  // checked against `ca`, a PEM file, or the system's authorities when empty).
+  explicit ServerClient(const std::string& url, std::string token = {}, const std::string& ca = {});
   ~ServerClient();
   ServerClient(const ServerClient&) = delete;
   ServerClient& operator=(const ServerClient&) = delete;

@@ -83,9 +83,14 @@ std::vector<std::string> safe_components(const std::string& name, const std::str
     const std::size_t end = std::min(name.find('/', start), name.size());
     const std::string part = name.substr(start, end - start);
     if (part == "..") throw DataError(where + ": '..' path component refused");
+    // What the file system takes (NAME_MAX 255, PATH_MAX 4096 with the destination's own path).
+    if (part.size() > 255)
+      throw DataError(where + ": a path component of " + std::to_string(part.size()) + " bytes (at most 255)");
     if (!part.empty() && part != ".") parts.push_back(part);
     start = end + 1;
   }
+  if (name.size() > 3000)
+    throw DataError(where + ": a path of " + std::to_string(name.size()) + " bytes (at most 3000)");
   return parts;
 }
 
@@ -247,7 +252,7 @@ TarExtractReport extract_tar(const TarSource& source, const fs::path& destinatio
     const char* raw_name = archive_entry_pathname(entry);
     if (!raw_name) throw DataError(file + ": entry " + std::to_string(entries + 1) + " has no readable path");
     const std::string name = raw_name;
-    const std::string where = file + ": entry '" + name + "'";
+    const std::string where = file + ": entry '" + (name.size() > 200 ? name.substr(0, 200) + "...'" : name + "'");
     if (++entries > limits.max_entries)
       throw DataError(where + ": too many entries (limit " + std::to_string(limits.max_entries) + ")");
     const auto parts = safe_components(name, where);

@@ -11,6 +11,7 @@
 #include "core/common/log.h"
 #include "core/common/text_file.h"
 #include "core/io/euroc_sensor_yaml.h"
+#include "core/io/recording_paths.h"
 
 namespace orbatlas {
 namespace {
@@ -81,7 +82,7 @@ fs::path find_mav0(const fs::path& dir) {
   throw DataError(dir.string() + ": not an EuRoC dataset (no mav0/ folder)");
 }
 
-CameraStream read_camera(const fs::path& cam_dir, EurocDataset& dataset) {
+CameraStream read_camera(const fs::path& cam_dir, EurocDataset& dataset, const RecordingConfinement& confinement) {
   const fs::path csv = cam_dir / "data.csv";
   std::error_code ec;
   if (!fs::is_regular_file(csv, ec)) throw DataError(csv.string() + ": file not found");
@@ -95,7 +96,7 @@ CameraStream read_camera(const fs::path& cam_dir, EurocDataset& dataset) {
     const TimestampNs t = parse_int64(f[0], csv, line.number);
     order.check(t, line.number);
     if (f[1].empty()) fail_at(csv, line.number, "empty image file name");
-    fs::path image = image_dir / fs::path(std::string(f[1]));
+    fs::path image = recording_file(image_dir, f[1], confinement, csv, line.number);
     if (!fs::is_regular_file(image, ec)) {
       const std::string warning = csv.string() + ":" + std::to_string(line.number) + ": image " + image.string() +
                                   " does not exist; row skipped";
@@ -157,9 +158,10 @@ EurocDataset read_euroc_dataset(const fs::path& dir, const EurocReadOptions& opt
   std::error_code ec;
 
   if (!fs::is_directory(mav0 / "cam0", ec)) throw DataError((mav0 / "cam0").string() + ": folder not found");
-  dataset.cameras.push_back(read_camera(mav0 / "cam0", dataset));
+  const RecordingConfinement confinement{options.confined ? dir : fs::path()};
+  dataset.cameras.push_back(read_camera(mav0 / "cam0", dataset, confinement));
   if (fs::is_directory(mav0 / "cam1", ec)) {
-    dataset.cameras.push_back(read_camera(mav0 / "cam1", dataset));
+    dataset.cameras.push_back(read_camera(mav0 / "cam1", dataset, confinement));
   } else if (options.require_cam1) {
     throw DataError((mav0 / "cam1").string() + ": folder not found (stereo needs cam1)");
   }

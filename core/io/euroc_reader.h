@@ -9,6 +9,9 @@ namespace orbatlas {
 struct EurocReadOptions {
   bool require_cam1 = false;  // stereo use: a missing cam1 is an error
   bool require_imu = false;   // inertial use: a missing imu0 is an error
+  // Every image a data.csv names must lie inside the dataset folder
+  // (core/io/recording_paths.h): uploads.
+  bool confined = false;
 };
 
 // Reads an EuRoC ASL dataset. `dir` may be the dataset folder or its mav0/.

@@ -7,8 +7,11 @@
 #include <cctype>
 #include <cmath>
 #include <fstream>
+#include <iterator>
+#include <string_view>
 #include <opencv2/core.hpp>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -43,6 +46,42 @@ std::string file_start(const std::filesystem::path& path) {
   return first;
 }
 
+// OpenCV's YAML reader (4.6, Debian 12) loops forever on some malformed text
+// (found by fuzz_settings: "%YAML:1.0\n-----0\n-s--\ni" never returns), and a
+// session's settings are a client's text. Settings are a map of keys, so a line
+// that starts with '-' outside brackets (a block sequence item, a document
+// marker other than "---") is refused before OpenCV reads the text.
+void check_settings_shape(std::string_view text, const std::string& label) {
+  int depth = 0;  // open '[' and '{' (flow sequences and maps span lines)
+  int number = 0;
+  for (std::size_t start = 0; start <= text.size();) {
+    const std::size_t end = std::min(text.find('\n', start), text.size());
+    std::string_view line = text.substr(start, end - start);
+    ++number;
+    start = end + 1;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    const std::size_t first = line.find_first_not_of(" \t");
+    if (first == std::string_view::npos) continue;
+    if (depth == 0 && line[first] == '-') {
+      std::string_view trimmed = line.substr(first);
+      while (!trimmed.empty() && (trimmed.back() == ' ' || trimmed.back() == '\t')) trimmed.remove_suffix(1);
+      if (trimmed != "---")
+        throw DataError(label + ": line " + std::to_string(number) +
+                        ": a settings file is a map of keys; a line starting with '-' (a list item, or a "
+                        "document marker other than '---') is not one");
+    }
+    bool quoted = false;
+    for (std::size_t i = first; i < line.size(); ++i) {
+      const char c = line[i];
+      if (c == '"') quoted = !quoted;
+      if (quoted) continue;
+      if (c == '#' && (i == 0 || line[i - 1] == ' ' || line[i - 1] == '\t')) break;  // a comment
+      if (c == '[' || c == '{') ++depth;
+      if ((c == ']' || c == '}') && depth > 0) --depth;
+    }
+  }
+}
+
 // The open settings (a file, or text in memory): typed access to its keys, and
 // errors naming the source and key.
 class SettingsFile {
@@ -51,11 +90,16 @@ class SettingsFile {
     std::error_code ec;
     if (!std::filesystem::exists(path, ec)) throw DataError(label_ + ": settings file not found");
     if (!std::filesystem::is_regular_file(path, ec)) throw DataError(label_ + ": not a regular file");
+    {
+      std::ifstream in(path, std::ios::binary);
+      check_settings_shape(std::string(std::istreambuf_iterator<char>(in), {}), label_);
+    }
     open(path.string(), cv::FileStorage::READ | cv::FileStorage::FORMAT_YAML, missing_directive_hint(file_start(path)));
   }
   // YAML text parsed in memory (no file is written).
   SettingsFile(const std::string& text, std::string label) : label_(std::move(label)) {
     if (text.empty()) throw DataError(label_ + ": the settings text is empty");
+    check_settings_shape(text, label_);
     open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML,
          missing_directive_hint(text));
   }
@@ -120,6 +164,13 @@ class SettingsFile {
   Pose3 transform(const std::string& key) const {
     const cv::FileNode n = node(key);
     if (!n.isMap()) fail(key, "must be a 4x4 !!opencv-matrix");
+    // Its declared shape first: OpenCV allocates rows x cols before it reads the
+    // data, so "rows: 100000000" would take gigabytes (found by fuzz_settings).
+    const cv::FileNode rows = n["rows"], cols = n["cols"];
+    if (!rows.isInt() || !cols.isInt()) fail(key, "must be a 4x4 !!opencv-matrix (rows: 4, cols: 4)");
+    if (static_cast<int>(rows) != 4 || static_cast<int>(cols) != 4)
+      fail(key, "must be a 4x4 matrix, got " + std::to_string(static_cast<int>(rows)) + "x" +
+                    std::to_string(static_cast<int>(cols)));
     cv::Mat m;
     try {
       n >> m;
@@ -154,6 +205,9 @@ class SettingsFile {
       fs_.open(source, flags);
     } catch (const cv::Exception& e) {
       throw DataError(label_ + ": malformed YAML" + hint + ": " + opencv_message(e));
+    } catch (const std::length_error&) {
+      // OpenCV's reader lets this one through on some malformed text (found by fuzz_settings).
+      throw DataError(label_ + ": malformed YAML" + hint + " (a value OpenCV's reader cannot hold)");
     }
     if (!fs_.isOpened()) throw DataError(label_ + ": cannot open or parse as YAML" + hint);
     try {

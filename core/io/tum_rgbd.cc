@@ -1,5 +1,7 @@
 #include "core/io/tum_rgbd.h"
 
+#include "core/io/recording_paths.h"
+
 #include <algorithm>
 #include <fstream>
 #include <limits>
@@ -7,6 +9,7 @@
 #include <sstream>
 
 #include "core/common/error.h"
+#include "core/io/recording_paths.h"
 #include "core/io/tum_trajectory.h"
 
 namespace orbatlas {
@@ -18,7 +21,8 @@ struct ListEntry {
 };
 
 // "timestamp filename" lines of rgb.txt or depth.txt.
-std::vector<ListEntry> read_list(const std::filesystem::path& dir, const std::string& name) {
+std::vector<ListEntry> read_list(const std::filesystem::path& dir, const std::string& name,
+                                 const RecordingConfinement& confinement) {
   const std::string path = (dir / name).string();
   std::ifstream in(path);
   ORBATLAS_DATA_CHECK(in.good(), path << " not found (a TUM RGB-D dataset lists its images in rgb.txt and depth.txt)");
@@ -36,9 +40,9 @@ std::vector<ListEntry> read_list(const std::filesystem::path& dir, const std::st
                         path << ":" << number << ": expected \"timestamp filename\", got \"" << line << "\"");
     ORBATLAS_DATA_CHECK(entries.empty() || *t > entries.back().t_ns,
                         path << ":" << number << ": timestamps must increase");
-    ORBATLAS_DATA_CHECK(std::filesystem::exists(dir / file),
-                        path << ":" << number << ": " << (dir / file) << " does not exist");
-    entries.push_back({*t, dir / file});
+    const std::filesystem::path listed = recording_file(dir, file, confinement, path, number);
+    ORBATLAS_DATA_CHECK(std::filesystem::exists(listed), path << ":" << number << ": " << listed << " does not exist");
+    entries.push_back({*t, listed});
   }
   return entries;
 }
@@ -53,10 +57,12 @@ void write_list(const std::filesystem::path& path, const std::string& what,
 
 }  // namespace
 
-TumRgbdDataset read_tum_rgbd(const std::filesystem::path& dir, double max_dt_s) {
+TumRgbdDataset read_tum_rgbd(const std::filesystem::path& dir, double max_dt_s, bool confined) {
   TumRgbdDataset d;
   d.root = dir;
-  const std::vector<ListEntry> rgb = read_list(dir, "rgb.txt"), depth = read_list(dir, "depth.txt");
+  const RecordingConfinement confinement{confined ? dir : std::filesystem::path()};
+  const std::vector<ListEntry> rgb = read_list(dir, "rgb.txt", confinement),
+                               depth = read_list(dir, "depth.txt", confinement);
   const TimestampNs max_dt = s_to_ns(max_dt_s);
   std::size_t j = 0;
   for (const ListEntry& c : rgb) {

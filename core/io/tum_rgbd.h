@@ -33,8 +33,9 @@ struct TumRgbdDataset {
 // Reads the lists and pairs the images. DataError (file and line) on a missing
 // list, a malformed line, timestamps that do not increase, or a listed file
 // that does not exist; a colour image without depth within max_dt_s is skipped
-// (counted in `unpaired`).
-TumRgbdDataset read_tum_rgbd(const std::filesystem::path& dir, double max_dt_s = 0.02);
+// (counted in `unpaired`). `confined`: every listed file must lie inside `dir`
+// (core/io/recording_paths.h), as for uploads.
+TumRgbdDataset read_tum_rgbd(const std::filesystem::path& dir, double max_dt_s = 0.02, bool confined = false);
 
 // The frames as image pairs (the colour image, its depth image: what the
 // stereo pair loader and the runners take) and the ground truth as body states.

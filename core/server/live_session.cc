@@ -54,6 +54,11 @@ void LiveSession::fail(const std::string& why) {
   if (slam_) {
     worker_errors_.store(slam_->worker_errors());
     final_anchors_ = slam_->anchors();
+    try {
+      final_imu_warnings_ = slam_->imu_warnings();
+    } catch (const std::exception&) {
+      // A failed session's warnings are a detail; its error says what went wrong.
+    }
     slam_.reset();  // stops its threads (errors are logged there); the maps stay in the atlas
   }
 }
@@ -123,7 +128,6 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
 
 std::size_t LiveSession::add_imu(const std::vector<ImuSample>& samples) {
   std::lock_guard lock(mutex_);
-  last_activity_.store(std::chrono::steady_clock::now().time_since_epoch().count());
   if (state_ != SessionState::kActive)
     throw_conflict("session " + std::to_string(info_.id) + " is " + session_state_name(state_) + "; it takes no IMU");
   // The stream's order is the protocol's (a batch out of order is refused
@@ -138,6 +142,13 @@ std::size_t LiveSession::add_imu(const std::vector<ImuSample>& samples) {
       throw DataError("IMU sample " + std::to_string(i) + " at " + std::to_string(s.t_ns) +
                       " ns is not after the previous sample (" + std::to_string(*previous) + " ns)");
     previous = s.t_ns;
+    // NaN passes (a real IMU's dropout, judged by the session); magnitudes no sensor gives do not.
+    const double gyro = s.gyro.cwiseAbs().maxCoeff(), accel = s.accel.cwiseAbs().maxCoeff();
+    if (gyro > kMaxImuGyro || accel > kMaxImuAccel)
+      throw DataError("IMU sample " + std::to_string(i) + " at " + std::to_string(s.t_ns) + " ns reads " +
+                      (gyro > kMaxImuGyro ? std::to_string(gyro) + " rad/s" : std::to_string(accel) + " m/s^2") +
+                      ": beyond any IMU's range (" + std::to_string(static_cast<int>(kMaxImuGyro)) + " rad/s, " +
+                      std::to_string(static_cast<int>(kMaxImuAccel)) + " m/s^2)");
   }
   slam_->add_imu(samples);  // a session that fuses its IMU (stereo-inertial) keeps them; others ignore them
   last_imu_t_ = previous;
@@ -174,6 +185,7 @@ bool LiveSession::finish_locked(const std::string& ended_by, std::function<bool(
         stats.relocalizations,    stats.loop.loops.size(), stats.imu_initialized_at_s, stats.imu_bias,
         stats.imu_time_offset_ms, stats.mapping_wait_ms,   stats.mapping_waits_cut};
     final_anchors_ = slam_->anchors();
+    final_imu_warnings_ = slam_->imu_warnings();
     slam_.reset();
     state_ = SessionState::kFinished;
   } catch (const std::exception& e) {
@@ -226,7 +238,7 @@ SessionStatus LiveSession::status() const {
   s.skipped_frames = skipped_frames_;
   s.imu_samples = imu_samples_;
   s.worker_errors = worker_errors_.load();
-  if (slam_) s.imu_warnings = slam_->imu_warnings();
+  s.imu_warnings = slam_ ? slam_->imu_warnings() : final_imu_warnings_;
   s.config = config_;
   s.error = error_;
   s.ended_by = ended_by_;

@@ -57,16 +57,22 @@ class LiveSession {
   // skipped: not tracked, counted (`skipped_frames`), the reply says so.
   FrameOutcome process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
   // A batch of IMU samples, checked (valid stamps, strictly increasing across
-  // batches: DataError otherwise, and then none of the batch is taken), counted
-  // and handed to the session, which drops what it cannot use and says so in
-  // the status's imu_warnings (sessions without an IMU ignore them).
+  // batches; values no IMU measures, beyond kMaxImuGyro / kMaxImuAccel: DataError
+  // otherwise, and then none of the batch is taken), counted and handed to the
+  // session, which drops what it cannot use (saturation at the sensor's own
+  // range included) and says so in the status's imu_warnings (sessions without
+  // an IMU ignore them). IMU alone does not keep a session from its idle timeout.
   std::size_t add_imu(const std::vector<ImuSample>& samples);
   // Lets mapping finish what is queued, stops it and drops the SLAM objects
   // (the frames' anchors stay). Idempotent; false when it was not active.
   bool finish();
   // finish() on behalf of the server, saying why ("idle_timeout"), shown in the status.
   bool finish(const std::string& ended_by);
-  // When the client last sent a frame or IMU (or created the session).
+  // Bounds on the values of an IMU sample: above any MEMS sensor's range
+  // (gyroscopes to about 70 rad/s, accelerometers to about 200 g).
+  static constexpr double kMaxImuGyro = 100.0;    // rad/s
+  static constexpr double kMaxImuAccel = 2000.0;  // m/s^2
+  // When the client last sent a frame (or created the session).
   std::chrono::steady_clock::time_point last_activity() const {
     return std::chrono::steady_clock::time_point(std::chrono::steady_clock::duration(last_activity_.load()));
   }
@@ -110,6 +116,7 @@ class LiveSession {
   std::optional<TrackResult> last_;
   SampleSummary tracking_ms_;
   std::optional<SessionStatus::SlamCounts> final_counts_;  // captured by finish()
+  std::vector<std::string> final_imu_warnings_;            // captured by finish() or fail()
   std::atomic<std::size_t> worker_errors_{0};
   std::atomic<MapId> current_map_{kInvalidMapId};
   MapId logged_map_ = kInvalidMapId;  // under mutex_: the last map the log named for this session

@@ -14,6 +14,7 @@ enum class ServiceErrorKind {
   kBadRequest,     // malformed, missing or out-of-range request fields, unusable settings
   kNotFound,       // no such session, map, job or configuration
   kConflict,       // the object's state does not allow it (frames for a finished session)
+  kForbidden,      // the caller may not do this (another client's session)
   kUnprocessable,  // well-formed but not something this service does (a sensor it cannot map)
   kTooLarge,       // more data than the service takes
   kFailed,         // the work failed on the service's side (a session's tracking, storage)

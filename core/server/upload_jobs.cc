@@ -51,7 +51,7 @@ UploadedRecording read_recording(const fs::path& root, SensorType sensor) {
   if (sensor == SensorType::kRgbd) {
     ORBATLAS_DATA_CHECK(fs::is_regular_file(root / "rgb.txt"),
                         "an RGB-D session's upload is a TUM RGB-D recording (rgb.txt, depth.txt, rgb/, depth/)");
-    const TumRgbdDataset d = read_tum_rgbd(root);
+    const TumRgbdDataset d = read_tum_rgbd(root, 0.02, /*confined=*/true);
     r.frames = rgbd_image_pairs(d);
     r.ground_truth = ground_truth_states(d);
     ORBATLAS_DATA_CHECK(!r.frames.empty(), "the recording has no colour image with a depth image");
@@ -63,6 +63,7 @@ UploadedRecording read_recording(const fs::path& root, SensorType sensor) {
   const bool single_camera = is_single_camera(sensor);
   EurocReadOptions read_options;
   read_options.require_cam1 = !single_camera;
+  read_options.confined = true;
   EurocDataset dataset = read_euroc_dataset(root, read_options);
   if (single_camera) {
     ORBATLAS_DATA_CHECK(!dataset.cameras.empty(), "the recording has no cam0");
@@ -203,6 +204,21 @@ fs::path UploadJobs::new_upload_folder() {
   // New: an upload reads nothing it did not extract itself.
   ORBATLAS_CHECK(fs::create_directory(folder), "the upload folder " << folder.filename().string() << " exists already");
   return folder;
+}
+
+void UploadJobs::check_recording(const fs::path& folder) {
+  fs::path root;
+  try {
+    root = dataset_root(folder);
+  } catch (const DataError&) {
+    return;  // no recording at all: the job says so (and keeps its id)
+  }
+  if (fs::is_regular_file(root / "rgb.txt")) read_tum_rgbd(root, 0.02, /*confined=*/true);
+  if (fs::is_directory(root / "mav0")) {
+    EurocReadOptions options;
+    options.confined = true;
+    read_euroc_dataset(root, options);
+  }
 }
 
 JobId UploadJobs::submit(const fs::path& folder, SessionRequest request, std::uint64_t archive_bytes) {

@@ -56,6 +56,10 @@ class UploadJobs {
 
   // A new, empty folder for an incoming upload (the HTTP layer extracts into it).
   std::filesystem::path new_upload_folder();
+  // Whether the extracted upload in `folder` is a recording whose lists name
+  // files inside it only (core/io/recording_paths.h): DataError naming the
+  // list's line if not. The job reads it again (and checks the same).
+  static void check_recording(const std::filesystem::path& folder);
   // Queues the extracted upload (the folder is now the job's; it is deleted when
   // the job ends). ServiceError 503 when the queue is full (the folder is deleted).
   JobId submit(const std::filesystem::path& folder, SessionRequest request, std::uint64_t archive_bytes);

@@ -1,6 +1,7 @@
 #include "server/http/http_api.h"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <filesystem>
 #include <functional>
@@ -16,7 +17,9 @@
 #include "core/io/tum_trajectory.h"
 #include "core/server/service_error.h"
 #include "core/server/atlas_service.h"
+#include "server/http/api_access.h"
 #include "server/http/image_decode.h"
+#include "server/http/imu_batch.h"
 #include "core/common/parse_integer.h"
 #include "server/http/raw_frame.h"
 #include "core/persistence/map_rigs.h"
@@ -72,23 +75,28 @@ void require_multipart(const Request& req, const char* fields) {
     throw_bad_request(std::string("this route takes multipart/form-data with the fields ") + fields);
 }
 
-json session_list(const AtlasService& service) {
+// A session's status, with the client that started it (when the API has clients).
+json session_json(const AtlasService& service, const ApiAccess& access, SessionId id) {
+  json j = to_json(service.session_status(id));
+  if (const auto owner = access.owner(id)) j["client"] = *owner;
+  return j;
+}
+
+json session_list(const AtlasService& service, const ApiAccess& access) {
   json list = json::array();
-  for (const auto& s : service.sessions()) list.push_back(to_json(service.session_status(s->id())));
+  for (const auto& s : service.sessions()) list.push_back(session_json(service, access, s->id()));
   return {{"sessions", list}};
 }
 
-bool authorised(const Request& req, const std::string& token) {
-  const std::string expected = "Bearer " + token;
-  const std::string given = req.get_header_value("Authorization");
-  if (given.size() != expected.size()) return false;
-  unsigned char diff = 0;  // the same time whatever the first wrong character
-  for (std::size_t i = 0; i < given.size(); ++i) diff |= static_cast<unsigned char>(given[i] ^ expected[i]);
-  return diff == 0;
+std::string lower_trimmed(std::string text) {
+  const auto first = text.find_first_not_of(" \t"), last = text.find_last_not_of(" \t");
+  text = first == std::string::npos ? std::string() : text.substr(first, last - first + 1);
+  for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return text;
 }
 
-void install_session_routes(Router& router, AtlasService& service) {
-  router.post("/v1/sessions", ([&service](const Request& req, Response& res) {
+void install_session_routes(Router& router, AtlasService& service, const std::shared_ptr<ApiAccess>& access) {
+  router.post("/v1/sessions", ([&service, access](const Request& req, Response& res) {
                 const json body = parse_json_body(req);
                 SessionRequest request;
                 request.name = optional_string(body, "name");
@@ -101,17 +109,20 @@ void install_session_routes(Router& router, AtlasService& service) {
                 request.settings.config = optional_string(body, "config");
                 request.settings.settings_yaml = optional_string(body, "settings_yaml");
                 const SessionId id = service.create_session(request);
-                reply_json(res, {{"id", id}, {"session", to_json(service.session_status(id))}}, 201);
+                if (const auto client = access->client_of(req)) access->set_owner(id, *client);
+                reply_json(res, {{"id", id}, {"session", session_json(service, *access, id)}}, 201);
               }));
-  router.get("/v1/sessions", ([&service](const Request&, Response& res) { reply_json(res, session_list(service)); }));
-  router.get(R"(/v1/sessions/(\d+))", ([&service](const Request& req, Response& res) {
-               reply_json(res, to_json(service.session_status(id_from(req, 1, "session"))));
+  router.get("/v1/sessions",
+             ([&service, access](const Request&, Response& res) { reply_json(res, session_list(service, *access)); }));
+  router.get(R"(/v1/sessions/(\d+))", ([&service, access](const Request& req, Response& res) {
+               reply_json(res, session_json(service, *access, id_from(req, 1, "session")));
              }));
   router.post(
-      R"(/v1/sessions/(\d+)/frames)", ([&service](const Request& req, Response& res) {
+      R"(/v1/sessions/(\d+)/frames)", ([&service, access](const Request& req, Response& res) {
         const auto start = std::chrono::steady_clock::now();
         const SessionId id = id_from(req, 1, "session");
         const auto session = service.session(id);  // 404 before looking at the body
+        access->require_owner(req, id, false);
         const CameraCalibration& camera = session->info().cameras.at(0);
         const cv::Size expected(camera.width, camera.height);
         const bool rgbd = session->info().sensor == SensorType::kRgbd;
@@ -165,33 +176,19 @@ void install_session_routes(Router& router, AtlasService& service) {
         body["server_ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
         reply_json(res, body);
       }));
-  router.post(
-      R"(/v1/sessions/(\d+)/imu)", ([&service](const Request& req, Response& res) {
-        const SessionId id = id_from(req, 1, "session");
-        service.session(id);
-        const json body = parse_json_body(req);
-        if (!body.contains("samples") || !body["samples"].is_array())
-          throw_bad_request("'samples' must be an array of [t_ns, gx, gy, gz, ax, ay, az]");
-        std::vector<ImuSample> samples;
-        for (const json& row : body["samples"]) {
-          if (!row.is_array() || row.size() != 7 || !row[0].is_number_integer() ||
-              !std::all_of(row.begin() + 1, row.end(), [](const json& v) { return v.is_number(); }))
-            throw_bad_request("each IMU sample is [t_ns (integer), gx, gy, gz (rad/s), ax, ay, az (m/s^2)]");
-          // An integer above INT64_MAX would wrap around into a negative time.
-          if (row[0].is_number_unsigned() && row[0].get<std::uint64_t>() > static_cast<std::uint64_t>(kMaxTimestampNs))
-            throw DataError("IMU sample t_ns " + row[0].dump() + " is outside 0.." + std::to_string(kMaxTimestampNs));
-          ImuSample s;
-          s.t_ns = row[0].get<TimestampNs>();
-          for (int k = 0; k < 3; ++k) {
-            s.gyro[k] = row[1 + k].get<double>();
-            s.accel[k] = row[4 + k].get<double>();
-          }
-          samples.push_back(s);
-        }
-        reply_json(res, {{"accepted", service.add_imu(id, samples)}});
-      }));
-  router.post(R"(/v1/sessions/(\d+)/finish)", ([&service](const Request& req, Response& res) {
-                reply_json(res, to_json(service.finish_session(id_from(req, 1, "session"))));
+  router.post(R"(/v1/sessions/(\d+)/imu)", ([&service, access](const Request& req, Response& res) {
+                const SessionId id = id_from(req, 1, "session");
+                service.session(id);
+                access->require_owner(req, id, false);
+                const std::vector<ImuSample> samples = parse_imu_batch(req.body);
+                reply_json(res, {{"accepted", service.add_imu(id, samples)}});
+              }));
+  router.post(R"(/v1/sessions/(\d+)/finish)", ([&service, access](const Request& req, Response& res) {
+                const SessionId id = id_from(req, 1, "session");
+                service.session(id);  // 404 first
+                access->require_owner(req, id, true);
+                service.finish_session(id);
+                reply_json(res, session_json(service, *access, id));
               }));
   router.get(R"(/v1/sessions/(\d+)/trajectory)", ([&service](const Request& req, Response& res) {
                const SessionTrajectory t = service.trajectory(id_from(req, 1, "session"));
@@ -228,7 +225,12 @@ void install_map_routes(Router& router, AtlasService& service) {
                 LocalizeRequest request;
                 request.settings.config = form_text(req, "config");
                 request.settings.settings_yaml = form_text(req, "settings_yaml");
-                if (req.has_file("map")) request.map = static_cast<MapId>(form_integer(req, "map", true));
+                if (req.has_file("map")) {
+                  const std::int64_t map = form_integer(req, "map", true);
+                  if (map < 0)
+                    throw_bad_request("the form field 'map' must be a map id (0 or more), got " + std::to_string(map));
+                  request.map = static_cast<MapId>(map);
+                }
                 const auto raw = raw_size(req);
                 const char* left_key = req.has_file("image") ? "image" : "left";
                 if (!req.has_file(left_key))
@@ -293,6 +295,10 @@ std::pair<std::string, std::string> status_code_and_message(int status, const Re
       return {"unsupported_media_type", "unsupported Content-Type or Content-Encoding"};
     case 416:
       return {"bad_request", "bad Range header"};
+    case 431:
+      return {"too_large", "the request's headers are too large"};
+    case 501:
+      return {"not_implemented", "the request needs something this server does not do"};
     case 503:
       return {"unavailable", "the server cannot take this request now"};
     default:
@@ -305,6 +311,7 @@ std::pair<std::string, std::string> status_code_and_message(int status, const Re
 void HttpApiOptions::check() const {
   ORBATLAS_CHECK(max_body_bytes > 0, "http: max_body_bytes must be > 0");
   ORBATLAS_CHECK(max_upload_bytes > 0, "http: max_upload_bytes must be > 0");
+  ORBATLAS_CHECK(token.empty() || clients.open(), "http: a token or a clients file, not both");
   for (const auto& [from, _] : redactions) ORBATLAS_CHECK(!from.empty(), "http: a redaction of the empty text");
 }
 
@@ -314,6 +321,8 @@ void install_http_api(httplib::Server& server, AtlasService& service, const Http
   auto context = std::make_shared<ErrorContext>();
   context->redactions = options.redactions;
   auto table = std::make_shared<RouteTable>();
+  auto access = std::make_shared<ApiAccess>(options.token.empty() ? options.clients
+                                                                  : ClientCredentials::single_token(options.token));
   Router router(server, context, table);
 
   // SO_REUSEADDR only: httplib's default adds SO_REUSEPORT, with which a second
@@ -322,21 +331,44 @@ void install_http_api(httplib::Server& server, AtlasService& service, const Http
     int yes = 1;
     ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
   });
-  server.set_pre_routing_handler([opts](const Request& req, Response& res) {
+  server.set_pre_routing_handler([opts, access](const Request& req, Response& res) {
     if (opts.on_request_start) opts.on_request_start(req.path);
-    if (!opts.token.empty() && req.path != "/healthz" && !is_viewer_file(req.path) && !authorised(req, opts.token)) {
-      res.set_header("WWW-Authenticate", "Bearer");
-      return refuse(
-          res, 401, "unauthorized",
-          req.has_header("Authorization") ? "wrong token" : "this server needs 'Authorization: Bearer <token>'");
+    if (!access->open() && req.path != "/healthz" && !is_viewer_file(req.path)) {
+      const std::optional<ApiClient> client = access->client_of(req);
+      if (!client) {
+        res.set_header("WWW-Authenticate", "Bearer");
+        return refuse(
+            res, 401, "unauthorized",
+            req.has_header("Authorization") ? "wrong token" : "this server needs 'Authorization: Bearer <token>'");
+      }
+      if (!role_allows(client->role, req.method, req.path))
+        return refuse(res, 403, "forbidden",
+                      "client '" + client->name + "' (" + client_role_name(client->role) + ") may not " + req.method +
+                          " " + req.path.substr(0, 100));
     }
     // One length, said once: two Content-Length headers (or one next to a
     // chunked encoding) are how requests are smuggled past proxies.
     const std::size_t lengths = req.get_header_value_count("Content-Length");
-    const bool chunked = req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos;
     if (lengths > 1) return refuse(res, 400, "bad_request", "the request has more than one Content-Length header");
     if (lengths == 1 && req.has_header("Transfer-Encoding"))
       return refuse(res, 400, "bad_request", "the request has both Content-Length and Transfer-Encoding");
+    // One Transfer-Encoding, and only `chunked` (in any case); no
+    // Content-Encoding: the body limits apply to the bytes as they arrive, and
+    // an inflated body could be any size.
+    const std::size_t encodings = req.get_header_value_count("Transfer-Encoding");
+    const std::string transfer = lower_trimmed(req.get_header_value("Transfer-Encoding"));
+    const bool chunked = encodings == 1 && transfer == "chunked";
+    if (encodings > 1 || (encodings == 1 && !chunked))
+      return refuse(res, 501, "not_implemented",
+                    "Transfer-Encoding '" + req.get_header_value("Transfer-Encoding").substr(0, 40) +
+                        "' is not supported (only one 'chunked')");
+    if (req.has_header("Content-Encoding")) {
+      const std::string content = lower_trimmed(req.get_header_value("Content-Encoding"));
+      if (req.get_header_value_count("Content-Encoding") > 1 || (content != "identity" && !content.empty()))
+        return refuse(res, 415, "unsupported_media_type",
+                      "Content-Encoding '" + req.get_header_value("Content-Encoding").substr(0, 40) +
+                          "' is not accepted: send the body uncompressed");
+    }
     const std::string length = req.get_header_value("Content-Length");
     std::uint64_t bytes = 0;
     if (lengths == 1) {
@@ -379,12 +411,19 @@ void install_http_api(httplib::Server& server, AtlasService& service, const Http
     reply_error(res, res.status, code, message);
     return HandlerResponse::Handled;
   }));
-  server.set_logger([opts](const Request& req, const Response& res) {
-    if (opts.log_requests) log_info(req.method + " " + req.path + " -> " + std::to_string(res.status));
+  server.set_logger([opts, access](const Request& req, const Response& res) {
+    access->count(req, res.status);
+    if (opts.log_requests) {
+      const auto client = access->open() ? std::nullopt : access->client_of(req);
+      log_info(req.method + " " + req.path + " -> " + std::to_string(res.status) +
+               (access->open() ? ""
+                : client       ? " (client " + client->name + ", " + client_role_name(client->role) + ")"
+                               : " (no client)"));
+    }
     if (opts.on_request_end) opts.on_request_end();
   });
   router.get("/healthz", ([&service](const Request&, Response& res) { reply_json(res, to_json(service.health())); }));
-  router.get("/metrics", ([&service, jobs, opts](const Request&, Response& res) {
+  router.get("/metrics", ([&service, jobs, opts, access](const Request&, Response& res) {
                std::vector<prometheus::MetricFamily> families = service.metrics();
                const auto add = [&families](std::vector<prometheus::MetricFamily> more) {
                  families.insert(families.end(), std::make_move_iterator(more.begin()),
@@ -392,9 +431,10 @@ void install_http_api(httplib::Server& server, AtlasService& service, const Http
                };
                if (opts.extra_metrics) add(opts.extra_metrics());
                if (jobs) add(jobs->metrics());
+               add(access->metrics());
                res.set_content(prometheus::TextSerializer().Serialize(families), "text/plain; version=0.0.4");
              }));
-  install_session_routes(router, service);
+  install_session_routes(router, service, access);
   install_map_routes(router, service);
   install_viewer_routes(router, service, options);
   install_upload_routes(router, service, jobs, options.max_upload_bytes);

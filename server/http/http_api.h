@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/common/data_paths.h"
+#include "server/http/client_credentials.h"
 
 namespace httplib {
 class Server;
@@ -23,8 +24,12 @@ class AtlasService;
 class UploadJobs;
 
 struct HttpApiOptions {
-  std::string token;                       // non-empty: every route but /healthz needs "Authorization: Bearer <token>"
-  std::size_t max_body_bytes = 64u << 20;  // frames, localisation, JSON
+  // Who may call (server/http/client_credentials.h): the clients of a clients
+  // file, or one `token` (the client "token", an operator); neither: open.
+  // Every route but /healthz and the viewer's files then needs a bearer token.
+  ClientCredentials clients;
+  std::string token;
+  std::size_t max_body_bytes = 64u << 20;        // frames, localisation, JSON
   std::uint64_t max_upload_bytes = 32ull << 30;  // POST /v1/uploads (the server's payload limit must allow it)
   bool log_requests = false;                     // one line per request on stderr
   // Text replaced in every error message a client sees (server file paths:

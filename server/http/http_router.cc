@@ -31,6 +31,8 @@ int http_status(ServiceErrorKind kind) {
       return 404;
     case ServiceErrorKind::kConflict:
       return 409;
+    case ServiceErrorKind::kForbidden:
+      return 403;
     case ServiceErrorKind::kTooLarge:
       return 413;
     case ServiceErrorKind::kUnprocessable:

@@ -64,6 +64,7 @@ void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jo
         throw_bad_request("the upload was cut short after " + std::to_string(bytes) + " bytes");
       }
       const TarExtractReport report = extractor.finish();  // a bad archive: DataError, 400
+      UploadJobs::check_recording(folder);                 // files named outside it: DataError, 422
       const JobId id = jobs->submit(folder, request, report.archive_bytes);
       discard.keep = true;
       reply_json(res, {{"job", id}, {"status", to_json(jobs->job(id))}}, 202);

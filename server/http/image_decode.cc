@@ -3,6 +3,7 @@
 #include <cctype>
 #include <cstring>
 #include <opencv2/imgcodecs.hpp>
+#include <zlib.h>
 
 #include "core/common/error.h"
 #include "core/io/settings.h"
@@ -91,6 +92,49 @@ std::optional<cv::Size> bmp_size(std::string_view b) {
   return checked(little_endian_signed32(b, 18), h < 0 ? -h : h);
 }
 
+// Whether a PNG's image data (its IDAT chunks, inflated) is no more than its
+// declared size needs: rows of filter byte and pixels (Adam7 interlacing adds a
+// filter byte per pass row). Inflates into a small scratch buffer, stopping as
+// soon as the bound is passed: surplus data cannot cost more than the image.
+bool png_data_within_size(std::string_view b, const cv::Size& size) {
+  if (b.size() < 29) return true;  // too short to tell: the decoder refuses it
+  const int depth = static_cast<unsigned char>(b[24]), colour = static_cast<unsigned char>(b[25]);
+  const int channels = colour == 2 ? 3 : colour == 4 ? 2 : colour == 6 ? 4 : 1;
+  const std::uint64_t row_bytes = (static_cast<std::uint64_t>(size.width) * channels * depth + 7) / 8;
+  const std::uint64_t bound =
+      static_cast<std::uint64_t>(size.height) * (row_bytes + 1) + 8 * static_cast<std::uint64_t>(size.height) + 64;
+  z_stream z{};
+  if (inflateInit(&z) != Z_OK) return true;
+  unsigned char scratch[65536];
+  std::uint64_t inflated = 0;
+  bool within = true, ended = false;
+  for (std::size_t at = 8; at + 12 <= b.size() && within && !ended;) {
+    const std::uint32_t length = big_endian(b, at, 4);
+    if (length > b.size() - at - 12) break;  // truncated: the decoder says so
+    if (b.substr(at + 4, 4) == "IDAT") {
+      z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(b.data() + at + 8));
+      z.avail_in = length;
+      while (z.avail_in > 0 && within) {
+        z.next_out = scratch;
+        z.avail_out = sizeof scratch;
+        const int r = inflate(&z, Z_NO_FLUSH);
+        inflated += sizeof scratch - z.avail_out;
+        within = inflated <= bound;
+        if (r == Z_STREAM_END) {
+          // Compressed bytes after the stream's end are more data nobody asked for.
+          within = within && z.avail_in == 0;
+          ended = true;
+          break;
+        }
+        if (r != Z_OK) break;  // corrupt: the decoder says so
+      }
+    }
+    at += 12 + length;
+  }
+  inflateEnd(&z);
+  return within;
+}
+
 }  // namespace
 
 std::optional<cv::Size> encoded_image_size(std::string_view bytes) {
@@ -114,7 +158,8 @@ cv::Mat decode_request_image(std::string_view bytes, const std::optional<RawImag
     const std::optional<cv::Size> declared = encoded_image_size(bytes);
     ORBATLAS_DATA_CHECK(declared.has_value(), what << " is a corrupt or truncated image file (" << bytes.size()
                                                    << " bytes; no readable header)");
-    ORBATLAS_DATA_CHECK(declared->area() > 0, what << " declares an impossible image size");
+    // Each side, not the area: two sides of 2^30 overflow an int's area (found by fuzz_image_decode).
+    ORBATLAS_DATA_CHECK(declared->width > 0 && declared->height > 0, what << " declares an impossible image size");
     if (expected) {
       ORBATLAS_DATA_CHECK(*declared == *expected, what << " is " << size_text(*declared) << "; the camera takes "
                                                        << size_text(*expected) << " (refused before decoding)");
@@ -123,6 +168,10 @@ cv::Mat decode_request_image(std::string_view bytes, const std::optional<RawImag
                           what << " is " << size_text(*declared) << "; at most " << kMaxImageSide
                                << " pixels a side (refused before decoding)");
     }
+    if (starts_with(bytes, "\x89PNG\r\n\x1a\n"))
+      ORBATLAS_DATA_CHECK(png_data_within_size(bytes, *declared), what << " holds more image data than its "
+                                                                       << size_text(*declared)
+                                                                       << " pixels need (refused before decoding)");
     const cv::Mat buffer(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
     cv::Mat image;
     try {
@@ -159,6 +208,9 @@ cv::Mat decode_request_depth(std::string_view bytes, const std::string& what, co
   ORBATLAS_DATA_CHECK(*declared == expected, what << " is " << declared->width << "x" << declared->height
                                                   << "; the camera takes " << expected.width << "x" << expected.height
                                                   << " (refused before decoding)");
+  ORBATLAS_DATA_CHECK(png_data_within_size(bytes, *declared), what << " holds more image data than its "
+                                                                   << declared->width << "x" << declared->height
+                                                                   << " pixels need (refused before decoding)");
   const cv::Mat buffer(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
   cv::Mat depth;
   try {
