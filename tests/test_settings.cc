@@ -352,8 +352,17 @@ TEST(Settings, TextOpenCvWouldNeverFinishReadingIsRefused) {
     read_settings_text("%YAML:1.0\n-----0\n-s--\ni", "inline");
     ADD_FAILURE() << "read";
   } catch (const DataError& e) {
-    EXPECT_NE(std::string(e.what()).find("inline: line 2: a settings file is a map of keys"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("inline: malformed YAML: line 2: expected \"Key: value\""), std::string::npos)
         << e.what();
+  }
+  for (const char* hang : {"%YAML:1.0\n C:A\n:A--\n0", "%YAML:1.0\nA: 1\n C: 2\n", "%YAML:1.0\nA: [1, x]\n"}) {
+    std::string error = "read without an error";
+    try {
+      read_settings_text(hang, "inline");
+    } catch (const DataError& e) {
+      error = e.what();
+    }
+    EXPECT_NE(error.find("inline: malformed YAML: line "), std::string::npos) << error;
   }
   // Text on which OpenCV's reader throws std::length_error, not its own exception.
   try {
