@@ -19,17 +19,6 @@ namespace {
 
 using Clock = ConnectionStream::Clock;
 
-bool poll_for(socket_t sock, short events, Clock::duration timeout) {
-  if (timeout <= Clock::duration::zero()) return false;
-  pollfd p{sock, events, 0};
-  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count();
-  int r = 0;
-  do {
-    r = ::poll(&p, 1, static_cast<int>(std::max<long long>(1, std::min<long long>(ms, 1 << 30))));
-  } while (r < 0 && errno == EINTR);
-  return r > 0;
-}
-
 void address_of(socket_t sock, bool peer, std::string& ip, int& port) {
   sockaddr_storage addr{};
   socklen_t len = sizeof addr;
@@ -83,6 +72,17 @@ bool says_close(std::string_view head) {
 }
 
 }  // namespace
+
+bool poll_for(socket_t sock, short events, std::chrono::steady_clock::duration timeout) {
+  if (timeout <= Clock::duration::zero()) return false;
+  pollfd p{sock, events, 0};
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count();
+  int r = 0;
+  do {
+    r = ::poll(&p, 1, static_cast<int>(std::max<long long>(1, std::min<long long>(ms, 1 << 30))));
+  } while (r < 0 && errno == EINTR);
+  return r > 0;
+}
 
 ConnectionStream::ConnectionStream(socket_t sock, Options options)
     : sock_(sock), options_(std::move(options)), buffer_(new char[kReadBuffer]) {}

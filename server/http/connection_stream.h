@@ -33,6 +33,9 @@ struct ssl_ctx_st;
 
 namespace orbatlas {
 
+// Waits until `sock` has `events` (POLLIN, POLLOUT) for at most `timeout`.
+bool poll_for(socket_t sock, short events, std::chrono::steady_clock::duration timeout);
+
 class ConnectionStream : public httplib::Stream {
  public:
   using Clock = std::chrono::steady_clock;

@@ -18,18 +18,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Waits until `sock` is readable for at most `timeout`.
-bool wait_readable(socket_t sock, Clock::duration timeout) {
-  if (timeout <= Clock::duration::zero()) return false;
-  pollfd p{sock, POLLIN, 0};
-  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(timeout).count();
-  int r = 0;
-  do {
-    r = ::poll(&p, 1, static_cast<int>(std::max<long long>(1, std::min<long long>(ms, 1 << 30))));
-  } while (r < 0 && errno == EINTR);
-  return r > 0;
-}
-
 // Closes after the reply without resetting it: a request refused before its body
 // was read (413, 401) leaves the body coming in, and closing with unread data
 // sends a reset that can destroy the reply before the client reads it. So: end
@@ -42,7 +30,7 @@ void lingering_close(socket_t sock, Clock::duration linger) {
   for (;;) {
     // What is there now, then (while the linger lasts) what still comes.
     ssize_t n = ::recv(sock, scratch, sizeof scratch, MSG_DONTWAIT);
-    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK) && wait_readable(sock, until - Clock::now()))
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK) && poll_for(sock, POLLIN, until - Clock::now()))
       n = ::recv(sock, scratch, sizeof scratch, 0);
     if (n <= 0) break;
     drained += static_cast<std::size_t>(n);
@@ -163,7 +151,7 @@ bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
        --left) {
     if (!shook_hands || !set_waiting(id, true)) break;  // closed for room since the last request
     // Idle until the next request starts (httplib's keep-alive timeout).
-    if (!stream.has_buffered() && !wait_readable(sock, std::chrono::seconds(keep_alive_timeout_sec_))) break;
+    if (!stream.has_buffered() && !poll_for(sock, POLLIN, std::chrono::seconds(keep_alive_timeout_sec_))) break;
     stream.start_request(Clock::now() + header_timeout);
     bool connection_closed = false;
     ret = process_request(stream, left == 1, connection_closed, [&](httplib::Request& req) {
