@@ -104,7 +104,8 @@ TEST(Persistence, VersionOneAtlasMigratesForward) {
     // Back to what schema 1 held: its tables and rows, user_version 1.
     SqliteDb raw(db.path());
     raw.exec(
-        "PRAGMA foreign_keys = OFF; BEGIN; DROP TABLE keyframe_imu_states; DROP TABLE keyframe_inertial_links; DROP "
+        "PRAGMA foreign_keys = OFF; BEGIN; DROP TABLE session_records; DROP TABLE keyframe_imu_states; DROP TABLE "
+        "keyframe_inertial_links; DROP "
         "TABLE map_inertial_states; "
         "DROP TABLE upload_jobs; DROP TRIGGER keyframes_not_culled; "
         "DROP TABLE culled_keyframes; ALTER TABLE keyframes DROP COLUMN units; ALTER TABLE atlas DROP COLUMN "
@@ -365,7 +366,8 @@ TEST(Persistence, VersionFiveSessionsSurviveTheRebuildForRgbd) {
     // Back to schema 5's sessions table (its CHECK without rgbd), user_version 5.
     SqliteDb raw(db.path());
     raw.exec(
-        "PRAGMA foreign_keys = OFF; BEGIN; CREATE TABLE s5 (id INTEGER PRIMARY KEY CHECK (id >= 0), name TEXT NOT "
+        "PRAGMA foreign_keys = OFF; BEGIN; DROP TABLE session_records; CREATE TABLE s5 (id INTEGER PRIMARY KEY CHECK "
+        "(id >= 0), name TEXT NOT "
         "NULL, sensor TEXT NOT NULL CHECK (sensor IN ('mono', 'stereo', 'mono_inertial', 'stereo_inertial')), "
         "created_ns INTEGER NOT NULL) STRICT; INSERT INTO s5 SELECT * FROM sessions; DROP TABLE sessions; ALTER "
         "TABLE s5 RENAME TO sessions; ALTER TABLE keyframes DROP COLUMN units; ALTER TABLE culled_keyframes DROP "
@@ -439,6 +441,67 @@ TEST_P(PersistenceBackends, SessionsRoundTrip) {
   invalid.cameras[0].fx = 0;
   EXPECT_THROW(store.save_session(invalid), Error);
   expect_session_eq(*store.load_session(3), stereo);
+}
+
+// Session records (session_record.h): every field, a replaced record, values
+// the schema refuses (the stored record unchanged), and none for a session
+// without one.
+TEST_P(PersistenceBackends, SessionRecordsRoundTrip) {
+  AtlasStore store = open_store(test_vocabulary().hash());
+  for (const SessionId id : {2u, 5u, 7u}) {
+    SessionInfo s;
+    s.id = id;
+    s.name = "session " + std::to_string(id);
+    store.save_session(s);
+  }
+  SessionRecord finished;
+  finished.frames = 3'682;
+  finished.tracked = 3'675;
+  finished.keyframes = 311;
+  finished.rejected_frames = 2;
+  finished.skipped_frames = 5;
+  finished.imu_samples = 36'820;
+  finished.mode = "map";
+  finished.config = "euroc/stereo_inertial";
+  finished.outcome = "finished";
+  finished.ended_by = "idle_timeout";
+  SessionRecord failed;
+  failed.frames = 40;
+  failed.tracked = 12;
+  failed.mode = "localize";
+  failed.outcome = "failed";
+  failed.error = "tracking failed 20 times in a row: out of memory";
+  SessionRecord starting;  // as the server stores it before the first frame
+  starting.mode = "map";
+  starting.config = "";
+  store.save_session_record(5, finished);
+  store.save_session_record(2, failed);
+  store.save_session_record(7, starting);
+  auto records = store.load_session_records();
+  ASSERT_EQ(records.size(), 3u);
+  EXPECT_EQ(records.at(5), finished);
+  EXPECT_EQ(records.at(2), failed);
+  EXPECT_EQ(records.at(7), starting);
+  EXPECT_EQ(records.at(7).outcome, "active");
+  // Written again: replaced.
+  starting.frames = starting.tracked = 200;
+  starting.keyframes = 9;
+  store.save_session_record(7, starting);
+  EXPECT_EQ(store.load_session_records().at(7), starting);
+  // Refused: more tracked than frames, an unknown outcome or mode, no such session.
+  SessionRecord bad = starting;
+  bad.tracked = bad.frames + 1;
+  EXPECT_THROW(store.save_session_record(7, bad), Error);
+  bad = starting;
+  bad.outcome = "paused";
+  EXPECT_THROW(store.save_session_record(7, bad), Error);
+  bad = starting;
+  bad.mode = "stereo";
+  EXPECT_THROW(store.save_session_record(7, bad), Error);
+  EXPECT_THROW(store.save_session_record(99, starting), Error);
+  records = store.load_session_records();
+  ASSERT_EQ(records.size(), 3u);
+  EXPECT_EQ(records.at(7), starting);
 }
 
 // Upload jobs (job_rows.h): every field, optional ones absent and present,

@@ -281,6 +281,83 @@ TEST_P(CheckpointTest, SessionTrajectoryAndKeyframeSessions) {
       << failing.stats().last_error;
 }
 
+// A session's record (its counts, how it ended) goes into the checkpoint that
+// writes its frames, and again only when it changed.
+TEST_P(CheckpointTest, ASessionsRecordIsWrittenWithItsFramesWhenItChanges) {
+  Atlas atlas;
+  build_atlas(atlas, test_vocabulary(), 12);
+  std::mutex mutex;  // both sources are called on the checkpoint thread
+  std::vector<FrameAnchor> frames;
+  SessionRecord record;
+  record.mode = "map";
+  record.config = "euroc/stereo";
+  CheckpointSession session;
+  session.info.id = 8;
+  session.info.name = "recorded";
+  session.trajectory = [&](std::size_t first) {
+    std::lock_guard lock(mutex);
+    return std::vector<FrameAnchor>(frames.begin() + static_cast<std::ptrdiff_t>(std::min(first, frames.size())),
+                                    frames.end());
+  };
+  session.record = [&] {
+    std::lock_guard lock(mutex);
+    return record;
+  };
+  AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), manual_only(), session);
+  const auto map = atlas.active_map();
+  const auto track = [&](int n, int rejected) {
+    std::lock_guard lock(mutex);
+    for (int i = 0; i < n; ++i)
+      frames.push_back({static_cast<TimestampNs>(frames.size() + 1) * 50'000'000, map->id(),
+                        map->keyframes().front()->id(), Pose3()});
+    record.frames += static_cast<std::size_t>(n + 1);  // one frame not tracked
+    record.tracked += static_cast<std::size_t>(n);
+    record.keyframes += 1;
+    record.rejected_frames += static_cast<std::size_t>(rejected);
+    record.imu_samples += 10u * static_cast<std::size_t>(n);
+  };
+  const auto stored = [&] {
+    AtlasStore store = AtlasStore::open(location(), test_vocabulary().hash());
+    return store.load_session_records();
+  };
+  track(10, 1);
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  ASSERT_EQ(stored().size(), 1u);
+  EXPECT_EQ(stored().at(8), record);
+  // Nothing new: the next checkpoint writes nothing, the record included.
+  const std::uint64_t commits = checkpointer.stats().commits;
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  EXPECT_EQ(checkpointer.stats().commits, commits);
+  // A count alone changes: written, one row updated.
+  {
+    std::lock_guard lock(mutex);
+    ++record.skipped_frames;
+  }
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  EXPECT_EQ(checkpointer.stats().commits, commits + 1);
+  EXPECT_EQ(checkpointer.stats().last_rows.total(), 1u) << "the record alone";
+  EXPECT_EQ(stored().at(8), record);
+  // It fails: the end is stored by the checkpoint after end_session, with its last frames.
+  track(3, 0);
+  {
+    std::lock_guard lock(mutex);
+    record.outcome = "failed";
+    record.error = "tracking: out of memory";
+  }
+  checkpointer.end_session(8);
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  EXPECT_EQ(stored().at(8), record);
+  AtlasStore store = AtlasStore::open(location(), test_vocabulary().hash());
+  EXPECT_EQ(store.load_trajectory(8).size(), 13u);
+  // Ended: the writer no longer asks for it; the stored record stays as it was.
+  {
+    std::lock_guard lock(mutex);
+    record.frames = 0;
+  }
+  ASSERT_TRUE(checkpointer.checkpoint_now());
+  EXPECT_EQ(stored().at(8).frames, 15u);
+}
+
 // The server's case: sessions join and leave a running checkpointer, their
 // keyframes interleave, each keeps its own trajectory.
 TEST_P(CheckpointTest, SessionsJoinAndLeaveWithInterleavedKeyframes) {

@@ -94,15 +94,15 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
 
   test::TempDbPath db("e2e");
   StreamReport streamed;
-  nlohmann::json maps_before;
+  nlohmann::json maps_before, status_before;
   {
     test::TestServer server(test::server_options(db.path));
     ServerClient client(server.url());
     streamed = stream_dataset(client, test::stream_options(clip));
     maps_before = client.get_json("/v1/maps");
-    const auto status = client.get_json("/v1/sessions/" + std::to_string(streamed.session));
-    EXPECT_EQ(status["state"], "finished");
-    EXPECT_EQ(status["frames"].get<std::size_t>(), 201u);
+    status_before = client.get_json("/v1/sessions/" + std::to_string(streamed.session));
+    EXPECT_EQ(status_before["state"], "finished");
+    EXPECT_EQ(status_before["frames"].get<std::size_t>(), 201u);
   }
   EXPECT_EQ(streamed.frames, 201u);
   EXPECT_EQ(streamed.rejected, 0u);
@@ -154,6 +154,13 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   EXPECT_EQ(maps_after["maps"][0]["map_points"], maps_before["maps"][0]["map_points"]);
   const auto session = client.get_json("/v1/sessions/" + std::to_string(streamed.session));
   EXPECT_EQ(session["state"], "stored");
+  // It keeps what it had: counts, mode, config (before: frames became the
+  // stored trajectory's size, keyframes 0, mode and config gone).
+  for (const char* key : {"frames", "tracked", "keyframes", "rejected_frames", "skipped_frames", "imu_samples", "mode",
+                          "config", "name", "sensor"})
+    EXPECT_EQ(session[key], status_before[key]) << key << ": " << session.dump();
+  EXPECT_GT(session["keyframes"].get<std::size_t>(), 0u);
+  EXPECT_FALSE(session.contains("ended_by")) << "the client finished it";
   const std::string tum = client.trajectory_tum(streamed.session);
   // The frame count, the header, "# map"; every stored frame resolves.
   EXPECT_EQ(std::count(tum.begin(), tum.end(), '\n'), static_cast<long>(streamed.trajectory.size()) + 3);

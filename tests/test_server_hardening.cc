@@ -162,14 +162,34 @@ TEST(ServerHardening, JobIdsSurviveARestartAndNoJobReadsAnotherOnesFiles) {
   {
     AtlasService service(test::server_options(db.path));
     AtlasStore store = AtlasStore::open(db.path, service.vocabulary().hash());
+    // Its session: two frames stored by its last checkpoint, which saw it running.
+    SessionInfo session;
+    session.id = 4;
+    session.name = "theirs";
+    store.save_session(session);
+    store.save_trajectory(4, {FrameAnchor{100, 0, 1, Pose3()}, FrameAnchor{200, 0, 1, Pose3()}});
+    SessionRecord record;
+    record.frames = 3;
+    record.tracked = 2;
+    record.keyframes = 1;
+    record.mode = "map";
+    record.config = "euroc/stereo";
+    store.save_session_record(4, record);
     StoredJob interrupted;
     interrupted.id = 1;
     interrupted.name = "theirs";
     interrupted.state = "running";
     interrupted.frames_total = 40;
+    interrupted.session = 4;
+    store.save_job(interrupted);
+    // Another one killed before its session's first checkpoint.
+    session.id = 5;
+    store.save_session(session);
+    interrupted.id = 2;
+    interrupted.session = 5;
     store.save_job(interrupted);
   }
-  const std::filesystem::path leftover = db.path.string() + ".work/job-2/mav0/cam0";
+  const std::filesystem::path leftover = db.path.string() + ".work/job-3/mav0/cam0";
   std::filesystem::create_directories(leftover);
   { std::ofstream(leftover.parent_path() / "data.csv") << "#timestamp [ns],filename\n"; }
 
@@ -179,8 +199,29 @@ TEST(ServerHardening, JobIdsSurviveARestartAndNoJobReadsAnotherOnesFiles) {
   const json old = client.get_json("/v1/jobs/1");
   EXPECT_EQ(old["state"], "failed");
   EXPECT_NE(old.value("error", "").find("interrupted"), std::string::npos) << old.dump();
+  // What was kept, as the database has it (before: "stored in session N" also of a session holding none).
+  EXPECT_NE(old.value("error", "").find("session 4 keeps the 2 tracked frames its last checkpoint stored"),
+            std::string::npos)
+      << old.dump();
+  EXPECT_NE(
+      client.get_json("/v1/jobs/2").value("error", "").find("nothing of it was stored (session 5 holds no frame)"),
+      std::string::npos);
+  // The session reports its last checkpoint's counts and that the server stopped under it.
+  const json kept = client.get_json("/v1/sessions/4");
+  EXPECT_EQ(kept["state"], "stored");
+  EXPECT_EQ(kept["frames"], 3);
+  EXPECT_EQ(kept["tracked"], 2);
+  EXPECT_EQ(kept["keyframes"], 1);
+  EXPECT_EQ(kept["mode"], "map");
+  EXPECT_EQ(kept["config"], "euroc/stereo");
+  EXPECT_EQ(kept["ended_by"], "interrupted");
+  // A session of an older database (no record): its stored frames, nothing invented.
+  const json older = client.get_json("/v1/sessions/5");
+  EXPECT_EQ(older["frames"], 0);
+  EXPECT_FALSE(older.contains("mode"));
+  EXPECT_FALSE(older.contains("ended_by"));
   EXPECT_FALSE(std::filesystem::exists(leftover)) << "the earlier run's files were kept";
-  // A tar without mav0/: before, job 2 "finished" with the leftover folder's frames.
+  // A tar without mav0/: before, the next job "finished" with the leftover folder's frames.
   std::string tar;
   {
     TarWriter writer([&](const char* d, std::size_t n) { tar.append(d, n); });
@@ -191,7 +232,7 @@ TEST(ServerHardening, JobIdsSurviveARestartAndNoJobReadsAnotherOnesFiles) {
   ASSERT_TRUE(reply);
   ASSERT_EQ(reply->status, 202) << reply->body;
   const std::uint64_t job = json::parse(reply->body)["job"].get<std::uint64_t>();
-  EXPECT_EQ(job, 2u);
+  EXPECT_EQ(job, 3u);
   json status;
   for (const auto deadline = Clock::now() + std::chrono::seconds(30); Clock::now() < deadline;) {
     status = client.get_json("/v1/jobs/" + std::to_string(job));

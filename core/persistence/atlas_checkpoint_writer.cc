@@ -108,6 +108,10 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
   // their culled keyframes) unless a merge or a reset removed it meanwhile.
   std::vector<NewFrames> frames;
   for (const SessionState& s : sessions_) frames.push_back(new_frames(s));
+  // The records after the frames: a record counts at least the frames stored with it.
+  std::vector<std::optional<SessionRecord>> records;
+  for (const SessionState& s : sessions_)
+    records.push_back(s.session.record ? std::optional<SessionRecord>(s.session.record()) : std::nullopt);
   AtlasRows rows = collect_atlas_rows(atlas_, [&](KeyframeId id) { return session_of(id); });
   // Never a stored frame whose keyframe is not stored: it would resolve through
   // whatever keyframe later gets that id. Such a frame waits for the next
@@ -174,6 +178,10 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
       }
       for (const FrameAnchor& a : storable[i]) writer.upsert_trajectory(s.session.info.id, a);
       result.rows.inserted += storable[i].size();
+      if (records[i] && (rewrite || s.written_record != records[i])) {
+        write_session_record(db, s.session.info.id, *records[i]);
+        ++result.rows.updated;
+      }
     }
     // Maps merged into others since loading go (unless their rows are in
     // `before`: then the diff deletes them); other stored maps stay.
@@ -213,7 +221,10 @@ CheckpointResult AtlasCheckpointWriter::checkpoint(const std::function<void()>& 
     if (is_writable(map)) deleted_maps_.insert(map);
   committed_ = std::move(rows);
   if (maps_changed_) committed_digests_ = std::move(digests);
-  for (SessionState& s : sessions_) s.written = true;
+  for (std::size_t i = 0; i < sessions_.size(); ++i) {
+    sessions_[i].written = true;
+    if (records[i]) sessions_[i].written_record = records[i];
+  }
   advance_sessions();
   std::erase_if(sessions_, [](const SessionState& s) { return s.ending; });
   has_committed_ = true;

@@ -29,6 +29,7 @@
 #include "core/persistence/atlas_rows.h"
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/session_info.h"
+#include "core/persistence/session_record.h"
 
 namespace orbatlas {
 
@@ -41,6 +42,10 @@ struct CheckpointSession {
   // Called on the checkpoint thread, so it must be safe to call while tracking
   // runs (e.g. a copy under a lock).
   std::function<std::vector<FrameAnchor>(std::size_t first)> trajectory;
+  // What the session has done so far (its counts, how it ended), written with
+  // its frames when it changed; called on the checkpoint thread as `trajectory`
+  // is. Unset: no record.
+  std::function<SessionRecord()> record;
 };
 
 // Of `candidates` (the atlas's maps, and the maps merged away since it was
@@ -122,11 +127,12 @@ class AtlasCheckpointWriter {
 
   struct SessionState {
     CheckpointSession session;
-    bool written = false;                // its row is in the file
-    bool ending = false;                 // forget it after the next successful checkpoint
-    std::size_t taken = 0;               // frames taken from its source (stored, deferred or dropped)
-    std::optional<TimestampNs> last_t;   // the newest of them
-    std::vector<PendingFrame> deferred;  // taken, not yet stored
+    bool written = false;                         // its row is in the file
+    bool ending = false;                          // forget it after the next successful checkpoint
+    std::size_t taken = 0;                        // frames taken from its source (stored, deferred or dropped)
+    std::optional<TimestampNs> last_t;            // the newest of them
+    std::vector<PendingFrame> deferred;           // taken, not yet stored
+    std::optional<SessionRecord> written_record;  // its record as the file has it
   };
 
   NewFrames new_frames(const SessionState& state) const;

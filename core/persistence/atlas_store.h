@@ -12,6 +12,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -20,6 +21,7 @@
 
 #include "core/map/atlas.h"
 #include "core/persistence/job_rows.h"
+#include "core/persistence/session_record.h"
 #include "core/persistence/session_info.h"
 #include "core/persistence/sql_connection.h"
 #include "core/map/frame_anchor.h"
@@ -99,6 +101,10 @@ class AtlasStore {
   // Timestamps must be distinct. References may name keyframes culled since.
   void save_trajectory(SessionId session, const std::vector<FrameAnchor>& anchors);
   std::vector<FrameAnchor> load_trajectory(SessionId session);  // by timestamp
+  // What each session did as its last checkpoint stored it (session_record.h);
+  // sessions stored before schema 9 have none.
+  void save_session_record(SessionId session, const SessionRecord& record);
+  std::map<SessionId, SessionRecord> load_session_records() { return read_session_records(*db_); }
 
   // --- upload jobs (job_rows.h) ---
   void save_job(const StoredJob& job) { write_job(*db_, job); }

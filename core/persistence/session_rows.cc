@@ -105,6 +105,12 @@ void AtlasStore::save_session(const SessionInfo& session) {
   transaction.commit();
 }
 
+void AtlasStore::save_session_record(SessionId session, const SessionRecord& record) {
+  SqlTransaction transaction(*db_);
+  write_session_record(*db_, session, record);
+  transaction.commit();
+}
+
 std::optional<SessionInfo> AtlasStore::load_session(SessionId id) {
   SqlTransaction transaction(*db_, SqlTransaction::Mode::kRead);
   std::map<SessionId, SessionInfo> sessions;

@@ -89,14 +89,16 @@ AtlasService::AtlasService(AtlasServiceOptions options)
     // Mapping, merging and entering (leases): only the maps this replica writes.
     for (const auto& map : atlas_.maps())
       if (!ownership_ || ownership_->owns(map->id())) leases_.add_free(map->id());
+    const std::map<SessionId, SessionRecord> records = store.load_session_records();
     for (const SessionInfo& info : store.load_sessions()) {
       const auto anchors = store.load_trajectory(info.id);
       // The rig each stored map was made with (for merging, and for entering
       // it): its stereo sessions' cameras (a single camera only localised there).
       record_map_rigs(atlas_, info, anchors, map_rigs_);
       // The trajectory itself stays in the database (read when asked for).
+      const auto record = records.find(info.id);
       sessions_[info.id] = std::make_shared<LiveSession>(
-          info, anchors.size(), anchors.empty() ? std::nullopt : std::optional<FrameAnchor>(anchors.back()));
+          info, record == records.end() ? std::nullopt : std::optional<SessionRecord>(record->second), anchors);
       if (!ownership_ || replica_id_range(replica_->id(), kReplicaMapIdShift).contains(info.id))
         next_session_ = std::max(next_session_, info.id + 1);
     }
@@ -308,8 +310,12 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   // Stored before its id is handed out: an id is never given twice, even when
   // the server dies before the session's first checkpoint.
   try {
+    SessionRecord record;  // what it is before its first frame (an interrupted start shows it)
+    record.mode = session_mode_name(mode);
+    record.config = loaded.label;
     std::lock_guard lock(store_mutex_);
     store_->save_session(info);
+    store_->save_session_record(id, record);
   } catch (const std::exception& e) {
     throw ServiceError(ServiceErrorKind::kUnavailable, "storage_failed",
                        std::string("cannot store the new session: ") + e.what());
@@ -325,7 +331,8 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
     begin_session_work(id, StoredMerge{0, start.settings, start.first_keyframe, start.inertial, rig.monocular});
   idle_wake_.notify_all();
   // The checkpoint thread reads the frames through its own reference.
-  checkpointer_->add_session(CheckpointSession{info, [live](std::size_t first) { return live->anchors_from(first); }});
+  checkpointer_->add_session(CheckpointSession{info, [live](std::size_t first) { return live->anchors_from(first); },
+                                               [live] { return live->record(); }});
   sessions_created_.Increment();
   log_info("session " + std::to_string(id) + " started (" + info.name + ", config " + loaded.label + ")");
   return id;
@@ -506,7 +513,7 @@ void AtlasService::shutdown() {
   if (merger_) merger_->stop();
   for (const auto& s : live) {
     try {
-      if (s->finish()) log_info("session " + std::to_string(s->id()) + " finished by the shutdown");
+      if (s->finish("shutdown")) log_info("session " + std::to_string(s->id()) + " finished by the shutdown");
     } catch (const std::exception& e) {
       log_warn(e.what());
     }

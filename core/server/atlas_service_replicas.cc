@@ -30,6 +30,7 @@ void AtlasService::load_new_sessions(AtlasStore& store, bool rigs_of_live_replic
   std::set<std::uint64_t> alive;
   for (const ReplicaInfo& r : replica_->replicas())
     if (r.alive && !r.self) alive.insert(r.id);
+  const std::map<SessionId, SessionRecord> records = store.load_session_records();
   for (const SessionInfo& info : store.load_sessions()) {
     {
       std::lock_guard lock(mutex_);
@@ -45,8 +46,9 @@ void AtlasService::load_new_sessions(AtlasStore& store, bool rigs_of_live_replic
       for (auto& [map, rig] : rigs) map_rigs_.try_emplace(map, std::move(rig));  // a map keeps its first rig
     }
     if (live_elsewhere) continue;
+    const auto record = records.find(info.id);
     auto session = std::make_shared<LiveSession>(
-        info, anchors.size(), anchors.empty() ? std::nullopt : std::optional<FrameAnchor>(anchors.back()));
+        info, record == records.end() ? std::nullopt : std::optional<SessionRecord>(record->second), anchors);
     std::lock_guard lock(mutex_);
     sessions_.try_emplace(info.id, std::move(session));
   }

@@ -34,9 +34,36 @@ LiveSession::LiveSession(SessionInfo info, std::string config, std::unique_ptr<S
       state_(SessionState::kActive),
       max_lag_ns_(max_lag_s ? std::optional<std::int64_t>(s_to_ns(*max_lag_s)) : std::nullopt) {}
 
-LiveSession::LiveSession(SessionInfo info, std::size_t tracked_frames, std::optional<FrameAnchor> last_frame)
-    : info_(std::move(info)), state_(SessionState::kStored), anchors_released_(true), last_anchor_(last_frame) {
-  frames_ = tracked_ = tracked_frames;
+namespace {
+
+std::optional<SessionMode> stored_mode(const std::optional<SessionRecord>& record) {
+  if (!record || record->mode.empty()) return std::nullopt;
+  return record->mode == "localize" ? SessionMode::kLocalize : SessionMode::kMap;
+}
+
+}  // namespace
+
+LiveSession::LiveSession(SessionInfo info, const std::optional<SessionRecord>& record,
+                         const std::vector<FrameAnchor>& trajectory)
+    : info_(std::move(info)),
+      config_(record ? record->config : std::string()),
+      mode_(stored_mode(record)),
+      state_(SessionState::kStored),
+      anchors_released_(true),
+      last_anchor_(trajectory.empty() ? std::nullopt : std::optional<FrameAnchor>(trajectory.back())) {
+  if (!record) {
+    frames_ = tracked_ = trajectory.size();
+    return;
+  }
+  frames_ = record->frames;
+  tracked_ = record->tracked;
+  keyframes_ = record->keyframes;
+  rejected_frames_ = record->rejected_frames;
+  skipped_frames_ = record->skipped_frames;
+  imu_samples_ = record->imu_samples;
+  error_ = record->error;
+  // A session the last checkpoint saw running: the server stopped before its end was stored.
+  ended_by_ = record->outcome == "active" ? std::string("interrupted") : record->ended_by;
 }
 
 LiveSession::~LiveSession() {
@@ -221,6 +248,24 @@ void LiveSession::release_anchors() {
   if (!final_anchors_.empty()) last_anchor_ = final_anchors_.back();
   std::vector<FrameAnchor>().swap(final_anchors_);
   anchors_released_ = true;
+}
+
+SessionRecord LiveSession::record() const {
+  std::lock_guard lock(mutex_);
+  SessionRecord r;
+  r.frames = frames_;
+  r.tracked = tracked_;
+  r.keyframes = keyframes_;
+  r.rejected_frames = rejected_frames_;
+  r.skipped_frames = skipped_frames_;
+  r.imu_samples = imu_samples_;
+  r.mode = mode_ ? session_mode_name(*mode_) : "";
+  r.config = config_;
+  const SessionState state = state_.load();
+  r.outcome = state == SessionState::kFailed ? "failed" : state == SessionState::kActive ? "active" : "finished";
+  r.ended_by = ended_by_;
+  r.error = error_;
+  return r;
 }
 
 SessionStatus LiveSession::status() const {

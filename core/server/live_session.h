@@ -17,6 +17,7 @@
 #include "core/io/euroc_types.h"
 #include "core/map/frame_anchor.h"
 #include "core/persistence/session_info.h"
+#include "core/persistence/session_record.h"
 #include "core/server/service_results.h"
 #include "core/slam/session_slam.h"
 
@@ -34,9 +35,10 @@ class LiveSession {
   // sensor clock is skipped (see process()); none: every frame is tracked.
   LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam,
               SessionMode mode = SessionMode::kMap, std::optional<double> max_lag_s = std::nullopt);
-  // A stored session (an earlier run's): how many frames it tracked and its
-  // last frame; its trajectory stays in the database.
-  LiveSession(SessionInfo info, std::size_t tracked_frames, std::optional<FrameAnchor> last_frame);
+  // A stored session (an earlier run's): what its last checkpoint recorded
+  // (none for sessions stored before schema 9: then the frames are those of its
+  // trajectory); only the trajectory's last frame is kept (the rest stays in the database).
+  LiveSession(SessionInfo info, const std::optional<SessionRecord>& record, const std::vector<FrameAnchor>& trajectory);
   ~LiveSession();
   LiveSession(const LiveSession&) = delete;
   LiveSession& operator=(const LiveSession&) = delete;
@@ -90,13 +92,15 @@ class LiveSession {
   // Errors the session's workers contained (as of its last frame; any thread).
   std::size_t worker_errors() const { return worker_errors_.load(); }
   SessionStatus status() const;  // GET /v1/sessions/{id}
+  // What the database keeps of it (counts, mode, config, how it ended); any thread.
+  SessionRecord record() const;
 
  private:
   void fail(const std::string& why);  // under mutex_
 
   const SessionInfo info_;
   const std::string config_;
-  const std::optional<SessionMode> mode_;  // none for a stored session (the database does not keep it)
+  const std::optional<SessionMode> mode_;  // none for a stored session of an older database
   // finish() under mutex_: the SLAM objects go; `refine` gets what is left to
   // wait for (SessionSlam::take_end_refinement), run after the lock is released.
   bool finish_locked(const std::string& ended_by, std::function<bool()>& refine);

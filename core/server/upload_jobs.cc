@@ -86,6 +86,14 @@ struct RemoveOnExit {
   }
 };
 
+// What an interrupted job's session holds: the frames its last checkpoint stored.
+std::string kept_of_session(AtlasStore& store, SessionId session) {
+  const std::size_t kept = store.load_trajectory(session).size();
+  if (kept == 0) return "; nothing of it was stored (session " + std::to_string(session) + " holds no frame)";
+  return "; session " + std::to_string(session) + " keeps the " + std::to_string(kept) +
+         " tracked frames its last checkpoint stored";
+}
+
 }  // namespace
 
 void UploadJobOptions::check() const {
@@ -132,9 +140,7 @@ UploadJobs::UploadJobs(AtlasService& service, UploadJobOptions options)
     if (!others && !waiting && (row.state == "queued" || row.state == "extracting" || row.state == "running")) {
       row.error =
           "interrupted: the server stopped without finishing this job (it was killed or crashed) while it was " +
-          row.state +
-          (row.session ? "; the frames processed before are stored in session " + std::to_string(*row.session)
-                       : std::string());
+          row.state + (row.session ? kept_of_session(*store_, *row.session) : std::string());
       row.state = "failed";
       store_->save_job(row);
     }
