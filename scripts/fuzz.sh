@@ -13,7 +13,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 command -v clang++ >/dev/null || { echo "fuzz: needs clang (Debian's clang package)" >&2; exit 1; }
 BUILD="$ROOT/build-fuzz"
 EACH="${SECONDS_EACH:-600}"
-ALL=(fuzz_tar fuzz_settings fuzz_image_decode fuzz_raw_frame fuzz_imu_batch)
+ALL=(fuzz_tar fuzz_settings fuzz_image_decode fuzz_raw_frame fuzz_imu_batch fuzz_session_request)
 TARGETS=("$@")
 [ ${#TARGETS[@]} -eq 0 ] && TARGETS=("${ALL[@]}")
 if [ ! -f "$BUILD/build.ninja" ]; then

@@ -30,6 +30,7 @@
 #include "core/server/map_ownership.h"
 #include "core/server/replica_registry.h"
 #include "core/server/service_results.h"
+#include "core/server/session_request.h"
 #include "core/server/session_rules.h"
 #include "core/slam/stereo_slam.h"
 #include "core/vocabulary/vocabulary.h"
@@ -90,26 +91,6 @@ struct AtlasServiceOptions {
 
   // Throws Error naming the first value out of range (also of the parts).
   void check() const;
-};
-
-// Settings of a new session or of a localisation request: a config name
-// ("euroc/stereo") or the text of an ORB-SLAM3-style YAML file.
-struct SettingsSource {
-  std::string config;
-  std::string settings_yaml;
-};
-
-struct SessionRequest {
-  std::string name;
-  std::string sensor;  // empty: the config's Sensor.type
-  // "map" or "localize"; empty: as session_mode (session_rules.h) decides.
-  std::string mode;
-  SettingsSource settings;
-  // A real-time client: a frame that arrives more than this many seconds
-  // behind the session's sensor clock is skipped (FrameReply::skipped), so the
-  // session catches up instead of falling further behind. None: every frame is
-  // tracked however late.
-  std::optional<double> max_lag_s;
 };
 
 struct FrameReply {

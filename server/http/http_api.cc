@@ -24,6 +24,7 @@
 #include "server/http/raw_frame.h"
 #include "core/persistence/map_rigs.h"
 #include "server/http/service_json.h"
+#include "server/http/session_request_json.h"
 #include "wire/pose_json.h"
 #include "core/server/upload_jobs.h"
 
@@ -37,12 +38,6 @@ using namespace http_detail;  // NOLINT(google-build-using-namespace): the route
 namespace {
 
 using HandlerResponse = httplib::Server::HandlerResponse;
-
-std::string optional_string(const json& body, const char* key) {
-  if (!body.contains(key)) return {};
-  if (!body[key].is_string()) throw_bad_request(std::string("'") + key + "' must be a string");
-  return body[key].get<std::string>();
-}
 
 // A multipart field as text ("" when absent).
 std::string form_text(const Request& req, const char* key) {
@@ -97,17 +92,7 @@ std::string lower_trimmed(std::string text) {
 
 void install_session_routes(Router& router, AtlasService& service, const std::shared_ptr<ApiAccess>& access) {
   router.post("/v1/sessions", ([&service, access](const Request& req, Response& res) {
-                const json body = parse_json_body(req);
-                SessionRequest request;
-                request.name = optional_string(body, "name");
-                if (body.contains("sensor")) request.sensor = optional_string(body, "sensor");
-                if (body.contains("mode")) request.mode = optional_string(body, "mode");
-                if (body.contains("max_lag_s")) {
-                  if (!body["max_lag_s"].is_number()) throw_bad_request("'max_lag_s' must be a number of seconds");
-                  request.max_lag_s = body["max_lag_s"].get<double>();
-                }
-                request.settings.config = optional_string(body, "config");
-                request.settings.settings_yaml = optional_string(body, "settings_yaml");
+                const SessionRequest request = parse_session_request(req.body);
                 const SessionId id = service.create_session(request);
                 if (const auto client = access->client_of(req)) access->set_owner(id, *client);
                 reply_json(res, {{"id", id}, {"session", session_json(service, *access, id)}}, 201);

@@ -77,11 +77,4 @@ std::uint64_t id_from(const Request& req, std::size_t group, const char* what) {
   return *id;
 }
 
-json parse_json_body(const Request& req) {
-  if (req.body.empty()) throw_bad_request("the request needs a JSON body");
-  json body = json::parse(req.body);  // json::exception: 400
-  if (!body.is_object()) throw_bad_request("the JSON body must be an object");
-  return body;
-}
-
 }  // namespace orbatlas::http_detail

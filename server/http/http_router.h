@@ -96,8 +96,6 @@ class Router {
 
 // The integer in the route's match group (404 naming `what` when it is none).
 std::uint64_t id_from(const Request& req, std::size_t group, const char* what);
-// The request's body as a JSON object (400 otherwise).
-json parse_json_body(const Request& req);
 
 // Whether `path` is one of the viewer's files (they hold no data: no token needed).
 bool is_viewer_file(const std::string& path);
