@@ -4,7 +4,7 @@
 // N keyframes of 1200 ORB keypoints (descriptors, stereo depth), 60 new map
 // points per keyframe each seen by ~5 consecutive keyframes, covisibility and a
 // spanning tree. `--database postgresql://...` runs it on an empty PostgreSQL
-// database instead of a temporary SQLite file (issue 23). `--from-atlas DB`
+// database instead of a temporary SQLite file. `--from-atlas DB`
 // takes a stored atlas (e.g. a full `orbatlas run --atlas`) instead of the
 // synthetic one: its load from DB, then the same save, loads and checkpoints
 // (without the 10 new keyframes) in the database measured.

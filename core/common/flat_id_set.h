@@ -3,7 +3,7 @@
 // tens of thousands a frame): open addressing with linear probing in one flat
 // array that is kept between passes, so an insert neither allocates nor
 // follows a pointer (std::unordered_set did both, 1.8 % of a loaded server's
-// samples; issue 21). Not thread-safe: one owner.
+// samples). Not thread-safe: one owner.
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>

@@ -1,5 +1,5 @@
 #pragma once
-// The CPU share of background threads (issue 21): the map server's local
+// The CPU share of background threads: the map server's local
 // mapping, loop closing, global BA, map merging and checkpoints run at a
 // higher nice value than the sessions' tracking, so that on a loaded machine
 // the kernel's scheduler gives the frames waiting for an answer the cores

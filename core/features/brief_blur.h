@@ -9,7 +9,7 @@
 //
 // Why not cv::GaussianBlur: on a view into a bordered buffer OpenCV takes its
 // generic float filter, about 0.8 ms of an image's 3.6 ms of ORB extraction
-// (issue 21's profile); this takes about 0.45 ms with AVX2.
+// (it showed in profiles); this takes about 0.45 ms with AVX2.
 #include <opencv2/core/mat.hpp>
 
 namespace orbatlas {

@@ -6,7 +6,7 @@
 // the arithmetic of OpenCV 4.6's SIMD path (16-bit high products, rounded by
 // 2 bits; it differs from rounding the exact sum), so the pyramid, the features
 // and the trajectories do not change. An AVX2 path serves the horizontal pass
-// with byte shuffles; the tests compare both paths with cv::resize. Issue 21's profile had the
+// with byte shuffles; the tests compare both paths with cv::resize. A profile had the
 // pyramid's cv::resize chain at about 0.5 ms of every image.
 #include <cstdint>
 #include <vector>

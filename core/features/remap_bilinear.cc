@@ -56,7 +56,7 @@ __attribute__((target("avx2"))) inline __m256i lanes_min(__m256i v) {
 // consecutive rows (a rectification map's usual block: sx within 14 of the
 // least, sy the least or one more): the window's rows are loaded once and each
 // pixel's neighbours picked with byte shuffles instead of gathers (slow on
-// some CPUs: under load the gathers took 59 % of cv::remap's time, stop 46).
+// some CPUs: under load the gathers took 59 % of cv::remap's time).
 // Writes the two rows' neighbour pairs for the weights; false (nothing
 // written) when the block is not of that kind or reaches an edge.
 __attribute__((target("avx2"))) inline bool window_pairs(const std::uint8_t* src, std::ptrdiff_t step, int width,

@@ -34,7 +34,7 @@ class StereoRectifier {
   double baseline_ = 0.0;
   // cv::remap's fixed-point form of the float maps (CV_16SC2 whole pixels and
   // CV_16UC1 interpolation-table indices): the same result, without remap
-  // converting the float maps again on every image (issue 21's profile).
+  // converting the float maps again on every image (it showed in profiles).
   cv::Mat map_left_xy_, map_left_frac_, map_right_xy_, map_right_frac_;
   cv::Size size_;
 };

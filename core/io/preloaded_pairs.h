@@ -7,7 +7,7 @@
 // monitor (DAMON, kdamond) samples mapped pages every 0.5 s and its cost grows
 // with the memory processes map: four clients holding their clips as images
 // made it take ~10 ms of a core at a time, and most late frames fell in those
-// moments (docs/benchmarks.md, stop 56). Pages of a memfd the process never
+// moments (docs/benchmarks.md). Pages of a memfd the process never
 // maps cost the monitor nothing, and the pair is copied in (pread) just before
 // it is sent.
 #include <cstddef>

@@ -57,7 +57,7 @@ struct LoopCloserOptions {
   // (0: never). Sessions that track each other's points close no loop there,
   // so nothing else makes such a map consistent while they run (of four
   // sessions in one map, two ended 1.5-3 times less accurate than alone
-  // without it; docs/benchmarks.md, stop 49). A map of one session is never adjusted so.
+  // without it; docs/benchmarks.md). A map of one session is never adjusted so.
   double shared_map_refinement_growth = 0.5;
   std::size_t shared_map_refinement_min_keyframes = 20;
   // When a stream ends in such a map (refine_at_stream_end) and the map grew by

@@ -23,7 +23,7 @@ class IdAllocator {
   // Re-seed after loading stored objects: every later id of `kind` is > max_used.
   // Once confined, ids outside the range are ignored (another writer's).
   void ensure_above(IdKind kind, std::uint64_t max_used);
-  // Several writers of one database (replicas, issue 23): from now on ids of
+  // Several writers of one database (replicas): from now on ids of
   // `kind` come from [begin, end) only, the range this writer has to itself
   // (next() throws Error when it is used up). Ids already handed out in the
   // range are skipped. Call before the allocator is shared with other threads.

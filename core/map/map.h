@@ -93,7 +93,7 @@ class Map {
 
   const std::shared_ptr<ObjectCounters>& counters() const { return counters_; }
 
-  // The inertial initialisation of a visual-inertial map (issue 19): when, the
+  // The inertial initialisation of a visual-inertial map: when, the
   // gravity in the map's frame and the IMU biases (those of the newest keyframe
   // once visual-inertial BA runs).
   struct InertialState {

@@ -6,7 +6,7 @@
 // frame's latency. Ceres spends its time there in generic machinery: a problem
 // and a reduced program built per stage, per-block bookkeeping in its Schur
 // eliminator with the pose split into two 3-blocks, the manifold's Jacobian
-// applied per residual block (perf on MH_04, docs/benchmarks.md "Stop 44").
+// applied per residual block (perf on MH_04, docs/benchmarks.md).
 //
 // The algorithm is Ceres' (as pose_levenberg.h for one pose): the same trust
 // region rules (radius 1e4, gain-ratio update, doubling decrease; the damping

@@ -42,7 +42,7 @@ struct LocalBundleAdjustmentOptions {
   // reduced system of a local window (6 unknowns a keyframe) is small enough
   // for dense: at 100 instead of 40, MH_04's local BAs (windows up to 52) took
   // 104-112 ms on average and 259-276 ms at p95 instead of 125 and 365 ms, with
-  // the same trajectory (docs/benchmarks.md, "Stop 44").
+  // the same trajectory (docs/benchmarks.md).
   std::size_t dense_schur_max_keyframes = 100;
   // Up to dense_schur_max_keyframes free keyframes and without inertial terms,
   // solve with orbatlas' own Levenberg-Marquardt (bundle_levenberg.h), the

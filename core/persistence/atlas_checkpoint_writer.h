@@ -9,7 +9,7 @@
 // writer does not know yet what the file holds. It assumes that nobody else
 // writes the atlas's maps into the file meanwhile.
 //
-// Several writers of one database (replicas, issue 23) each write their own
+// Several writers of one database (replicas) each write their own
 // maps: `writable_maps` (set_writable_maps) says, inside each checkpoint's
 // transaction, which maps this writer may write now; the rows of the others are
 // neither written nor deleted. A map it writes for the first time (or again

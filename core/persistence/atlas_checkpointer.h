@@ -28,12 +28,12 @@ struct CheckpointOptions {
   double every_seconds = 5.0;        // and at the latest this long after the previous one; <= 0: no timer
   // The checkpoint thread's nice value (0..19, thread_priority.h): a map
   // server gives it its background threads' value, so that writing the
-  // database does not compete with tracking for the cores (issue 21).
+  // database does not compete with tracking for the cores.
   int worker_nice = 0;
   // Called on the checkpoint thread just before a checkpoint opens its write
   // transaction (instrumentation; the crash-safety test marks it in a pipe).
   std::function<void()> before_transaction;
-  // Several writers of one database (replicas, issue 23): which maps this one
+  // Several writers of one database (replicas): which maps this one
   // writes, asked inside each checkpoint's transaction (atlas_checkpoint_writer.h).
   // Unset: every map.
   WritableMaps writable_maps;

@@ -1,5 +1,5 @@
 #pragma once
-// Where an atlas lives (issue 23): an SQLite file, given by its path, or a
+// Where an atlas lives: an SQLite file, given by its path, or a
 // PostgreSQL database, given as a libpq URI (`postgresql://user@host:port/db`
 // or `postgres://...`). Everything that opens an atlas by "path" (AtlasStore::open,
 // AtlasCheckpointer, DatabaseLock, `--db` / `--atlas`) takes either.

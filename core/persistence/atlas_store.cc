@@ -64,7 +64,7 @@ AtlasStore AtlasStore::open(const std::filesystem::path& path, const std::string
   // Statement journals (and temporary tables) in memory: a checkpoint's
   // statements each journal the pages they change for a statement rollback,
   // and in a temporary file that was gigabytes of writes per minute with four
-  // live sessions in one map (issue 21, docs/benchmarks.md).
+  // live sessions in one map (docs/benchmarks.md).
   db->exec("PRAGMA temp_store = MEMORY");
   {
     // WAL: readers do not block the writer and a crash mid-save leaves the last

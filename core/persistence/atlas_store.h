@@ -4,7 +4,7 @@
 // with the sessions that built it and their per-frame trajectories. Blobs are
 // Cereal binary (blob_codec.h). The database is an SQLite file (schema/*.sql,
 // docs/schema.md), or a PostgreSQL database (schema/postgres/*.sql) through
-// the same row code (sql_connection.h; issue 23).
+// the same row code (sql_connection.h).
 //
 // One store is one connection, for one thread at a time. Saving reads the atlas
 // through its snapshots; it is exact when no other thread edits the atlas

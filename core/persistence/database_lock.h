@@ -27,7 +27,7 @@ inline constexpr std::uint64_t kKeyframeIdGapAfterCrash = std::uint64_t{1} << 32
 inline constexpr std::uint64_t kMapPointIdGapAfterCrash = std::uint64_t{1} << 40;
 inline constexpr std::uint64_t kMapIdGapAfterCrash = std::uint64_t{1} << 24;
 
-// kShared: orbatlas-server replicas of one PostgreSQL atlas (issue 23), each
+// kShared: orbatlas-server replicas of one PostgreSQL atlas, each
 // writing the maps it owns (map ownership, core/server/map_ownership.h), hold
 // the lock together, and a single writer (orbatlas run) waits for them all;
 // they need no crash record (every replica hands out ids of its own ranges).

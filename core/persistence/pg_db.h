@@ -1,7 +1,7 @@
 #pragma once
 // RAII over one PostgreSQL connection (libpq), its statements and transactions,
 // implementing the storage interface (sql_connection.h) as sqlite_db.h does,
-// so that the atlas's row code runs on either database (issue 23). Every
+// so that the atlas's row code runs on either database. Every
 // failure becomes an exception naming the server (host, port, database) and
 // carrying PostgreSQL's message: Error for connection, constraint and syntax
 // failures, DataError for a value of an unexpected type or NULL read by a

@@ -1,5 +1,5 @@
 #pragma once
-// The atlas's schema in PostgreSQL (issue 23): schema/postgres/NNN_name.sql,
+// The atlas's schema in PostgreSQL: schema/postgres/NNN_name.sql,
 // compiled into the library and applied in order as forward migrations, each
 // in one transaction that records it in schema_migrations. PostgreSQL has no
 // PRAGMA user_version: the version is schema_migrations' largest row (0 for a

@@ -1,5 +1,5 @@
 #pragma once
-// The single-writer guarantee of an atlas in PostgreSQL (issue 23): what the
+// The single-writer guarantee of an atlas in PostgreSQL: what the
 // lock file is for SQLite (database_lock.h). The writer holds a session-level
 // advisory lock (pg_advisory_lock) on a connection of its own for its whole
 // life; PostgreSQL releases it when that connection ends, however the process
@@ -24,7 +24,7 @@ class PgDb;
 class PgWriterLock {
  public:
   // Error naming the holder when another writer has the lock. `shared`: a
-  // replica of several (issue 23): held together with the other replicas
+  // replica of several: held together with the other replicas
   // (pg_advisory_lock_shared), refused only while a single writer has it; no
   // crash record (previous_holder_crashed() is false, mark_stopped() does nothing).
   explicit PgWriterLock(const std::string& conninfo, bool shared = false);

@@ -1,5 +1,5 @@
 #pragma once
-// The storage interface of the atlas's row code (issue 23): one SQL connection
+// The storage interface of the atlas's row code: one SQL connection
 // and its statements, whichever database is behind them. SqliteDb /
 // SqliteStatement (sqlite_db.h) and PgDb / PgStatement (pg_db.h) implement it,
 // so the code that writes and reads an atlas's rows runs on either. SQL is

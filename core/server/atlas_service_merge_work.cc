@@ -1,5 +1,5 @@
-// AtlasService's share of a shared (PostgreSQL) atlas's merge work (issue 23,
-// docs/scaling.md "Replicas"): this replica's merge rows are claimed for its
+// AtlasService's share of a shared (PostgreSQL) atlas's merge work
+// (docs/scaling.md "Replicas"): this replica's merge rows are claimed for its
 // merging worker one at a time, as the worker becomes free; a replica with a
 // free worker and nothing of its own asks for a map whose row waited a lease
 // unclaimed; and the maps other replicas ask for (such a row, or the place

@@ -1,5 +1,5 @@
-// AtlasService as one replica of a shared (PostgreSQL) atlas (issue 23,
-// docs/scaling.md "Replicas"): the replicas it lists, and the takeover of the
+// AtlasService as one replica of a shared (PostgreSQL) atlas
+// (docs/scaling.md "Replicas"): the replicas it lists, and the takeover of the
 // maps nobody writes (their replica died) with the sessions it did not know.
 #include <chrono>
 #include <map>

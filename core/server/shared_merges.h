@@ -1,6 +1,6 @@
 #pragma once
 // The merge work finished sessions leave in a shared (PostgreSQL) atlas
-// (issue 23, schema/postgres/006 and 007, docs/scaling.md "Replicas"): one row
+// (schema/postgres/006 and 007, docs/scaling.md "Replicas"): one row
 // per map to search for a place shared with the atlas's other maps (then
 // merged and refined, MapMergeWorker). The replica owning the map claims the
 // row (FOR UPDATE SKIP LOCKED) when its merging worker is free, does the work

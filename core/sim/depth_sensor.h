@@ -1,6 +1,6 @@
 #pragma once
-// A depth camera registered to a rendered camera (`orbatlas sim --depth`,
-// issue 20): per image pixel the depth (z in the camera frame) the renderer
+// A depth camera registered to a rendered camera (`orbatlas sim --depth`):
+// per image pixel the depth (z in the camera frame) the renderer
 // drew along that pixel's ray, made as a structured-light sensor measures it:
 // Gaussian noise growing with the square of the depth (constant in disparity;
 // Khoshelham and Elberink 2012 measured 1.425e-3 z^2 for the Kinect), no depth

@@ -59,7 +59,7 @@ struct SlamStats {
   // started from one (the rest waited for more parallax).
   bool monocular = false;
   std::size_t monocular_attempts = 0, monocular_starts = 0;
-  // Visual-inertial sessions (issue 19): IMU samples received, keyframes linked
+  // Visual-inertial sessions: IMU samples received, keyframes linked
   // to their predecessor by preintegrated IMU, and the inertial initialisation
   // of the map the session is in (when it happened: seconds since the session's
   // first frame; the gravity in the map's frame; the biases it found).

@@ -48,7 +48,7 @@ struct StereoSlamOptions {
   int new_map_after_failed_relocalizations = 5;
   // With IMU settings (a stereo_inertial config): keyframes are linked by the
   // IMU preintegrated between them and each map gets its inertial initialisation
-  // (gravity, biases; issue 19, first stage). Off: the IMU is ignored.
+  // (gravity, biases). Off: the IMU is ignored.
   bool inertial = true;
   InertialTrackingOptions inertial_tracking;
   // The camera-IMU clock offset, estimated from the visually tracked frames'

@@ -1,5 +1,5 @@
 #pragma once
-// Where a monocular map starts (ORB-SLAM's MonocularInitialization, issue 20):
+// Where a monocular map starts (ORB-SLAM's MonocularInitialization):
 // the first frame with enough keypoints becomes the reference; each following
 // frame is matched to it (finest-level keypoints, searched around where they
 // were last matched, ratio and rotation checks) and, with enough matches, the

@@ -1,5 +1,5 @@
 #pragma once
-// Turns an image and its registered depth image (an RGB-D camera, issue 20)
+// Turns an image and its registered depth image (an RGB-D camera)
 // into a Frame, as ORB-SLAM3 does: both images undistorted to a pinhole camera
 // of the same intrinsics (the depth by nearest neighbour: depths are not
 // averaged across edges), ORB on the image, and each keypoint with a depth

@@ -38,7 +38,7 @@ class StereoFrontend final : public FrameFrontend {
   // image's thread are set up and touched here. The first real pair otherwise
   // took 12.6 ms of extraction for the left image against 2.7 for the next
   // (measured, clean MH_01), and 46-65 ms of make_frame each when five
-  // sessions started at once (docs/benchmarks.md, stop 63).
+  // sessions started at once (docs/benchmarks.md).
   void warm_up() override;
 
   // The rectified left camera tracking works with (pinhole, no distortion), its
