@@ -36,7 +36,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using json = nlohmann::json;
 
-// ORBATLAS_KILL_ITERATIONS overrides the count (scripts/stress.sh-style long runs).
+// ORBATLAS_KILL_ITERATIONS overrides the count (scripts/check/stress.sh-style long runs).
 int iterations() {
   const char* text = std::getenv("ORBATLAS_KILL_ITERATIONS");
   return text ? std::max(1, std::atoi(text)) : 50;

@@ -144,7 +144,7 @@ TEST(ImuVibration, ShapedNoiseHasTheRequestedSpectrum) {
 }
 
 // The real flights' spectrum: the root mean square it gives above 5 Hz is the
-// real MH_05 IMU's in flight (scripts/imu_spectrum.py: accelerometer 1.00 /
+// real MH_05 IMU's in flight (scripts/analysis/imu_spectrum.py: accelerometer 1.00 /
 // 0.50 / 0.66 m/s^2, gyro 0.027 / 0.054 / 0.049 rad/s).
 TEST(ImuVibration, TheFlightSpectrumHasTheRealMagnitude) {
   const auto& spectrum = sim::euroc_flight_vibration();

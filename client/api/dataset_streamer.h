@@ -31,14 +31,14 @@ struct StreamOptions {
   ImageEncoding encoding = ImageEncoding::kRaw;
   // Read and decode every image before the first frame is sent (instead of a
   // few ahead while streaming): the clip's raw pixels in memory, and no image
-  // decoding competing with a server on the same machine (bench_capacity.sh).
+  // decoding competing with a server on the same machine (scripts/bench/capacity.sh).
   bool preload = false;
   // Wait until this wall-clock time (seconds since the Unix epoch) before the
   // first frame, after any preload: clients started together begin together.
   std::optional<double> start_at_unix_s;
   // Stream the (windowed) clip this many times in one session, each pass's
   // timestamps after the last one's (a long run from a short clip: memory
-  // over time, bench_memory.sh). Sessions without an IMU only.
+  // over time, scripts/bench/memory.sh). Sessions without an IMU only.
   int repeat = 1;
   double start_s = 0.0;
   std::optional<double> duration_s;

@@ -2,7 +2,7 @@
 // Names for the map server's threads, so that `top -H`, `ps -L`, perf and
 // /proc/<pid>/task/<tid>/comm tell tracking (the HTTP threads, which keep the
 // process's name) from local mapping, loop closing, global BA, map merging,
-// checkpoints and uploads; scripts/bench_capacity.sh reports CPU by these names.
+// checkpoints and uploads; scripts/bench/capacity.sh reports CPU by these names.
 #include <string>
 #include <string_view>
 

@@ -56,7 +56,7 @@ ImuErrorModel ideal_imu_errors() { return ImuErrorModel{}; }
 
 ImuErrorModel realistic_imu_errors() {
   ImuErrorModel e;
-  // The real MH_05 and MH_01 IMUs while parked, above 30 Hz (scripts/imu_spectrum.py):
+  // The real MH_05 and MH_01 IMUs while parked, above 30 Hz (scripts/analysis/imu_spectrum.py):
   // gyro 2.3-5.0e-4, accelerometer 2.7e-3 to 1.1e-2 per axis; the settings say
   // 1.7e-4 and 2.0e-3.
   e.gyro_noise_density = 2.7e-4;

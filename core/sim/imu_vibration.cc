@@ -31,7 +31,7 @@ Eigen::Vector3d VibrationSpectrum::accel_rms(double nyquist_hz) const {
 }
 
 const VibrationSpectrum& euroc_flight_vibration() {
-  // scripts/imu_spectrum.py on the real MH_05 IMU, 40-100 s (Welch, 1024
+  // scripts/analysis/imu_spectrum.py on the real MH_05 IMU, 40-100 s (Welch, 1024
   // samples a segment), the mean power of each 5-Hz band, square-rooted.
   static const VibrationSpectrum spectrum = [] {
     VibrationSpectrum s;

@@ -1,7 +1,7 @@
 #pragma once
 // What a multirotor's IMU measures of its own motors: broadband vibration while
 // they run, none while the airframe is parked. The spectrum is the one measured
-// in the real EuRoC flights (scripts/imu_spectrum.py prints it from the real
+// in the real EuRoC flights (scripts/analysis/imu_spectrum.py prints it from the real
 // recordings); the motors' schedule comes from the trajectory itself (parked
 // on the floor before take-off, see motor_schedule()). docs/simulator.md.
 #include <Eigen/Core>

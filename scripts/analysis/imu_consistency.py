@@ -7,7 +7,7 @@ along -z, the biases of the ground truth or of --biases) and prints how far the
 integrated position and velocity end from the ground truth's: the level at which
 the IMU and the images (rendered from that ground truth) disagree.
 
-  /usr/bin/python3 scripts/imu_consistency.py DATASET [--biases ASL_GT_CSV]
+  /usr/bin/python3 scripts/analysis/imu_consistency.py DATASET [--biases ASL_GT_CSV]
 
 DATASET holds mav0/imu0/data.csv and mav0/state_groundtruth_estimate0/data.csv
 (an EuRoC ASL folder, e.g. one `orbatlas sim` wrote). --biases: an ASL

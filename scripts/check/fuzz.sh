@@ -5,10 +5,10 @@
 # fuzz/corpus/<target>/ (new inputs go to build-fuzz/corpus/<target>/, not into
 # the repository). Stops at the first crash, leak or sanitizer report, keeping
 # the input as build-fuzz/crash-<target>-*; prints one line of figures per target.
-#   scripts/fuzz.sh                     # every target, 10 minutes each
-#   SECONDS_EACH=30 scripts/fuzz.sh fuzz_tar fuzz_imu_batch
+#   scripts/check/fuzz.sh                     # every target, 10 minutes each
+#   SECONDS_EACH=30 scripts/check/fuzz.sh fuzz_tar fuzz_imu_batch
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 "$ROOT/scripts/setup.sh" --deps-only
 command -v clang++ >/dev/null || { echo "fuzz: needs clang (Debian's clang package)" >&2; exit 1; }
 BUILD="$ROOT/build-fuzz"

@@ -7,15 +7,15 @@
 # (VmRSS) and heap in use (orbatlas_heap_in_use_bytes on /metrics) are sampled
 # every SAMPLE_S seconds. Prints the samples per minute and the growth from the
 # end of the first pass to the end.
-#   scripts/bench_memory.sh                                  # N=2, 60 s x 10: ten minutes
-#   N=1 REPEAT=5 scripts/bench_memory.sh
-#   ORBATLAS_BIN=... ORBATLAS_SERVER_BIN=... scripts/bench_memory.sh   # frozen binaries
+#   scripts/bench/memory.sh                                  # N=2, 60 s x 10: ten minutes
+#   N=1 REPEAT=5 scripts/bench/memory.sh
+#   ORBATLAS_BIN=... ORBATLAS_SERVER_BIN=... scripts/bench/memory.sh   # frozen binaries
 # Results in $ORBATLAS_BENCH_OUT (default out/bench_memory).
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 BENCH_NAME=bench_memory
-# shellcheck source=scripts/bench_env.sh
-source "$ROOT/scripts/bench_env.sh"
+# shellcheck source=scripts/bench/env.sh
+source "$ROOT/scripts/bench/env.sh"
 SERVER_BIN="${ORBATLAS_SERVER_BIN:-$BUILD_DIR/server/orbatlas-server}"
 N="${N:-2}"
 REPEAT="${REPEAT:-10}"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Long benchmark (issue 20, not part of the test suite): monocular and
 # monocular-inertial SLAM on full-length simulated Machine Hall sequences, on
-# both simulator looks (cam0 and imu0 of the renders scripts/bench_slam.sh
+# both simulator looks (cam0 and imu0 of the renders scripts/bench/slam.sh
 # keeps in $ORBATLAS_BENCH_DATA, default build/bench_data). Runs `orbatlas run`
 # with config/euroc/mono.yaml and mono_inertial.yaml and scores the camera's
 # trajectory with `orbatlas eval --est-frame cam0`: `--align sim3` for mono (a
@@ -10,12 +10,12 @@
 # one table with the ATE, the
 # share of the path it is, the frames covered and when the map started
 # (seconds after the first frame).
-#   scripts/bench_mono.sh                     # MH_01..MH_05, both looks
-#   scripts/bench_mono.sh MH_01 MH_03         # some of them
-#   LOOKS=real scripts/bench_mono.sh          # one look
-#   MODES=mono_inertial scripts/bench_mono.sh # one sensor
-#   ORBATLAS_BIN=/tmp/orbatlas scripts/bench_mono.sh   # a frozen binary (no set-up, no build)
-#   MODES=mono_left scripts/bench_mono.sh     # the left camera of the stereo rig alone
+#   scripts/bench/mono.sh                     # MH_01..MH_05, both looks
+#   scripts/bench/mono.sh MH_01 MH_03         # some of them
+#   LOOKS=real scripts/bench/mono.sh          # one look
+#   MODES=mono_inertial scripts/bench/mono.sh # one sensor
+#   ORBATLAS_BIN=/tmp/orbatlas scripts/bench/mono.sh   # a frozen binary (no set-up, no build)
+#   MODES=mono_left scripts/bench/mono.sh     # the left camera of the stereo rig alone
 # mono_left: `orbatlas run --config stereo.yaml --sensor mono --atlas` on a copy of
 # an atlas holding the stereo map of another sequence (MH_01's; MH_02's for
 # MH_01): the single camera starts its own map at its own scale, and merging
@@ -23,12 +23,12 @@
 # mono_inertial_left: the same with the IMU (`--config stereo_inertial.yaml
 # --sensor mono_inertial`) on a copy of the stereo-inertial map of the other
 # sequence: a monocular-inertial map merged into a stereo-inertial one.
-#   MODES=mono_inertial_left scripts/bench_mono.sh
+#   MODES=mono_inertial_left scripts/bench/mono.sh
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 BENCH_NAME=bench_mono
-# shellcheck source=scripts/bench_env.sh
-source "$ROOT/scripts/bench_env.sh"
+# shellcheck source=scripts/bench/env.sh
+source "$ROOT/scripts/bench/env.sh"
 SEQUENCES=("$@")
 [ ${#SEQUENCES[@]} -eq 0 ] && SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)
 read -r -a LOOK_LIST <<< "${LOOKS:-clean real}"

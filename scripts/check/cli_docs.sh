@@ -2,9 +2,9 @@
 # docs/cli.md must have a heading for every command `orbatlas --help` lists and
 # every benchmark `orbatlas bench --help` lists, and name no command the tool does
 # not have. Part of the test suite (ctest: cli_docs).
-#   scripts/check_cli_docs.sh [BUILD_DIR]
+#   scripts/check/cli_docs.sh [BUILD_DIR]
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 BUILD="${1:-${ORBATLAS_BUILD_DIR:-$ROOT/build}}"
 TOOL="$BUILD/client/orbatlas"
 DOC="$ROOT/docs/cli.md"

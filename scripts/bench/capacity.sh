@@ -6,7 +6,7 @@
 # (`orbatlas stream --rate 1`) as a real-time session (`--max-lag`: frames that
 # arrive too late are skipped by the server and counted). Per N it prints the
 # late and skipped frames, tracking p50/p95, the server's CPU (cores, and per
-# session; and by thread name, scripts/thread_cpu.py), what it wrote (its
+# session; and by thread name, scripts/analysis/thread_cpu.py), what it wrote (its
 # checkpoints), its peak resident size, and each session's ATE against the same
 # clip streamed alone (N = 1 for every sequence used): as each client got it
 # when its session finished, and as the atlas holds it once the server's
@@ -14,20 +14,20 @@
 # decode their clips before they begin (`--preload`, then `--start-at` one
 # time), so what competes for the cores while they stream is the server (and
 # the clients' HTTP work), not PNG decoding a device would not do.
-#   scripts/bench_capacity.sh                 # N = 1 2 3 4, 60 s each, real look
-#   NS="1 2 3 4 5 6" scripts/bench_capacity.sh
-#   SECONDS_PER_SESSION=120 LOOK=clean MAX_LAG=0.1 scripts/bench_capacity.sh
-#   SECONDS_PER_SESSION=full NS=4 scripts/bench_capacity.sh   # each whole sequence from its first frame (START_S 0)
-#   ORBATLAS_BIN=/tmp/orbatlas ORBATLAS_SERVER_BIN=/tmp/orbatlas-server scripts/bench_capacity.sh   # frozen binaries
-#   SERVER_FLAGS="--serial-stereo-frontend" KEEP_ALONE=1 NS=4 scripts/bench_capacity.sh  # server flags
-#   PHASES=spread NS=4 scripts/bench_capacity.sh   # the cameras' frames out of step (see below)
-#   RATE=0.25 NS=4 scripts/bench_capacity.sh       # slower than the sensor (no core ever busy)
-#   SERVER_CPUS=1 CLIENT_CPUS=0 NS=1 scripts/bench_capacity.sh  # the server on one core (taskset -c)
-#   MAPPING_WAIT_MS=250 NS="1 4" scripts/bench_capacity.sh  # tracking waits for its keyframe's local BA (docs/mapping.md)
-#   SETTINGS="Orbatlas.Tracker.MaxLocalKeyframes: 40" NS=4 scripts/bench_capacity.sh  # other settings (';' between them)
-#   MACHINE_CHECK=0 NS=4 scripts/bench_capacity.sh  # without the check of the two cores before and after (see machine_check)
-#   RUNS=4 NS=4 scripts/bench_capacity.sh    # the whole set four times; each clip's mean ATE against its mean alone (scripts/capacity_runs.py)
-#   ALONE_ONLY=1 NS=5 SECONDS_PER_SESSION=full scripts/bench_capacity.sh  # MH_01..MH_05 each alone, no N at once
+#   scripts/bench/capacity.sh                 # N = 1 2 3 4, 60 s each, real look
+#   NS="1 2 3 4 5 6" scripts/bench/capacity.sh
+#   SECONDS_PER_SESSION=120 LOOK=clean MAX_LAG=0.1 scripts/bench/capacity.sh
+#   SECONDS_PER_SESSION=full NS=4 scripts/bench/capacity.sh   # each whole sequence from its first frame (START_S 0)
+#   ORBATLAS_BIN=/tmp/orbatlas ORBATLAS_SERVER_BIN=/tmp/orbatlas-server scripts/bench/capacity.sh   # frozen binaries
+#   SERVER_FLAGS="--serial-stereo-frontend" KEEP_ALONE=1 NS=4 scripts/bench/capacity.sh  # server flags
+#   PHASES=spread NS=4 scripts/bench/capacity.sh   # the cameras' frames out of step (see below)
+#   RATE=0.25 NS=4 scripts/bench/capacity.sh       # slower than the sensor (no core ever busy)
+#   SERVER_CPUS=1 CLIENT_CPUS=0 NS=1 scripts/bench/capacity.sh  # the server on one core (taskset -c)
+#   MAPPING_WAIT_MS=250 NS="1 4" scripts/bench/capacity.sh  # tracking waits for its keyframe's local BA (docs/mapping.md)
+#   SETTINGS="Orbatlas.Tracker.MaxLocalKeyframes: 40" NS=4 scripts/bench/capacity.sh  # other settings (';' between them)
+#   MACHINE_CHECK=0 NS=4 scripts/bench/capacity.sh  # without the check of the two cores before and after (see machine_check)
+#   RUNS=4 NS=4 scripts/bench/capacity.sh    # the whole set four times; each clip's mean ATE against its mean alone (scripts/analysis/capacity_runs.py)
+#   ALONE_ONLY=1 NS=5 SECONDS_PER_SESSION=full scripts/bench/capacity.sh  # MH_01..MH_05 each alone, no N at once
 # PHASES: 'together' (default) starts every client at one instant, so the N
 # cameras' frames arrive at the same moments (the worst case: N frames at once,
 # then nothing for 50 ms); 'spread' starts client i of N i/N of a frame interval
@@ -36,10 +36,10 @@
 # build/bench_data, shared with the other benchmarks); results in
 # $ORBATLAS_BENCH_OUT (default out/bench_capacity).
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 BENCH_NAME=bench_capacity
-# shellcheck source=scripts/bench_env.sh
-source "$ROOT/scripts/bench_env.sh"
+# shellcheck source=scripts/bench/env.sh
+source "$ROOT/scripts/bench/env.sh"
 SERVER_BIN="${ORBATLAS_SERVER_BIN:-$BUILD_DIR/server/orbatlas-server}"
 read -r -a N_LIST <<< "${NS:-1 2 3 4}"
 SECONDS_PER_SESSION="${SECONDS_PER_SESSION:-60}"
@@ -140,8 +140,8 @@ run_sessions() {
   wait_s=$(( start_at - $(date +%s) ))
   [ "$wait_s" -gt 0 ] && sleep "$wait_s"
   local ticks0 t0 wchar0 checkpoints0 rows0 sampler
-  # CPU by thread name while they stream (tracking: the HTTP threads; scripts/thread_cpu.py)
-  /usr/bin/python3 "$ROOT/scripts/thread_cpu.py" "$SERVER_PID" "$dir/threads.json" &
+  # CPU by thread name while they stream (tracking: the HTTP threads; scripts/analysis/thread_cpu.py)
+  /usr/bin/python3 "$ROOT/scripts/analysis/thread_cpu.py" "$SERVER_PID" "$dir/threads.json" &
   sampler=$!
   ticks0=$(cpu_ticks "$SERVER_PID")
   wchar0=$(written_bytes "$SERVER_PID")
@@ -307,5 +307,5 @@ OUT="$BASE_OUT"
 machine_check after
 
 # (ALONE_ONLY: no N at once to compare with the clips alone.)
-[ "$RUNS" -gt 1 ] && [ "${ALONE_ONLY:-0}" != 1 ] && /usr/bin/python3 "$ROOT/scripts/capacity_runs.py" "$OUT" "${N_LIST[*]}" "${SEQUENCES[*]}"
+[ "$RUNS" -gt 1 ] && [ "${ALONE_ONLY:-0}" != 1 ] && /usr/bin/python3 "$ROOT/scripts/analysis/capacity_runs.py" "$OUT" "${N_LIST[*]}" "${SEQUENCES[*]}"
 if [ -f "$OUT/machine_check.txt" ]; then cat "$OUT/machine_check.txt"; fi

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-# Usage: /usr/bin/python3 scripts/evo_ape_check.py GT_DATA_CSV ESTIMATE_CSV (both EuRoC csv)
+# Usage: /usr/bin/python3 scripts/analysis/evo_ape_check.py GT_DATA_CSV ESTIMATE_CSV (both EuRoC csv)
 # evo_ape's default APE (translation part, SE3 Umeyama alignment with -a, timestamps
 # associated to the nearest ground-truth pose within 10 ms), written out with numpy
 # to cross-check `orbatlas eval` where evo itself cannot be installed.

@@ -12,11 +12,11 @@
 #     under one alignment (orbatlas eval with every session), against the same
 #     sessions built apart (--no-join-at-start --no-live-merging, one after
 #     another: each its own map, merged by the server when it ends).
-#   scripts/bench_fleet.sh [SECONDS]      (default 30 s of each sequence)
-#   LOOK=real scripts/bench_fleet.sh      (simulator look; default clean)
-#   FLEET="1 2" MAPPERS="2" scripts/bench_fleet.sh 10   (a quick subset)
+#   scripts/bench/fleet.sh [SECONDS]      (default 30 s of each sequence)
+#   LOOK=real scripts/bench/fleet.sh      (simulator look; default clean)
+#   FLEET="1 2" MAPPERS="2" scripts/bench/fleet.sh 10   (a quick subset)
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 "$ROOT/scripts/setup.sh"
 BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
 OA="$BUILD_DIR/client/orbatlas"

@@ -7,10 +7,10 @@
 # window's frames (goal: <= 0.03 m). A run that cannot relocalise for 5 frames
 # starts a new map and merges it back live: the maps/merges line says when. Also
 # prints the frames tracked outside the window and the coverage.
-#   scripts/bench_kidnap.sh [MH_01 ...]      (data: $ORBATLAS_BENCH_DATA, as bench_slam.sh)
-#   LOOKS=real scripts/bench_kidnap.sh        (default: both simulator looks, clean and real)
+#   scripts/bench/kidnap.sh [MH_01 ...]      (data: $ORBATLAS_BENCH_DATA, as scripts/bench/slam.sh)
+#   LOOKS=real scripts/bench/kidnap.sh        (default: both simulator looks, clean and real)
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 "$ROOT/scripts/setup.sh"
 BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
 OA="$BUILD_DIR/client/orbatlas"
@@ -33,9 +33,9 @@ for s in "${SEQUENCES[@]}"; do
     d="$OUT/${s}_${look}_$mode"
     rm -rf "$d"
     if [ $mode = remove ]; then
-      /usr/bin/python3 "$ROOT/scripts/kidnap_dataset.py" "$src" "$d" remove 60 3
+      /usr/bin/python3 "$ROOT/scripts/analysis/kidnap_dataset.py" "$src" "$d" remove 60 3
     else
-      /usr/bin/python3 "$ROOT/scripts/kidnap_dataset.py" "$src" "$d" splice 60 2 30
+      /usr/bin/python3 "$ROOT/scripts/analysis/kidnap_dataset.py" "$src" "$d" splice 60 2 30
     fi
     echo "== $s ($look look), $mode"
     "$OA" run --config "$ROOT/config/euroc/stereo.yaml" --dataset "$d" --out-trajectory "$d.txt" \

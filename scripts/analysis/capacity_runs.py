@@ -1,7 +1,7 @@
 #!/usr/bin/python3
-"""Several runs of scripts/bench_capacity.sh (RUNS=k) taken together.
+"""Several runs of scripts/bench/capacity.sh (RUNS=k) taken together.
 
-    scripts/capacity_runs.py OUT "1 2 3 4" "MH_01 MH_02 ..."
+    scripts/analysis/capacity_runs.py OUT "1 2 3 4" "MH_01 MH_02 ..."
 
 OUT holds run_1 ... run_k, each with alone_SEQ/ (each clip alone) and nN/ (N
 sessions at once). One run of a live session is one sample: its threads and

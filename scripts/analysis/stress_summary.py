@@ -1,7 +1,7 @@
 #!/usr/bin/python3
-"""The table scripts/stress.sh prints: one line per run from out/stress/runs.tsv and
+"""The table scripts/check/stress.sh prints: one line per run from out/stress/runs.tsv and
 each run's stats and eval JSON, then runs, aborts, worker errors and slot races.
-Usage: scripts/stress_summary.py OUT_DIR"""
+Usage: scripts/analysis/stress_summary.py OUT_DIR"""
 import json, os, sys
 out = sys.argv[1]
 rows = [l.rstrip("\n").split("\t") for l in open(f"{out}/runs.tsv") if l.strip()]

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """CPU seconds of one process's threads by thread name (Linux /proc), for the
-capacity benchmark (scripts/bench_capacity.sh): the map server names its
+capacity benchmark (scripts/bench/capacity.sh): the map server names its
 background threads (core/common/thread_name.h: "local mapping", "loop
 closing", "global BA", "map merging", "checkpoints", "uploads", "right image");
 tracking runs on the HTTP threads, which keep the process's name.

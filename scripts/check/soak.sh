@@ -5,10 +5,10 @@
 # memory sampled every 10 s. Prints RSS over time, sessions and frames served,
 # and the RSS slope over the second half (a server that keeps per-frame or
 # per-keyframe records grows; a healthy one stays flat).
-#   scripts/soak.sh [SECONDS]          (default 600)
-#   LOOK=clean scripts/soak.sh 300     (default look: real)
+#   scripts/check/soak.sh [SECONDS]          (default 600)
+#   LOOK=clean scripts/check/soak.sh 300     (default look: real)
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 "$ROOT/scripts/setup.sh"
 BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
 OA="${ORBATLAS_BIN:-$BUILD_DIR/client/orbatlas}"

@@ -12,17 +12,17 @@
 # sanitizer too). SHARED=1 also runs two recordings at once into one atlas
 # (`orbatlas run --dataset A --dataset B`, the clip and the same window of the
 # next sequence) and the runner's several-recordings test.
-#   scripts/sanitize_run.sh address
-#   scripts/sanitize_run.sh thread
-#   SEQUENCE=MH_03 DURATION=full LOOK=real SERVER=1 scripts/sanitize_run.sh thread   # a full-length run
+#   scripts/check/sanitize.sh address
+#   scripts/check/sanitize.sh thread
+#   SEQUENCE=MH_03 DURATION=full LOOK=real SERVER=1 scripts/check/sanitize.sh thread   # a full-length run
 # SEQUENCE (MH_01), START (40 s), DURATION (20 s, or "full": the whole sequence
 # from its start), LOOK (clean or real) choose the clip; CLIP=DIR runs on an
 # existing dataset instead. The clip is rendered with the normal build when there
 # is one (rendering under a sanitizer is 5-10 times slower and not what is checked).
 set -euo pipefail
-MODE="${1:?usage: scripts/sanitize_run.sh address|thread}"
+MODE="${1:?usage: scripts/check/sanitize.sh address|thread}"
 case "$MODE" in address|thread) ;; *) echo "mode must be address or thread" >&2; exit 2 ;; esac
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 "$ROOT/scripts/setup.sh" --deps-only
 BUILD="$ROOT/build-$MODE"
 SEQUENCE="${SEQUENCE:-MH_01}"
@@ -50,8 +50,8 @@ if [ ! -f "$CLIP/mav0/cam1/data.csv" ]; then
 fi
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:halt_on_error=1"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
-export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$ROOT/scripts/tsan.supp"
-# CHOLMOD's OpenMP workers: fewer of them (see scripts/tsan.supp for the rest).
+export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$ROOT/scripts/check/tsan.supp"
+# CHOLMOD's OpenMP workers: fewer of them (see scripts/check/tsan.supp for the rest).
 if [ "$MODE" = thread ]; then export OMP_NUM_THREADS=1; fi
 start=$(date +%s)
 "$BUILD/client/orbatlas" run --config "$ROOT/config/euroc/stereo.yaml" --dataset "$CLIP" \

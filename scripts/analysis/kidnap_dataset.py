@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Make a "kidnapped" copy of an EuRoC ASL dataset (symlinks, no image copies) for
-the relocalisation benchmark (scripts/bench_kidnap.sh):
+the relocalisation benchmark (scripts/bench/kidnap.sh):
 
   kidnap_dataset.py SRC DST remove START DUR        # frames in [START, START+DUR) s dropped
   kidnap_dataset.py SRC DST splice START DUR FROM   # those frames replaced by the frames

@@ -6,17 +6,17 @@
 # ATE, coverage) and a summary. A run "aborts" when `orbatlas run` fails or
 # writes no trajectory. Goal: 0 aborts.
 #
-#   scripts/stress.sh                       # 20 runs: MH_01..MH_05 x {clean, real} x 2 seeds
-#   RUNS=4 scripts/stress.sh MH_03 MH_04    # the first 4 runs of that plan
-#   LOOKS=real SEEDS="1 2 3" scripts/stress.sh MH_05
-#   SHARED=1 scripts/stress.sh              # and, per look and seed, recordings at once into one
+#   scripts/check/stress.sh                       # 20 runs: MH_01..MH_05 x {clean, real} x 2 seeds
+#   RUNS=4 scripts/check/stress.sh MH_03 MH_04    # the first 4 runs of that plan
+#   LOOKS=real SEEDS="1 2 3" scripts/check/stress.sh MH_05
+#   SHARED=1 scripts/check/stress.sh              # and, per look and seed, recordings at once into one
 #                                           # atlas (MH_01+MH_02, MH_03+MH_04+MH_05: shared maps)
 #
 # Datasets are rendered once per (sequence, look, seed) into $ORBATLAS_STRESS_DATA
 # (default build/stress_data, ~1.7 GB each) and removed after their run unless
 # KEEP=1. Output: out/stress/ (trajectories, stats, eval JSON, logs, summary.txt).
 set -uo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 "$ROOT/scripts/setup.sh" || exit 1
 BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
 OA="${ORBATLAS_BIN:-$BUILD_DIR/client/orbatlas}"  # ORBATLAS_BIN: a copy, to keep building meanwhile
@@ -113,4 +113,4 @@ if [ "${SHARED:-0}" = "1" ]; then
   done
 fi
 
-/usr/bin/python3 "$ROOT/scripts/stress_summary.py" "$OUT" | tee "$OUT/summary.txt"
+/usr/bin/python3 "$ROOT/scripts/analysis/stress_summary.py" "$OUT" | tee "$OUT/summary.txt"

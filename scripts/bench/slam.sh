@@ -4,12 +4,12 @@
 # kept in $ORBATLAS_BENCH_DATA, default build/bench_data), runs `orbatlas run` with
 # --stats and --final-ba (one global BA after the last frame), scores it with
 # `orbatlas eval`, and prints one line per sequence.
-#   scripts/bench_slam.sh                    # MH_01..MH_05
-#   scripts/bench_slam.sh MH_01 MH_03        # some of them
-#   REALTIME=1 scripts/bench_slam.sh MH_01   # frames fed at 20 Hz, late frames counted
-#   LOOKS=real scripts/bench_slam.sh          # one simulator look (default: both, clean and real)
+#   scripts/bench/slam.sh                    # MH_01..MH_05
+#   scripts/bench/slam.sh MH_01 MH_03        # some of them
+#   REALTIME=1 scripts/bench/slam.sh MH_01   # frames fed at 20 Hz, late frames counted
+#   LOOKS=real scripts/bench/slam.sh          # one simulator look (default: both, clean and real)
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 "$ROOT/scripts/setup.sh"
 BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
 OA="$BUILD_DIR/client/orbatlas"

@@ -11,14 +11,14 @@
 # to the first one, and the second one's worker takes what the first's is not
 # running). Per phase: wall time, frames per second over all jobs, and which
 # replica ran each job (its session id's replica range).
-#   scripts/bench_replicas.sh                    # 4 uploads of 20 s
-#   UPLOADS=8 SECONDS_PER_UPLOAD=10 scripts/bench_replicas.sh
-#   LOOK=real scripts/bench_replicas.sh
+#   scripts/bench/replicas.sh                    # 4 uploads of 20 s
+#   UPLOADS=8 SECONDS_PER_UPLOAD=10 scripts/bench/replicas.sh
+#   LOOK=real scripts/bench/replicas.sh
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 BENCH_NAME=bench_replicas
-# shellcheck source=scripts/bench_env.sh
-source "$ROOT/scripts/bench_env.sh"
+# shellcheck source=scripts/bench/env.sh
+source "$ROOT/scripts/bench/env.sh"
 SERVER_BIN="${ORBATLAS_SERVER_BIN:-$BUILD_DIR/server/orbatlas-server}"
 UPLOADS="${UPLOADS:-4}"
 SECONDS_PER_UPLOAD="${SECONDS_PER_UPLOAD:-20}"

@@ -1,5 +1,5 @@
-# Sourced by the long benchmarks (bench_inertial.sh, bench_rgbd.sh,
-# bench_mono.sh) after they set ROOT and BENCH_NAME: the orbatlas binary
+# Sourced by the long benchmarks (scripts/bench/: inertial.sh, rgbd.sh,
+# mono.sh, ...) after they set ROOT and BENCH_NAME: the orbatlas binary
 # (OA: $ORBATLAS_BIN, a frozen binary with no set-up and no build; else the
 # README's set-up and build), the rendered sequences (DATA:
 # $ORBATLAS_BENCH_DATA, default build/bench_data, shared by every benchmark)

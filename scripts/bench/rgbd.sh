@@ -6,16 +6,16 @@
 # build/bench_data, as <seq>_depth and <seq>_<look>_depth), runs `orbatlas run`
 # with config/euroc/rgbd.yaml and stereo.yaml on the same images, scores with
 # `orbatlas eval`, prints one table.
-#   scripts/bench_rgbd.sh                     # MH_01..MH_05, both looks
-#   scripts/bench_rgbd.sh MH_01 MH_03         # some of them
-#   LOOKS=real scripts/bench_rgbd.sh          # one look
-#   MODES=rgbd scripts/bench_rgbd.sh          # without the stereo runs
-#   ORBATLAS_BIN=/tmp/orbatlas scripts/bench_rgbd.sh   # a frozen binary (no set-up, no build)
+#   scripts/bench/rgbd.sh                     # MH_01..MH_05, both looks
+#   scripts/bench/rgbd.sh MH_01 MH_03         # some of them
+#   LOOKS=real scripts/bench/rgbd.sh          # one look
+#   MODES=rgbd scripts/bench/rgbd.sh          # without the stereo runs
+#   ORBATLAS_BIN=/tmp/orbatlas scripts/bench/rgbd.sh   # a frozen binary (no set-up, no build)
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 BENCH_NAME=bench_rgbd
-# shellcheck source=scripts/bench_env.sh
-source "$ROOT/scripts/bench_env.sh"
+# shellcheck source=scripts/bench/env.sh
+source "$ROOT/scripts/bench/env.sh"
 SEQUENCES=("$@")
 [ ${#SEQUENCES[@]} -eq 0 ] && SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)
 read -r -a LOOK_LIST <<< "${LOOKS:-clean real}"

@@ -4,9 +4,9 @@
 # reply (curl --fail-with-body). The examples' placeholders (session 3, the
 # frame files, /data/MH_01, frame.png) are replaced with a one-second simulated
 # clip. Part of the test suite (ctest: api_examples); needs the build and curl.
-#   scripts/check_api_examples.sh [BUILD_DIR]
+#   scripts/check/api_examples.sh [BUILD_DIR]
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 BUILD="${1:-${ORBATLAS_BUILD_DIR:-$ROOT/build}}"
 command -v curl >/dev/null || { echo "check_api_examples: curl is missing (scripts/setup.sh installs it)" >&2; exit 1; }
 WORK="$(mktemp -d)"

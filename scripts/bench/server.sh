@@ -2,14 +2,14 @@
 # Benchmark of the map server (docs/benchmarks.md, "Map server"): frames per second
 # through the API for one session and for three at once, the latency the server and
 # HTTP add to tracking, and POST /v1/localize latency p50/p95 against the stored maps.
-#   scripts/bench_server.sh [SECONDS]      (default 60 s of each sequence)
-#   LOOK=real scripts/bench_server.sh      (simulator look; default clean)
+#   scripts/bench/server.sh [SECONDS]      (default 60 s of each sequence)
+#   LOOK=real scripts/bench/server.sh      (simulator look; default clean)
 # Simulated clips are rendered into out/bench_server/ (or taken from
 # $ORBATLAS_BENCH_DATA/MH_0x when it holds full simulated clean sequences).
 # The localisation queries are images of another flight (MH_04, 20-80 s), none
 # of which built the stored maps.
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 "$ROOT/scripts/setup.sh"
 BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
 OA="$BUILD_DIR/client/orbatlas"

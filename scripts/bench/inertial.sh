@@ -5,23 +5,23 @@
 # vibration, biases, noise of the real EuRoC IMU), optionally the 1-s blackout
 # (every image black for one second in the middle of the sequence). Renders each
 # sequence once (kept in $ORBATLAS_BENCH_DATA, default build/bench_data, as
-# scripts/bench_slam.sh does; IMU variants reuse the rendering's images,
+# scripts/bench/slam.sh does; IMU variants reuse the rendering's images,
 # `sim --images-from`), runs `orbatlas run`, scores with `orbatlas eval`, prints
 # one table.
-#   scripts/bench_inertial.sh                  # MH_01..MH_05, both looks
-#   scripts/bench_inertial.sh MH_01 MH_03      # some of them
-#   LOOKS=real scripts/bench_inertial.sh       # one look
-#   IMU=real scripts/bench_inertial.sh MH_05   # the real IMU recording (MH_05; MH_01's lossy one)
-#   IMU=offset5 scripts/bench_inertial.sh MH_03   # the look's IMU 5 ms late against the camera
-#   RUNS=3 scripts/bench_inertial.sh MH_01     # several runs of each (the spread)
-#   MODES="stereo stereo_inertial" scripts/bench_inertial.sh   # default: stereo stereo_inertial mono_inertial
-#   MODES=blackout scripts/bench_inertial.sh   # stereo-inertial with the 1-s blackout
-#   ORBATLAS_BIN=/tmp/orbatlas scripts/bench_inertial.sh   # a frozen binary (no set-up, no build)
+#   scripts/bench/inertial.sh                  # MH_01..MH_05, both looks
+#   scripts/bench/inertial.sh MH_01 MH_03      # some of them
+#   LOOKS=real scripts/bench/inertial.sh       # one look
+#   IMU=real scripts/bench/inertial.sh MH_05   # the real IMU recording (MH_05; MH_01's lossy one)
+#   IMU=offset5 scripts/bench/inertial.sh MH_03   # the look's IMU 5 ms late against the camera
+#   RUNS=3 scripts/bench/inertial.sh MH_01     # several runs of each (the spread)
+#   MODES="stereo stereo_inertial" scripts/bench/inertial.sh   # default: stereo stereo_inertial mono_inertial
+#   MODES=blackout scripts/bench/inertial.sh   # stereo-inertial with the 1-s blackout
+#   ORBATLAS_BIN=/tmp/orbatlas scripts/bench/inertial.sh   # a frozen binary (no set-up, no build)
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 BENCH_NAME=bench_inertial
-# shellcheck source=scripts/bench_env.sh
-source "$ROOT/scripts/bench_env.sh"
+# shellcheck source=scripts/bench/env.sh
+source "$ROOT/scripts/bench/env.sh"
 SEQUENCES=("$@")
 [ ${#SEQUENCES[@]} -eq 0 ] && SEQUENCES=(MH_01 MH_02 MH_03 MH_04 MH_05)
 read -r -a LOOK_LIST <<< "${LOOKS:-clean real}"

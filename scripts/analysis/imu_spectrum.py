@@ -11,7 +11,7 @@ For a real IMU recording (`t_ns wx wy wz ax ay az`, plain or gzip):
 - the RMS above 15 Hz in windows of 1 s every 5 s, which shows when the motors
   start.
 
-  /usr/bin/python3 scripts/imu_spectrum.py [IMU] [--flight A B] [--parked A B]
+  /usr/bin/python3 scripts/analysis/imu_spectrum.py [IMU] [--flight A B] [--parked A B]
 
 IMU defaults to data/euroc/imu/MH_05_imu0.txt.gz (flight 40-100 s, parked
 1-9 s from its first sample); for data/euroc/imu/MH_01_imu0_lossy.txt.gz use
@@ -39,7 +39,7 @@ def load(path):
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("imu", nargs="?", default=os.path.join(here, "..", "data", "euroc", "imu",
+    parser.add_argument("imu", nargs="?", default=os.path.join(here, "..", "..", "data", "euroc", "imu",
                                                                "MH_05_imu0.txt.gz"))
     parser.add_argument("--flight", nargs=2, type=float, default=[40.0, 100.0])
     parser.add_argument("--parked", nargs=2, type=float, default=[1.0, 9.0])
