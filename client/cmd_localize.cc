@@ -19,10 +19,12 @@
 #include "wire/pose_json.h"
 #include "client/bag_options.h"
 #include "core/slam/slam_stats.h"
+#include "wire/stats_json.h"
 #include "core/common/error.h"
 #include "core/io/euroc_trajectory.h"
 #include "core/io/tum_trajectory.h"
 #include "core/slam/dataset_runner.h"
+#include "wire/run_report_json.h"
 
 namespace orbatlas::cli {
 namespace {
@@ -160,7 +162,7 @@ void register_localize_command(CLI::App& app) {
     const DatasetRunReport report = run_stereo_dataset(options);
     write_trajectory(args->out_trajectory, report.trajectory, report.trajectory_maps,
                      parse_trajectory_format(args->format));
-    nlohmann::json j = report.to_json();
+    nlohmann::json j = to_json(report);
     std::map<MapId, std::size_t> per_map;
     for (const MapId m : report.trajectory_maps) ++per_map[m];
     j["localized"] = report.trajectory.size();

@@ -17,6 +17,7 @@
 #include "core/io/euroc_trajectory.h"
 #include "core/io/tum_trajectory.h"
 #include "core/slam/slam_stats.h"
+#include "wire/stats_json.h"
 
 namespace orbatlas::cli {
 namespace {

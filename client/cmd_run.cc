@@ -18,6 +18,7 @@
 #include "core/io/euroc_trajectory.h"
 #include "core/io/tum_trajectory.h"
 #include "core/slam/dataset_runner.h"
+#include "wire/run_report_json.h"
 
 namespace orbatlas::cli {
 namespace {
@@ -214,7 +215,7 @@ void register_run_command(CLI::App& app) {
     for (std::size_t i = 0; i < reports.size(); ++i) {
       const DatasetRunReport& report = reports[i];
       write_trajectory(args->out_trajectories[i], report.trajectory, {}, parse_trajectory_format(args->format));
-      runs.push_back(report.to_json());
+      runs.push_back(to_json(report));
       if (reports.size() > 1) std::printf("== %s\n", names[i].c_str());
       print_run_summary(report);
       if (reports.size() == 1 && report.stats.maps > report.loaded_maps + 1)

@@ -2,6 +2,7 @@
 // Each sub-command registers itself on the CLI11 app; its callback does the work
 // and throws orbatlas::Error on failure (main prints it and exits with 1).
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include "core/slam/dataset_runner.h"
 

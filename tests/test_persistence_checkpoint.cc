@@ -474,7 +474,7 @@ std::uint64_t written_by_this_process() {
 // SQLite's statement journals stay in memory (atlas_store.cc). Measured 161 kB
 // for a 651-kB database and log; with the journals in a temporary file, 4257 kB.
 // Four live sessions' checkpoints then wrote 4 GB in a minute for a 25-MB
-// database (docs/benchmarks.md, stop 53).
+// database (CHANGELOG.md, 2026-11-28).
 TEST_P(CheckpointTest, ACheckpointWritesWhatChangedOnly) {
   if (backend() != SqlDialect::kSqlite) GTEST_SKIP() << "counts an SQLite file's writes";
   Atlas atlas;

@@ -13,6 +13,7 @@
 #include "core/common/error.h"
 #include "core/io/euroc_reader.h"
 #include "core/slam/dataset_runner.h"
+#include "wire/run_report_json.h"
 #include "core/slam/slam_tuning.h"
 #include "core/tracking/keyframe_sink.h"
 #include "core/tracking/stereo_frontend.h"
@@ -65,7 +66,7 @@ TEST(StereoSlam, TenSecondClipTracksWithinFourMillimetres) {
   EXPECT_GT(r.stats.mapping.points_triangulated, 0u);
   expect_counters_consistent(r.stats);
   // The JSON carries the keys the issue lists.
-  const auto j = r.to_json();
+  const auto j = to_json(r);
   for (const char* key : {"frames", "tracked", "lost", "maps", "keyframes", "mappoints", "tracking_ms",
                           "local_mapping_ms_per_kf", "local_ba_ms", "culling_ms_per_kf", "peak_rss_mb", "objects",
                           "late_frames", "loops", "loop_closing", "worker_errors", "worker_errors_by", "slot_races"})

@@ -16,6 +16,7 @@
 #include "core/common/data_paths.h"
 #include "core/eval/gap_error.h"
 #include "core/slam/dataset_runner.h"
+#include "wire/run_report_json.h"
 #include "tests/slam_test_clip.h"
 
 namespace orbatlas {
@@ -130,7 +131,7 @@ TEST(InertialSlam, AStereoInertialRunInitialisesItsMapsGravityAndBiases) {
   std::printf("ATE after the final visual-inertial BA %.4f m, %zu inertial edges\n", *report.ate_rmse_m,
               s.final_ba_inertial_edges);
   EXPECT_LT(*report.ate_rmse_m, 0.002);  // measured 0.0009 m
-  const nlohmann::json j = report.to_json();
+  const nlohmann::json j = to_json(report);
   EXPECT_TRUE(j.contains("imu_initialized_at_s"));
   EXPECT_EQ(j["imu_bias"]["gyro"].size(), 3u);
 }
@@ -194,7 +195,7 @@ TEST(InertialSlam, ASessionFindsTheImusClockOffsetAndUsesIt) {
   ASSERT_TRUE(report.ate_rmse_m.has_value());
   std::printf("IMU clock offset found: %+.2f ms (true +5 ms); ATE %.4f m\n", *s.imu_time_offset_ms, *report.ate_rmse_m);
   EXPECT_NEAR(*s.imu_time_offset_ms, 5.0, 1.0);  // measured 4.41 ms
-  EXPECT_EQ(report.to_json()["imu_time_offset_ms"], *s.imu_time_offset_ms);
+  EXPECT_EQ(to_json(report)["imu_time_offset_ms"], *s.imu_time_offset_ms);
   EXPECT_LT(*report.ate_rmse_m, 0.007);  // measured 0.0035 m
 }
 
@@ -225,7 +226,7 @@ TEST(InertialSlam, ABadImuStreamIsReportedAndVisionCarriesOn) {
   EXPECT_EQ(h.gaps, 1u);
   EXPECT_NEAR(h.longest_gap_s, 0.305, 0.006);
   ASSERT_EQ(h.warnings.size(), 3u);
-  const nlohmann::json j = report.to_json();
+  const nlohmann::json j = to_json(report);
   EXPECT_EQ(j["imu_input"]["warnings"].size(), 3u);
   EXPECT_EQ(j["imu_input"]["dropped_stuck"], 151u);
   // Vision carries every frame; the IMU is back after each fault.

@@ -81,7 +81,7 @@ struct AtlasServiceOptions {
   // sessions' tracking is served first on a loaded machine, mapping takes the
   // cores' rest. For live sessions at the camera's rate, 10 measured best: four
   // sessions on two cores were late 4.7 % of the time at 0, 1.4-1.6 % at 10
-  // (docs/benchmarks.md, "Capacity"). 0 by default because a stream sent as
+  // (CHANGELOG.md, 2026-11-26). 0 by default because a stream sent as
   // fast as the server takes it (an upload, a test) keeps tracking busy and
   // starves mapping at 10: a single camera's map then ended with scale errors of
   // 0.13-0.46 % instead of 0-0.18 % (ServerMerging.TheMergingWorkerMerges...).

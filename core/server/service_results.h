@@ -1,6 +1,6 @@
 #pragma once
 // What the map service (AtlasService, UploadJobs) answers, as data: the HTTP
-// layer (server/http/service_json.h) turns these into JSON and PLY, tests read
+// layer (wire/service_json.h) turns these into JSON and PLY, tests read
 // them directly. No wire format here.
 #include <Eigen/Core>
 #include <cstddef>

@@ -33,40 +33,6 @@ using Clock = std::chrono::steady_clock;
 
 }  // namespace
 
-nlohmann::json DatasetRunReport::to_json() const {
-  nlohmann::json j = orbatlas::to_json(stats);
-  j["skipped_frames"] = skipped_frames;
-  j["late_frames"] = late_frames;
-  j["peak_rss_mb"] = peak_rss_mb;
-  j["wall_s"] = wall_s;
-  if (!failed.empty()) j["failed"] = failed;
-  if (ate_rmse_m) {
-    j["ate_rmse_m"] = *ate_rmse_m;
-    j["ate_align"] = ate_sim3 ? "sim3" : "se3";
-  }
-  if (session) j["session"] = *session;
-  if (loaded_maps > 0 || session) {
-    j["atlas"] = {{"loaded_maps", loaded_maps}, {"loaded_keyframes", loaded_keyframes}, {"load_s", atlas_load_s}};
-  }
-  if (black_out) {
-    nlohmann::json b = {{"frames", black_out->frames}, {"by_imu", black_out->by_imu}};
-    b["frames_to_visual"] =
-        black_out->frames_to_visual ? nlohmann::json(*black_out->frames_to_visual) : nlohmann::json();
-    b["error_at_end_m"] = black_out->error_at_end_m ? nlohmann::json(*black_out->error_at_end_m) : nlohmann::json();
-    b["error_after_m"] = black_out->error_after_m ? nlohmann::json(*black_out->error_after_m) : nlohmann::json();
-    j["black_out"] = b;
-  }
-  if (checkpoints) {
-    nlohmann::json c = {{"checkpoints", checkpoints->checkpoints},
-                        {"commits", checkpoints->commits},
-                        {"failures", checkpoints->failures},
-                        {"sequence", checkpoints->sequence},
-                        {"wall_ms", orbatlas::to_json_summary(checkpoints->wall_ms)}};
-    j["checkpoints"] = c;
-  }
-  return j;
-}
-
 namespace {
 
 // What the run reads before anything starts: the settings, the recording and the

@@ -4,7 +4,6 @@
 // and optionally paced at the sensor rate.
 #include <filesystem>
 #include <functional>
-#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -71,7 +70,6 @@ struct DatasetRunReport {
     std::optional<double> error_at_end_m, error_after_m;
   };
   std::optional<BlackOut> black_out;
-  nlohmann::json to_json() const;  // SlamStats' keys + late_frames, peak_rss_mb, failed, ...
 };
 
 // Throws Error for unusable settings, a missing dataset or a non-stereo dataset;

@@ -1,7 +1,6 @@
 #pragma once
-// Figures of a SLAM run, and their JSON form (the `orbatlas run --stats` file).
+// Figures of a SLAM run (their JSON form, the `orbatlas run --stats` file: wire/stats_json.h).
 #include <cstddef>
-#include <nlohmann/json.hpp>
 #include <string>
 #include <optional>
 #include <vector>
@@ -15,10 +14,6 @@
 #include "core/mapping/local_mapper.h"
 
 namespace orbatlas {
-
-// {p50, p95, max, mean, count} of the values.
-nlohmann::json to_json_summary(const std::vector<double>& values);
-nlohmann::json to_json_summary(const SampleSummary& summary);
 
 struct SlamStats {
   std::size_t frames = 0, tracked = 0, lost = 0;       // lost: frames without a pose
@@ -83,31 +78,11 @@ struct SlamStats {
 // Every worker's contained errors together (tracking, local mapping, loop closing).
 std::size_t worker_error_total(const SlamStats& stats);
 
-// Keys: frames, tracked, lost, maps, keyframes, mappoints, tracking_ms{p50,p95,max,mean},
-// local_map_keyframes{p50,p95,max,mean,count}, local_map_points{...}, maps_wait_ms{...},
-// mapping_wait_ms{p50,p95,max,mean,count}, mapping_waits_cut,
-// local_mapping_ms_per_kf{p50,p95,max}, local_ba_ms{p50,p95,max}, culling_scheme,
-// culling_ms_per_kf (the scheme in use), culling_ms_per_kf_by_scheme{scan,incremental},
-// culling_disagreements, culled_keyframes, points_triangulated, points_fused,
-// objects{keyframes,mappoints}{created,culled,alive,reclaimed}, loops,
-// loop_closing{place_recognition_ms_per_kf, loop_correction_ms, loops[],
-// global_ba[], false_loops, live_merges[], merge_search_ms_per_kf}, maps_started,
-// live_merges (count), final_global_ba{keyframes, seconds} (when it ran),
-// worker_errors (total), worker_errors_by{tracking, local_mapping, loop_closing},
-// last_worker_error (when any), slot_races; monocular{attempts, starts} (a single
-// camera that maps); with an IMU: imu{samples, linked_keyframes,
-// uncovered_keyframes, frames_optimized}, imu_input{dropped_non_finite, dropped_stuck,
-// dropped_saturated, gaps, longest_gap_ms, frames_outside, rate_hz, warnings},
-// imu_time_offset_ms (once estimated), frames_tracked_by_imu, imu_initialized_at_s, imu_gravity_w, imu_bias{gyro,
-// acc} (once initialised). Fills maps, keyframes, mappoints (maps holding keyframes) and the object counters from the
+// Fills maps, keyframes, mappoints (maps holding keyframes) and the object counters from the
 // atlas as it is now.
 void add_atlas_counts(const Atlas& atlas, SlamStats& stats);
 
+// A loop whose correction moved the keyframe more than this is counted as false (stats).
 inline constexpr double kFalseLoopM = 0.2, kFalseLoopDeg = 5.0;
-nlohmann::json to_json(const SlamStats& stats);
-// One live merge (the stats' loop_closing.live_merges[], the server's GET /v1/merges
-// live_merges[]): source_map, target_map, keyframe, matched_keyframe, keyframe_t_s,
-// matches, verified_keyframes, keyframes_moved, map_points_moved, points_fused, merge_ms.
-nlohmann::json to_json(const LiveMerge& merge);
 
 }  // namespace orbatlas

@@ -120,7 +120,7 @@ run_sessions() {
   # Every client reads and decodes its clip first (--preload: no image decoding
   # competes with the server while it streams; the pixels wait in an in-memory
   # file the client does not map, so the VM's memory monitor does not pay for
-  # them: docs/benchmarks.md, stop 56), then all begin at one time; the
+  # them: CHANGELOG.md, 2026-11-29), then all begin at one time; the
   # server's CPU is measured from then.
   local pids=() i=0 start_at wait_s
   for seq in "$@"; do dataset "$seq" > /dev/null; done  # rendered before the clock starts
@@ -193,7 +193,7 @@ for n in "${N_LIST[@]}"; do [ "$n" -gt "$MAX_N" ] && MAX_N=$n; done
 # two jobs at once; on two whole cores both give the same figures. A virtual
 # machine whose second core is shared with another tenant shows the two jobs
 # slower, and then live sessions are late more often with the same code
-# (docs/benchmarks.md, stop 52). MACHINE_CHECK=0 skips it.
+# (docs/benchmarks.md, top). MACHINE_CHECK=0 skips it.
 machine_check() {
   [ "${MACHINE_CHECK:-1}" = 0 ] && return 0
   local data

@@ -23,7 +23,7 @@
 #include "core/common/parse_integer.h"
 #include "server/http/raw_frame.h"
 #include "core/persistence/map_rigs.h"
-#include "server/http/service_json.h"
+#include "wire/service_json.h"
 #include "server/http/session_request_json.h"
 #include "wire/pose_json.h"
 #include "core/server/upload_jobs.h"

@@ -7,7 +7,7 @@
 #include "core/archive/tar_stream_extractor.h"
 #include "core/server/atlas_service.h"
 #include "core/server/upload_jobs.h"
-#include "server/http/service_json.h"
+#include "wire/service_json.h"
 #include "server/http/http_router.h"  // last: it includes <httplib.h>
 
 namespace orbatlas::http_detail {

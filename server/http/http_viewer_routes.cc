@@ -11,7 +11,7 @@
 #include "core/common/parse_integer.h"
 #include "core/server/atlas_service.h"
 #include "core/server/viewer_data.h"
-#include "server/http/service_json.h"
+#include "wire/service_json.h"
 #include "server/http/http_router.h"  // last: it includes <httplib.h>
 
 namespace orbatlas::http_detail {

@@ -1,9 +1,9 @@
-#include "server/http/service_json.h"
+#include "wire/service_json.h"
 
 #include <cstdio>
 #include <sstream>
 
-#include "core/slam/slam_stats.h"
+#include "wire/stats_json.h"
 
 namespace orbatlas {
 
@@ -81,27 +81,21 @@ nlohmann::json to_json(const MergesReport& m) {
                                   {"inertial_edges", r.inertial_edges},
                                   {"seconds", r.seconds},
                                   {"interrupted", r.interrupted}});
-  for (const MergeRecord& r : stats.merges)
-    out["merges"].push_back({{"source_map", r.merge.source},
-                             {"target_map", r.merge.target},
-                             {"keyframe", r.current},
-                             {"matched_keyframe", r.matched},
-                             {"matches", r.matches},
-                             {"verified_keyframes", r.verified_keyframes},
-                             {"keyframes_searched", r.keyframes_searched},
-                             {"search_ms", r.search_ms},
-                             {"keyframes_moved", r.merge.keyframes_moved},
-                             {"map_points_moved", r.merge.points_moved},
-                             {"points_fused", r.merge.points_fused},
-                             {"observations_added", r.merge.observations_fused},
-                             {"four_dof", r.merge.four_dof},
-                             {"scale", r.merge.scale},
-                             {"merge_ms", r.merge.ms},
-                             {"global_ba",
-                              {{"keyframes", r.ba_keyframes},
-                               {"inertial_edges", r.ba_inertial_edges},
-                               {"seconds", r.ba_seconds},
-                               {"interrupted", r.ba_interrupted}}}});
+  for (const MergeRecord& r : stats.merges) {
+    nlohmann::json j = merge_json(r.merge);
+    j["keyframe"] = r.current;
+    j["matched_keyframe"] = r.matched;
+    j["matches"] = r.matches;
+    j["verified_keyframes"] = r.verified_keyframes;
+    j["keyframes_searched"] = r.keyframes_searched;
+    j["search_ms"] = r.search_ms;
+    j["observations_added"] = r.merge.observations_fused;
+    j["global_ba"] = {{"keyframes", r.ba_keyframes},
+                      {"inertial_edges", r.ba_inertial_edges},
+                      {"seconds", r.ba_seconds},
+                      {"interrupted", r.ba_interrupted}};
+    out["merges"].push_back(std::move(j));
+  }
   return out;
 }
 
