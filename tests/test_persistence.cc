@@ -75,8 +75,8 @@ TEST(Persistence, FreshDatabaseHasTheLatestSchemaInWalMode) {
     EXPECT_TRUE(store.stored_map_ids().empty());
   }
   ASSERT_EQ(schema_migrations().size(), static_cast<std::size_t>(latest_schema_version()));
-  EXPECT_EQ(schema_migrations()[0].name, "001_initial.sql");
-  EXPECT_EQ(schema_migrations()[1].name, "002_culled_keyframes.sql");
+  EXPECT_EQ(schema_migrations()[0].name, "001_initial");
+  EXPECT_EQ(schema_migrations()[1].name, "002_culled_keyframes");
   SqliteDb raw(db.path());
   EXPECT_EQ(raw.query_int64("PRAGMA user_version"), latest_schema_version());
   SqliteStatement mode = raw.prepare("PRAGMA journal_mode");

@@ -152,6 +152,51 @@ TEST_F(PgSchemaTest, AnotherApplicationsDatabaseIsRefused) {
   EXPECT_EQ(read_postgres_schema_version(*db_), 0);
 }
 
+// One list for both databases: the same steps under the same numbers, each with
+// a script for at least one of them.
+TEST(SchemaList, BothDatabasesHaveTheSameNumberedSteps) {
+  const auto sqlite = schema_migrations();
+  const auto postgres = postgres_schema_migrations();
+  ASSERT_EQ(sqlite.size(), postgres.size());
+  for (std::size_t i = 0; i < sqlite.size(); ++i) {
+    EXPECT_EQ(sqlite[i].version, static_cast<int>(i) + 1);
+    EXPECT_EQ(postgres[i].version, sqlite[i].version);
+    EXPECT_EQ(postgres[i].name, sqlite[i].name);
+    EXPECT_FALSE(sqlite[i].sql.empty() && postgres[i].sql.empty()) << sqlite[i].name << " is empty on both";
+  }
+  EXPECT_EQ(latest_schema_version(), latest_postgres_schema_version());
+}
+
+// A database migrated while PostgreSQL had a list of its own (001 SQLite's
+// schema 8, 002-008 the replica tables) is renumbered, then migrated on: the
+// same tables and rows as a fresh one.
+TEST_F(PgSchemaTest, ADatabaseOfTheSeparateListIsRenumberedAndMigratedOn) {
+  migrate_postgres_schema(*db_, 1);
+  // Back to what the separate list left: its rows 1..8, no session_records.
+  db_->exec(
+      "BEGIN; DROP TABLE session_records; DELETE FROM schema_migrations WHERE version BETWEEN 2 AND 8 OR version "
+      "= 16; UPDATE schema_migrations SET name = '001_initial.sql' WHERE version = 1; UPDATE schema_migrations SET "
+      "version = version - 7, name = CASE version WHEN 9 THEN '002_atlas_writer.sql' WHEN 10 THEN "
+      "'003_replicas.sql' WHEN 11 THEN '004_map_owners.sql' WHEN 12 THEN '005_shared_jobs.sql' WHEN 13 THEN "
+      "'006_shared_merges.sql' WHEN 14 THEN '007_merge_claims.sql' ELSE '008_session_merge_work.sql' END WHERE "
+      "version BETWEEN 9 AND 15; COMMIT");
+  ASSERT_EQ(read_postgres_schema_version(*db_), 8);
+  migrate_postgres_schema(*db_, 2);
+  EXPECT_EQ(read_postgres_schema_version(*db_), latest_postgres_schema_version());
+  EXPECT_EQ(db_->query_int64("SELECT count(*) FROM schema_migrations"), latest_postgres_schema_version());
+  const auto steps = postgres_schema_migrations();
+  for (const SchemaMigration& step : steps) {
+    PgStatement row = db_->prepare("SELECT name FROM schema_migrations WHERE version = ?1");
+    row.bind_int64(1, step.version);
+    ASSERT_TRUE(row.step()) << step.name;
+    EXPECT_EQ(row.text(0), step.name);
+  }
+  EXPECT_EQ(db_->query_int64("SELECT to_regclass('session_records') IS NOT NULL"), 1);
+  // Migrating again changes nothing.
+  migrate_postgres_schema(*db_, 3);
+  EXPECT_EQ(db_->query_int64("SELECT count(*) FROM schema_migrations"), latest_postgres_schema_version());
+}
+
 TEST_F(PgSchemaTest, ANewerSchemaIsRefused) {
   migrate_postgres_schema(*db_, 1);
   db_->prepare("INSERT INTO schema_migrations(version, name, applied_ns) VALUES (?1, 'future.sql', 1)")

@@ -3,7 +3,7 @@
 // points, observations, the covisibility graph, spanning tree and loop edges —
 // with the sessions that built it and their per-frame trajectories. Blobs are
 // Cereal binary (blob_codec.h). The database is an SQLite file (schema/*.sql,
-// docs/schema.md), or a PostgreSQL database (schema/postgres/*.sql) through
+// docs/schema.md), or a PostgreSQL database (schema/NNN_name/postgres.sql) through
 // the same row code (sql_connection.h).
 //
 // One store is one connection, for one thread at a time. Saving reads the atlas
@@ -53,7 +53,7 @@ class AtlasStore {
   static AtlasStore open(const std::filesystem::path& path, const std::string& vocabulary_hash);
   // The same on PostgreSQL (a libpq connection string or postgresql:// URI):
   // refuses (DataError, nothing written) a database holding other tables, a
-  // newer schema, and another vocabulary; then migrates (schema/postgres) and
+  // newer schema, and another vocabulary; then migrates (schema/NNN_name/postgres.sql) and
   // creates the atlas row if missing.
   static AtlasStore open_postgres(const std::string& conninfo, const std::string& vocabulary_hash);
 
@@ -102,7 +102,7 @@ class AtlasStore {
   void save_trajectory(SessionId session, const std::vector<FrameAnchor>& anchors);
   std::vector<FrameAnchor> load_trajectory(SessionId session);  // by timestamp
   // What each session did as its last checkpoint stored it (session_record.h);
-  // sessions stored before schema 9 have none.
+  // sessions stored before schema 16 have none.
   void save_session_record(SessionId session, const SessionRecord& record);
   std::map<SessionId, SessionRecord> load_session_records() { return read_session_records(*db_); }
 

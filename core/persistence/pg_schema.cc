@@ -9,6 +9,34 @@ namespace {
 // pg_advisory_lock's key for migrations (any constant the atlas owns).
 constexpr std::int64_t kMigrationLockKey = 0x6f72626174;  // "orbat"
 
+// A database migrated when PostgreSQL had its own list (schema/postgres/NNN_*.sql,
+// 002-008 its replica tables, 001 SQLite's schema 8) has the row
+// (2, '002_atlas_writer.sql'). Its rows 2..8 become 9..15 under their new names,
+// and SQLite's steps 2..8, which its 001 already held, are recorded as done.
+void renumber_separate_list(PgDb& db, TimestampNs now_ns) {
+  if (read_postgres_schema_version(db) == 0 ||
+      db.query_int64("SELECT count(*) FROM schema_migrations WHERE version = 2 AND name = '002_atlas_writer.sql'") == 0)
+    return;
+  const auto steps = postgres_schema_migrations();
+  PgTransaction transaction(db);
+  for (int old_version = 8; old_version >= 2; --old_version) {
+    const SchemaMigration& now = steps[static_cast<std::size_t>(old_version + kSeparateNumberingShift - 1)];
+    db.prepare("UPDATE schema_migrations SET version = ?1, name = ?2 WHERE version = ?3")
+        .bind_int64(1, now.version)
+        .bind_text(2, now.name)
+        .bind_int64(3, old_version)
+        .run();
+  }
+  db.prepare("UPDATE schema_migrations SET name = ?1 WHERE version = 1").bind_text(1, steps[0].name).run();
+  for (int version = 2; version <= 8; ++version)
+    db.prepare("INSERT INTO schema_migrations(version, name, applied_ns) VALUES (?1, ?2, ?3)")
+        .bind_int64(1, version)
+        .bind_text(2, steps[static_cast<std::size_t>(version - 1)].name)
+        .bind_int64(3, now_ns)
+        .run();
+  transaction.commit();
+}
+
 }  // namespace
 
 std::span<const SchemaMigration> postgres_schema_migrations() {
@@ -67,10 +95,11 @@ void migrate_postgres_schema(PgDb& db, TimestampNs now_ns) {
       }
     }
   } unlock{db};
+  renumber_separate_list(db, now_ns);
   for (const SchemaMigration& migration : postgres_schema_migrations()) {
     if (read_postgres_schema_version(db) >= migration.version) continue;  // another replica migrated it
     PgTransaction transaction(db);
-    db.exec(migration.sql);
+    if (!migration.sql.empty()) db.exec(migration.sql);  // empty: SQLite's step only
     db.prepare("INSERT INTO schema_migrations(version, name, applied_ns) VALUES (?1, ?2, ?3)")
         .bind_int64(1, migration.version)
         .bind_text(2, migration.name)

@@ -8,7 +8,7 @@
 // 3 s for the lock (the server's lock_timeout; measured: under ctest -j2 a
 // writer opened right after the last one's drop was refused once). A second
 // writer fails then with the first one's "pid N on host H". The row
-// of `atlas_writer` (schema/postgres/002) says how the last holder ended,
+// of `atlas_writer` (schema/009_atlas_writer) says how the last holder ended,
 // 'running' when it died without mark_stopped(), as the lock file does.
 //
 // Brings the schema up to date first (the table must exist); refuses, as

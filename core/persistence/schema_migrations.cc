@@ -53,7 +53,11 @@ void migrate_schema(SqliteDb& db, TimestampNs now_ns) {
     SqliteTransaction transaction(db);
     // Re-read under the write lock: another connection may have migrated meanwhile.
     if (read_schema_version(db) >= migration.version) continue;
-    db.exec(migration.sql);
+    if (migration.sql.empty()) {
+      db.exec("PRAGMA user_version = " + std::to_string(migration.version));  // PostgreSQL's step only
+    } else {
+      db.exec(migration.sql);
+    }
     const int reached = read_schema_version(db);
     ORBATLAS_CHECK(reached == migration.version,
                    db.path().string() << ": migration " << migration.name << " left user_version at " << reached);

@@ -1,7 +1,8 @@
 #pragma once
-// The versioned schema: schema/NNN_name.sql, compiled into the library at build
-// time, applied in order as forward migrations. PRAGMA user_version holds the
-// version of the last one applied (0: an empty database). See docs/schema.md.
+// The versioned schema: schema/NNN_name/sqlite.sql (and postgres.sql for
+// PostgreSQL, pg_schema.h: one numbered list for both), compiled into the library
+// at build time, applied in order as forward migrations. PRAGMA user_version holds
+// the version of the last one applied (0: an empty database). See docs/schema.md.
 #include <span>
 #include <string_view>
 
@@ -11,9 +12,11 @@
 namespace orbatlas {
 
 struct SchemaMigration {
-  int version = 0;        // NNN of the file name; 1, 2, ... without gaps
-  std::string_view name;  // file name, e.g. "001_initial.sql"
-  std::string_view sql;   // the script; it ends with PRAGMA user_version = NNN
+  int version = 0;        // NNN of the folder name; 1, 2, ... without gaps
+  std::string_view name;  // folder name, e.g. "001_initial"
+  // The script; empty when the step is the other database's only. An SQLite
+  // script ends with PRAGMA user_version = NNN.
+  std::string_view sql;
 };
 
 // The migrations of this build, by version.
@@ -31,8 +34,9 @@ void check_schema_version_supported(SqliteDb& db);
 
 // Applies every migration above the database's version, each in its own write
 // transaction that also records it in schema_migrations; a migration another
-// connection applied meanwhile is skipped. Throws Error when a script leaves
-// user_version at another value than its number.
+// connection applied meanwhile is skipped; a step without an SQLite script only
+// moves the version. Throws Error when a script leaves user_version at another
+// value than its number.
 void migrate_schema(SqliteDb& db, TimestampNs now_ns);
 
 }  // namespace orbatlas

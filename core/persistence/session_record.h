@@ -1,6 +1,6 @@
 #pragma once
 // What a session did, as its last checkpoint stored it (table session_records,
-// schema 9): its counts and how it ended, so that a session read back by a later
+// schema 16): its counts and how it ended, so that a session read back by a later
 // run reports what it had, not what its stored trajectory implies.
 #include <cstddef>
 #include <map>

@@ -36,7 +36,7 @@ class LiveSession {
   LiveSession(SessionInfo info, std::string config, std::unique_ptr<SessionSlam> slam,
               SessionMode mode = SessionMode::kMap, std::optional<double> max_lag_s = std::nullopt);
   // A stored session (an earlier run's): what its last checkpoint recorded
-  // (none for sessions stored before schema 9: then the frames are those of its
+  // (none for sessions stored before schema 16: then the frames are those of its
   // trajectory); only the trajectory's last frame is kept (the rest stays in the database).
   LiveSession(SessionInfo info, const std::optional<SessionRecord>& record, const std::vector<FrameAnchor>& trajectory);
   ~LiveSession();

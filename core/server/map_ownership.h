@@ -1,6 +1,6 @@
 #pragma once
 // Which maps of a shared (PostgreSQL) atlas this replica writes
-// (schema/postgres/004, docs/scaling.md "Replicas"). Every replica reads every
+// (schema/011_map_owners, docs/scaling.md "Replicas"). Every replica reads every
 // map; a map is written (mapped in, merged, checkpointed) by the replica that
 // owns it in `map_owners`:
 // - a map this replica makes (its id in the replica's range) is claimed by the

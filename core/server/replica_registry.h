@@ -1,7 +1,7 @@
 #pragma once
 // The orbatlas-server replicas that share one atlas database
 // (docs/scaling.md "Replicas"). On PostgreSQL each replica adds a row to
-// `replicas` (schema/postgres/003) when it starts, renews its lease from a
+// `replicas` (schema/010_replicas) when it starts, renews its lease from a
 // thread of its own while it runs, and marks the row stopped when it stops
 // cleanly. A replica whose lease has passed is dead (SIGKILL, a crash, a lost
 // network): the other replicas see it in replicas() as not alive, which is

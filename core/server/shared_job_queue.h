@@ -1,6 +1,6 @@
 #pragma once
 // Upload jobs as a queue that every replica of a shared (PostgreSQL) atlas
-// takes from (schema/postgres/005, docs/scaling.md "Replicas"). The
+// takes from (schema/012_shared_jobs, docs/scaling.md "Replicas"). The
 // replica that received an upload adds its job (its extracted folder, in the
 // work folder the replicas share, and its session request); a free worker of
 // any replica claims the oldest waiting job with FOR UPDATE SKIP LOCKED (two

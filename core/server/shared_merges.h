@@ -1,6 +1,6 @@
 #pragma once
 // The merge work finished sessions leave in a shared (PostgreSQL) atlas
-// (schema/postgres/006 and 007, docs/scaling.md "Replicas"): one row
+// (schema/013_shared_merges and 014_merge_claims, docs/scaling.md "Replicas"): one row
 // per map to search for a place shared with the atlas's other maps (then
 // merged and refined, MapMergeWorker). The replica owning the map claims the
 // row (FOR UPDATE SKIP LOCKED) when its merging worker is free, does the work
@@ -10,7 +10,7 @@
 // another replica's merge found its place in (the row waits meanwhile,
 // defer()). A dead replica's rows go with its maps to the replica that takes
 // them over; a row claimed by a dead replica waits again.
-// A live mapping session has a row of its own (schema/postgres/008): when its
+// A live mapping session has a row of its own (schema/015_session_merge_work): when its
 // replica dies or stops before the session finishes, another replica turns it
 // into rows of the maps the session's stored keyframes are in
 // (adopt_sessions_of_gone_replicas), so its end's work is still done.

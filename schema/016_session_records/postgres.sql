@@ -1,6 +1,5 @@
--- orbatlas persistent atlas in PostgreSQL, schema version 9: SQLite's schema 9
--- (schema/009_session_records.sql, docs/schema.md): what each session did, as
--- its last checkpoint stored it.
+-- orbatlas persistent atlas in PostgreSQL, schema version 16 (sqlite.sql beside
+-- this file, docs/schema.md): what each session did, as its last checkpoint stored it.
 CREATE TABLE session_records (
   session_id      bigint PRIMARY KEY REFERENCES sessions(id) ON DELETE CASCADE,
   frames          bigint NOT NULL CHECK (frames >= 0),

@@ -1,4 +1,4 @@
--- orbatlas persistent atlas, schema version 9 (docs/schema.md): what each
+-- orbatlas persistent atlas, schema version 16 (docs/schema.md): what each
 -- session did, as its last checkpoint stored it, so that a session read back by
 -- a later run reports the frames, keyframes and end it had, not what its stored
 -- trajectory implies. Written by the checkpoint that writes its frames, in the
@@ -19,4 +19,4 @@ CREATE TABLE session_records (
   error           TEXT    NOT NULL
 ) STRICT;
 
-PRAGMA user_version = 9;
+PRAGMA user_version = 16;
