@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "cli/effective_options.h"
+#include "client/effective_options.h"
 #include "client/bag_options.h"
 #include "client/commands.h"
 #include "core/common/error.h"

@@ -10,7 +10,7 @@
 #include <sstream>
 #include <thread>
 
-#include "cli/effective_options.h"
+#include "client/effective_options.h"
 #include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/persistence/atlas_location.h"

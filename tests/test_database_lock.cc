@@ -10,7 +10,7 @@
 #include <memory>
 #include <string>
 
-#include "cli/effective_options.h"
+#include "client/effective_options.h"
 #include "core/common/error.h"
 #include "core/persistence/atlas_location.h"
 #include "core/persistence/atlas_store.h"

@@ -43,6 +43,18 @@ Clock::duration seconds(double s) {
   return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(std::max(0.0, s)));
 }
 
+// The client has closed its end (end of stream, or a reset, waiting to be
+// read): the connection is not idle but over, and must not crowd out one that
+// is (a thread that reaches its next wait late would otherwise close a live
+// client's connection in its place).
+bool peer_closed(socket_t sock) {
+  pollfd p{sock, POLLIN, 0};
+  if (::poll(&p, 1, 0) <= 0) return false;
+  if ((p.revents & (POLLHUP | POLLERR)) != 0) return true;
+  char c = 0;
+  return ::recv(sock, &c, 1, MSG_PEEK | MSG_DONTWAIT) == 0;
+}
+
 }  // namespace
 
 GuardedHttpServer::GuardedHttpServer(ConnectionLimits limits, std::shared_ptr<const TlsContext> tls)
@@ -149,7 +161,8 @@ bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
   const bool shook_hands = stream.handshake(Clock::now() + header_timeout);
   for (std::size_t left = std::max<std::size_t>(1, keep_alive_max_count_); left > 0 && svr_sock_ != INVALID_SOCKET;
        --left) {
-    if (!shook_hands || !set_waiting(id, true)) break;  // closed for room since the last request
+    if (!shook_hands || (!stream.has_buffered() && peer_closed(sock))) break;
+    if (!set_waiting(id, true)) break;  // closed for room since the last request
     // Idle until the next request starts (httplib's keep-alive timeout).
     if (!stream.has_buffered() && !poll_for(sock, POLLIN, std::chrono::seconds(keep_alive_timeout_sec_))) break;
     stream.start_request(Clock::now() + header_timeout);
