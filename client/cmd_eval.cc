@@ -60,14 +60,26 @@ void print_human(const EvalArgs& args, const EvalResult& r) {
   std::cout << buf;
 }
 
-void write_plot(const EvalArgs& args, const Trajectory& est, const Trajectory& gt, const EvalResult& r) {
+// One line per --est file (sessions are never joined in a plot), each with the
+// ground truth over its own span (plus 1 s), all under the one alignment.
+void write_plot(const EvalArgs& args, const std::vector<Trajectory>& est_parts, const Trajectory& gt,
+                const EvalResult& r) {
   TrajectoryPlot plot;
-  // The ground truth over the estimate's time span (plus 1 s), the whole estimate aligned.
-  const TimestampNs from = est.front().t_ns - kNsPerSecond, to = est.back().t_ns + kNsPerSecond;
-  for (const StampedPose& s : gt)
-    if (s.t_ns >= from && s.t_ns <= to) plot.ground_truth.push_back(s.pose.t);
-  for (const StampedPose& s : est) plot.estimate.push_back(r.alignment.apply(s.pose.t));
-  plot.estimate_label = "estimate (" + std::string(align_mode_name(r.align)) + ")";
+  for (std::size_t i = 0; i < est_parts.size(); ++i) {
+    const Trajectory& est = est_parts[i];
+    if (est.empty()) continue;
+    const TimestampNs from = est.front().t_ns - kNsPerSecond, to = est.back().t_ns + kNsPerSecond;
+    std::vector<Eigen::Vector3d> truth;
+    for (const StampedPose& s : gt)
+      if (s.t_ns >= from && s.t_ns <= to) truth.push_back(s.pose.t);
+    if (!truth.empty()) plot.ground_truth.push_back(std::move(truth));
+    PlotLine line;
+    line.label =
+        (est_parts.size() == 1 ? std::string("estimate") : std::filesystem::path(args.est[i]).filename().string()) +
+        " (" + align_mode_name(r.align) + ")";
+    for (const StampedPose& s : est) line.points.push_back(r.alignment.apply(s.pose.t));
+    plot.estimates.push_back(std::move(line));
+  }
   char title[256];
   std::snprintf(title, sizeof title, "%s   ATE RMSE %.4f m (%s)   %zu poses",
                 (args.est.size() == 1 ? std::filesystem::path(args.est.front()).filename().string()
@@ -94,10 +106,14 @@ std::vector<std::pair<TimestampNs, TimestampNs>> recording_spans(const std::vect
   return spans;
 }
 
-// Several trajectories (sessions in one world frame) as one, in time order.
-Trajectory read_joined(const std::vector<std::string>& paths) {
+std::vector<Trajectory> read_parts(const std::vector<std::string>& paths) {
   std::vector<Trajectory> parts;
   for (const auto& p : paths) parts.push_back(read_any_ground_truth(p));
+  return parts;
+}
+
+// Several trajectories (sessions in one world frame) as one, in time order.
+Trajectory read_joined(const std::vector<std::string>& paths, std::vector<Trajectory> parts) {
   const std::string what = joined(paths) + " (only recordings made at different times can be joined)";
   return join_trajectories(parts, what.c_str());
 }
@@ -119,8 +135,10 @@ Trajectory read_camera_ground_truth(const std::vector<std::string>& gts) {
 }
 
 void run_eval(const EvalArgs& args) {
-  const Trajectory gt = args.est_frame == "cam0" ? read_camera_ground_truth(args.gt) : read_joined(args.gt);
-  const Trajectory est = read_joined(args.est);  // TUM usually; an ASL csv or dataset also works
+  const Trajectory gt =
+      args.est_frame == "cam0" ? read_camera_ground_truth(args.gt) : read_joined(args.gt, read_parts(args.gt));
+  const std::vector<Trajectory> est_parts = read_parts(args.est);  // TUM usually; an ASL csv or dataset also works
+  const Trajectory est = read_joined(args.est, est_parts);
   ORBATLAS_CHECK(!est.empty(), joined(args.est) << ": no poses");
   ORBATLAS_CHECK(!gt.empty(), joined(args.gt) << ": no poses");
 
@@ -138,7 +156,7 @@ void run_eval(const EvalArgs& args) {
     print_human(args, result);
   }
   if (!args.plot.empty()) {
-    write_plot(args, est, gt, result);
+    write_plot(args, est_parts, gt, result);
     if (!args.json) std::cout << "  plot           " << args.plot << "\n";
   }
 }

@@ -1,6 +1,8 @@
 // Trajectory evaluation: cases whose ATE / RPE / scale are known analytically,
 // association with interpolation, and ORB-SLAM3's real MH_01 output.
 #include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
 #include <unistd.h>
 
 #include <cmath>
@@ -261,15 +263,74 @@ TEST(Eval, WritesAPlot) {
   const Trajectory gt = make_wavy_trajectory();
   TrajectoryPlot plot;
   plot.title = "test plot";
+  plot.ground_truth.emplace_back();
+  plot.estimates.push_back({"estimate", {}});
   for (const auto& s : gt) {
-    plot.ground_truth.push_back(s.pose.t);
-    plot.estimate.push_back(s.pose.t + Eigen::Vector3d(0.05, 0, 0));
+    plot.ground_truth.back().push_back(s.pose.t);
+    plot.estimates.back().points.push_back(s.pose.t + Eigen::Vector3d(0.05, 0, 0));
   }
   const auto png = std::filesystem::temp_directory_path() / ("orbatlas_eval_plot_" + std::to_string(getpid()) + ".png");
   write_trajectory_plot(png, plot);
   EXPECT_GT(std::filesystem::file_size(png), 1000u);
   std::filesystem::remove(png);
   EXPECT_THROW(write_trajectory_plot("/nonexistent-dir/x.png", plot), Error);
+}
+
+// Two sessions are two lines: nothing is drawn along the segment from the end
+// of the first to the start of the second (the demo's joint plot drew that
+// segment across the hall), each line has its own colour, and the ground truth
+// is dashed (grey, with gaps along it).
+TEST(Eval, APlotNeverJoinsTwoTrajectories) {
+  TrajectoryPlot plot;
+  plot.title = "two sessions";
+  std::vector<Eigen::Vector3d> a, b;
+  for (int i = 0; i <= 100; ++i) {
+    a.emplace_back(0.01 * i, 0.0, 0.0);        // (0, 0) -> (1, 0)
+    b.emplace_back(1.0 - 0.01 * i, 5.0, 0.0);  // (1, 5) -> (0, 5)
+  }
+  plot.estimates = {{"session 1", a}, {"session 2", b}};
+  plot.ground_truth = {a, b};
+  const auto png = std::filesystem::temp_directory_path() / ("orbatlas_two_lines_" + std::to_string(getpid()) + ".png");
+  write_trajectory_plot(png, plot);
+  const cv::Mat img = cv::imread(png.string(), cv::IMREAD_COLOR);
+  std::filesystem::remove(png);
+  ASSERT_FALSE(img.empty());
+  // The data is centred in the axes with one scale for both axes: metres -> pixels.
+  const PlotArea area = trajectory_plot_area(plot.width_px, plot.height_px);
+  const double span_x = 1.0, span_y = 5.0, pad = 0.05 * 5.0;
+  const double px_per_m = std::min(area.width / (span_x + 2 * pad), area.height / (span_y + 2 * pad));
+  const auto to_px = [&](double x, double y) {
+    return cv::Point(static_cast<int>(std::lround(area.x + area.width / 2.0 + (x - 0.5) * px_per_m)),
+                     static_cast<int>(std::lround(area.y + area.height / 2.0 - (y - 2.5) * px_per_m)));
+  };
+  const auto colour_at = [&](cv::Point p) {
+    // The most saturated pixel in a 5x5 window (a line is 2 px wide, anti-aliased).
+    cv::Vec3b best(255, 255, 255);
+    int best_chroma = -1;
+    for (int dy = -2; dy <= 2; ++dy)
+      for (int dx = -2; dx <= 2; ++dx) {
+        const cv::Vec3b c = img.at<cv::Vec3b>(p.y + dy, p.x + dx);
+        const int chroma = std::max({c[0], c[1], c[2]}) - std::min({c[0], c[1], c[2]});
+        if (chroma > best_chroma) {
+          best_chroma = chroma;
+          best = c;
+        }
+      }
+    return std::pair{best, best_chroma};
+  };
+  // Along the segment joining the first line's end (1, 0) to the second's start
+  // (1, 5), away from both lines: no colour.
+  for (double y = 0.5; y <= 4.5; y += 0.25) {
+    EXPECT_LT(colour_at(to_px(1.0, y)).second, 40) << "a line joins the sessions at y " << y;
+    EXPECT_LT(colour_at(to_px(0.5, y)).second, 40) << "a line crosses between the sessions at y " << y;
+  }
+  // Each session is drawn, in its own colour (red, then blue).
+  const auto [first, first_chroma] = colour_at(to_px(0.5, 0.0));
+  const auto [second, second_chroma] = colour_at(to_px(0.5, 5.0));
+  EXPECT_GT(first_chroma, 100);
+  EXPECT_GT(second_chroma, 100);
+  EXPECT_GT(first[2], first[0]) << "the first session is red";
+  EXPECT_GT(second[0], second[2]) << "the second session is blue";
 }
 
 // ORB-SLAM3 v1.0 monocular-inertial on the real MH_01 (shipped) against its real

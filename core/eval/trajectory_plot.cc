@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -13,7 +14,10 @@ namespace orbatlas {
 namespace {
 
 const cv::Scalar kGroundTruthColour(40, 40, 40);  // BGR: near black
-const cv::Scalar kEstimateColour(30, 30, 220);    // red
+// The estimates' colours, in turn (BGR): red, blue, green, orange, purple, teal.
+const cv::Scalar kEstimateColours[] = {{30, 30, 220}, {200, 90, 20},  {40, 160, 40},
+                                       {0, 140, 255}, {160, 50, 140}, {150, 150, 0}};
+constexpr int kDashPx = 10, kGapPx = 7;
 const cv::Scalar kGridColour(225, 225, 225);
 const cv::Scalar kTextColour(0, 0, 0);
 constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
@@ -51,7 +55,10 @@ struct View {
 
 View make_view(const TrajectoryPlot& plot, const cv::Rect& area) {
   double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
-  for (const auto* points : {&plot.ground_truth, &plot.estimate})
+  std::vector<const std::vector<Eigen::Vector3d>*> lines;
+  for (const auto& g : plot.ground_truth) lines.push_back(&g);
+  for (const PlotLine& e : plot.estimates) lines.push_back(&e.points);
+  for (const auto* points : lines)
     for (const Eigen::Vector3d& p : *points) {
       if (!std::isfinite(p.x()) || !std::isfinite(p.y())) continue;
       x0 = std::min(x0, p.x());
@@ -108,49 +115,93 @@ void draw_grid(cv::Mat& img, const View& v) {
   cv::putText(img, "y [m]", {a.x - 60, a.y - 10}, kFont, 0.55, kTextColour, 1, cv::LINE_AA);
 }
 
+std::vector<cv::Point2d> pixels(const View& v, const std::vector<Eigen::Vector3d>& points) {
+  std::vector<cv::Point2d> out;
+  out.reserve(points.size());
+  for (const Eigen::Vector3d& p : points)
+    if (std::isfinite(p.x()) && std::isfinite(p.y())) out.push_back(v.to_px(p.x(), p.y()));
+  return out;
+}
+
 void draw_path(cv::Mat& img, const View& v, const std::vector<Eigen::Vector3d>& points, const cv::Scalar& colour) {
   std::vector<cv::Point> line;
-  line.reserve(points.size());
-  for (const Eigen::Vector3d& p : points)
-    if (std::isfinite(p.x()) && std::isfinite(p.y())) line.push_back(fixed_point(v.to_px(p.x(), p.y())));
+  for (const cv::Point2d& p : pixels(v, points)) line.push_back(fixed_point(p));
   if (line.empty()) return;
   cv::polylines(img, line, false, colour, 2, cv::LINE_AA, kShift);
   cv::circle(img, line.front(), 5 << kShift, colour, 2, cv::LINE_AA, kShift);  // start marker
 }
 
+// Dashes of kDashPx with gaps of kGapPx along the polyline, continuing across its vertices.
+void draw_dashed(cv::Mat& img, const View& v, const std::vector<Eigen::Vector3d>& points, const cv::Scalar& colour) {
+  const std::vector<cv::Point2d> line = pixels(v, points);
+  double phase = 0.0;  // along the current dash-and-gap period
+  for (std::size_t i = 1; i < line.size(); ++i) {
+    const cv::Point2d a = line[i - 1], d = line[i] - line[i - 1];
+    const double length = std::hypot(d.x, d.y);
+    double at = 0.0;
+    while (at < length) {
+      const bool on = phase < kDashPx;
+      const double step = std::min(length - at, (on ? kDashPx : kDashPx + kGapPx) - phase);
+      if (on && length > 0)
+        cv::line(img, fixed_point(a + d * (at / length)), fixed_point(a + d * ((at + step) / length)), colour, 1,
+                 cv::LINE_AA, kShift);
+      at += step;
+      phase += step;
+      if (phase >= kDashPx + kGapPx) phase = 0.0;
+    }
+  }
+}
+
 void draw_legend(cv::Mat& img, const View& v, const TrajectoryPlot& plot) {
   const double font_scale = 0.5;
-  int base = 0;
-  const int text_w = std::max(cv::getTextSize(plot.ground_truth_label, kFont, font_scale, 1, &base).width,
-                              cv::getTextSize(plot.estimate_label, kFont, font_scale, 1, &base).width);
-  const cv::Rect box(v.area.x + v.area.width - text_w - 70, v.area.y + 10, text_w + 60, 52);
+  struct Entry {
+    const std::string* label;
+    cv::Scalar colour;
+    bool dashed;
+  };
+  std::vector<Entry> entries;
+  if (!plot.ground_truth.empty()) entries.push_back({&plot.ground_truth_label, kGroundTruthColour, true});
+  for (std::size_t i = 0; i < plot.estimates.size(); ++i)
+    entries.push_back({&plot.estimates[i].label, kEstimateColours[i % std::size(kEstimateColours)], false});
+  int base = 0, text_w = 0;
+  for (const Entry& e : entries)
+    text_w = std::max(text_w, cv::getTextSize(*e.label, kFont, font_scale, 1, &base).width);
+  const int rows = static_cast<int>(entries.size());
+  const cv::Rect box(v.area.x + v.area.width - text_w - 70, v.area.y + 10, text_w + 60, 8 + 22 * rows);
   cv::rectangle(img, box, cv::Scalar(255, 255, 255), cv::FILLED);
   cv::rectangle(img, box, cv::Scalar(160, 160, 160), 1);
-  const std::pair<const std::string*, cv::Scalar> entries[] = {{&plot.ground_truth_label, kGroundTruthColour},
-                                                               {&plot.estimate_label, kEstimateColour}};
   int y = box.y + 18;
-  for (const auto& [label, colour] : entries) {
-    cv::line(img, {box.x + 8, y - 4}, {box.x + 38, y - 4}, colour, 2, cv::LINE_AA);
-    cv::putText(img, *label, {box.x + 46, y}, kFont, font_scale, kTextColour, 1, cv::LINE_AA);
+  for (const Entry& e : entries) {
+    if (e.dashed) {
+      for (int x = box.x + 8; x < box.x + 38; x += kDashPx + kGapPx)
+        cv::line(img, {x, y - 4}, {std::min(x + kDashPx, box.x + 38), y - 4}, e.colour, 1, cv::LINE_AA);
+    } else {
+      cv::line(img, {box.x + 8, y - 4}, {box.x + 38, y - 4}, e.colour, 2, cv::LINE_AA);
+    }
+    cv::putText(img, *e.label, {box.x + 46, y}, kFont, font_scale, kTextColour, 1, cv::LINE_AA);
     y += 22;
   }
 }
 
 }  // namespace
 
+PlotArea trajectory_plot_area(int width_px, int height_px) { return {90, 75, width_px - 90 - 30, height_px - 75 - 70}; }
+
 void write_trajectory_plot(const std::filesystem::path& png, const TrajectoryPlot& plot) {
   ORBATLAS_CHECK(plot.width_px >= 300 && plot.height_px >= 300, "trajectory plot: image too small");
-  ORBATLAS_CHECK(!plot.ground_truth.empty() || !plot.estimate.empty(), "trajectory plot: nothing to draw");
+  ORBATLAS_CHECK(!plot.ground_truth.empty() || !plot.estimates.empty(), "trajectory plot: nothing to draw");
   cv::Mat img(plot.height_px, plot.width_px, CV_8UC3, cv::Scalar(255, 255, 255));
-  const cv::Rect area(90, 75, plot.width_px - 90 - 30, plot.height_px - 75 - 70);
+  const PlotArea a = trajectory_plot_area(plot.width_px, plot.height_px);
+  const cv::Rect area(a.x, a.y, a.width, a.height);
   const View view = make_view(plot, area);
 
   draw_grid(img, view);
   cv::Mat clip = img(area);  // paths stay inside the axes
   View local = view;
   local.area = cv::Rect(0, 0, area.width, area.height);
-  draw_path(clip, local, plot.ground_truth, kGroundTruthColour);
-  draw_path(clip, local, plot.estimate, kEstimateColour);
+  for (const auto& g : plot.ground_truth) draw_dashed(clip, local, g, kGroundTruthColour);
+  for (std::size_t i = 0; i < plot.estimates.size(); ++i)
+    draw_path(clip, local, plot.estimates[i].points, kEstimateColours[i % std::size(kEstimateColours)]);
   draw_legend(img, view, plot);
 
   int base = 0;
