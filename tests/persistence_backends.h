@@ -1,5 +1,5 @@
 #pragma once
-// The persistence tests' backends, COLMAP-style (issue 23): one test body,
+// The persistence tests' backends, COLMAP-style: one test body,
 // instantiated once per database. A test derives its suite from
 // AtlasBackendTest and instantiates it with ORBATLAS_PERSISTENCE_BACKENDS;
 // each instance gets a database of its own: a temporary SQLite file, or a

@@ -4,7 +4,7 @@
 // Each time, the file must pass SQLite's integrity check, open, and load into
 // exactly the state k_db its checkpoint sequence names, with k_db the last state
 // the writer acknowledged or the one after (committed, not yet acknowledged).
-// The same on PostgreSQL (issue 23): the writer checkpoints into a fresh
+// The same on PostgreSQL: the writer checkpoints into a fresh
 // database of a throwaway cluster per kill, whose server sees the connection
 // die and rolls the open transaction back.
 #include <fcntl.h>

@@ -1,4 +1,4 @@
-// One writer per atlas, on either backend (issue 23): a second writer is
+// One writer per atlas, on either backend: a second writer is
 // refused naming the first, the lock goes with its holder, and the next holder
 // learns whether the previous one stopped cleanly (the id gap after a crash).
 // SQLite: a flock on "<db>.lock"; PostgreSQL: a session-level advisory lock
@@ -48,7 +48,7 @@ TEST_P(DatabaseLockTest, ASecondWriterIsRefusedNamingTheFirst) {
   DatabaseLock again(location());
 }
 
-// Server replicas of one PostgreSQL atlas (issue 23) hold the lock together; a
+// Server replicas of one PostgreSQL atlas hold the lock together; a
 // single writer (orbatlas run) is refused while they do, and they while it
 // does. An SQLite atlas has one writer: shared is exclusive there.
 TEST_P(DatabaseLockTest, ServerReplicasShareTheLockASingleWriterDoesNot) {

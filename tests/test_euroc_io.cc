@@ -369,7 +369,7 @@ TEST(EurocIo, OptionalStreams) {
   EXPECT_NE(read_error(dir.path(), {.require_imu = true}).find("imu0"), std::string::npos);
 }
 
-// An upload's lists name files inside it only (issue 66: a data.csv naming
+// An upload's lists name files inside it only (a data.csv naming
 // /other/folder/X.png or ../../X.png was tracked from another folder's images).
 TEST(EurocIo, AConfinedReadRefusesFilesOutsideTheFolder) {
   TempDir dir;

@@ -1,4 +1,4 @@
-// Inertial-only initialisation (issue 19) against exact ground truth: keyframe
+// Inertial-only initialisation against exact ground truth: keyframe
 // poses of a visual map (its frame: the first keyframe's body, not gravity
 // aligned), noisy synthetic IMU with drifting biases from the real MH_01
 // trajectory; gravity direction, velocities and biases are compared with the

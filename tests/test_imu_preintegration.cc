@@ -1,4 +1,4 @@
-// IMU preintegration (issue 19) against exact ground truth: noise-free IMU
+// IMU preintegration against exact ground truth: noise-free IMU
 // synthesised from the real MH_01 trajectory (the simulator's spline) must carry
 // the true state of one instant to the true state 0.5-2 s later; the bias
 // Jacobians must predict a re-integration with another bias; the propagated

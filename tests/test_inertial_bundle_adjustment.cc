@@ -1,4 +1,4 @@
-// Visual-inertial local bundle adjustment (issue 19) against exact synthetic
+// Visual-inertial local bundle adjustment against exact synthetic
 // data: twelve stereo keyframes 0.25 s apart on the real MH_01 trajectory (the
 // simulator's spline), exact projections of points into the EuRoC camera, and
 // the ideal IMU with a constant bias between consecutive keyframes,

@@ -1,4 +1,4 @@
-// Visual-inertial pose optimisation (issue 19) against exact synthetic data: two
+// Visual-inertial pose optimisation against exact synthetic data: two
 // frames 50 ms apart on the real MH_01 trajectory (the simulator's spline), the
 // ideal IMU between them, and exact projections of random points into the
 // EuRoC camera at the second frame.

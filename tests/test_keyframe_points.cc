@@ -1,4 +1,4 @@
-// Filling a new keyframe while local mapping edits it (the race of issue 16):
+// Filling a new keyframe while local mapping edits it (a race local mapping once lost):
 // the atomic slot edits and add_keyframe_points, deterministically and under a
 // concurrent fusing thread.
 #include <gtest/gtest.h>

@@ -61,7 +61,7 @@ TEST(MapModel, IdAllocatorCanBeReseeded) {
   EXPECT_EQ(ids.peek(IdKind::map), 1u);
 }
 
-// Replicas of one database (issue 23): each hands out ids from its own range,
+// Replicas of one database: each hands out ids from its own range,
 // and ids it loads from the others' ranges never move its counter.
 TEST(MapModel, AConfinedAllocatorStaysInItsRange) {
   IdAllocator ids;
@@ -348,7 +348,7 @@ TEST(MapModel, UnseenMapPointsAreEachPointOnceThroughEverySlotEdit) {
   EXPECT_TRUE(walked.empty());  // all seen now
 }
 
-// The inertial chain (issue 19): each keyframe links to its predecessor with
+// The inertial chain: each keyframe links to its predecessor with
 // the IMU preintegrated between them; culling a keyframe of the chain joins its
 // two increments into its successor's link, so the chain skips it and spans the
 // same time; culling the chain's first keyframe breaks the chain there.

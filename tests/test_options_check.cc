@@ -1,4 +1,4 @@
-// Every options struct checks itself (issue 17, item 3): its defaults pass, and a
+// Every options struct checks itself: its defaults pass, and a
 // value the code cannot work with throws Error naming the field. One line per
 // refused value; parents are shown to check their parts.
 #include <gtest/gtest.h>

@@ -229,7 +229,7 @@ TEST_P(PersistenceBackends, LoadingWithoutVocabularyLeavesBowEmpty) {
   expect_atlas_eq(original, loaded, false);
 }
 
-// One map read again (a replica taking over another's map, issue 23): the
+// One map read again (a replica taking over another's map): the
 // stored version, into a detached map the atlas then takes in place of its own
 // copy, not recorded as removed.
 TEST_P(PersistenceBackends, OneMapIsReadAgainAsStored) {

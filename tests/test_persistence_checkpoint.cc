@@ -498,7 +498,7 @@ TEST_P(CheckpointTest, ACheckpointWritesWhatChangedOnly) {
 }
 
 // A map server's checkpoints run at its background threads' nice value, so
-// that writing the database leaves the cores to tracking first (issue 21).
+// that writing the database leaves the cores to tracking first.
 TEST_P(CheckpointTest, TheCheckpointThreadRunsAtItsNiceValue) {
   Atlas atlas;
   const auto map = atlas.create_map();
@@ -622,7 +622,7 @@ TEST_P(CheckpointTest, MergedMapMovesItsRowsAndLeavesTheFile) {
   expect_file_holds(other, atlas);
 }
 
-// Several writers of one database (replicas, issue 23): each writes only the
+// Several writers of one database (replicas): each writes only the
 // maps it may write (its ids from a range of its own), and neither writes nor
 // deletes the others' rows; a map it may write again after a time it could not
 // is rewritten whole, so the file then holds its version exactly.

@@ -1,4 +1,4 @@
-// Values come back from either database exactly (issue 23): doubles bit for
+// Values come back from either database exactly: doubles bit for
 // bit (subnormals, extremes, infinities, random mantissas), blobs byte for
 // byte, 64-bit integers at both ends of their range, text with quotes and
 // UTF-8. One difference is pinned down: SQLite stores a REAL -0.0 as +0.0

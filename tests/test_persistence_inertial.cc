@@ -1,4 +1,4 @@
-// A visual-inertial map in the atlas database (issue 19): the keyframes'
+// A visual-inertial map in the atlas database: the keyframes'
 // inertial links (the IMU increments between them), their IMU states
 // (velocity, biases) and the map's inertial state are stored and loaded equal;
 // a save after culling stores the joined increments, a checkpoint a refined

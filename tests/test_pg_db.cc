@@ -1,4 +1,4 @@
-// The PostgreSQL connection wrapper (issue 23) against a throwaway cluster:
+// The PostgreSQL connection wrapper against a throwaway cluster:
 // values round-trip exactly in binary, the typed readers are as strict as
 // SQLite's, transactions commit and roll back, and failures are clear errors.
 // Skipped, with the reason, where PostgreSQL's binaries are missing.

@@ -1,4 +1,4 @@
-// The atlas's schema in PostgreSQL (issue 23) against SQLite's: the same tables
+// The atlas's schema in PostgreSQL against SQLite's: the same tables
 // and columns with the same types and nullability; the same rules (the
 // one-map triggers, NaN refused where SQLite refuses it); migrations that
 // apply once, and refuse another application's database. Skipped, with the

@@ -1,4 +1,4 @@
-// The replicas of one atlas database (issue 23, core/server/replica_registry.h):
+// The replicas of one atlas database (core/server/replica_registry.h):
 // registered, renewed, stopped, and seen dead by the others when killed, on a
 // throwaway PostgreSQL cluster; an SQLite atlas's one server.
 #include <gtest/gtest.h>

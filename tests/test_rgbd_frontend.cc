@@ -1,4 +1,4 @@
-// The RGB-D front end (issue 20) on a rendered Machine Hall frame with its
+// The RGB-D front end on a rendered Machine Hall frame with its
 // depth image from the simulated depth camera: every keypoint with depth has
 // the depth the renderer drew along its (undistorted) ray, and the virtual
 // right coordinate u - bf / depth; bad input gets a clear error.

@@ -201,7 +201,7 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   EXPECT_TRUE(none.contains("reason"));
 }
 
-// A stereo-inertial session over HTTP (issue 19): orbatlas stream sends the
+// A stereo-inertial session over HTTP: orbatlas stream sends the
 // recording's IMU before each frame, the session links its keyframes by it,
 // and the finished session reports its map's inertial initialisation. A plain
 // stereo session of the same cameras streamed first: the server's mapping of
@@ -261,7 +261,7 @@ TEST(ServerEndToEnd, AStereoInertialStreamInitialisesItsMap) {
   EXPECT_EQ(finished["imu_warnings"], status["imu_warnings"]);
 }
 
-// An RGB-D session over HTTP (issue 20): orbatlas stream sends each colour
+// An RGB-D session over HTTP: orbatlas stream sends each colour
 // image with its 16-bit depth image (the TUM RGB-D layout of sim --depth), the
 // server maps with them, and the merging worker refines the map with the
 // camera its keyframes were made with. An RGB-D frame's depth errors are
@@ -829,7 +829,7 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
   EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
 }
 
-// The same two places flown by two stereo-inertial sessions (issue 19): both
+// The same two places flown by two stereo-inertial sessions: both
 // maps are gravity aligned, so the merge turns the second about the vertical
 // only, and the merging worker's global BAs keep the IMU terms: the first map's
 // refinement its session's chain, the merged map's both sessions' chains.

@@ -1,4 +1,4 @@
-// Named clients, roles and session ownership (issue 66): before, anyone with the
+// Named clients, roles and session ownership: before, anyone with the
 // one token could send frames to or finish anyone's session.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// What an outside probe of the server found (issue 24), each as a test that
+// What an outside probe of the server found, each as a test that
 // fails on the code before its fix: ids and rows after a crash, one writer per
 // database and per port, refusals before work (image headers, limits,
 // timestamps, names), settings parsed in memory, idle sessions, HTTP details.

@@ -1,4 +1,4 @@
-// HTTP framing on the wire (issue 66): what an outside probe sent as raw bytes,
+// HTTP framing on the wire: what an outside probe sent as raw bytes,
 // each a test that failed before the fix. After a reply the server sends before
 // a body was read, or to a request that did not parse, the connection is closed
 // for real (the reply says so once) and nothing that followed is run as a

@@ -1,4 +1,4 @@
-// Limits on what a client sends (issue 66): uploads read files inside their own
+// Limits on what a client sends: uploads read files inside their own
 // folder only, IMU values and batches are bounded, numbers do not wrap, and IMU
 // alone does not hold a session past its idle timeout. Each failed before its fix.
 #include <gtest/gtest.h>

@@ -317,7 +317,7 @@ TEST(ServerProcess, ConfigFileIsReadFlagsOverrideItAndTheEffectiveOptionsAreLogg
   std::filesystem::remove(log);
 }
 
-// `--db postgresql://...` (issue 23): a session streamed into a server whose
+// `--db postgresql://...`: a session streamed into a server whose
 // atlas is a PostgreSQL database (a throwaway cluster), the server killed with
 // SIGKILL and started again: the map is there, written by the new replica, and
 // new ids continue past any the killed one may have handed out.
@@ -408,7 +408,7 @@ TEST(ServerProcess, PostgresDatabaseKeepsTheMapAcrossARestart) {
   std::filesystem::remove(log);
 }
 
-// Two replicas over one PostgreSQL atlas (issue 23): each maps its own session
+// Two replicas over one PostgreSQL atlas: each maps its own session
 // into a map of its own (ids from its own ranges), each reads and localises in
 // the map the other made, one is killed with SIGKILL,
 // the other takes its map over once its lease has passed (reading it again:
@@ -522,7 +522,7 @@ TEST(ServerProcess, TwoReplicasMapTheirOwnMapsAndOneTakesOverWhenTheOtherDies) {
   }
 }
 
-// The shared upload queue (issue 23): two replicas over one PostgreSQL atlas
+// The shared upload queue: two replicas over one PostgreSQL atlas
 // and one work folder. Two uploads to a: a's one worker takes the first, b's
 // free worker the second; a is SIGKILLed while it runs the first, which b runs
 // again, once a's lease has passed, to the end; b owns a's maps then, and
@@ -607,7 +607,7 @@ TEST(ServerProcess, AnUploadWhoseReplicaDiesIsFinishedByTheOther) {
   std::filesystem::remove_all(work);
 }
 
-// Merge work as rows (issue 23): a maps again, in a map of its own, a place
+// Merge work as rows: a maps again, in a map of its own, a place
 // b mapped, and b merges a's map into its own map:
 // - kNoMergingKilled: a does not merge (--no-merging), so the merge work of
 //   its finished session waits in the database; b takes it with a's map once

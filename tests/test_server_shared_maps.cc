@@ -1,4 +1,4 @@
-// Shared maps (issue 18). Localisation sessions read, never lock: eight
+// Shared maps. Localisation sessions read, never lock: eight
 // sessions (single camera and stereo, mode "localize") stream at once into one
 // stored map over HTTP; each is tracked in that map's frame from its first
 // recognised frame, and the map's rows in the database are unchanged. Mapping

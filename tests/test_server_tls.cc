@@ -1,4 +1,4 @@
-// HTTPS (issue 66): the server with a throwaway certificate (made by Debian's
+// HTTPS: the server with a throwaway certificate (made by Debian's
 // `openssl`), a stream, an upload and a localisation over it end to end, and
 // what a client that does not trust it, or does not speak TLS, gets.
 #include <gtest/gtest.h>

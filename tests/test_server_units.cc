@@ -137,7 +137,7 @@ TEST(RequestImage, DecodesPngAndRawAndRefusesTheRest) {
       std::string::npos);
 }
 
-// A PNG whose image data inflates to far more than its size needs (issue 66: a
+// A PNG whose image data inflates to far more than its size needs (a
 // 290 KB request with 300 MB of surplus IDAT cost 0.74 s of CPU): refused
 // before decoding, after inflating at most its size's worth.
 TEST(RequestImage, PngDataBeyondTheImageIsRefused) {

@@ -1,5 +1,5 @@
-// The upload queue every replica of a PostgreSQL atlas takes from (issue 23,
-// core/server/shared_job_queue.h), on a throwaway cluster: claims in order and
+// The upload queue every replica of a PostgreSQL atlas takes from
+// (core/server/shared_job_queue.h), on a throwaway cluster: claims in order and
 // never twice, the jobs of a replica that stopped wait again, an upload it was
 // receiving fails; the stored session request round-trips.
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
-// Merge work shared between the replicas of a PostgreSQL atlas (issue 23,
-// core/server/shared_merges.h, core/server/map_ownership.h), on a throwaway
+// Merge work shared between the replicas of a PostgreSQL atlas
+// (core/server/shared_merges.h, core/server/map_ownership.h), on a throwaway
 // cluster: a map's merge row is claimed by the replica that owns the map, once;
 // put back as it was, or until a retry time (then nobody asks for its map);
 // asked for by another replica once it waited;

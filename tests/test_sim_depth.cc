@@ -1,4 +1,4 @@
-// The simulated depth camera (`orbatlas sim --depth`, issue 20) against exact
+// The simulated depth camera (`orbatlas sim --depth`) against exact
 // geometry: a tilted wall seen through the distorted EuRoC cam0 reads, at
 // every pixel up to the image corners, the depth of that pixel's ray; the
 // noise has the sigma asked for; a depth edge leaves holes; depths out of range

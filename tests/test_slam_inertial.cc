@@ -1,4 +1,4 @@
-// Visual-inertial SLAM (issue 19), first stage, through the runner: a
+// Visual-inertial SLAM, first stage, through the runner: a
 // stereo-inertial config fuses the clip's imu0. Keyframes are linked by the IMU
 // preintegrated between them, and after about 2 s of keyframes the map gets its
 // inertial initialisation: it is turned so that gravity is -z of its frame, and

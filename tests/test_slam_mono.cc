@@ -1,4 +1,4 @@
-// Monocular SLAM (issue 20) through the runner: a simulated clip of one camera
+// Monocular SLAM through the runner: a simulated clip of one camera
 // (cam0 of the rendering, config/euroc/mono.yaml) starts its map from two views
 // and maps at its own scale; the camera's trajectory, aligned with a
 // similarity, follows the ground truth within a small fraction of the path.

@@ -1,4 +1,4 @@
-// RGB-D SLAM (issue 20) through the runner: a simulated clip with the depth
+// RGB-D SLAM through the runner: a simulated clip with the depth
 // camera of `sim --depth` (noise growing with the square of the depth, holes,
 // nothing beyond 10 m), read in the TUM RGB-D layout with config/euroc/rgbd.yaml,
 // maps with an error comparable to stereo SLAM on the same images.

@@ -1,4 +1,4 @@
-// Write transactions with many rows, on both backends (issue 23): PostgreSQL
+// Write transactions with many rows, on both backends: PostgreSQL
 // batches a write transaction's statements (libpq's pipeline mode, pg_db.h),
 // so a statement's failure may surface later than its run(). Whatever the
 // backend: a failure in the middle of a long transaction throws, naming the

@@ -1,4 +1,4 @@
-// Monocular two-view reconstruction (issue 20) against exact synthetic scenes:
+// Monocular two-view reconstruction against exact synthetic scenes:
 // a general scene (points at 3-9 m) and a planar one (a tilted wall at 6 m),
 // seen by the EuRoC camera's pinhole (458 px focal length, 752x480) from two
 // poses 0.3 m (0.6 m for the wall) apart. The right model must be chosen, and

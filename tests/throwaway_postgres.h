@@ -1,5 +1,5 @@
 #pragma once
-// A throwaway PostgreSQL cluster for tests (issue 23): initdb into a temporary
+// A throwaway PostgreSQL cluster for tests: initdb into a temporary
 // folder, the server listening on a Unix socket in that folder only (no TCP
 // port, so parallel tests never collide), stopped and removed at the end. The
 // binaries are Debian's (`postgresql`, installed by scripts/setup.sh); as root,
