@@ -43,7 +43,7 @@ void run_feature_bench(const FeatureBenchOptions& o) {
   EurocReadOptions ro;
   ro.require_cam1 = true;
   const EurocDataset dataset = read_euroc_dataset(o.dataset, ro);
-  const std::vector<StereoFrame> frames = pair_stereo_frames(dataset);
+  const std::vector<DatasetFrame> frames = pair_stereo_frames(dataset);
   ORBATLAS_CHECK(!frames.empty(), "no stereo frames in " << o.dataset.string());
 
   OrbExtractor left_extractor(orb_options_from(settings)), right_extractor(orb_options_from(settings));
@@ -62,7 +62,7 @@ void run_feature_bench(const FeatureBenchOptions& o) {
   KeyframeDatabase database;
   cv::Mat left_rect, right_rect;
   for (std::size_t k = 0; k < n_db; ++k) {
-    const StereoFrame& f = frames[k * frames.size() / n_db];
+    const DatasetFrame& f = frames[k * frames.size() / n_db];
     const bool timed = (k * n_time) / n_db != ((k + 1) * n_time) / n_db;  // ~n_time of the n_db frames
     const cv::Mat left = read_gray(f.left), right = read_gray(f.right);
     auto t0 = Clock::now();

@@ -21,8 +21,8 @@
 #include "core/io/euroc_reader.h"
 #include "core/io/settings.h"
 #include "core/io/tum_trajectory.h"
-#include "core/place/relocalizer.h"
-#include "core/slam/stereo_slam.h"
+#include "core/relocalization/relocalizer.h"
+#include "core/slam/slam_system.h"
 #include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
 
@@ -58,9 +58,9 @@ void run_place_bench(const PlaceBenchOptions& o) {
 
   // The map: stereo SLAM over the whole --map recording (synchronous mapping).
   Atlas atlas;
-  StereoSlamOptions so;
+  SlamSystemOptions so;
   so.synchronous_mapping = true;
-  StereoSlam slam(atlas, settings, vocabulary, so);
+  SlamSystem slam(atlas, settings, vocabulary, so);
   const auto map_frames = pair_stereo_frames(map_ds);
   Progress progress("bench place: mapping", static_cast<std::int64_t>(map_frames.size()), o.show_progress);
   for (const auto& f : map_frames) {

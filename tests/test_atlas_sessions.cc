@@ -20,7 +20,7 @@
 #include "core/persistence/atlas_store.h"
 #include "core/slam/dataset_runner.h"
 #include "core/vocabulary/default_vocabulary.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
@@ -45,12 +45,12 @@ TEST(AtlasSessions, RunsAppendSessionsAndLocalizationTracksInTheStoredMapFrame) 
 
   // Session 1 builds a map; session 2 (same file) starts one of its own, which
   // live merging joins to the stored map once it recognises the place.
-  const DatasetRunReport first = run_stereo_dataset(options_for(clip, db));
+  const DatasetRunReport first = run_dataset(options_for(clip, db));
   ASSERT_TRUE(first.session.has_value());
   ASSERT_TRUE(first.checkpoints.has_value());
   EXPECT_EQ(first.checkpoints->failures, 0u);
   EXPECT_GE(first.checkpoints->commits, 1u);
-  const DatasetRunReport second = run_stereo_dataset(options_for(clip, db));
+  const DatasetRunReport second = run_dataset(options_for(clip, db));
   EXPECT_EQ(second.loaded_maps, 1u);
   EXPECT_EQ(second.loaded_keyframes, first.stats.keyframes);
   ASSERT_TRUE(second.session.has_value());
@@ -91,7 +91,7 @@ TEST(AtlasSessions, RunsAppendSessionsAndLocalizationTracksInTheStoredMapFrame) 
   const auto size_before = std::filesystem::file_size(db);
   DatasetRunOptions lo = options_for(again, db);
   lo.localize_only = true;
-  const DatasetRunReport loc = run_stereo_dataset(lo);
+  const DatasetRunReport loc = run_dataset(lo);
   EXPECT_FALSE(loc.session.has_value());
   EXPECT_EQ(loc.stats.keyframes_made, 0u);
   EXPECT_EQ(std::filesystem::file_size(db), size_before);
@@ -136,7 +136,7 @@ TEST(AtlasSessions, RunsAppendSessionsAndLocalizationTracksInTheStoredMapFrame) 
   std::ofstream(other_rig) << yaml;
   DatasetRunOptions other = options_for(clip, db);
   other.settings = other_rig;
-  const DatasetRunReport third = run_stereo_dataset(other);
+  const DatasetRunReport third = run_dataset(other);
   EXPECT_EQ(third.loaded_maps, 1u);
   EXPECT_TRUE(third.stats.loop.merges.empty());
   EXPECT_EQ(third.stats.maps, 2u);
@@ -162,7 +162,7 @@ TEST(AtlasSessions, SeveralRecordingsAtOnceMapOnePlaceTogether) {
   const auto db = dir / "atlas.db";
   DatasetRunOptions options = options_for(a, db);
   options.realtime = true;  // both at the camera rate, as two devices
-  const std::vector<DatasetRunReport> reports = run_stereo_datasets(options, {a, b});
+  const std::vector<DatasetRunReport> reports = run_datasets(options, {a, b});
   ASSERT_EQ(reports.size(), 2u);
   std::set<MapId> maps;
   Trajectory joint, truth;
@@ -244,7 +244,7 @@ TEST(AtlasSessions, AMapSeveralRecordingsMapAtOnceIsAdjustedWholeAsItGrows) {
         options.slam.synchronous_mapping = true;
         options.slam.loop.shared_map_refinement_growth = on ? 0.5 : 0.0;
         options.slam.loop.shared_map_refinement_min_keyframes = 8;
-        return run_stereo_datasets(options, clips);
+        return run_datasets(options, clips);
       },
       runs);
   if (HasFatalFailure()) return;
@@ -265,7 +265,7 @@ TEST(AtlasSessions, AMapSeveralRecordingsMapAtOnceIsAdjustedWholeAsItGrows) {
 }
 
 // A recording that ends in a map another recording mapped too waits, in its
-// finish, for a global BA of that map (StereoSlamOptions::shared_map_finish_wait_s,
+// finish, for a global BA of that map (SlamSystemOptions::shared_map_finish_wait_s,
 // LoopCloser::refine_at_stream_end), the server's finish too: one, by the first
 // recording to end (the second finds the map adjusted since). None without the
 // wait, none for a map of one recording.
@@ -285,7 +285,7 @@ TEST(AtlasSessions, ARecordingEndingInASharedMapHasTheMapAdjustedInItsFinish) {
         options.slam.loop.shared_map_refinement_growth = 0.0;  // only merges' and the ends' global BAs
         options.slam.loop.shared_map_refinement_min_keyframes = 8;
         options.slam.shared_map_finish_wait_s = on ? 60.0 : 0.0;
-        return run_stereo_datasets(options, clips);
+        return run_datasets(options, clips);
       },
       runs);
   if (HasFatalFailure()) return;
@@ -325,7 +325,7 @@ TEST(AtlasSessions, ASessionInAnothersMapMakesKeyframesForItsOwnClosePoints) {
     options.slam.synchronous_mapping = true;
     options.slam.tracker.own_close_points = own;
     options.slam.tracker.max_local_keyframes = max_local_keyframes;
-    return run_stereo_datasets(options, clips);
+    return run_datasets(options, clips);
   };
   const auto with = run(true, {a, b}, "with");
   const auto without = run(false, {a, b}, "without");

@@ -12,7 +12,7 @@
 #include "core/io/bag_dataset.h"
 #include "core/io/euroc_reader.h"
 #include "core/slam/dataset_runner.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
@@ -81,8 +81,8 @@ TEST(Bag, ABagAndTheAslFolderOfOneRecordingGiveTheSameFramesImuAndRun) {
     ASSERT_EQ(from_bag.imu[i].accel, asl.imu[i].accel) << i;
   }
   // The same stereo-inertial run, pose for pose.
-  const DatasetRunReport a = run_stereo_dataset(run_options(clip));
-  const DatasetRunReport b = run_stereo_dataset(run_options(unpacked.dataset()));
+  const DatasetRunReport a = run_dataset(run_options(clip));
+  const DatasetRunReport b = run_dataset(run_options(unpacked.dataset()));
   ASSERT_GT(a.trajectory.size(), 70u);
   ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
   // Two runs of one folder differ by about 1e-14 m (the solvers' threads add in

@@ -13,7 +13,7 @@
 #include "core/camera/kannala_brandt.h"
 #include "core/camera/pinhole_radtan.h"
 #include "core/common/error.h"
-#include "tests/sim_test_helpers.h"
+#include "tests/support/sim_test_helpers.h"
 
 namespace orbatlas {
 namespace {

@@ -23,7 +23,7 @@
 
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/sqlite_db.h"
-#include "tests/persistence_backends.h"
+#include "tests/support/persistence_backends.h"
 #include "tests/test_crash_safety_model.h"
 #include "tests/test_persistence_expect.h"
 #include "tests/test_persistence_random_atlas.h"

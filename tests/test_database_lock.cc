@@ -15,7 +15,7 @@
 #include "core/persistence/atlas_location.h"
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/database_lock.h"
-#include "tests/persistence_backends.h"
+#include "tests/support/persistence_backends.h"
 
 namespace orbatlas {
 namespace {

@@ -15,7 +15,7 @@
 #include "core/sim/euroc_sequences.h"
 #include "core/sim/imu_synthesizer.h"
 #include "core/sim/trajectory_spline.h"
-#include "tests/sim_test_helpers.h"
+#include "tests/support/sim_test_helpers.h"
 
 namespace orbatlas {
 namespace {

@@ -12,7 +12,7 @@
 
 #include "core/common/error.h"
 #include "core/features/linear_resize.h"
-#include "tests/rendered_frames.h"
+#include "tests/support/rendered_frames.h"
 
 namespace orbatlas {
 namespace {

@@ -12,7 +12,7 @@
 #include "core/geometry/so3.h"
 #include "core/map/atlas.h"
 #include "core/optimization/local_bundle_adjustment.h"
-#include "tests/sim_test_helpers.h"
+#include "tests/support/sim_test_helpers.h"
 
 namespace orbatlas {
 namespace {

@@ -19,10 +19,10 @@
 
 #include "core/common/data_paths.h"
 #include "core/eval/evaluate.h"
-#include "core/slam/stereo_slam.h"
+#include "core/slam/slam_system.h"
 #include "core/vocabulary/default_vocabulary.h"
 #include "core/io/imu_batches.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
@@ -87,12 +87,12 @@ void injected_drift_case(const DriftCase& c) {
   const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / c.config);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
   Atlas atlas;
-  StereoSlamOptions o;
+  SlamSystemOptions o;
   o.synchronous_mapping = true;  // deterministic, and the map is quiet between frames
   // Loop closing on a thread shared with other sessions, as in the server.
   SessionWiring wiring;
   wiring.loop_worker = std::make_shared<SerialWorker>(8);
-  StereoSlam slam(atlas, settings, vocabulary, o, wiring);
+  SlamSystem slam(atlas, settings, vocabulary, o, wiring);
   const bool monocular = settings.sensor == SensorType::kMonocular;
   EvalOptions eval_options;
   if (monocular) {

@@ -18,10 +18,10 @@
 #include "core/optimization/apply_global_adjustment.h"
 #include "core/loop/map_merge.h"
 #include "core/loop/place_recognizer.h"
-#include "core/slam/stereo_slam.h"
+#include "core/slam/slam_system.h"
 #include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
@@ -48,12 +48,12 @@ Session run_session(Atlas& atlas, const std::filesystem::path& clip, const SlamS
     const Pose3 T_b_c = StereoFrontend(settings, false).calibration().T_b_c;  // the rectified left camera
     for (auto& p : s.ground_truth) p.pose = p.pose * T_b_c;
   }
-  StereoSlamOptions o;
+  SlamSystemOptions o;
   o.synchronous_mapping = true;  // deterministic
   o.live_merging = live_merging;
   SessionWiring wiring;
   wiring.may_enter_map = [](MapId) { return false; };
-  StereoSlam slam(atlas, settings, vocabulary, o, wiring);
+  SlamSystem slam(atlas, settings, vocabulary, o, wiring);
   for (const auto& f : pair_stereo_frames(dataset))
     s.results.push_back(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
                                      monocular ? cv::Mat() : cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE)));

@@ -18,7 +18,7 @@
 #include "core/sim/machine_hall.h"
 #include "core/sim/renderer.h"
 #include "core/sim/trajectory_spline.h"
-#include "tests/rendered_frames.h"
+#include "tests/support/rendered_frames.h"
 
 namespace orbatlas {
 namespace {

@@ -31,7 +31,7 @@
 #include "core/optimization/pose_optimizer.h"
 #include "core/optimization/sim3_refinement.h"
 #include "core/persistence/atlas_checkpointer.h"
-#include "core/place/relocalizer.h"
+#include "core/relocalization/relocalizer.h"
 #include "core/server/atlas_service.h"
 #include "core/server/map_merge_worker.h"
 #include "core/sim/imu_synthesizer.h"
@@ -42,7 +42,7 @@
 #include "core/sim/trajectory_spline.h"
 #include "core/slam/dataset_runner.h"
 #include "core/slam/mono_localizer.h"
-#include "core/slam/stereo_slam.h"
+#include "core/slam/slam_system.h"
 #include "core/tracking/keyframe_points.h"
 #include "core/tracking/tracker.h"
 #include "core/vocabulary/kmedians.h"
@@ -82,16 +82,16 @@ TEST(OptionsCheck, TrackingAndSessions) {
   refused<KeyframePointsOptions>("th_depth_m", [](auto& o) { o.th_depth_m = -1.0; });
   refused<KeyframePointsOptions>("min_points", [](auto& o) { o.min_points = -1; });
 
-  EXPECT_NO_THROW(StereoSlamOptions{}.check());
-  refused<StereoSlamOptions>("relocalization", [](auto& o) {
+  EXPECT_NO_THROW(SlamSystemOptions{}.check());
+  refused<SlamSystemOptions>("relocalization", [](auto& o) {
     o.tracker.localization_only = true;
     o.relocalization = false;
   });
-  refused<StereoSlamOptions>("min_inliers", [](auto& o) { o.tracker.min_inliers = -1; });
-  refused<StereoSlamOptions>("queue_capacity", [](auto& o) { o.mapper.queue_capacity = 0; });
-  refused<StereoSlamOptions>("bow_ratio", [](auto& o) { o.loop.recognition.bow_ratio = 1.5f; });
-  refused<StereoSlamOptions>("num_threads", [](auto& o) { o.final_ba.num_threads = 0; });
-  refused<StereoSlamOptions>("shared_map_finish_wait_s", [](auto& o) { o.shared_map_finish_wait_s = -1.0; });
+  refused<SlamSystemOptions>("min_inliers", [](auto& o) { o.tracker.min_inliers = -1; });
+  refused<SlamSystemOptions>("queue_capacity", [](auto& o) { o.mapper.queue_capacity = 0; });
+  refused<SlamSystemOptions>("bow_ratio", [](auto& o) { o.loop.recognition.bow_ratio = 1.5f; });
+  refused<SlamSystemOptions>("num_threads", [](auto& o) { o.final_ba.num_threads = 0; });
+  refused<SlamSystemOptions>("shared_map_finish_wait_s", [](auto& o) { o.shared_map_finish_wait_s = -1.0; });
   EXPECT_NO_THROW(MonoLocalizerOptions{}.check());
   refused<MonoLocalizerOptions>("recently_lost_s", [](auto& o) { o.tracker.recently_lost_s = kNaN; });
   EXPECT_NO_THROW(DatasetRunOptions{}.check());
@@ -315,7 +315,7 @@ TEST(OptionsCheck, ConsumersCheckAtEntry) {
   EXPECT_THROW(associate({}, {}, association), Error);
   DatasetRunOptions run;
   run.start_s = kNaN;
-  EXPECT_THROW(run_stereo_dataset(run), Error);
+  EXPECT_THROW(run_dataset(run), Error);
   sim::SimulationOptions simulation;
   simulation.out_dir = "/tmp/orbatlas-never-written";
   simulation.every = 0;

@@ -31,7 +31,8 @@
 #include "core/sim/machine_hall.h"
 #include "core/sim/renderer.h"
 #include "core/sim/trajectory_spline.h"
-#include "tests/rendered_frames.h"
+#include "tests/support/rendered_frames.h"
+#include "tests/support/requirement.h"
 
 namespace orbatlas {
 namespace {
@@ -379,9 +380,9 @@ TEST(OrbExtractor, PyramidLevelsHaveReflectedBorders) {
 
 TEST(OrbExtractor, RealEurocFrame) {
   const auto euroc = shared_euroc_dir();
-  if (!euroc) GTEST_SKIP() << "no real EuRoC data (../shared/data/euroc or ORBATLAS_SHARED_EUROC)";
+  if (!euroc) ORBATLAS_NEEDS("the real EuRoC data (../shared/data/euroc or ORBATLAS_SHARED_EUROC)");
   const auto path = *euroc / "V1_01_micro" / "mav0" / "cam0" / "data" / "1403715273262142976.png";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " is missing";
+  if (!std::filesystem::exists(path)) ORBATLAS_NEEDS(path << " (a real EuRoC frame)");
   const cv::Mat image = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
   ASSERT_FALSE(image.empty()) << path;
   OrbExtractorOptions options;

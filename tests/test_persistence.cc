@@ -20,7 +20,7 @@
 #include "core/persistence/blob_codec.h"
 #include "core/persistence/schema_migrations.h"
 #include "core/persistence/sqlite_db.h"
-#include "tests/persistence_backends.h"
+#include "tests/support/persistence_backends.h"
 #include "tests/test_persistence_expect.h"
 #include "tests/test_persistence_random_atlas.h"
 
@@ -57,7 +57,7 @@ std::string data_error_message(F&& f) {
   return {};
 }
 
-// The tests whose bodies run on both backends (tests/persistence_backends.h).
+// The tests whose bodies run on both backends (tests/support/persistence_backends.h).
 using PersistenceBackends = AtlasBackendTest;
 ORBATLAS_PERSISTENCE_BACKENDS(PersistenceBackends);
 

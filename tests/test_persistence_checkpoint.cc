@@ -20,7 +20,7 @@
 #include "core/common/thread_priority.h"
 #include "core/persistence/atlas_checkpointer.h"
 #include "core/persistence/atlas_store.h"
-#include "tests/persistence_backends.h"
+#include "tests/support/persistence_backends.h"
 #include "tests/test_persistence_expect.h"
 #include "tests/test_persistence_random_atlas.h"
 
@@ -99,6 +99,9 @@ void random_edits(Atlas& atlas, std::mt19937_64& rng) {
 // file or a postgresql:// URI).
 class CheckpointTest : public AtlasBackendTest {};
 ORBATLAS_PERSISTENCE_BACKENDS(CheckpointTest);
+// What an SQLite file's checkpoints write to disk.
+class SqliteCheckpointTest : public AtlasBackendTest {};
+ORBATLAS_SQLITE_BACKEND_ONLY(SqliteCheckpointTest);
 
 TEST_P(CheckpointTest, WritesOnlyChangedRowsAndLoadsEqual) {
   Atlas atlas;
@@ -475,8 +478,7 @@ std::uint64_t written_by_this_process() {
 // for a 651-kB database and log; with the journals in a temporary file, 4257 kB.
 // Four live sessions' checkpoints then wrote 4 GB in a minute for a 25-MB
 // database (CHANGELOG.md, 2026-11-28).
-TEST_P(CheckpointTest, ACheckpointWritesWhatChangedOnly) {
-  if (backend() != SqlDialect::kSqlite) GTEST_SKIP() << "counts an SQLite file's writes";
+TEST_P(SqliteCheckpointTest, ACheckpointWritesWhatChangedOnly) {
   Atlas atlas;
   build_atlas(atlas, test_vocabulary(), 31);
   AtlasCheckpointer checkpointer(atlas, location(), test_vocabulary().hash(), manual_only());

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "core/persistence/atlas_store.h"
-#include "tests/persistence_backends.h"
+#include "tests/support/persistence_backends.h"
 #include "tests/test_persistence_random_atlas.h"
 
 namespace orbatlas {

@@ -3,7 +3,7 @@
 // (velocity, biases) and the map's inertial state are stored and loaded equal;
 // a save after culling stores the joined increments, a checkpoint a refined
 // IMU state; a corrupt increments blob is a DataError. On SQLite and on
-// PostgreSQL (tests/persistence_backends.h).
+// PostgreSQL (tests/support/persistence_backends.h).
 #include <gtest/gtest.h>
 
 #include <random>
@@ -13,7 +13,7 @@
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/blob_codec.h"
 #include "core/persistence/inertial_blob.h"
-#include "tests/persistence_backends.h"
+#include "tests/support/persistence_backends.h"
 #include "tests/test_persistence_expect.h"
 #include "tests/test_persistence_random_atlas.h"
 

@@ -10,7 +10,7 @@
 
 #include "core/common/error.h"
 #include "core/persistence/pg_db.h"
-#include "tests/throwaway_postgres.h"
+#include "tests/support/throwaway_postgres.h"
 
 namespace orbatlas {
 namespace {

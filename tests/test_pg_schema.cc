@@ -22,7 +22,7 @@
 #include "core/persistence/pg_schema.h"
 #include "core/persistence/schema_migrations.h"
 #include "core/persistence/sqlite_db.h"
-#include "tests/throwaway_postgres.h"
+#include "tests/support/throwaway_postgres.h"
 
 namespace orbatlas {
 namespace {

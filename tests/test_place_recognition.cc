@@ -14,7 +14,7 @@
 #include "core/vocabulary/default_vocabulary.h"
 #include "core/vocabulary/keyframe_database.h"
 #include "core/vocabulary/vocabulary.h"
-#include "tests/sim_test_helpers.h"
+#include "tests/support/sim_test_helpers.h"
 
 namespace orbatlas {
 namespace {

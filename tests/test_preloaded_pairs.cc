@@ -22,7 +22,7 @@ bool same(const cv::Mat& a, const cv::Mat& b) {
 
 TEST(PreloadedPairs, PairsComeBackInOrderPixelForPixel) {
   cv::RNG rng(7);
-  std::vector<LoadedStereoPair> pushed;
+  std::vector<LoadedFrame> pushed;
   // A stereo pair; a grey image with its 16-bit depth (RGB-D); a left image
   // alone (a single camera); a pair cut out of larger images (not continuous);
   // a pair that could not be read (its error, no images); another stereo pair.
@@ -36,7 +36,7 @@ TEST(PreloadedPairs, PairsComeBackInOrderPixelForPixel) {
   ASSERT_FALSE(pushed[3].left.isContinuous());
 
   PreloadedPairs preloaded;
-  for (const LoadedStereoPair& p : pushed) preloaded.push(p);
+  for (const LoadedFrame& p : pushed) preloaded.push(p);
   EXPECT_EQ(preloaded.size(), pushed.size());
   EXPECT_EQ(preloaded.bytes(), 2u * 480 * 752 + 480 * 640 * 3 + 240 * 320 + 2u * 480 * 752 + 2u * 480 * 752);
 
@@ -56,8 +56,8 @@ TEST(PreloadedPairs, PairsComeBackInOrderPixelForPixel) {
 TEST(PreloadedPairs, PairsOfOneShapeShareTheTwoBuffers) {
   cv::RNG rng(11);
   PreloadedPairs preloaded;
-  const LoadedStereoPair a{1, random_image(48, 64, CV_8UC1, rng), random_image(48, 64, CV_8UC1, rng), ""};
-  const LoadedStereoPair b{2, random_image(48, 64, CV_8UC1, rng), random_image(48, 64, CV_8UC1, rng), ""};
+  const LoadedFrame a{1, random_image(48, 64, CV_8UC1, rng), random_image(48, 64, CV_8UC1, rng), ""};
+  const LoadedFrame b{2, random_image(48, 64, CV_8UC1, rng), random_image(48, 64, CV_8UC1, rng), ""};
   preloaded.push(a);
   preloaded.push(b);
   const auto first = preloaded.pop();

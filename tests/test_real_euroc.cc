@@ -5,14 +5,15 @@
 
 #include "core/common/data_paths.h"
 #include "core/io/euroc_reader.h"
+#include "tests/support/requirement.h"
 
 namespace orbatlas {
 namespace {
 
-#define ORBATLAS_REQUIRE_REAL_EUROC(var)                                          \
-  const std::optional<std::filesystem::path> var = shared_euroc_dir();            \
-  if (!var || !std::filesystem::is_directory(*var / "V1_01_micro")) {             \
-    GTEST_SKIP() << "real EuRoC data not found (../shared/data/euroc); skipping"; \
+#define ORBATLAS_REQUIRE_REAL_EUROC(var)                                                   \
+  const std::optional<std::filesystem::path> var = shared_euroc_dir();                     \
+  if (!var || !std::filesystem::is_directory(*var / "V1_01_micro")) {                      \
+    ORBATLAS_NEEDS("the real EuRoC data (../shared/data/euroc or ORBATLAS_SHARED_EUROC)"); \
   }
 
 TEST(RealEuroc, ReadsV101Micro) {

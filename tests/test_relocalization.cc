@@ -11,12 +11,12 @@
 #include "core/common/data_paths.h"
 #include "core/io/euroc_reader.h"
 #include "core/estimators/pnp_ransac.h"
-#include "core/place/relocalizer.h"
+#include "core/relocalization/relocalizer.h"
 #include "core/slam/mono_localizer.h"
-#include "core/slam/stereo_slam.h"
+#include "core/slam/slam_system.h"
 #include "core/tracking/stereo_frontend.h"
 #include "core/vocabulary/default_vocabulary.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
@@ -67,10 +67,10 @@ Pose3 ground_truth_near(const EurocDataset& ds, TimestampNs t) {
 
 // A stereo map of `frames` in `atlas` (synchronous mapping: deterministic);
 // the number of frames tracked.
-std::size_t map_clip(Atlas& atlas, const Vocabulary& vocabulary, const std::vector<StereoFrame>& frames) {
-  StereoSlamOptions o;
+std::size_t map_clip(Atlas& atlas, const Vocabulary& vocabulary, const std::vector<DatasetFrame>& frames) {
+  SlamSystemOptions o;
   o.synchronous_mapping = true;
-  StereoSlam slam(atlas, read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo), vocabulary,
+  SlamSystem slam(atlas, read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo), vocabulary,
                   o);
   std::size_t tracked = 0;
   for (const auto& f : frames)
@@ -275,17 +275,17 @@ TEST(Relocalization, TrackingRelocalizesAfterFramesFromElsewhere) {
   test::ClipCleanup cleanup{clip}, cleanup_elsewhere{elsewhere};
   const SlamSettings settings = read_settings(shipped_config_dir() / "euroc" / "stereo.yaml", SensorType::kStereo);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
-  StereoSlamOptions o;
+  SlamSystemOptions o;
   o.synchronous_mapping = true;
   o.tracker.min_keyframes_to_keep_map = 1;  // a 10 s map is small: keep it and relocalise
   Atlas atlas;
-  StereoSlam slam(atlas, settings, vocabulary, o);
+  SlamSystem slam(atlas, settings, vocabulary, o);
   const auto frames = test::stereo_frames(clip), other = test::stereo_frames(elsewhere);
   // Frames 0..119 of the clip, 1 s of frames from another part of the hall, then
   // the clip again from frame 40 (timestamps keep increasing, the view jumps twice).
   struct Feed {
     TimestampNs t;
-    const StereoFrame* frame;
+    const DatasetFrame* frame;
     std::optional<std::size_t> clip_index;
   };
   std::vector<Feed> feed;

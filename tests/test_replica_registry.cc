@@ -15,7 +15,7 @@
 #include "core/persistence/pg_schema.h"
 #include "core/persistence/wall_clock.h"
 #include "core/server/replica_registry.h"
-#include "tests/throwaway_postgres.h"
+#include "tests/support/throwaway_postgres.h"
 
 namespace orbatlas {
 namespace {

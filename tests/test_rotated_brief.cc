@@ -21,7 +21,7 @@
 #include "core/features/brief_pattern.h"
 #include "core/features/orb_extractor.h"
 #include "core/features/rotated_brief.h"
-#include "tests/rendered_frames.h"
+#include "tests/support/rendered_frames.h"
 
 namespace orbatlas {
 namespace {

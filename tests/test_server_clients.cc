@@ -8,8 +8,8 @@
 #include "client/api/server_client.h"
 #include "core/common/error.h"
 #include "server/http/client_credentials.h"
-#include "tests/server_test_fixture.h"
-#include "tests/server_test_reply.h"
+#include "tests/support/server_test_fixture.h"
+#include "tests/support/server_test_reply.h"
 
 namespace orbatlas {
 namespace {

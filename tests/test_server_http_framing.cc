@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "client/api/server_client.h"
-#include "tests/raw_http.h"
-#include "tests/server_test_fixture.h"
+#include "tests/support/raw_http.h"
+#include "tests/support/server_test_fixture.h"
 
 namespace orbatlas {
 namespace {

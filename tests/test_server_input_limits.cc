@@ -12,8 +12,8 @@
 
 #include "client/api/server_client.h"
 #include "core/archive/tar_writer.h"
-#include "tests/server_test_fixture.h"
-#include "tests/server_test_reply.h"
+#include "tests/support/server_test_fixture.h"
+#include "tests/support/server_test_reply.h"
 
 namespace orbatlas {
 namespace {

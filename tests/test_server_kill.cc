@@ -24,9 +24,10 @@
 #include "core/archive/tar_writer.h"
 #include "core/persistence/sqlite_db.h"
 #include "core/server/replica_registry.h"
-#include "tests/server_test_fixture.h"
-#include "tests/slam_test_clip.h"
-#include "tests/throwaway_postgres.h"
+#include "tests/support/server_test_fixture.h"
+#include "tests/support/slam_test_clip.h"
+#include "tests/support/throwaway_postgres.h"
+#include "tests/support/requirement.h"
 
 extern char** environ;
 
@@ -324,7 +325,7 @@ TEST(ServerProcess, ConfigFileIsReadFlagsOverrideItAndTheEffectiveOptionsAreLogg
 TEST(ServerProcess, PostgresDatabaseKeepsTheMapAcrossARestart) {
   std::string why_not;
   const auto cluster = test::ThrowawayPostgres::start(&why_not);
-  if (!cluster) GTEST_SKIP() << "PostgreSQL backend skipped: " << why_not;
+  if (!cluster) ORBATLAS_NEEDS("PostgreSQL (a throwaway cluster): " << why_not);
   cluster->create_database("server_atlas");
   const std::string uri = cluster->uri("server_atlas");
   const auto clip = test::simulated_clip("MH_01", 40.0, 2.0);
@@ -417,7 +418,7 @@ TEST(ServerProcess, PostgresDatabaseKeepsTheMapAcrossARestart) {
 TEST(ServerProcess, TwoReplicasMapTheirOwnMapsAndOneTakesOverWhenTheOtherDies) {
   std::string why_not;
   const auto cluster = test::ThrowawayPostgres::start(&why_not);
-  if (!cluster) GTEST_SKIP() << "PostgreSQL backend skipped: " << why_not;
+  if (!cluster) ORBATLAS_NEEDS("PostgreSQL (a throwaway cluster): " << why_not);
   cluster->create_database("replicas");
   const std::string uri = cluster->uri("replicas");
   const auto clip_a = test::simulated_clip("MH_01", 40.0, 2.0);
@@ -530,7 +531,7 @@ TEST(ServerProcess, TwoReplicasMapTheirOwnMapsAndOneTakesOverWhenTheOtherDies) {
 TEST(ServerProcess, AnUploadWhoseReplicaDiesIsFinishedByTheOther) {
   std::string why_not;
   const auto cluster = test::ThrowawayPostgres::start(&why_not);
-  if (!cluster) GTEST_SKIP() << "PostgreSQL backend skipped: " << why_not;
+  if (!cluster) ORBATLAS_NEEDS("PostgreSQL (a throwaway cluster): " << why_not);
   cluster->create_database("uploads");
   const std::string uri = cluster->uri("uploads");
   const auto clip = test::simulated_clip("MH_01", 40.0, 8.0);
@@ -622,7 +623,7 @@ enum class ReplicaA { kNoMergingKilled, kNoMergingAlive, kKilledWhileMapping };
 void merge_work_left_by_replica(ReplicaA what) {
   std::string why_not;
   const auto cluster = test::ThrowawayPostgres::start(&why_not);
-  if (!cluster) GTEST_SKIP() << "PostgreSQL backend skipped: " << why_not;
+  if (!cluster) ORBATLAS_NEEDS("PostgreSQL (a throwaway cluster): " << why_not);
   cluster->create_database("merges");
   const std::string uri = cluster->uri("merges");
   // Two flights over one place (as ServerMerging.SessionsOverOnePlaceEndInOneMap...).
@@ -713,7 +714,7 @@ TEST(ServerProcess, TheSessionAReplicaMappedWhenItDiedIsMergedByTheReplicaThatTa
 TEST(ServerProcess, TwoLiveReplicasMappingOnePlaceEndInOneMap) {
   std::string why_not;
   const auto cluster = test::ThrowawayPostgres::start(&why_not);
-  if (!cluster) GTEST_SKIP() << "PostgreSQL backend skipped: " << why_not;
+  if (!cluster) ORBATLAS_NEEDS("PostgreSQL (a throwaway cluster): " << why_not);
   cluster->create_database("handover");
   const std::string uri = cluster->uri("handover");
   const auto clip_a = test::simulated_clip("MH_01", 46.0, 8.0), clip_b = test::simulated_clip("MH_02", 38.0, 8.0);

@@ -22,8 +22,8 @@
 #include "client/api/dataset_streamer.h"
 #include "core/common/error.h"
 #include "core/eval/evaluate.h"
-#include "tests/server_test_fixture.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/server_test_fixture.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {

@@ -14,9 +14,9 @@
 #include "core/common/error.h"
 #include "core/io/euroc_reader.h"
 #include "server/http/tls_context.h"
-#include "tests/raw_http.h"
-#include "tests/slam_test_clip.h"
-#include "tests/server_test_fixture.h"  // last: it includes <httplib.h>
+#include "tests/support/raw_http.h"
+#include "tests/support/slam_test_clip.h"
+#include "tests/support/server_test_fixture.h"  // last: it includes <httplib.h>
 
 namespace orbatlas {
 namespace {

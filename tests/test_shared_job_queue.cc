@@ -13,7 +13,7 @@
 #include "core/server/replica_registry.h"
 #include "core/server/shared_job_queue.h"
 #include "core/server/shared_merges.h"
-#include "tests/throwaway_postgres.h"
+#include "tests/support/throwaway_postgres.h"
 
 namespace orbatlas {
 namespace {

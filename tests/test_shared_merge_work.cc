@@ -18,7 +18,7 @@
 #include "core/server/map_ownership.h"
 #include "core/server/replica_registry.h"
 #include "core/server/shared_merges.h"
-#include "tests/throwaway_postgres.h"
+#include "tests/support/throwaway_postgres.h"
 
 namespace orbatlas {
 namespace {

@@ -21,7 +21,7 @@
 #include "core/optimization/sim3_costs.h"
 #include "core/optimization/sim3_refinement.h"
 #include "core/estimators/sim3_solver.h"
-#include "tests/sim_test_helpers.h"
+#include "tests/support/sim_test_helpers.h"
 
 namespace orbatlas {
 namespace {

@@ -18,7 +18,7 @@
 #include "core/sim/renderer.h"
 #include "core/sim/sequence_simulator.h"
 #include "core/sim/world.h"
-#include "tests/sim_test_helpers.h"
+#include "tests/support/sim_test_helpers.h"
 
 namespace orbatlas {
 namespace {

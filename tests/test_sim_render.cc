@@ -8,7 +8,7 @@
 #include "core/camera/camera_factory.h"
 #include "core/sim/renderer.h"
 #include "core/sim/world.h"
-#include "tests/sim_test_helpers.h"
+#include "tests/support/sim_test_helpers.h"
 
 namespace orbatlas {
 namespace {

@@ -19,7 +19,7 @@
 #include "core/tracking/stereo_frontend.h"
 #include "core/tracking/tracker.h"
 #include "core/vocabulary/default_vocabulary.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
@@ -44,10 +44,10 @@ void expect_counters_consistent(const SlamStats& s) {
   EXPECT_EQ(s.mappoint_objects.created, s.mappoint_objects.culled + s.mappoints);
 }
 
-TEST(StereoSlam, TenSecondClipTracksWithinFourMillimetres) {
+TEST(SlamSystem, TenSecondClipTracksWithinFourMillimetres) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
   test::ClipCleanup cleanup{clip};
-  const DatasetRunReport r = run_stereo_dataset(options_for(clip));
+  const DatasetRunReport r = run_dataset(options_for(clip));
   EXPECT_EQ(r.stats.frames, 201u);
   EXPECT_EQ(r.stats.tracked, r.stats.frames);
   EXPECT_EQ(r.stats.maps, 1u);
@@ -78,7 +78,7 @@ TEST(StereoSlam, TenSecondClipTracksWithinFourMillimetres) {
 // keyframe of the map, and on the same deterministic run the trajectory it
 // leaves is no worse (on full sequences it is what brings MH_04/MH_05 under
 // 1 cm, docs/benchmarks.md).
-TEST(StereoSlam, FinalGlobalBundleAdjustmentCoversTheMapAndDoesNotHurt) {
+TEST(SlamSystem, FinalGlobalBundleAdjustmentCoversTheMapAndDoesNotHurt) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
   test::ClipCleanup cleanup{clip};
   DatasetRunReport runs[2];
@@ -86,7 +86,7 @@ TEST(StereoSlam, FinalGlobalBundleAdjustmentCoversTheMapAndDoesNotHurt) {
     DatasetRunOptions o = options_for(clip);
     o.slam.synchronous_mapping = true;  // the same map before the final BA
     o.slam.final_global_ba = i == 1;
-    runs[i] = run_stereo_dataset(o);
+    runs[i] = run_dataset(o);
     ASSERT_TRUE(runs[i].ate_rmse_m.has_value());
   }
   EXPECT_EQ(runs[0].stats.final_ba_keyframes, 0u);
@@ -99,7 +99,7 @@ TEST(StereoSlam, FinalGlobalBundleAdjustmentCoversTheMapAndDoesNotHurt) {
               *runs[1].ate_rmse_m, runs[1].stats.final_ba_keyframes, runs[1].stats.final_ba_s);
 }
 
-TEST(StereoSlam, BothCullingSchemesTakeTheSameDecisions) {
+TEST(SlamSystem, BothCullingSchemesTakeTheSameDecisions) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
   test::ClipCleanup cleanup{clip};
   DatasetRunReport runs[2];
@@ -112,7 +112,7 @@ TEST(StereoSlam, BothCullingSchemesTakeTheSameDecisions) {
     // At ORB-SLAM's 90% a 10 s clip culls nothing (keyframes are few and fresh);
     // at 50% both decisions occur, and the schemes must agree at any threshold.
     o.slam.mapper.culling.redundancy.redundant_fraction = 0.5;
-    runs[i] = run_stereo_dataset(o);
+    runs[i] = run_dataset(o);
     EXPECT_EQ(runs[i].stats.mapping.culling_disagreements, 0u) << culling_scheme_name(schemes[i]);
     EXPECT_GT(runs[i].stats.mapping.culling_candidates, 0u);
     expect_counters_consistent(runs[i].stats);
@@ -132,16 +132,16 @@ TEST(StereoSlam, BothCullingSchemesTakeTheSameDecisions) {
               runs[0].stats.mapping.culled_keyframes);
 }
 
-TEST(StereoSlam, TwoAtlasesInOneProcessRunSideBySide) {
+TEST(SlamSystem, TwoAtlasesInOneProcessRunSideBySide) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 3.0);
   test::ClipCleanup cleanup{clip};
   const auto frames = test::stereo_frames(clip);
   const SlamSettings settings = read_settings(stereo_settings(), SensorType::kStereo);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
-  StereoSlamOptions o;
+  SlamSystemOptions o;
   o.synchronous_mapping = true;
   Atlas a, b;
-  StereoSlam sa(a, settings, vocabulary, o), sb(b, settings, vocabulary, o);
+  SlamSystem sa(a, settings, vocabulary, o), sb(b, settings, vocabulary, o);
   for (const auto& f : frames) {
     const cv::Mat l = cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE);
     const cv::Mat r = cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE);
@@ -168,17 +168,17 @@ TEST(StereoSlam, TwoAtlasesInOneProcessRunSideBySide) {
 // local mapping to adjust it. A bound that is never reached: one wait per
 // keyframe but the last (the clip ends), none cut; off (the default): none.
 // MH_04's fast flight makes a keyframe every few frames.
-TEST(StereoSlam, TheFrameAfterAKeyframeWaitsForItsAdjustmentWhenAsked) {
+TEST(SlamSystem, TheFrameAfterAKeyframeWaitsForItsAdjustmentWhenAsked) {
   const auto clip = test::simulated_clip("MH_04", 20.0, 3.0);
   test::ClipCleanup cleanup{clip};
   const auto frames = test::stereo_frames(clip);
   const SlamSettings settings = read_settings(stereo_settings(), SensorType::kStereo);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
   for (const double wait_ms : {10000.0, 0.0}) {
-    StereoSlamOptions o;
+    SlamSystemOptions o;
     o.tracker.max_mapping_wait_ms = wait_ms;
     Atlas atlas;
-    StereoSlam slam(atlas, settings, vocabulary, o);
+    SlamSystem slam(atlas, settings, vocabulary, o);
     std::size_t tracked = 0;
     bool last_made_keyframe = false;
     for (const auto& f : frames) {
@@ -274,7 +274,7 @@ TEST(Tracker, AWaitCutAtItsBoundIsTakenUpByTheNextFrame) {
   }
 }
 
-TEST(StereoSlam, BadFramesAreDataErrorsAndTheSessionGoesOn) {
+TEST(SlamSystem, BadFramesAreDataErrorsAndTheSessionGoesOn) {
   const auto clip = test::simulated_clip("MH_01", 40.0, 1.0);
   test::ClipCleanup cleanup{clip};
   const auto frames = test::stereo_frames(clip);
@@ -282,7 +282,7 @@ TEST(StereoSlam, BadFramesAreDataErrorsAndTheSessionGoesOn) {
   const SlamSettings settings = read_settings(stereo_settings(), SensorType::kStereo);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
   Atlas atlas;
-  StereoSlam slam(atlas, settings, vocabulary);
+  SlamSystem slam(atlas, settings, vocabulary);
   auto load = [&](std::size_t i, cv::Mat& l, cv::Mat& r) {
     l = cv::imread(frames[i].left.string(), cv::IMREAD_GRAYSCALE);
     r = cv::imread(frames[i].right.string(), cv::IMREAD_GRAYSCALE);
@@ -311,7 +311,7 @@ TEST(StereoSlam, BadFramesAreDataErrorsAndTheSessionGoesOn) {
 }
 
 // The Orbatlas.* keys of a settings file tune the engine: each known key sets its
-// option (over what StereoSlam derives from the camera), anything else is a
+// option (over what SlamSystem derives from the camera), anything else is a
 // DataError naming the key, and a bad value changes nothing.
 TEST(SlamTuning, SettingsKeysSetTheOptionsAndBadOnesAreRefused) {
   std::ifstream in(stereo_settings());
@@ -323,7 +323,7 @@ TEST(SlamTuning, SettingsKeysSetTheOptionsAndBadOnesAreRefused) {
   ASSERT_EQ(settings.orbatlas.size(), 4u);
   EXPECT_EQ(settings.orbatlas.at("Tracker.MinInliers"), 42.0);
 
-  StereoSlamOptions options;
+  SlamSystemOptions options;
   apply_slam_tuning(settings.orbatlas, options);
   EXPECT_EQ(options.tracker.min_inliers, 42);
   EXPECT_FLOAT_EQ(options.mapper.fusion_radius, 2.5f);
@@ -331,11 +331,11 @@ TEST(SlamTuning, SettingsKeysSetTheOptionsAndBadOnesAreRefused) {
   EXPECT_EQ(slam_tuning_values(options).at("Tracker.MaxFramesBetweenKeyframes"), 7.0);
 
   const auto refused = [](const std::map<std::string, double>& tuning) {
-    StereoSlamOptions o;
+    SlamSystemOptions o;
     try {
       apply_slam_tuning(tuning, o);
     } catch (const DataError& e) {
-      EXPECT_EQ(o.tracker.min_inliers, StereoSlamOptions{}.tracker.min_inliers) << "changed before refusing";
+      EXPECT_EQ(o.tracker.min_inliers, SlamSystemOptions{}.tracker.min_inliers) << "changed before refusing";
       return std::string(e.what());
     }
     return std::string("<accepted>");
@@ -347,7 +347,7 @@ TEST(SlamTuning, SettingsKeysSetTheOptionsAndBadOnesAreRefused) {
   EXPECT_NE(refused({{"LoopClosing.Enabled", 2}}).find("must be in"), std::string::npos);
   EXPECT_NE(refused({{"Tracker.MinInliers", -1}}).find("'Orbatlas.Tracker.MinInliers'"), std::string::npos);
   // A value in its range that the resulting options refuse (their check()) names its key.
-  StereoSlamOptions localizing;
+  SlamSystemOptions localizing;
   localizing.tracker.localization_only = true;
   try {
     apply_slam_tuning({{"Tracker.MinInliers", 40}, {"Tracker.Relocalization", 0}}, localizing);
@@ -360,7 +360,7 @@ TEST(SlamTuning, SettingsKeysSetTheOptionsAndBadOnesAreRefused) {
   }
   EXPECT_TRUE(localizing.relocalization) << "changed before refusing";
   // Options out of range before any key applies: check()'s Error, not the settings' fault.
-  StereoSlamOptions broken;
+  SlamSystemOptions broken;
   broken.tracker.th_depth_m = -1.0;
   try {
     apply_slam_tuning({{"Tracker.MinInliers", 40}}, broken);
@@ -383,11 +383,11 @@ TEST(SlamTuning, SettingsKeysSetTheOptionsAndBadOnesAreRefused) {
   // before its first frame.
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
   Atlas atlas;
-  const StereoSlam tuned(atlas, settings, vocabulary);
+  const SlamSystem tuned(atlas, settings, vocabulary);
   SlamSettings wrong = settings;
   wrong.orbatlas["Tracker.Typo"] = 1;
   Atlas other;
-  EXPECT_THROW(StereoSlam(other, wrong, vocabulary), DataError);
+  EXPECT_THROW(SlamSystem(other, wrong, vocabulary), DataError);
 }
 
 TEST(DatasetRunner, UnreadableImageIsSkippedAndReported) {
@@ -395,24 +395,24 @@ TEST(DatasetRunner, UnreadableImageIsSkippedAndReported) {
   test::ClipCleanup cleanup{clip};
   const auto frames = test::stereo_frames(clip);
   { std::ofstream(frames[5].left, std::ios::trunc) << "not a png"; }
-  const DatasetRunReport r = run_stereo_dataset(options_for(clip));
+  const DatasetRunReport r = run_dataset(options_for(clip));
   EXPECT_EQ(r.skipped_frames, 1u);
   EXPECT_EQ(r.stats.frames, frames.size() - 1);
   EXPECT_EQ(r.stats.tracked, r.stats.frames);
 }
 
 TEST(DatasetRunner, TakesSingleCameraSettingsAndRejectsMissingDatasets) {
-  EXPECT_THROW(run_stereo_dataset(options_for("/nonexistent/orbatlas/dataset")), Error);
+  EXPECT_THROW(run_dataset(options_for("/nonexistent/orbatlas/dataset")), Error);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
   Atlas atlas;
   // A single camera maps (monocular SLAM), also with its IMU.
   const SlamSettings mono = read_settings(shipped_config_dir() / "euroc" / "mono.yaml");
-  const StereoSlam slam(atlas, mono, vocabulary);
+  const SlamSystem slam(atlas, mono, vocabulary);
   EXPECT_TRUE(slam.monocular());
   EXPECT_FALSE(slam.inertial());
   EXPECT_EQ(slam.frontend().baseline(), 0.0);
   const SlamSettings mono_inertial = read_settings(shipped_config_dir() / "euroc" / "mono_inertial.yaml");
-  const StereoSlam with_imu(atlas, mono_inertial, vocabulary);
+  const SlamSystem with_imu(atlas, mono_inertial, vocabulary);
   EXPECT_TRUE(with_imu.monocular());
   EXPECT_TRUE(with_imu.inertial());
 }
@@ -426,7 +426,7 @@ TEST(DatasetRunner, TheLeftCameraOfAStereoConfigRunsAlone) {
   DatasetRunOptions options = options_for(clip);
   options.sensor = SensorType::kMonocular;
   std::filesystem::remove_all(clip / "mav0" / "cam1");  // not read
-  const DatasetRunReport r = run_stereo_dataset(options);
+  const DatasetRunReport r = run_dataset(options);
   EXPECT_TRUE(r.ate_sim3);
   EXPECT_EQ(r.stats.monocular_starts, 1u);
   EXPECT_GT(r.stats.tracked, r.stats.frames / 2);
@@ -437,7 +437,7 @@ TEST(DatasetRunner, TheLeftCameraOfAStereoConfigRunsAlone) {
 
   options.settings = shipped_config_dir() / "euroc" / "mono.yaml";
   options.sensor = SensorType::kMonocularInertial;
-  EXPECT_THROW(run_stereo_dataset(options), Error);  // not a stereo config
+  EXPECT_THROW(run_dataset(options), Error);  // not a stereo config
 }
 
 }  // namespace
@@ -449,25 +449,25 @@ namespace {
 // Kidnapping with a small map: tracking fails at the jump, the map (at most 10
 // keyframes) is given up at once (LOST), and a new map is started in the atlas
 // from the next frame; the first map stays, and poses come out in both.
-TEST(StereoSlam, LostTrackingStartsANewMapInTheAtlas) {
+TEST(SlamSystem, LostTrackingStartsANewMapInTheAtlas) {
   const auto before = test::simulated_clip("MH_01", 40.0, 2.0);
   const auto after = test::simulated_clip("MH_01", 125.0, 2.0);
   test::ClipCleanup c1{before}, c2{after};
-  std::vector<StereoFrame> frames = test::stereo_frames(before);
+  std::vector<DatasetFrame> frames = test::stereo_frames(before);
   for (const auto& f : test::stereo_frames(after)) frames.push_back(f);
   const SlamSettings settings = read_settings(stereo_settings(), SensorType::kStereo);
   const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
-  StereoSlamOptions o;
+  SlamSystemOptions o;
   o.synchronous_mapping = true;
   Atlas atlas;
-  StereoSlam slam(atlas, settings, vocabulary, o);
+  SlamSystem slam(atlas, settings, vocabulary, o);
   std::vector<TrackResult> results;
   for (const auto& f : frames)
     results.push_back(slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
                                    cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE)));
   slam.finish();
   // Across the hall nothing is recognised: a few frames of failed
-  // relocalisation (StereoSlamOptions::new_map_after_failed_relocalizations),
+  // relocalisation (SlamSystemOptions::new_map_after_failed_relocalizations),
   // then a new map, tracked from its first frame on.
   const std::size_t jump = test::stereo_frames(before).size();
   for (std::size_t i = 0; i < jump; ++i) EXPECT_TRUE(results[i].tracked) << "frame " << i;

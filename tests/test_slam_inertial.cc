@@ -17,7 +17,7 @@
 #include "core/eval/gap_error.h"
 #include "core/slam/dataset_runner.h"
 #include "wire/run_report_json.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
@@ -35,7 +35,7 @@ DatasetRunReport run_stereo_inertial(const std::filesystem::path& clip,
   options.dataset = clip;
   options.show_progress = false;
   options.slam.synchronous_mapping = true;
-  return run_stereo_dataset(options);
+  return run_dataset(options);
 }
 
 // Rewrites a clip's imu0/data.csv: `edit` gets each sample's time from the

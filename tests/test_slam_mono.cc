@@ -9,7 +9,7 @@
 #include "core/eval/evaluate.h"
 #include "core/io/tum_trajectory.h"
 #include "core/slam/dataset_runner.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
@@ -33,7 +33,7 @@ TEST(MonoSlam, ASimulatedClipMapsWithinAFractionOfItsPath) {
   options.dataset = clip;
   options.show_progress = false;
   options.slam.synchronous_mapping = true;
-  const DatasetRunReport report = run_stereo_dataset(options);
+  const DatasetRunReport report = run_dataset(options);
   ASSERT_TRUE(report.ate_rmse_m.has_value());
   EXPECT_TRUE(report.ate_sim3);
   ASSERT_FALSE(report.trajectory.empty());
@@ -66,7 +66,7 @@ TEST(MonoInertialSlam, TheImuGivesTheMapItsMetricScale) {
   options.dataset = clip;
   options.show_progress = false;
   options.slam.synchronous_mapping = true;
-  const DatasetRunReport report = run_stereo_dataset(options);
+  const DatasetRunReport report = run_dataset(options);
   ASSERT_TRUE(report.ate_rmse_m.has_value());
   EXPECT_FALSE(report.ate_sim3);  // metric: SE3
   ASSERT_TRUE(report.stats.imu_initialized_at_s.has_value());

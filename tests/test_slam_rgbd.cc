@@ -6,7 +6,7 @@
 
 #include "core/common/data_paths.h"
 #include "core/slam/dataset_runner.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
@@ -17,7 +17,7 @@ DatasetRunReport run_clip(const std::filesystem::path& clip, const std::string& 
   options.dataset = clip;
   options.show_progress = false;
   options.slam.synchronous_mapping = true;
-  return run_stereo_dataset(options);
+  return run_dataset(options);
 }
 
 TEST(RgbdSlam, ASimulatedRgbdClipMapsAsAccuratelyAsStereo) {

@@ -16,7 +16,7 @@
 
 #include "core/common/error.h"
 #include "core/persistence/pg_db.h"
-#include "tests/persistence_backends.h"
+#include "tests/support/persistence_backends.h"
 
 namespace orbatlas::test {
 namespace {

@@ -16,7 +16,7 @@
 #include "core/features/stereo_triangulated.h"
 #include "core/sim/renderer.h"
 #include "core/sim/world.h"
-#include "tests/sim_test_helpers.h"
+#include "tests/support/sim_test_helpers.h"
 
 namespace orbatlas {
 namespace {

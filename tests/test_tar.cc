@@ -13,6 +13,7 @@
 #include "core/archive/tar_stream_extractor.h"
 #include "core/archive/tar_writer.h"
 #include "core/common/error.h"
+#include "tests/support/requirement.h"
 
 namespace orbatlas {
 namespace {
@@ -260,7 +261,7 @@ std::string quoted(const fs::path& p) {
 }
 
 TEST(TarInterop, ExtractsArchivesMadeByGnuTar) {
-  if (!have_gnu_tar()) GTEST_SKIP() << "/usr/bin/tar not installed: GNU tar interoperability not tested";
+  if (!have_gnu_tar()) ORBATLAS_NEEDS("/usr/bin/tar (GNU tar interoperability is not tested)");
   TempDir tmp;
   const fs::path root = make_sample_tree(tmp.path());
   for (const std::string format : {"gnu", "pax"}) {
@@ -278,7 +279,7 @@ TEST(TarInterop, ExtractsArchivesMadeByGnuTar) {
 }
 
 TEST(TarInterop, GnuTarExtractsOurArchives) {
-  if (!have_gnu_tar()) GTEST_SKIP() << "/usr/bin/tar not installed: GNU tar interoperability not tested";
+  if (!have_gnu_tar()) ORBATLAS_NEEDS("/usr/bin/tar (GNU tar interoperability is not tested)");
   TempDir tmp;
   const fs::path root = make_sample_tree(tmp.path());
   const fs::path tar = write_tar_file(root, tmp.path() / "ours.tar"), dest = tmp.path() / "out";
@@ -475,7 +476,7 @@ TEST(TarErrors, UnsafeLongNamesAreRefused) {
 // GNU and pax sparse files (refused by the hand-written reader) are extracted
 // with their holes, and count at their full size against the limits.
 TEST(TarInterop, SparseFilesFromGnuTar) {
-  if (!have_gnu_tar()) GTEST_SKIP() << "/usr/bin/tar not installed: sparse archives not tested";
+  if (!have_gnu_tar()) ORBATLAS_NEEDS("/usr/bin/tar (sparse archives are not tested)");
   TempDir tmp;
   const fs::path root = tmp.path() / "root";
   fs::create_directories(root);

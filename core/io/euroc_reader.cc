@@ -181,16 +181,16 @@ EurocDataset read_euroc_dataset(const fs::path& dir, const EurocReadOptions& opt
   return dataset;
 }
 
-std::vector<StereoFrame> pair_stereo_frames(const EurocDataset& dataset, TimestampNs tolerance_ns) {
+std::vector<DatasetFrame> pair_stereo_frames(const EurocDataset& dataset, TimestampNs tolerance_ns) {
   if (dataset.cameras.size() < 2) throw DataError(dataset.root.string() + ": no cam1, cannot pair stereo frames");
   const auto& left = dataset.cameras[0].frames;
   const auto& right = dataset.cameras[1].frames;
-  std::vector<StereoFrame> pairs;
+  std::vector<DatasetFrame> pairs;
   std::size_t i = 0, j = 0;
   while (i < left.size() && j < right.size()) {
     const TimestampNs dt = left[i].t_ns - right[j].t_ns;
     if (std::abs(dt) <= tolerance_ns) {
-      pairs.push_back(StereoFrame{left[i].t_ns, left[i].path, right[j].path});
+      pairs.push_back(DatasetFrame{left[i].t_ns, left[i].path, right[j].path});
       ++i;
       ++j;
     } else if (dt < 0) {
@@ -202,13 +202,13 @@ std::vector<StereoFrame> pair_stereo_frames(const EurocDataset& dataset, Timesta
   return pairs;
 }
 
-void keep_time_window(std::vector<StereoFrame>& frames, double start_s, std::optional<double> duration_s,
+void keep_time_window(std::vector<DatasetFrame>& frames, double start_s, std::optional<double> duration_s,
                       const std::filesystem::path& dataset) {
   ORBATLAS_CHECK(!frames.empty(), dataset << " has no stereo frames");
   const TimestampNs from = frames.front().t_ns + static_cast<TimestampNs>(start_s * 1e9);
   const TimestampNs to =
       duration_s ? from + static_cast<TimestampNs>(*duration_s * 1e9) : std::numeric_limits<TimestampNs>::max();
-  std::erase_if(frames, [&](const StereoFrame& f) { return f.t_ns < from || f.t_ns >= to; });
+  std::erase_if(frames, [&](const DatasetFrame& f) { return f.t_ns < from || f.t_ns >= to; });
   ORBATLAS_CHECK(!frames.empty(), "no frame of " << dataset << " lies in the chosen time window");
 }
 

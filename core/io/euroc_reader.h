@@ -22,14 +22,14 @@ struct EurocReadOptions {
 EurocDataset read_euroc_dataset(const std::filesystem::path& dir, const EurocReadOptions& options = {});
 
 // Pairs of cam0/cam1 frames with equal timestamps (|dt| <= tolerance).
-struct StereoFrame {
+struct DatasetFrame {
   TimestampNs t_ns = 0;
   std::filesystem::path left, right;
 };
-std::vector<StereoFrame> pair_stereo_frames(const EurocDataset& dataset, TimestampNs tolerance_ns = 1000);
+std::vector<DatasetFrame> pair_stereo_frames(const EurocDataset& dataset, TimestampNs tolerance_ns = 1000);
 // Keeps the frames from `start_s` after the first one, for `duration_s` (all
 // when absent). Throws Error when none is left (the message names `dataset`).
-void keep_time_window(std::vector<StereoFrame>& frames, double start_s, std::optional<double> duration_s,
+void keep_time_window(std::vector<DatasetFrame>& frames, double start_s, std::optional<double> duration_s,
                       const std::filesystem::path& dataset);
 
 // The ground-truth trajectory of state_groundtruth_estimate0/data.csv, or of a

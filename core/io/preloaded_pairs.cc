@@ -61,7 +61,7 @@ cv::Mat PreloadedPairs::read(const Image& image, cv::Mat& buffer) const {
   return buffer;
 }
 
-void PreloadedPairs::push(const LoadedStereoPair& pair) {
+void PreloadedPairs::push(const LoadedFrame& pair) {
   Entry e;
   e.t_ns = pair.t_ns;
   e.error = pair.error;
@@ -70,10 +70,10 @@ void PreloadedPairs::push(const LoadedStereoPair& pair) {
   entries_.push_back(std::move(e));
 }
 
-std::optional<LoadedStereoPair> PreloadedPairs::pop() {
+std::optional<LoadedFrame> PreloadedPairs::pop() {
   if (next_ >= entries_.size()) return std::nullopt;
   const Entry& e = entries_[next_++];
-  LoadedStereoPair pair;
+  LoadedFrame pair;
   pair.t_ns = e.t_ns;
   pair.error = e.error;
   pair.left = read(e.left, left_buffer_);

@@ -15,7 +15,7 @@
 #include <optional>
 #include <vector>
 
-#include "core/io/stereo_pair_loader.h"
+#include "core/io/frame_loader.h"
 
 namespace orbatlas {
 
@@ -28,11 +28,11 @@ class PreloadedPairs {
 
   // Appends a pair (its images in any layout; stored continuous). Throws Error
   // when the file cannot take it (out of memory).
-  void push(const LoadedStereoPair& pair);
+  void push(const LoadedFrame& pair);
 
   // The next pair in the order pushed; nullopt after the last. Its images
   // share this object's two buffers: valid until the next pop().
-  std::optional<LoadedStereoPair> pop();
+  std::optional<LoadedFrame> pop();
 
   std::size_t size() const { return entries_.size() - next_; }  // pairs not popped yet
   std::uint64_t bytes() const { return end_; }                  // pixels held, in bytes

@@ -77,21 +77,14 @@ TumRgbdDataset read_tum_rgbd(const std::filesystem::path& dir, double max_dt_s, 
   return d;
 }
 
-std::vector<StereoFrame> rgbd_image_pairs(const TumRgbdDataset& dataset) {
-  std::vector<StereoFrame> pairs;
+std::vector<DatasetFrame> rgbd_image_pairs(const TumRgbdDataset& dataset) {
+  std::vector<DatasetFrame> pairs;
   for (const RgbdFrame& f : dataset.frames) pairs.push_back({f.t_ns, f.rgb, f.depth});
   return pairs;
 }
 
 std::vector<GroundTruthState> ground_truth_states(const TumRgbdDataset& dataset) {
-  std::vector<GroundTruthState> states;
-  for (const StampedPose& p : dataset.ground_truth) {
-    GroundTruthState g;
-    g.t_ns = p.t_ns;
-    g.T_w_b = p.pose;
-    states.push_back(g);
-  }
-  return states;
+  return ground_truth_states(dataset.ground_truth);
 }
 
 void keep_time_window(std::vector<RgbdFrame>& frames, double start_s, std::optional<double> duration_s,

@@ -38,8 +38,8 @@ struct TumRgbdDataset {
 TumRgbdDataset read_tum_rgbd(const std::filesystem::path& dir, double max_dt_s = 0.02, bool confined = false);
 
 // The frames as image pairs (the colour image, its depth image: what the
-// stereo pair loader and the runners take) and the ground truth as body states.
-std::vector<StereoFrame> rgbd_image_pairs(const TumRgbdDataset& dataset);
+// frame loader and the runners take) and the ground truth as body states.
+std::vector<DatasetFrame> rgbd_image_pairs(const TumRgbdDataset& dataset);
 std::vector<GroundTruthState> ground_truth_states(const TumRgbdDataset& dataset);
 
 // Keeps the frames from `start_s` after the first one, for `duration_s` (all

@@ -3,7 +3,7 @@
 #include <chrono>
 #include <string>
 
-#include "core/place/relocalizer.h"
+#include "core/relocalization/relocalizer.h"
 #include "core/server/atlas_service.h"
 #include "core/server/atlas_service_localizer.h"
 #include "core/server/service_error.h"

@@ -57,6 +57,13 @@ SensorType AtlasService::request_sensor(const SessionRequest& request) const {
 
 void AtlasService::check_upload(const SessionRequest& request) const {
   check_session_name(request.name);
+  // No settings: the recording's own, known once it is extracted (UploadJobs).
+  if (request.settings.config.empty() && request.settings.settings_yaml.empty()) {
+    if (!request.sensor.empty() && request.sensor != "stereo")
+      throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
+                         "sensor '" + request.sensor + "' needs a config; without one an upload is stereo");
+    return;
+  }
   const LoadedSettings loaded = load_settings(request.settings);
   const SensorType sensor = session_sensor(request.sensor, loaded.settings);
   const SessionMode mode = session_mode(request.mode, sensor, loaded.settings);  // 400 for an unknown one

@@ -6,7 +6,7 @@
 // KeyframeSink (attach()) that hands its keyframes to the mapping of the map
 // they are in. When two sessions map the same map, both feed the same mapper.
 //
-// Who owns it: a StereoSlam on its own (offline runs, uploads) makes a private
+// Who owns it: a SlamSystem on its own (offline runs, uploads) makes a private
 // one; the server makes one per camera rig for all its mapping sessions, and
 // `orbatlas run` with several recordings one for all of them (SessionWiring).
 //

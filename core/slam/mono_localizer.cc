@@ -3,7 +3,7 @@
 #include <chrono>
 
 #include "core/common/error.h"
-#include "core/place/index_relocalizer.h"
+#include "core/relocalization/index_relocalizer.h"
 
 namespace orbatlas {
 

@@ -1,6 +1,6 @@
 #pragma once
 // What a session of the server drives, whatever its camera: stereo SLAM
-// (StereoSlam), or a single camera localising in stored maps (MonoLocalizer).
+// (SlamSystem), or a single camera localising in stored maps (MonoLocalizer).
 #include <functional>
 #include <opencv2/core/mat.hpp>
 #include <optional>
@@ -30,7 +30,7 @@ class SessionSlam {
   // Stops the session's workers; process() may not be called afterwards. Idempotent.
   virtual void finish() = 0;
   // After finish(): what is left of the end, to run without the caller's locks
-  // (it may wait for seconds; StereoSlam: the global BA of a map other sessions
+  // (it may wait for seconds; SlamSystem: the global BA of a map other sessions
   // mapped too). True when done; empty when nothing is left. Once.
   virtual std::function<bool()> take_end_refinement() { return {}; }
   // The tracked frames' anchors from the first-th on (they only ever follow);

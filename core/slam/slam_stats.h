@@ -41,7 +41,7 @@ struct SlamStats {
   std::vector<double> loop_error_m, loop_error_deg;
   CullingScheme culling_scheme = CullingScheme::kIncremental;
   CounterSnapshot keyframe_objects, mappoint_objects;
-  // The final global BA (StereoSlamOptions::final_global_ba), when it ran.
+  // The final global BA (SlamSystemOptions::final_global_ba), when it ran.
   std::size_t final_ba_keyframes = 0;
   std::size_t final_ba_inertial_edges = 0;  // IMU terms (inertial maps)
   double final_ba_s = 0.0;

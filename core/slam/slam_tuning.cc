@@ -12,15 +12,15 @@ namespace {
 
 struct Binding {
   SlamTuningKey key;
-  std::function<double(const StereoSlamOptions&)> get;
-  std::function<void(StereoSlamOptions&, double)> set;
+  std::function<double(const SlamSystemOptions&)> get;
+  std::function<void(SlamSystemOptions&, double)> set;
 };
 
 #define ORBATLAS_TUNING(KEY, MIN, MAX, INTEGER, MEANING, FIELD)                                           \
   Binding {                                                                                               \
     SlamTuningKey{KEY, MIN, MAX, INTEGER, MEANING},                                                       \
-        [](const StereoSlamOptions& o) { return static_cast<double>(o.FIELD); },                          \
-        [](StereoSlamOptions& o, double v) { o.FIELD = static_cast<std::decay_t<decltype(o.FIELD)>>(v); } \
+        [](const SlamSystemOptions& o) { return static_cast<double>(o.FIELD); },                          \
+        [](SlamSystemOptions& o, double v) { o.FIELD = static_cast<std::decay_t<decltype(o.FIELD)>>(v); } \
   }
 
 const std::vector<Binding>& bindings() {
@@ -71,11 +71,11 @@ const std::vector<Binding>& bindings() {
                       mapper.run_bundle_adjustment),
       Binding{SlamTuningKey{"LocalMapping.BundleAdjustmentCovisibles", 0, 1000, true,
                             "covisible keyframes adjusted with each new one, the best first (0: all, as ORB-SLAM)"},
-              [](const StereoSlamOptions& o) {
+              [](const SlamSystemOptions& o) {
                 const std::size_t n = o.mapper.bundle_adjustment.max_covisibles;
                 return n == std::numeric_limits<std::size_t>::max() ? 0.0 : static_cast<double>(n);
               },
-              [](StereoSlamOptions& o, double v) {
+              [](SlamSystemOptions& o, double v) {
                 o.mapper.bundle_adjustment.max_covisibles =
                     v == 0.0 ? std::numeric_limits<std::size_t>::max() : static_cast<std::size_t>(v);
               }},
@@ -150,7 +150,7 @@ const Binding& binding(const std::string& key) {
   throw DataError("settings: unknown key 'Orbatlas." + key + "' (known: " + known_keys() + ")");
 }
 
-bool passes_check(const StereoSlamOptions& options) {
+bool passes_check(const SlamSystemOptions& options) {
   try {
     options.check();
     return true;
@@ -161,9 +161,9 @@ bool passes_check(const StereoSlamOptions& options) {
 
 // The keys to blame for options that fail their check: the first key that alone
 // makes `options` fail, else all of them (only together out of range).
-std::string blamed_keys(const std::map<std::string, double>& tuning, const StereoSlamOptions& options) {
+std::string blamed_keys(const std::map<std::string, double>& tuning, const SlamSystemOptions& options) {
   for (const auto& [key, value] : tuning) {
-    StereoSlamOptions one = options;
+    SlamSystemOptions one = options;
     binding(key).set(one, value);
     if (!passes_check(one)) return "'Orbatlas." + key + "' = " + text(value);
   }
@@ -184,8 +184,8 @@ const std::vector<SlamTuningKey>& slam_tuning_keys() {
   return keys;
 }
 
-void apply_slam_tuning(const std::map<std::string, double>& tuning, StereoSlamOptions& options) {
-  StereoSlamOptions changed = options;
+void apply_slam_tuning(const std::map<std::string, double>& tuning, SlamSystemOptions& options) {
+  SlamSystemOptions changed = options;
   for (const auto& [key, value] : tuning) {
     const Binding& found = binding(key);
     const SlamTuningKey& k = found.key;
@@ -206,7 +206,7 @@ void apply_slam_tuning(const std::map<std::string, double>& tuning, StereoSlamOp
   options = std::move(changed);
 }
 
-std::map<std::string, double> slam_tuning_values(const StereoSlamOptions& options) {
+std::map<std::string, double> slam_tuning_values(const SlamSystemOptions& options) {
   std::map<std::string, double> out;
   for (const Binding& b : bindings()) out[b.key.key] = b.get(options);
   return out;

@@ -1,13 +1,13 @@
 #pragma once
 // The engine's tuning a user can set in a settings file: optional keys
 // `Orbatlas.<Part>.<Name>` beside ORB-SLAM3's (docs/settings.md lists them with
-// their defaults and ranges). Applied by StereoSlam to its options, after what it
+// their defaults and ranges). Applied by SlamSystem to its options, after what it
 // derives from the camera (so a key wins over a derived value).
 #include <map>
 #include <string>
 #include <vector>
 
-#include "core/slam/stereo_slam.h"
+#include "core/slam/slam_system.h"
 
 namespace orbatlas {
 
@@ -26,9 +26,9 @@ const std::vector<SlamTuningKey>& slam_tuning_keys();
 // fraction where a whole number is needed, or a value the resulting options'
 // check() refuses (e.g. Tracker.Relocalization 0 in a localisation run); `options`
 // is unchanged then. Options already out of range give check()'s Error as is.
-void apply_slam_tuning(const std::map<std::string, double>& tuning, StereoSlamOptions& options);
+void apply_slam_tuning(const std::map<std::string, double>& tuning, SlamSystemOptions& options);
 
 // The value of every key in `options` (for logs: what is in effect).
-std::map<std::string, double> slam_tuning_values(const StereoSlamOptions& options);
+std::map<std::string, double> slam_tuning_values(const SlamSystemOptions& options);
 
 }  // namespace orbatlas

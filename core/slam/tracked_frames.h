@@ -1,6 +1,6 @@
 #pragma once
 // The per-frame bookkeeping a session shares between its tracking thread and
-// readers on other threads (StereoSlam and MonoLocalizer): tracking one frame
+// readers on other threads (SlamSystem and MonoLocalizer): tracking one frame
 // with its errors contained, the time it took, frame counts, and the anchors of
 // the tracked frames.
 //

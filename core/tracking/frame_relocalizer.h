@@ -1,6 +1,6 @@
 #pragma once
 // How tracking asks to be relocalised when it has lost its map (implemented over
-// the atlas-wide keyframe index in core/place; an interface so that tracking
+// the atlas-wide keyframe index in core/relocalization; an interface so that tracking
 // does not depend on place recognition).
 #include <memory>
 #include <optional>

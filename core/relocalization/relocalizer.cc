@@ -1,4 +1,4 @@
-#include "core/place/relocalizer.h"
+#include "core/relocalization/relocalizer.h"
 
 #include <cmath>
 #include <unordered_set>

@@ -9,7 +9,7 @@
 #include "core/sim/machine_hall.h"
 #include "core/sim/renderer.h"
 #include "core/sim/trajectory_spline.h"
-#include "tests/sim_test_helpers.h"
+#include "tests/support/sim_test_helpers.h"
 
 namespace orbatlas::test {
 

@@ -1,4 +1,4 @@
-#include "tests/throwaway_postgres.h"
+#include "tests/support/throwaway_postgres.h"
 
 #include <pwd.h>
 #include <sys/stat.h>
@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/persistence/pg_db.h"
+#include "tests/support/requirement.h"
 
 namespace orbatlas::test {
 namespace {
@@ -115,7 +116,7 @@ void PostgresDatabaseTest::SetUpTestSuite() { cluster_ = ThrowawayPostgres::star
 void PostgresDatabaseTest::TearDownTestSuite() { cluster_.reset(); }
 
 void PostgresDatabaseTest::SetUp() {
-  if (!cluster_) GTEST_SKIP() << skip_reason_;
+  if (!cluster_) ORBATLAS_NEEDS("PostgreSQL (a throwaway cluster): " << skip_reason_);
   static int n = 0;
   std::ostringstream name;  // (a chain of string + here makes GCC 12 warn falsely, -Wrestrict)
   name << "t" << ++n;

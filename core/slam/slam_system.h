@@ -1,6 +1,6 @@
 #pragma once
-// One SLAM session of a stereo rig, an RGB-D camera or a single camera (FrameFrontend):
-// the front end and tracking on the caller's thread,
+// One SLAM session of a stereo rig, an RGB-D camera or a single camera, with or
+// without an IMU (FrameFrontend): the front end and tracking on the caller's thread,
 // attached to the mapping of the maps it is in (MappingWorkers: local mapping
 // per map, loop closing; its own, or the owner's shared with other sessions),
 // working in an atlas the caller owns (so several sessions and several atlases
@@ -30,7 +30,7 @@
 
 namespace orbatlas {
 
-struct StereoSlamOptions {
+struct SlamSystemOptions {
   TrackerOptions tracker;  // th_depth_m and the keyframe interval are derived from the settings
   bool relocalization =
       true;  // when recently lost, relocalise against every map of the atlas (SessionWiring::may_enter_map)
@@ -90,15 +90,15 @@ struct TimedPose {
   Pose3 T_w_b;
 };
 
-class StereoSlam final : public SessionSlam {
+class SlamSystem final : public SessionSlam {
  public:
   // `atlas` and `vocabulary` must outlive the session. Throws Error for settings
   // that are not a stereo rig.
-  StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary, StereoSlamOptions options = {},
+  SlamSystem(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary, SlamSystemOptions options = {},
              SessionWiring wiring = {});
-  ~StereoSlam() override;
-  StereoSlam(const StereoSlam&) = delete;
-  StereoSlam& operator=(const StereoSlam&) = delete;
+  ~SlamSystem() override;
+  SlamSystem(const SlamSystem&) = delete;
+  SlamSystem& operator=(const SlamSystem&) = delete;
 
   // One stereo pair, image and depth image, or image (`right` empty); throws
   // Error on bad images or a timestamp that does not increase.
@@ -140,7 +140,7 @@ class StereoSlam final : public SessionSlam {
 
  private:
   Atlas& atlas_;
-  StereoSlamOptions options_;
+  SlamSystemOptions options_;
   std::unique_ptr<FrameFrontend> frontend_;  // stereo pairs, or images with their depth (rgbd)
   bool rgbd_ = false;
   bool monocular_ = false;
@@ -155,7 +155,7 @@ class StereoSlam final : public SessionSlam {
   std::optional<ImuNoise> imu_noise_;
   ImuBuffer imu_;
   std::unique_ptr<ImuInputCheck> imu_input_;             // with imu_noise_: what add_imu() lets into imu_
-  std::unique_ptr<InertialTracking> inertial_tracking_;  // the tracker's (~StereoSlam drops the tracker first)
+  std::unique_ptr<InertialTracking> inertial_tracking_;  // the tracker's (~SlamSystem drops the tracker first)
   Pose3 T_b_i_;                                          // the IMU in the session's body
   ImuTimeOffset time_offset_;                            // tracking thread
   MapId time_offset_map_ = kInvalidMapId;                // the map its frames were tracked in

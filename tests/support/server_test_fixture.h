@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "client/api/dataset_streamer.h"
+#include "client/api/server_client.h"
 #include "core/server/atlas_service.h"
 #include "server/http/guarded_http_server.h"
 #include "server/http/http_api.h"
@@ -88,5 +89,16 @@ struct TempDbPath {
     std::filesystem::remove_all(path.string() + ".work", ec);
   }
 };
+
+// Polls GET /v1/jobs/{job} until it is done, failed or cancelled (at most 2 minutes).
+inline nlohmann::json wait_for_job(ServerClient& client, std::uint64_t job) {
+  for (int i = 0; i < 1200; ++i) {
+    const auto status = client.get_json("/v1/jobs/" + std::to_string(job));
+    const std::string state = status["state"];
+    if (state == "done" || state == "failed" || state == "cancelled") return status;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return client.get_json("/v1/jobs/" + std::to_string(job));
+}
 
 }  // namespace orbatlas::test

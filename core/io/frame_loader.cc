@@ -1,15 +1,15 @@
-#include "core/io/stereo_pair_loader.h"
+#include "core/io/frame_loader.h"
 
 #include <opencv2/imgcodecs.hpp>
 
 namespace orbatlas {
 
-StereoPairLoader::StereoPairLoader(std::vector<StereoFrame> frames, std::size_t capacity, Second second)
+FrameLoader::FrameLoader(std::vector<DatasetFrame> frames, std::size_t capacity, Second second)
     : frames_(std::move(frames)), queue_(capacity) {
   const int second_flags = second == Second::kDepth ? cv::IMREAD_UNCHANGED : cv::IMREAD_GRAYSCALE;
   thread_ = std::thread([this, second_flags] {
-    for (const StereoFrame& f : frames_) {
-      LoadedStereoPair pair;
+    for (const DatasetFrame& f : frames_) {
+      LoadedFrame pair;
       pair.t_ns = f.t_ns;
       pair.left = cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE);
       const bool single = f.right.empty();  // a single camera's frame
@@ -24,7 +24,7 @@ StereoPairLoader::StereoPairLoader(std::vector<StereoFrame> frames, std::size_t 
   });
 }
 
-StereoPairLoader::~StereoPairLoader() {
+FrameLoader::~FrameLoader() {
   queue_.close();
   thread_.join();
 }

@@ -15,7 +15,7 @@
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/sql_connection.h"
 #include "tests/test_persistence_random_atlas.h"
-#include "tests/throwaway_postgres.h"
+#include "tests/support/throwaway_postgres.h"
 
 namespace orbatlas::test {
 
@@ -55,4 +55,9 @@ std::string backend_name(const ::testing::TestParamInfo<SqlDialect>& info);
 #define ORBATLAS_PERSISTENCE_BACKENDS(suite)                                                                      \
   INSTANTIATE_TEST_SUITE_P(Backends, suite,                                                                       \
                            ::testing::Values(::orbatlas::SqlDialect::kSqlite, ::orbatlas::SqlDialect::kPostgres), \
+                           ::orbatlas::test::backend_name)
+
+// Runs every TEST_P of `suite` on SQLite only (what only an SQLite file has).
+#define ORBATLAS_SQLITE_BACKEND_ONLY(suite)                                                     \
+  INSTANTIATE_TEST_SUITE_P(Backends, suite, ::testing::Values(::orbatlas::SqlDialect::kSqlite), \
                            ::orbatlas::test::backend_name)

@@ -1,4 +1,4 @@
-#include "core/slam/stereo_slam.h"
+#include "core/slam/slam_system.h"
 
 #include <chrono>
 #include <cmath>
@@ -8,11 +8,11 @@
 #include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/optimization/apply_global_adjustment.h"
-#include "core/place/index_relocalizer.h"
+#include "core/relocalization/index_relocalizer.h"
 #include "core/slam/slam_tuning.h"
 
 namespace orbatlas {
-void StereoSlamOptions::check() const {
+void SlamSystemOptions::check() const {
   ORBATLAS_CHECK(
       new_map_after_failed_relocalizations >= 0,
       "slam: new_map_after_failed_relocalizations must be >= 0, not " << new_map_after_failed_relocalizations);
@@ -31,8 +31,8 @@ void StereoSlamOptions::check() const {
   final_ba.check();
 }
 
-StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
-                       StereoSlamOptions options, SessionWiring wiring)
+SlamSystem::SlamSystem(Atlas& atlas, const SlamSettings& settings, const Vocabulary& vocabulary,
+                       SlamSystemOptions options, SessionWiring wiring)
     : atlas_(atlas),
       options_(std::move(options)),
       frontend_(make_frame_frontend(settings, options_.parallel_stereo_frontend)),
@@ -186,11 +186,11 @@ StereoSlam::StereoSlam(Atlas& atlas, const SlamSettings& settings, const Vocabul
   }
 }
 
-void StereoSlam::add_imu(const std::vector<ImuSample>& samples) {
+void SlamSystem::add_imu(const std::vector<ImuSample>& samples) {
   if (imu_noise_) imu_.add(imu_input_->filter(samples));
 }
 
-StereoSlam::~StereoSlam() {
+SlamSystem::~SlamSystem() {
   // The tracker refers to the sink, the sink to the mapping: they go in that order.
   tracker_.reset();
   if (mapping_ && own_mapping_) {
@@ -204,7 +204,7 @@ StereoSlam::~StereoSlam() {
   mapping_.reset();
 }
 
-TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
+TrackResult SlamSystem::process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
   ORBATLAS_CHECK(!finished_, "this SLAM session has finished; it takes no more frames");
   ORBATLAS_DATA_CHECK(monocular_ || !right.empty(), "a stereo session takes a stereo pair: the right image is missing");
   auto start = std::chrono::steady_clock::now();
@@ -230,7 +230,7 @@ TrackResult StereoSlam::process(TimestampNs t_ns, const cv::Mat& left, const cv:
   return result;
 }
 
-void StereoSlam::follow_imu_clock(const TrackResult& result) {
+void SlamSystem::follow_imu_clock(const TrackResult& result) {
   if (result.map != time_offset_map_) {  // another map: its poses are in another frame
     time_offset_.reset();
     time_offset_map_ = result.map;
@@ -247,7 +247,7 @@ void StereoSlam::follow_imu_clock(const TrackResult& result) {
   time_offset_known_.store(true);
 }
 
-void StereoSlam::finish() {
+void SlamSystem::finish() {
   if (finished_) return;
   finished_ = true;
   if (mapping_ && own_mapping_) {
@@ -269,14 +269,14 @@ void StereoSlam::finish() {
   if (options_.final_global_ba && mapping_ && own_mapping_) adjust_maps_globally(tracked_maps());
 }
 
-std::set<MapId> StereoSlam::tracked_maps() const {
+std::set<MapId> SlamSystem::tracked_maps() const {
   std::set<MapId> maps;
   for (const auto& anchor : frames_.anchors())
     if (const auto located = atlas_.locate_frame(anchor)) maps.insert(located->first);
   return maps;
 }
 
-void StereoSlam::adjust_maps_globally(const std::set<MapId>& maps) {
+void SlamSystem::adjust_maps_globally(const std::set<MapId>& maps) {
   const auto start = std::chrono::steady_clock::now();
   for (const MapId id : maps) {
     const auto map = atlas_.map(id);
@@ -293,7 +293,7 @@ void StereoSlam::adjust_maps_globally(const std::set<MapId>& maps) {
   final_ba_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-std::vector<TimedPose> StereoSlam::trajectory() const {
+std::vector<TimedPose> SlamSystem::trajectory() const {
   const std::vector<FrameAnchor> anchors = frames_.anchors();
   std::vector<TimedPose> out;
   out.reserve(anchors.size());
@@ -303,11 +303,11 @@ std::vector<TimedPose> StereoSlam::trajectory() const {
   return out;
 }
 
-std::vector<FrameAnchor> StereoSlam::anchors_from(std::size_t first) const { return frames_.anchors_from(first); }
+std::vector<FrameAnchor> SlamSystem::anchors_from(std::size_t first) const { return frames_.anchors_from(first); }
 
-std::size_t StereoSlam::worker_errors() const { return frames_.errors().errors + (mapping_ ? mapping_->errors() : 0); }
+std::size_t SlamSystem::worker_errors() const { return frames_.errors().errors + (mapping_ ? mapping_->errors() : 0); }
 
-SlamStats StereoSlam::stats() const {
+SlamStats SlamSystem::stats() const {
   SlamStats s;
   s.frames = frames_.frames();
   s.relocalizations = tracker_->relocalizations();

@@ -1,4 +1,4 @@
-#include "core/place/index_relocalizer.h"
+#include "core/relocalization/index_relocalizer.h"
 
 namespace orbatlas {
 

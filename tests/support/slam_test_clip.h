@@ -46,7 +46,7 @@ inline EurocDataset stereo_dataset(const std::filesystem::path& dir) {
   ro.require_cam1 = true;
   return read_euroc_dataset(dir, ro);
 }
-inline std::vector<StereoFrame> stereo_frames(const std::filesystem::path& dir) {
+inline std::vector<DatasetFrame> stereo_frames(const std::filesystem::path& dir) {
   return pair_stereo_frames(stereo_dataset(dir));
 }
 

@@ -1,9 +1,10 @@
-#include "tests/persistence_backends.h"
+#include "tests/support/persistence_backends.h"
 
 #include <sstream>
 
 #include "core/persistence/pg_db.h"
 #include "core/persistence/sqlite_db.h"
+#include "tests/support/requirement.h"
 
 namespace orbatlas::test {
 
@@ -29,7 +30,7 @@ void AtlasBackendTest::SetUp() {
     return;
   }
   if (!cluster_ && skip_reason_.empty()) cluster_ = ThrowawayPostgres::start(&skip_reason_);
-  if (!cluster_) GTEST_SKIP() << "PostgreSQL backend skipped: " << skip_reason_;
+  if (!cluster_) ORBATLAS_NEEDS("PostgreSQL (a throwaway cluster): " << skip_reason_);
   std::ostringstream db;
   db << "atlas" << ++databases_;
   cluster_->create_database(db.str());

@@ -1,10 +1,10 @@
 #pragma once
-// Tracking's relocaliser over the atlas-wide keyframe index (core/place), for
+// Tracking's relocaliser over the atlas-wide keyframe index (core/relocalization), for
 // the sessions' trackers.
 #include <functional>
 
 #include "core/map/keyframe_index.h"
-#include "core/place/relocalizer.h"
+#include "core/relocalization/relocalizer.h"
 #include "core/tracking/frame_relocalizer.h"
 #include "core/vocabulary/vocabulary.h"
 
