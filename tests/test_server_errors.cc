@@ -6,9 +6,9 @@
 
 #include "client/api/server_client.h"
 #include "core/persistence/atlas_store.h"
-#include "tests/server_test_fixture.h"
-#include "tests/server_test_reply.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/server_test_fixture.h"
+#include "tests/support/server_test_reply.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
@@ -233,6 +233,7 @@ TEST(ServerErrors, TokenIsRequiredAndChecked) {
     // The viewer's page and scripts hold no data: no token; its data routes need it.
     EXPECT_REPLY(anonymous.http().Get("/"), 200, "");
     EXPECT_REPLY(anonymous.http().Get("/viewer/app.js"), 200, "");
+    EXPECT_REPLY(anonymous.http().Get("/viewer/scene.js"), 200, "");
     EXPECT_REPLY(anonymous.http().Get("/viewer/three.min.js"), 200, "");
     EXPECT_REPLY(anonymous.http().Get("/v1/live"), 401, "unauthorized");
     EXPECT_REPLY(anonymous.http().Get("/v1/maps/0/keyframes"), 401, "unauthorized");

@@ -2,7 +2,9 @@
 // Chromium loads the page from a test server holding a stored map while a live
 // session streams, and the test checks what a person would see: the map list,
 // a 3D canvas with the map drawn, pixels that change as the session moves, and
-// no errors on the page. Skipped, saying so, where Chromium is missing
+// no errors on the page; and, in a browser without WebGL, a page whose side
+// panel still lists the maps and says why there is no 3D view. Skipped, saying
+// so, where Chromium is missing
 // (scripts/setup.sh installs it). The screenshots are kept beside the test
 // binary (viewer_first.png, viewer_second.png).
 #include <gtest/gtest.h>
@@ -19,8 +21,9 @@
 
 #include "client/api/dataset_streamer.h"
 #include "client/api/server_client.h"
-#include "tests/server_test_fixture.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/server_test_fixture.h"
+#include "tests/support/slam_test_clip.h"
+#include "tests/support/requirement.h"
 
 namespace orbatlas {
 namespace {
@@ -58,6 +61,7 @@ std::string unescape_html(std::string text) {
 
 struct Capture {
   nlohmann::json status;  // what the page reports (window.orbatlasViewer)
+  std::string dom;        // the page as it was when the status was read
   cv::Mat screenshot;
 };
 
@@ -71,13 +75,17 @@ int bright_pixels(const cv::Mat& shot) {
 // More bright pixels than this: the view has drawn the map.
 constexpr int kDrawnPixels = 300;
 
+// How the browser draws: WebGL on the CPU (SwiftShader), or no WebGL at all
+// (as on an old laptop or a remote desktop).
+const std::string kWithWebGL = " --use-angle=swiftshader --enable-unsafe-swiftshader";
+const std::string kWithoutWebGL = " --disable-3d-apis --disable-gpu --disable-software-rasterizer";
+
 // One look at the page: its DOM (the status the page writes) and a screenshot,
 // each after a few seconds of the page's (virtual) time.
-Capture capture(const std::string& chromium, const std::string& url, const fs::path& png, const fs::path& profile) {
-  const std::string flags =
-      " --headless --no-sandbox --disable-dev-shm-usage --use-angle=swiftshader --enable-unsafe-swiftshader"
-      " --window-size=1200,800 --virtual-time-budget=3000 --user-data-dir=" +
-      profile.string();
+Capture capture(const std::string& chromium, const std::string& url, const fs::path& png, const fs::path& profile,
+                const std::string& graphics = kWithWebGL) {
+  const std::string flags = " --headless --no-sandbox --disable-dev-shm-usage" + graphics +
+                            " --window-size=1200,800 --virtual-time-budget=3000 --user-data-dir=" + profile.string();
   Capture c;
   // On a loaded machine (ctest -j2) headless Chromium's virtual time has ended
   // before the map's data arrived: once a DOM without the page's status, once a
@@ -86,8 +94,10 @@ Capture capture(const std::string& chromium, const std::string& url, const fs::p
   for (int attempt = 0; attempt < 3 && !c.status.is_object(); ++attempt) {
     const std::string dom = run_command("timeout 90 " + chromium + flags + " --dump-dom '" + url + "' 2>/dev/null");
     std::smatch m;
-    if (std::regex_search(dom, m, std::regex(R"(<pre id="status"[^>]*>([^<]*)</pre>)")))
+    if (std::regex_search(dom, m, std::regex(R"(<pre id="status"[^>]*>([^<]*)</pre>)"))) {
       c.status = nlohmann::json::parse(unescape_html(m[1].str()), nullptr, false);
+      c.dom = dom;
+    }
   }
   for (int attempt = 0; attempt < 3; ++attempt) {
     run_command("timeout 90 " + chromium + flags + " --screenshot=" + png.string() + " '" + url + "' > /dev/null 2>&1");
@@ -99,7 +109,7 @@ Capture capture(const std::string& chromium, const std::string& url, const fs::p
 
 TEST(Viewer, AHeadlessBrowserShowsTheStoredMapAndALiveSessionMoving) {
   const auto chromium = chromium_binary();
-  if (!chromium) GTEST_SKIP() << "chromium is not installed (scripts/setup.sh installs it): the viewer is not tested";
+  if (!chromium) ORBATLAS_NEEDS("chromium, which scripts/setup.sh installs (the viewer is not tested)");
   const auto stored_clip = test::simulated_clip("MH_01", 60.0, 6.0);
   const auto live_clip = test::simulated_clip("MH_01", 62.0, 20.0);
   test::ClipCleanup c1{stored_clip}, c2{live_clip};
@@ -151,6 +161,7 @@ TEST(Viewer, AHeadlessBrowserShowsTheStoredMapAndALiveSessionMoving) {
     ASSERT_TRUE(c->status.is_object()) << "the page wrote no status";
     std::printf("viewer status: %s\n", c->status.dump().c_str());
     EXPECT_TRUE(c->status.at("webgl").get<bool>());
+    EXPECT_TRUE(c->status.at("no_3d").is_null());
     EXPECT_TRUE(c->status.at("errors").empty()) << c->status.at("errors").dump();
     EXPECT_FALSE(c->status.at("maps").empty()) << "no map listed";
     EXPECT_EQ(c->status.at("map"), *live_map);
@@ -179,6 +190,50 @@ TEST(Viewer, AHeadlessBrowserShowsTheStoredMapAndALiveSessionMoving) {
       moved, changed, fs::absolute("viewer_first.png").c_str(), fs::absolute("viewer_second.png").c_str());
   EXPECT_GT(moved, 0.05);
   EXPECT_GT(changed, 50);
+}
+
+TEST(Viewer, WithoutWebGLThePageListsTheMapsAndSaysWhyThereIsNo3DView) {
+  const auto chromium = chromium_binary();
+  if (!chromium) ORBATLAS_NEEDS("chromium, which scripts/setup.sh installs (the viewer is not tested)");
+  const auto clip = test::simulated_clip("MH_01", 60.0, 4.0);
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath db("viewer_no_webgl");
+  const fs::path profile =
+      fs::temp_directory_path() / ("orbatlas_test_viewer_no_webgl_profile_" + std::to_string(::getpid()));
+  HttpApiOptions api;
+  api.token = "viewer-token";
+  test::TestServer server(test::server_options(db.path), api);
+  ServerClient client(server.url(), api.token);
+  StreamOptions o = test::stream_options(clip);
+  o.rate = 0.0;
+  ASSERT_GT(stream_dataset(client, o).tracked, 60u);
+  const nlohmann::json maps = client.get_json("/v1/maps").at("maps");
+  ASSERT_FALSE(maps.empty());
+
+  const Capture c =
+      capture(*chromium, server.url() + "/?token=" + api.token, "viewer_no_webgl.png", profile, kWithoutWebGL);
+  std::error_code ec;
+  fs::remove_all(profile, ec);
+  ASSERT_TRUE(c.status.is_object()) << "the page wrote no status";
+  std::printf("viewer status without WebGL: %s\n", c.status.dump().c_str());
+  EXPECT_FALSE(c.status.at("webgl").get<bool>());
+  ASSERT_TRUE(c.status.at("no_3d").is_string()) << "the page does not say why there is no 3D view";
+  EXPECT_NE(c.status.at("no_3d").get<std::string>().find("WebGL"), std::string::npos);
+  EXPECT_TRUE(c.status.at("errors").empty()) << c.status.at("errors").dump();
+  // The side panel works: every stored map listed with its figures, the live
+  // sessions' table and the merges' list filled in.
+  std::vector<std::uint64_t> listed = c.status.at("maps").get<std::vector<std::uint64_t>>();
+  ASSERT_EQ(listed.size(), maps.size());
+  for (const auto& m : maps) {
+    const std::string id = std::to_string(m.at("id").get<std::uint64_t>());
+    EXPECT_NE(c.dom.find("data-map=\"" + id + "\""), std::string::npos) << "map " << id << " is not in the list";
+    EXPECT_NE(c.dom.find("map " + id + ": " + std::to_string(m.at("keyframes").get<int>()) + " keyframes"),
+              std::string::npos);
+  }
+  EXPECT_NE(c.dom.find("no live session"), std::string::npos);
+  EXPECT_NE(c.dom.find("none yet"), std::string::npos);
+  // The reason is on the page where the 3D view would be.
+  EXPECT_NE(c.dom.find("<p id=\"no-3d\">No 3D view"), std::string::npos);
 }
 
 }  // namespace

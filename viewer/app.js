@@ -2,7 +2,8 @@
 // points and keyframes in 3D, the live sessions' cameras as they are tracked,
 // the merges, and the sessions' figures. It polls small routes of the server's
 // API (GET /v1/live four times a second; /v1/maps and /v1/merges every two
-// seconds) and loads a map's points as a binary buffer, capped in number.
+// seconds) and loads a map's points as a binary buffer, capped in number. The
+// 3D drawing is scene.js's; without WebGL the page works without it.
 'use strict';
 (function () {
   const POINT_CAP = 150000;    // level of detail: at most this many points drawn
@@ -14,7 +15,7 @@
   // What a test (or a person with the console open) can read: the page writes
   // it into <pre id="status"> as JSON after every poll.
   const status = {maps: [], map: null, points: 0, points_total: 0, keyframes: 0, live: [], merges: 0,
-                  polls: 0, renders: 0, webgl: false, errors: []};
+                  polls: 0, renders: 0, webgl: false, no_3d: null, errors: []};
   window.orbatlasViewer = status;
   const note = (text) => { status.errors.push(text); document.getElementById('message').textContent = text; };
   window.addEventListener('error', (e) => note('error: ' + e.message));
@@ -37,58 +38,21 @@
     return binary ? reply.arrayBuffer() : reply.json();
   }
 
-  // The scene: the map's frame has z up (gravity along -z once known); three.js has y up.
+  // The 3D view, where the browser can draw it (WebGL); without it the side
+  // panel still lists the maps, live sessions and merges, and the view says why
+  // it is empty.
   const view = document.getElementById('view');
-  const renderer = new THREE.WebGLRenderer({antialias: true, preserveDrawingBuffer: true});
-  status.webgl = !!renderer.getContext();
-  view.appendChild(renderer.domElement);
-  const scene = new THREE.Scene();
-  scene.background = new THREE.Color(0x111114);
-  const camera = new THREE.PerspectiveCamera(55, 1, 0.05, 1000);
-  camera.position.set(8, 10, 14);
-  const controls = new THREE.OrbitControls(camera, renderer.domElement);
-  const world = new THREE.Group();
-  world.rotation.x = -Math.PI / 2;
-  scene.add(world);
-  scene.add(new THREE.GridHelper(40, 40, 0x333340, 0x222228));
-  const layers = {points: new THREE.Group(), keyframes: new THREE.Group(), graph: new THREE.Group(),
-                  live: new THREE.Group()};
-  for (const layer of Object.values(layers)) world.add(layer);
-
-  function resize() {
-    const w = Math.max(1, view.clientWidth), h = Math.max(1, view.clientHeight);
-    renderer.setSize(w, h);
-    camera.aspect = w / h;
-    camera.updateProjectionMatrix();
-  }
-  window.addEventListener('resize', resize);
-  resize();
-
-  function clear(group) {
-    while (group.children.length) {
-      const child = group.children.pop();
-      if (child.geometry) child.geometry.dispose();
-      if (child.material) child.material.dispose();
-    }
-  }
-
-  // A camera frustum's 8 segments (16 vertices) at position p, rotation q = [w, x, y, z].
-  function frustum(out, p, q, size) {
-    const quat = new THREE.Quaternion(q[1], q[2], q[3], q[0]);
-    const c = new THREE.Vector3(p[0], p[1], p[2]);
-    const corners = [[-1, -0.75], [1, -0.75], [1, 0.75], [-1, 0.75]].map(([x, y]) =>
-      new THREE.Vector3(x * size, y * size, size * 1.2).applyQuaternion(quat).add(c));
-    for (let i = 0; i < 4; ++i) {
-      out.push(c.x, c.y, c.z, corners[i].x, corners[i].y, corners[i].z);
-      const n = corners[(i + 1) % 4];
-      out.push(corners[i].x, corners[i].y, corners[i].z, n.x, n.y, n.z);
-    }
-  }
-
-  function segments(vertices, colour) {
-    const geometry = new THREE.BufferGeometry();
-    geometry.setAttribute('position', new THREE.Float32BufferAttribute(vertices, 3));
-    return new THREE.LineSegments(geometry, new THREE.LineBasicMaterial({color: colour}));
+  let scene = null;
+  try {
+    scene = window.createMapScene(view);
+    status.webgl = true;
+  } catch (e) {
+    status.no_3d = 'No 3D view: this browser cannot draw with WebGL (' + e.message + '). ' +
+                   'The maps, live sessions and merges are listed on the left.';
+    const reason = document.createElement('p');
+    reason.id = 'no-3d';
+    reason.textContent = status.no_3d;
+    view.appendChild(reason);
   }
 
   // The chosen map.
@@ -100,57 +64,20 @@
     const buffer = await get('/v1/maps/' + id + '/points.bin?max=' + POINT_CAP, true);
     if (id !== chosen) return;
     const xyz = new Float32Array(buffer);
-    const geometry = new THREE.BufferGeometry();
-    geometry.setAttribute('position', new THREE.BufferAttribute(xyz, 3));
-    // Coloured by height (z in the map's frame).
-    let lo = Infinity, hi = -Infinity;
-    for (let i = 2; i < xyz.length; i += 3) { lo = Math.min(lo, xyz[i]); hi = Math.max(hi, xyz[i]); }
-    const colours = new Float32Array(xyz.length);
-    const colour = new THREE.Color();
-    for (let i = 0; i < xyz.length; i += 3) {
-      const t = hi > lo ? (xyz[i + 2] - lo) / (hi - lo) : 0.5;
-      colour.setHSL(0.62 - 0.55 * t, 0.6, 0.55);
-      colours[i] = colour.r; colours[i + 1] = colour.g; colours[i + 2] = colour.b;
-    }
-    geometry.setAttribute('color', new THREE.BufferAttribute(colours, 3));
-    clear(layers.points);
-    layers.points.add(new THREE.Points(geometry, new THREE.PointsMaterial({size: 2, sizeAttenuation: false, vertexColors: true})));
+    scene.showPoints(xyz);
     status.points = xyz.length / 3;
   }
 
   async function loadKeyframes(id) {
     const reply = await get('/v1/maps/' + id + '/keyframes');
     if (id !== chosen) return;
-    const frusta = [], tree = [], loops = [];
-    const where = new Map();
-    for (const kf of reply.keyframes) {
-      frustum(frusta, kf.p, kf.q, 0.08);
-      where.set(kf.id, kf.p);
-    }
-    for (const kf of reply.keyframes) {
-      const parent = kf.parent === null ? undefined : where.get(kf.parent);
-      if (parent) tree.push(...kf.p, ...parent);
-    }
-    for (const [a, b] of reply.loop_edges) {
-      if (where.has(a) && where.has(b)) loops.push(...where.get(a), ...where.get(b));
-    }
-    clear(layers.keyframes);
-    clear(layers.graph);
-    layers.keyframes.add(segments(frusta, 0x5588ff));
-    layers.graph.add(segments(tree, 0x33aa55));
-    layers.graph.add(segments(loops, 0xff3355));
+    scene.showKeyframes(reply);
     status.keyframes = reply.keyframes.length;
   }
 
   function frameMap(summary) {
-    if (framed || !summary || !summary.bounds_m) return;
-    const b = summary.bounds_m, min = b.min, max = b.max;
-    // Map frame (x, y, z) is three.js (x, z, -y) under world's rotation.
-    const centre = new THREE.Vector3((min[0] + max[0]) / 2, (min[2] + max[2]) / 2, -(min[1] + max[1]) / 2);
-    const size = Math.max(max[0] - min[0], max[1] - min[1], max[2] - min[2], 1);
-    controls.target.copy(centre);
-    camera.position.set(centre.x + 0.6 * size, centre.y + 0.8 * size, centre.z + 0.9 * size);
-    controls.update();
+    if (framed || !scene || !summary || !summary.bounds_m) return;
+    scene.frame(summary.bounds_m);
     framed = true;
   }
 
@@ -159,9 +86,7 @@
     loaded = {keyframes: -1, points: -1, at: 0};
     framed = false;
     status.map = id;
-    clear(layers.points);
-    clear(layers.keyframes);
-    clear(layers.graph);
+    if (scene) scene.clearMap();
     for (const li of document.querySelectorAll('#maps li')) li.classList.toggle('chosen', Number(li.dataset.map) === id);
     refreshMaps().catch((e) => note(e.message));
   }
@@ -191,9 +116,9 @@
     const summary = reply.maps.find((m) => m.id === chosen);
     status.points_total = summary.map_points;
     frameMap(summary);
-    // A growing map is reloaded at most every few seconds.
+    // A growing map is reloaded at most every few seconds (only to be drawn).
     const now = performance.now();
-    if ((summary.keyframes !== loaded.keyframes || summary.map_points !== loaded.points) &&
+    if (scene && (summary.keyframes !== loaded.keyframes || summary.map_points !== loaded.points) &&
         (loaded.at === 0 || now - loaded.at > 4000)) {
       loaded = {keyframes: summary.keyframes, points: summary.map_points, at: now};
       await Promise.all([loadPoints(chosen), loadKeyframes(chosen)]);
@@ -220,8 +145,7 @@
   async function refreshLive() {
     const reply = await get('/v1/live');
     status.polls += 1;
-    clear(layers.live);
-    const rows = [];
+    const rows = [], drawn = [];
     status.live = [];
     for (const s of reply.sessions) {
       const colour = SESSION_COLOURS[s.id % SESSION_COLOURS.length];
@@ -239,20 +163,14 @@
         if (!last.length || last[0] !== s.pose.p[0] || last[1] !== s.pose.p[1] || last[2] !== s.pose.p[2])
           trail.points.push(...s.pose.p);
         if (trail.points.length > 3 * TRAIL) trail.points.splice(0, trail.points.length - 3 * TRAIL);
-        const marker = [];
-        frustum(marker, s.pose.p, s.pose.q, 0.25);
-        layers.live.add(segments(marker, colour));
-        if (trail.points.length >= 6) {
-          const geometry = new THREE.BufferGeometry();
-          geometry.setAttribute('position', new THREE.Float32BufferAttribute(trail.points, 3));
-          layers.live.add(new THREE.Line(geometry, new THREE.LineBasicMaterial({color: colour})));
-        }
+        drawn.push({colour, pose: s.pose, trail: trail.points});
       }
       rows.push('<tr><td>' + s.id + ' ' + escapeHtml(s.name) + '</td><td>' + (s.map === null ? '-' : s.map) +
                 '</td><td>' + s.frames + '</td><td>' + s.tracked + '</td><td>' + s.skipped_frames + '</td><td>' +
                 (s.tracking_p50_ms === null ? '-' : s.tracking_p50_ms.toFixed(1)) + '</td><td>' +
                 trail.fps.toFixed(1) + '</td></tr>');
     }
+    if (scene) scene.showLive(drawn);
     document.querySelector('#sessions tbody').innerHTML = rows.join('') ||
         '<tr><td colspan="7">no live session</td></tr>';
     document.getElementById('status').textContent = JSON.stringify(status);
@@ -265,7 +183,8 @@
 
   for (const [box, layer] of [['show-points', 'points'], ['show-keyframes', 'keyframes'], ['show-graph', 'graph']]) {
     const input = document.getElementById(box);
-    const apply = () => { layers[layer].visible = input.checked; };
+    input.disabled = !scene;
+    const apply = () => { if (scene) scene.setVisible(layer, input.checked); };
     input.addEventListener('change', apply);
     apply();
   }
@@ -278,11 +197,5 @@
   every(MAP_POLL_MS, async () => { await refreshMaps(); await refreshMerges(); });
   every(LIVE_POLL_MS, refreshLive);
 
-  function draw() {
-    controls.update();
-    renderer.render(scene, camera);
-    status.renders += 1;
-    requestAnimationFrame(draw);
-  }
-  draw();
+  if (scene) scene.start(() => { status.renders += 1; });
 })();

@@ -21,6 +21,7 @@ const std::vector<std::pair<std::string, std::string>>& viewer_files() {
   static const std::vector<std::pair<std::string, std::string>> files = {
       {"/", "text/html; charset=utf-8"},
       {"/viewer/app.js", "text/javascript; charset=utf-8"},
+      {"/viewer/scene.js", "text/javascript; charset=utf-8"},
       {"/viewer/style.css", "text/css; charset=utf-8"},
       {"/viewer/three.min.js", "text/javascript; charset=utf-8"},
       {"/viewer/OrbitControls.js", "text/javascript; charset=utf-8"}};
