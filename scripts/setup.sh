@@ -30,7 +30,13 @@ fi
 [ "${1:-}" = "--deps-only" ] && exit 0
 
 JOBS="${ORBATLAS_JOBS:-$(nproc)}"
+# ORBATLAS_WERROR=ON|OFF (the test command sets ON): the project's own compiler
+# warnings are errors. Unset, a configured build keeps what it has.
+werror=()
+[ -n "${ORBATLAS_WERROR:-}" ] && werror=(-DORBATLAS_WERROR="$ORBATLAS_WERROR")
 if [ ! -f "$BUILD_DIR/build.ninja" ]; then
-  cmake -S "$ROOT" -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release
+  cmake -S "$ROOT" -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release "${werror[@]}"
+elif ((${#werror[@]})) && ! grep -qx "ORBATLAS_WERROR:BOOL=$ORBATLAS_WERROR" "$BUILD_DIR/CMakeCache.txt"; then
+  cmake -S "$ROOT" -B "$BUILD_DIR" "${werror[@]}"
 fi
 cmake --build "$BUILD_DIR" -j "$JOBS"

@@ -4,7 +4,8 @@
 # message) when it is absent.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-"$ROOT/scripts/setup.sh"
+# The project's own compiler warnings are errors here (and so in CI).
+ORBATLAS_WERROR=ON "$ROOT/scripts/setup.sh"
 BUILD_DIR="${ORBATLAS_BUILD_DIR:-$ROOT/build}"
 cd "$BUILD_DIR"
 ctest --output-on-failure -j "${ORBATLAS_JOBS:-$(nproc)}" "$@"

@@ -87,7 +87,9 @@ TEST(QueueWorker, AWorkersThreadRunsAtItsNiceValue) {
   }
   // Raising a thread's nice value always works; lowering it below the
   // creator's (when the tests themselves run niced) may need privileges.
-  if (own <= 7) EXPECT_EQ(seen.load(), 7);
+  if (own <= 7) {
+    EXPECT_EQ(seen.load(), 7);
+  }
   EXPECT_GE(seen.load(), 7);
   EXPECT_EQ(current_thread_nice(), own);
   SerialWorker serial(2, 3);
@@ -98,7 +100,9 @@ TEST(QueueWorker, AWorkersThreadRunsAtItsNiceValue) {
     done.set_value();
   }));
   done.get_future().wait();
-  if (own <= 3) EXPECT_EQ(serial_seen.load(), 3);
+  if (own <= 3) {
+    EXPECT_EQ(serial_seen.load(), 3);
+  }
   EXPECT_GE(serial_seen.load(), 3);
 }
 

@@ -21,8 +21,8 @@
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/database_lock.h"
 #include "server/http/image_decode.h"
-#include "tests/server_test_fixture.h"
-#include "tests/server_test_reply.h"
+#include "tests/support/server_test_fixture.h"
+#include "tests/support/server_test_reply.h"
 
 namespace orbatlas {
 namespace {
@@ -95,10 +95,11 @@ TEST(ServerHardening, AFrameNeverReferencesAKeyframeTheCheckpointDidNotStore) {
   SessionInfo info;
   info.id = 1;
   info.name = "dangling";
-  AtlasCheckpointWriter writer(atlas, AtlasStore::open(db.path, "test"),
-                               CheckpointSession{info, [&](std::size_t first) {
-                                                   return first < frames.size() ? frames : std::vector<FrameAnchor>{};
-                                                 }});
+  AtlasCheckpointWriter writer(
+      atlas, AtlasStore::open(db.path, "test"),
+      CheckpointSession{info,
+                        [&](std::size_t first) { return first < frames.size() ? frames : std::vector<FrameAnchor>{}; },
+                        /*record=*/{}});
   writer.checkpoint();
   EXPECT_EQ(writer.deferred_frames(), 1u);
   EXPECT_EQ(writer.dropped_frames(), 0u);

@@ -241,9 +241,9 @@ TEST(EurocTrajectory, WriteThenReadKeepsEveryNanosecondAndPoseAsTumDoes) {
   EXPECT_EQ(parse_trajectory_format("euroc"), TrajectoryFormat::kEuroc);
   EXPECT_THROW(parse_trajectory_format("kitti"), Error);
 
-  const auto error = [](const std::string& text) {
+  const auto error = [](const std::string& lines) {
     try {
-      parse_euroc_trajectory(text, "t.csv");
+      parse_euroc_trajectory(lines, "t.csv");
     } catch (const DataError& e) {
       return std::string(e.what());
     }

@@ -13,8 +13,6 @@ namespace {
 
 Eigen::Matrix3d exp_matrix(const Eigen::Vector3d& w) { return so3_exp(w).toRotationMatrix(); }
 
-Eigen::Vector3d log_matrix(const Eigen::Matrix3d& R) { return so3_log(Eigen::Quaterniond(R)); }
-
 Eigen::Matrix3d normalized(const Eigen::Matrix3d& R) { return Eigen::Quaterniond(R).normalized().toRotationMatrix(); }
 
 ImuSample lerp(const ImuSample& a, const ImuSample& b, TimestampNs t) {
