@@ -62,7 +62,10 @@ for look in "${LOOK_LIST[@]}"; do
         echo "== orbatlas run $config on $s ($look look${extra[*]:+, ${extra[*]}}), run $run"
         "$OA" run --config "$ROOT/config/euroc/$config.yaml" --dataset "$src" --no-progress \
             --out-trajectory "$OUT/$name.txt" --stats "$OUT/$name.json" "${extra[@]}" > "$OUT/$name.log" 2>&1
-        "$OA" eval --gt "$src" --est "$OUT/$name.txt" --align se3 --json > "$OUT/$name.eval.json"
+        # A monocular session's trajectory is the camera's (cam0), a stereo one's the body's.
+        frame=body
+        [ "$mode" = mono_inertial ] && frame=cam0
+        "$OA" eval --gt "$src" --est "$OUT/$name.txt" --align se3 --est-frame "$frame" --json > "$OUT/$name.eval.json"
         NAMES+=("$name")
       done
     done
