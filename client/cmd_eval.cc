@@ -2,10 +2,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "client/commands.h"
@@ -13,6 +15,7 @@
 #include "core/eval/evaluate.h"
 #include "core/eval/trajectory_plot.h"
 #include "core/io/euroc_reader.h"
+#include "core/io/kitti_odometry.h"
 #include "core/io/tum_trajectory.h"
 
 namespace orbatlas::cli {
@@ -26,6 +29,9 @@ struct EvalArgs {
   double max_gap_s = 0.1;
   bool json = false;
   std::string plot;
+  // KITTI's relative errors over these segment lengths [m]; "auto": the lengths
+  // that suit the path. Computed for KITTI ground truth, or when given.
+  std::vector<std::string> segments;
 };
 
 nlohmann::ordered_json to_json(const EvalResult& r) {
@@ -37,6 +43,20 @@ nlohmann::ordered_json to_json(const EvalResult& r) {
           {"est_poses", r.est_poses},          {"gt_poses", r.gt_poses},
           {"coverage", r.coverage.fraction},   {"covered_s", r.coverage.covered_s},
           {"span_s", r.coverage.span_s}};
+}
+
+nlohmann::ordered_json to_json(const KittiErrors& k) {
+  nlohmann::ordered_json lengths = nlohmann::ordered_json::array();
+  for (const SegmentErrors& s : k.by_length)
+    lengths.push_back({{"length_m", s.length_m},
+                       {"segments", s.segments},
+                       {"trans_percent", s.trans_percent},
+                       {"rot_deg_per_m", s.rot_deg_per_m}});
+  return {{"trans_percent", k.trans_percent},
+          {"rot_deg_per_m", k.rot_deg_per_m},
+          {"segments", k.segments},
+          {"path_m", k.path_m},
+          {"lengths", lengths}};
 }
 
 std::string joined(const std::vector<std::string>& paths) {
@@ -58,6 +78,21 @@ void print_human(const EvalArgs& args, const EvalResult& r) {
                 r.coverage.covered_s, r.coverage.span_s, r.ate.rmse, r.ate.mean, r.ate.median, r.ate.max,
                 r.rpe.trans_rmse_m, r.rpe.rot_rmse_deg, r.rpe.pairs);
   std::cout << buf;
+  if (r.segments) {
+    const KittiErrors& k = *r.segments;
+    std::string lengths;
+    for (const SegmentErrors& s : k.by_length)
+      lengths += (lengths.empty() ? "" : ", ") + std::to_string(std::lround(s.length_m));
+    if (k.segments == 0) {
+      std::snprintf(buf, sizeof buf, "  KITTI errors   no segment of %s m fits the %.1f m path (--segments)\n",
+                    lengths.c_str(), k.path_m);
+    } else {
+      std::snprintf(buf, sizeof buf,
+                    "  KITTI errors   trans %.3f %%  rot %.5f deg/m  (%zu segments of %s m; path %.1f m)\n",
+                    k.trans_percent, k.rot_deg_per_m, k.segments, lengths.c_str(), k.path_m);
+    }
+    std::cout << buf;
+  }
 }
 
 // One line per --est file (sessions are never joined in a plot), each with the
@@ -98,6 +133,11 @@ std::vector<std::pair<TimestampNs, TimestampNs>> recording_spans(const std::vect
   for (const auto& g : gts) {
     std::error_code ec;
     if (!std::filesystem::is_directory(g, ec)) return {};
+    if (is_kitti_sequence(g)) {
+      const std::vector<TimestampNs> times = read_kitti_times(std::filesystem::path(g) / "times.txt");
+      spans.emplace_back(times.front(), times.back());
+      continue;
+    }
     const EurocDataset dataset = read_euroc_dataset(g);
     if (dataset.cameras.empty() || dataset.cameras.front().frames.empty()) return {};
     const auto& frames = dataset.cameras.front().frames;
@@ -134,6 +174,30 @@ Trajectory read_camera_ground_truth(const std::vector<std::string>& gts) {
   return join_trajectories(parts, what.c_str());
 }
 
+// --segments: lengths, or "auto"; without it, auto for KITTI ground truth only.
+std::optional<std::vector<double>> segment_lengths(const EvalArgs& args) {
+  if (args.segments.empty()) {
+    for (const auto& g : args.gt) {
+      std::error_code ec;
+      const std::filesystem::path p(g);
+      if ((std::filesystem::is_directory(p, ec) && is_kitti_sequence(p)) ||
+          (std::filesystem::is_regular_file(p, ec) && looks_like_kitti_poses(p)))
+        return std::vector<double>{};
+    }
+    return std::nullopt;
+  }
+  if (args.segments.size() == 1 && args.segments.front() == "auto") return std::vector<double>{};
+  std::vector<double> lengths;
+  for (const auto& text : args.segments) {
+    char* end = nullptr;
+    const double l = std::strtod(text.c_str(), &end);
+    ORBATLAS_CHECK(end != text.c_str() && *end == '\0' && std::isfinite(l) && l > 0.0,
+                   "--segments takes lengths in metres (> 0) or auto, not '" << text << "'");
+    lengths.push_back(l);
+  }
+  return lengths;
+}
+
 void run_eval(const EvalArgs& args) {
   const Trajectory gt =
       args.est_frame == "cam0" ? read_camera_ground_truth(args.gt) : read_joined(args.gt, read_parts(args.gt));
@@ -148,10 +212,13 @@ void run_eval(const EvalArgs& args) {
   options.align = *mode;
   options.association.max_gap_ns = s_to_ns(args.max_gap_s);
   options.spans = recording_spans(args.gt);
+  options.segment_lengths_m = segment_lengths(args);
   const EvalResult result = evaluate_trajectory(est, gt, options);
 
   if (args.json) {
-    std::cout << to_json(result).dump(2) << "\n";
+    nlohmann::ordered_json j = to_json(result);
+    if (result.segments) j["kitti"] = to_json(*result.segments);
+    std::cout << j.dump(2) << "\n";
   } else {
     print_human(args, result);
   }
@@ -167,7 +234,8 @@ void register_eval_command(CLI::App& app) {
   auto args = std::make_shared<EvalArgs>();
   CLI::App* cmd = app.add_subcommand("eval", "Evaluate an estimated trajectory against ground truth (ATE, RPE)");
   cmd->add_option("--gt", args->gt,
-                  "Ground truth: TUM file, ASL state_groundtruth_estimate0 csv, or EuRoC dataset folder. Repeat it "
+                  "Ground truth: TUM file, ASL state_groundtruth_estimate0 csv, KITTI poses file, or EuRoC or KITTI "
+                  "dataset folder. Repeat it "
                   "(and --est) for several sessions in one world frame: they are joined in time order and aligned "
                   "with ONE transform")
       ->required();
@@ -188,6 +256,11 @@ void register_eval_command(CLI::App& app) {
   cmd->add_option("--max-gap", args->max_gap_s, "Largest ground-truth gap [s] to interpolate across when associating")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  cmd->add_option("--segments", args->segments,
+                  "KITTI's relative errors (translation %, rotation deg/m) over path segments of these lengths in "
+                  "metres (comma-separated), or auto: the benchmark's 100..800 m that fit the path, else tenths of "
+                  "it. On by itself for KITTI ground truth")
+      ->delimiter(',');
   cmd->add_flag("--json", args->json, "Print the result as one JSON object");
   cmd->add_option("--plot", args->plot, "Write a top-view (x-y) PNG of both trajectories");
   cmd->callback([args] { run_eval(*args); });

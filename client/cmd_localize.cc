@@ -1,4 +1,4 @@
-// `orbatlas localize`: tracks a stereo dataset against the maps of a stored atlas
+// `orbatlas localize`: tracks a stereo dataset (EuRoC ASL, KITTI odometry) against the maps of a stored atlas
 // without changing them (no keyframe, no new map): relocalisation across every
 // stored map to start and whenever tracking is lost, then tracking. The output
 // holds the localised frames only, in the frame of the map recognised, with
@@ -16,6 +16,7 @@
 #include "client/commands.h"
 #include "core/common/text_file.h"
 #include "core/io/euroc_reader.h"
+#include "core/io/kitti_odometry.h"
 #include "wire/pose_json.h"
 #include "client/bag_options.h"
 #include "core/slam/slam_stats.h"
@@ -44,13 +45,24 @@ struct LocalizeArgs {
 // phone would send) is localised; prints how many were recognised and the
 // request latency, and writes the poses (TUM, '# map' lines) when asked.
 void localize_dataset_on_server(const LocalizeArgs& args) {
-  EurocReadOptions read_options;
-  read_options.require_cam1 = false;
-  const EurocDataset dataset = read_euroc_dataset(args.dataset, read_options);
-  ORBATLAS_CHECK(!dataset.cameras.empty() && !dataset.cameras[0].frames.empty(), args.dataset << " has no cam0 images");
-  const std::vector<ImageFrame>& images = dataset.cameras[0].frames;
+  std::vector<ImageFrame> images;
+  SettingsChoice settings;
+  if (is_kitti_sequence(args.dataset)) {
+    const KittiSequence kitti = read_kitti_sequence(args.dataset);
+    for (const DatasetFrame& f : kitti.frames) images.push_back({f.t_ns, f.left});
+    // Its own settings (calib.txt), unless --config names others.
+    settings = args.config.empty() ? SettingsChoice{"", kitti_settings_yaml(kitti)} : choose_settings(args.config);
+  } else {
+    ORBATLAS_CHECK(!args.config.empty(), "localize: --config is needed for " << args.dataset);
+    EurocReadOptions read_options;
+    read_options.require_cam1 = false;
+    const EurocDataset dataset = read_euroc_dataset(args.dataset, read_options);
+    ORBATLAS_CHECK(!dataset.cameras.empty() && !dataset.cameras[0].frames.empty(),
+                   args.dataset << " has no cam0 images");
+    images = dataset.cameras[0].frames;
+    settings = choose_settings(args.config);  // a local file is read once
+  }
   ServerClient client(args.server, args.token, args.ca);
-  const SettingsChoice settings = choose_settings(args.config);  // a local file is read once
   Trajectory poses;
   std::vector<std::uint64_t> maps;
   std::vector<double> ms, server_ms;
@@ -86,6 +98,7 @@ void localize_dataset_on_server(const LocalizeArgs& args) {
 
 void localize_on_server(const LocalizeArgs& args) {
   ORBATLAS_CHECK(!args.image.empty(), "localize --server needs --image LEFT.png (and --image-right for a stereo pair)");
+  ORBATLAS_CHECK(!args.config.empty(), "localize --server --image needs --config (a config name or a settings file)");
   const cv::Mat left = cv::imread(args.image, cv::IMREAD_GRAYSCALE);
   ORBATLAS_CHECK(!left.empty(), "cannot read image " << args.image);
   cv::Mat right;
@@ -117,9 +130,10 @@ void register_localize_command(CLI::App& app) {
   cmd->add_option("--atlas", args->atlas, "Atlas database (orbatlas run --atlas)")->check(CLI::ExistingFile);
   cmd->add_option("--config", args->config,
                   "ORB-SLAM3-style settings, e.g. config/euroc/stereo.yaml (with --server: also a config name, "
-                  "e.g. euroc/stereo)")
-      ->required();
-  cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (cam0, cam1)");
+                  "e.g. euroc/stereo); a KITTI sequence's come from its calib.txt without it");
+  cmd->add_option("--dataset", args->dataset,
+                  "Folder holding mav0/ (cam0, cam1), or a KITTI odometry sequence (image_0/, image_1/, times.txt, "
+                  "calib.txt)");
   add_bag_options(cmd, args->bag, false);
   cmd->add_option("--out-trajectory", args->out_trajectory,
                   "Localised poses (body frame, map frame; '# map <id>' lines; --format)");
@@ -159,7 +173,7 @@ void register_localize_command(CLI::App& app) {
     options.start_s = args->start_s;
     if (args->duration_s > 0.0) options.duration_s = args->duration_s;
 
-    const DatasetRunReport report = run_stereo_dataset(options);
+    const DatasetRunReport report = run_dataset(options);
     write_trajectory(args->out_trajectory, report.trajectory, report.trajectory_maps,
                      parse_trajectory_format(args->format));
     nlohmann::json j = to_json(report);

@@ -37,7 +37,7 @@ void add_server_options(CLI::App* cmd, ServerArgs& args) {
 struct StreamArgs {
   ServerArgs server;
   StreamOptions stream;
-  std::string dataset, encoding = "raw", out_trajectory, stats, frame_log, format = "tum";
+  std::string dataset, encoding = "raw", out_trajectory, out_live_trajectory, stats, frame_log, format = "tum";
   double duration_s = 0.0;
   BagArgs bag;
 };
@@ -91,6 +91,14 @@ nlohmann::json stream_json(const StreamReport& r) {
     j["ate_align"] = r.ate_sim3 ? "sim3" : "se3";
     j["ate_poses"] = r.ate_poses;
   }
+  // What the replies carried: the poses a device steers by.
+  j["live_poses"] = r.live_trajectory.size();
+  j["live_fraction"] = r.live_fraction();
+  j["live_jumps_m"] = to_json_summary(r.live_jumps_m);
+  if (r.live_ate_rmse_m) {
+    j["live_ate_rmse_m"] = *r.live_ate_rmse_m;
+    j["live_ate_poses"] = r.live_ate_poses;
+  }
   return j;
 }
 
@@ -116,6 +124,14 @@ void print_stream_summary(const nlohmann::json& j) {
     std::printf("  ATE %.4f m (RMSE over %zu poses, %s to the ground truth)\n", j["ate_rmse_m"].get<double>(),
                 j.value("ate_poses", std::size_t{0}),
                 j.value("ate_align", "se3") == "sim3" ? "the camera's, Sim3-aligned" : "SE3-aligned");
+  std::printf("  live poses: %zu (%.1f%% of the frames sent)", j["live_poses"].get<std::size_t>(),
+              100.0 * j["live_fraction"].get<double>());
+  if (j.contains("live_ate_rmse_m")) std::printf(", live ATE %.4f m", j["live_ate_rmse_m"].get<double>());
+  const auto& jumps = j["live_jumps_m"];
+  if (jumps["count"].get<std::size_t>() > 0)
+    std::printf("; %zu jumps at corrections, p50 %.3f / max %.3f m", jumps["count"].get<std::size_t>(),
+                jumps["p50"].get<double>(), jumps["max"].get<double>());
+  std::printf("\n");
 }
 
 void register_stream(CLI::App& app) {
@@ -123,13 +139,13 @@ void register_stream(CLI::App& app) {
   auto* cmd = app.add_subcommand("stream", "Stream a recorded sequence to a map server as a live session");
   add_server_options(cmd, args->server);
   cmd->add_option("--dataset", args->dataset,
-                  "Folder holding mav0/ (cam0, cam1), or an RGB-D recording in the TUM layout (rgb.txt, depth.txt) "
-                  "for an rgbd config")
+                  "Folder holding mav0/ (cam0, cam1), a KITTI odometry sequence (image_0/, image_1/, times.txt, "
+                  "calib.txt), or an RGB-D recording in the TUM layout (rgb.txt, depth.txt) for an rgbd config")
       ->check(CLI::ExistingDirectory);
   add_bag_options(cmd, args->bag, false);
   cmd->add_option("--config", args->stream.config,
-                  "Settings: a config name the server knows, or a settings file here (sent as its text)")
-      ->capture_default_str();
+                  "Settings: a config name the server knows, or a settings file here (sent as its text); default "
+                  "euroc/stereo, or a KITTI sequence's own from its calib.txt");
   cmd->add_option("--sensor", args->stream.sensor,
                   "stereo or mono (default: the config's Sensor.type); mono sends the left images and localises in the "
                   "stored maps");
@@ -164,6 +180,8 @@ void register_stream(CLI::App& app) {
   cmd->add_option("--start", args->stream.start_s, "Seconds of the sequence to skip")->capture_default_str();
   cmd->add_option("--duration", args->duration_s, "Seconds to stream (default: to the end)");
   cmd->add_option("--out-trajectory", args->out_trajectory, "Write the session's final trajectory here (--format)");
+  cmd->add_option("--out-live-trajectory", args->out_live_trajectory,
+                  "Write the poses the replies carried here, as they were answered (--format; '# map' lines)");
   cmd->add_option("--format", args->format,
                   "Trajectory file format: tum (t tx ty tz qx qy qz qw, seconds) or euroc (the csv of EuRoC's ground "
                   "truth: ns,px,py,pz,qw,qx,qy,qz; what evo_traj euroc reads)")
@@ -186,6 +204,9 @@ void register_stream(CLI::App& app) {
     if (!args->out_trajectory.empty())
       write_trajectory(args->out_trajectory, report.trajectory, report.trajectory_maps,
                        parse_trajectory_format(args->format));
+    if (!args->out_live_trajectory.empty())
+      write_trajectory(args->out_live_trajectory, report.live_trajectory, report.live_maps,
+                       parse_trajectory_format(args->format));
     const nlohmann::json j = stream_json(report);
     if (!args->stats.empty()) write_stats_file(args->stats, j);
     if (!args->frame_log.empty()) write_frame_log(args->frame_log, report);
@@ -195,7 +216,7 @@ void register_stream(CLI::App& app) {
 
 struct UploadArgs {
   ServerArgs server;
-  std::string dataset, config = "euroc/stereo", name;
+  std::string dataset, config, name;
   bool wait = true, progress = true;
   BagArgs bag;
 };
@@ -203,14 +224,18 @@ struct UploadArgs {
 void register_upload(CLI::App& app) {
   auto args = std::make_shared<UploadArgs>();
   auto* cmd = app.add_subcommand("upload",
-                                 "Upload a recorded sequence (EuRoC ASL, or TUM RGB-D with an rgbd config); the "
+                                 "Upload a recorded sequence (EuRoC ASL, KITTI odometry, or TUM RGB-D with an rgbd "
+                                 "config); the "
                                  "server runs it as a stored session");
   add_server_options(cmd, args->server);
-  cmd->add_option("--dataset", args->dataset, "Folder holding mav0/ (or rgb.txt and depth.txt)")
+  cmd->add_option("--dataset", args->dataset,
+                  "Folder holding mav0/, a KITTI odometry sequence (image_0/, image_1/, times.txt, calib.txt), or "
+                  "rgb.txt and depth.txt")
       ->check(CLI::ExistingDirectory);
   add_bag_options(cmd, args->bag, false);
-  cmd->add_option("--config", args->config, "Config name the server knows (an upload cannot carry a settings file)")
-      ->capture_default_str();
+  cmd->add_option("--config", args->config,
+                  "Config name the server knows (an upload cannot carry a settings file); default euroc/stereo, or a "
+                  "KITTI sequence's own from its calib.txt");
   cmd->add_option("--name", args->name, "Session name");
   cmd->add_flag("!--no-wait", args->wait, "Return once uploaded (do not follow the job)");
   cmd->add_flag("!--no-progress", args->progress, "Do not print progress");

@@ -1,5 +1,6 @@
 // `orbatlas run`: stereo SLAM over an EuRoC ASL dataset; writes the trajectory
 // (TUM, body frame) and optionally a stats JSON.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -26,7 +27,7 @@ namespace {
 struct RunArgs {
   DatasetRunOptions run;
   std::string config, stats, vocabulary, culling = "incremental", mode = "map", sensor;
-  std::vector<std::string> datasets, out_trajectories;
+  std::vector<std::string> datasets, out_trajectories, out_live_trajectories;
   std::string format = "tum";
   double start_s = 0.0, duration_s = 0.0;
   bool compare_culling = false;
@@ -116,6 +117,14 @@ void print_run_summary(const DatasetRunReport& r) {
   if (r.ate_rmse_m)
     std::printf("ATE RMSE (%s, against the dataset's ground truth) %.4f m\n",
                 r.ate_sim3 ? "Sim3, of the camera" : "SE3", *r.ate_rmse_m);
+  if (r.live_ate_rmse_m) {
+    std::printf("live poses (as tracking returned them, before any correction): %zu, ATE RMSE %.4f m",
+                r.live_trajectory.size(), *r.live_ate_rmse_m);
+    if (!r.live_jumps_m.empty())
+      std::printf("; %zu jumps at corrections, max %.3f m", r.live_jumps_m.size(),
+                  *std::max_element(r.live_jumps_m.begin(), r.live_jumps_m.end()));
+    std::printf("\n");
+  }
   if (r.black_out) {
     const auto& b = *r.black_out;
     std::printf("black-out: %zu frames, %zu carried by the IMU", b.frames, b.by_imu);
@@ -131,13 +140,21 @@ void print_run_summary(const DatasetRunReport& r) {
 void register_run_command(CLI::App& app) {
   auto args = std::make_shared<RunArgs>();
   auto* cmd = app.add_subcommand(
-      "run", "SLAM over an EuRoC ASL dataset (stereo, stereo-inertial) or a TUM RGB-D one (rgbd), real or simulated");
-  cmd->add_option("--config", args->config, "ORB-SLAM3-style settings, e.g. config/euroc/stereo.yaml")->required();
+      "run",
+      "SLAM over an EuRoC ASL dataset (stereo, stereo-inertial), a KITTI odometry sequence (stereo) or a TUM RGB-D "
+      "one (rgbd), real or simulated");
+  cmd->add_option("--config", args->config,
+                  "ORB-SLAM3-style settings, e.g. config/euroc/stereo.yaml (a KITTI sequence's come from its "
+                  "calib.txt without it)");
   cmd->add_option("--dataset", args->datasets,
-                  "Folder holding mav0/ (cam0, cam1), or rgb.txt and depth.txt for an rgbd config; repeat it to run "
+                  "Folder holding mav0/ (cam0, cam1), a KITTI odometry sequence (image_0/, image_1/, times.txt, "
+                  "calib.txt), or rgb.txt and depth.txt for an rgbd config; repeat it to run "
                   "several recordings at once into one atlas "
                   "(one session each, mapping shared maps together)");
   add_bag_options(cmd, args->bag, true);
+  cmd->add_option("--out-live-trajectory", args->out_live_trajectories,
+                  "The poses tracking returned, frame by frame, before any correction (what a device would have "
+                  "steered by; --format, '# map' lines); one per --dataset and --bag, as --out-trajectory");
   cmd->add_option("--out-trajectory", args->out_trajectories,
                   "Trajectory to write (body frame; --format); one per --dataset, then one per --bag, in that order")
       ->required();
@@ -200,6 +217,8 @@ void register_run_command(CLI::App& app) {
 
     const std::size_t recordings = args->datasets.size() + args->bag.bags.size();
     if (recordings == 0) throw Error("give a recording: --dataset FOLDER or --bag FILE");
+    if (!args->out_live_trajectories.empty() && args->out_live_trajectories.size() != recordings)
+      throw Error("give one --out-live-trajectory per --dataset and --bag, or none");
     if (args->out_trajectories.size() != recordings)
       throw Error("give one --out-trajectory per --dataset and --bag (" + std::to_string(recordings) + " recordings, " +
                   std::to_string(args->out_trajectories.size()) + " trajectories)");
@@ -209,12 +228,15 @@ void register_run_command(CLI::App& app) {
     for (const auto& dir : bags.datasets()) datasets.push_back(dir);
     names.insert(names.end(), args->bag.bags.begin(), args->bag.bags.end());
     options.dataset = datasets.front();
-    const std::vector<DatasetRunReport> reports = run_stereo_datasets(options, datasets);
+    const std::vector<DatasetRunReport> reports = run_datasets(options, datasets);
     nlohmann::json runs = nlohmann::json::array();
     std::string failed;
     for (std::size_t i = 0; i < reports.size(); ++i) {
       const DatasetRunReport& report = reports[i];
       write_trajectory(args->out_trajectories[i], report.trajectory, {}, parse_trajectory_format(args->format));
+      if (i < args->out_live_trajectories.size())
+        write_trajectory(args->out_live_trajectories[i], report.live_trajectory, report.live_maps,
+                         parse_trajectory_format(args->format));
       runs.push_back(to_json(report));
       if (reports.size() > 1) std::printf("== %s\n", names[i].c_str());
       print_run_summary(report);

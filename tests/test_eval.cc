@@ -13,6 +13,7 @@
 #include "core/common/data_paths.h"
 #include "core/common/error.h"
 #include "core/eval/evaluate.h"
+#include "core/eval/live_pose_jumps.h"
 #include "core/eval/trajectory_plot.h"
 #include "core/geometry/so3.h"
 #include "core/io/tum_trajectory.h"
@@ -383,6 +384,73 @@ TEST(Eval, CoverageIsTheFractionOfTheSpanTracked) {
   EXPECT_NEAR(two.span_s, 15.0, 1e-9);
   EXPECT_NEAR(two.fraction, 10.0 / 15.0, 1e-9);
   EXPECT_EQ(trajectory_coverage({}, spans).fraction, 0.0);
+}
+
+// KITTI's relative errors against exact answers: a path of 1 m steps along x;
+// an estimate 1 % too long errs by 1 % on every segment, one that turns by
+// 0.01 rad per metre errs by that much per metre of segment.
+TEST(SegmentErrors, MatchExactDriftsOnEverySegment) {
+  std::vector<PosePair> pairs;
+  for (int i = 0; i <= 300; ++i) {
+    PosePair p;
+    p.t_ns = i * 100'000'000LL;
+    p.ground_truth = Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(i, 0, 0));
+    p.estimate = Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1.01 * i, 0, 0));
+    pairs.push_back(p);
+  }
+  EXPECT_NEAR(ground_truth_path_length(pairs), 300.0, 1e-9);
+  const KittiErrors longer = kitti_relative_errors(pairs, 1.0, {100, 200, 400});
+  ASSERT_EQ(longer.by_length.size(), 3u);
+  // From every 10th pose, those that have 100 (200) m left: 21 (11); none for 400 m.
+  EXPECT_EQ(longer.by_length[0].segments, 21u);
+  EXPECT_EQ(longer.by_length[1].segments, 11u);
+  EXPECT_EQ(longer.by_length[2].segments, 0u);
+  EXPECT_EQ(longer.segments, 32u);
+  EXPECT_NEAR(longer.trans_percent, 1.0, 1e-9);
+  EXPECT_NEAR(longer.by_length[1].trans_percent, 1.0, 1e-9);
+  EXPECT_NEAR(longer.rot_deg_per_m, 0.0, 1e-9);
+  // The sim3 scale undoes the stretch.
+  EXPECT_NEAR(kitti_relative_errors(pairs, 1.0 / 1.01, {100}).trans_percent, 0.0, 1e-9);
+
+  // A yaw drift of 0.01 rad per metre of travel (the positions exact).
+  for (std::size_t i = 0; i < pairs.size(); ++i)
+    pairs[i].estimate =
+        Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(0.01 * static_cast<double>(i), Eigen::Vector3d::UnitZ())),
+              pairs[i].ground_truth.t);
+  const KittiErrors turned = kitti_relative_errors(pairs, 1.0, {100});
+  EXPECT_NEAR(turned.rot_deg_per_m, 0.01 * 180.0 / std::numbers::pi, 1e-9);
+
+  // Short paths get lengths that fit them; long ones the benchmark's.
+  EXPECT_EQ(kitti_lengths_for_path(60.0), (std::vector<double>{6, 12, 18, 24, 30, 36, 42, 48}));
+  EXPECT_EQ(kitti_lengths_for_path(350.0), (std::vector<double>{100, 200, 300}));
+  EXPECT_THROW(kitti_relative_errors(pairs, 1.0, {0.0}), Error);
+  EXPECT_THROW(kitti_relative_errors(pairs, 1.0, {100}, 0), Error);
+}
+
+// The live pose's jump at a correction: the distance from where the two
+// frames before predicted it (constant velocity), only when the maps were
+// edited or the map changed since the frame before; a lost frame starts afresh.
+TEST(LivePoseJumps, MeasureTheMoveFromThePredictedPoseAtCorrectionsOnly) {
+  LivePoseJumps jumps;
+  EXPECT_FALSE(jumps.add({0.0, 0, 0}, 1, 5).has_value());  // the first frame: nothing to compare
+  EXPECT_FALSE(jumps.add({0.1, 0, 0}, 1, 5).has_value());  // no correction
+  EXPECT_FALSE(jumps.add({0.2, 0, 0}, 1, 5).has_value());
+  // The maps were edited: predicted 0.3, given 0.3 + (0, 0.04, 0.03).
+  const auto jump = jumps.add({0.3, 0.04, 0.03}, 1, 6);
+  ASSERT_TRUE(jump.has_value());
+  EXPECT_NEAR(*jump, 0.05, 1e-12);
+  EXPECT_FALSE(jumps.add({0.4, 0.04, 0.03}, 1, 6).has_value());
+  // A merge: another map (its frame), the same edits count.
+  const auto merged = jumps.add({2.5, 0.04, 0.03}, 2, 6);
+  ASSERT_TRUE(merged.has_value());
+  EXPECT_NEAR(*merged, 2.0, 1e-12);  // predicted 0.5
+  // After a lost frame, the first tracked one has nothing to be compared with;
+  // the next, one frame before it only: its position.
+  jumps.lost();
+  EXPECT_FALSE(jumps.add({3.0, 0, 0}, 2, 7).has_value());
+  const auto after_one = jumps.add({3.2, 0, 0}, 2, 8);
+  ASSERT_TRUE(after_one.has_value());
+  EXPECT_NEAR(*after_one, 0.2, 1e-12);
 }
 
 }  // namespace

@@ -21,9 +21,9 @@
 #include "wire/pose_json.h"
 #include "core/slam/dataset_runner.h"
 #include "core/slam/slam_stats.h"
-#include "tests/server_test_fixture.h"
-#include "tests/server_test_reply.h"
-#include "tests/slam_test_clip.h"
+#include "tests/support/server_test_fixture.h"
+#include "tests/support/server_test_reply.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
@@ -46,16 +46,6 @@ Pose3 truth_in_map(const std::filesystem::path& dataset, TimestampNs t_ns, const
     return pose.value_or(Pose3());
   };
   return at(origin_dataset, origin_t_ns).inverse() * at(dataset, t_ns);
-}
-
-nlohmann::json wait_for_job(ServerClient& client, std::uint64_t job) {
-  for (int i = 0; i < 1200; ++i) {
-    const auto status = client.get_json("/v1/jobs/" + std::to_string(job));
-    const std::string state = status["state"];
-    if (state == "done" || state == "failed" || state == "cancelled") return status;
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  return client.get_json("/v1/jobs/" + std::to_string(job));
 }
 
 nlohmann::json wait_for_merges(ServerClient& client) {
@@ -89,7 +79,7 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   offline_options.settings = shipped_config_dir() / "euroc" / "stereo.yaml";
   offline_options.dataset = clip;
   offline_options.show_progress = false;
-  const DatasetRunReport offline = run_stereo_dataset(offline_options);
+  const DatasetRunReport offline = run_dataset(offline_options);
   ASSERT_TRUE(offline.ate_rmse_m.has_value());
 
   test::TempDbPath db("e2e");
@@ -174,7 +164,7 @@ TEST(ServerEndToEnd, StreamedClipMatchesOfflineSurvivesRestartAndLocalises) {
   // map's frame (the map starts at the clip's first frame).
   const auto visit = another_flight();
   test::ClipCleanup visit_cleanup{visit};
-  const StereoFrame f = test::stereo_frames(visit)[30];
+  const DatasetFrame f = test::stereo_frames(visit)[30];
   const cv::Mat left = cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE);
   const cv::Mat right = cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE);
   const std::optional<Pose3> expected = truth_in_map(visit, f.t_ns, clip, test::stereo_frames(clip).front().t_ns);
@@ -337,7 +327,7 @@ TEST(ServerEndToEnd, AnRgbdStreamMapsAndItsDepthIsChecked) {
   // archive holds both layouts (the simulator writes mav0/ beside rgb.txt);
   // the rgbd config reads the TUM one.
   const std::uint64_t job = client.upload(clip, "euroc/rgbd", "recorded RGB-D");
-  const auto done = wait_for_job(client, job);
+  const auto done = test::wait_for_job(client, job);
   ASSERT_EQ(done["state"], "done") << done.dump();
   EXPECT_EQ(done["tracked"], done["frames_total"]);
   EXPECT_EQ(done["frames_total"], 81);
@@ -383,7 +373,7 @@ TEST(ServerEndToEnd, ASingleCameraSessionMapsAtItsOwnScale) {
 
   // The recording uploaded with the mono config: cam0 mapped by the server.
   const std::uint64_t job = client.upload(clip, "euroc/mono", "recorded single camera");
-  const auto done = wait_for_job(client, job);
+  const auto done = test::wait_for_job(client, job);
   ASSERT_EQ(done["state"], "done") << done.dump();
   EXPECT_EQ(done["frames_total"], 161);
   EXPECT_GE(done["tracked"].get<std::size_t>() + 8, 161u);
@@ -664,7 +654,7 @@ TEST(ServerUploads, RecordingBecomesAStoredSessionAndBadArchivesAreRefused) {
         total = all;
       });
   EXPECT_EQ(last_progress, total);
-  const auto status = wait_for_job(client, job);
+  const auto status = test::wait_for_job(client, job);
   ASSERT_EQ(status["state"], "done") << status.dump();
   EXPECT_EQ(status["frames_done"], status["frames_total"]);
   EXPECT_EQ(status["tracked"], status["frames_total"]);
@@ -904,6 +894,25 @@ TEST(ServerMerging, ASessionsMapIsMergedWhileItStreams) {
     EXPECT_TRUE(std::all_of(switched, b.reply_maps.end(), [&](std::uint64_t m) { return m == first_map; }));
     const auto frames_after = static_cast<std::size_t>(b.reply_maps.end() - switched);
     EXPECT_GT(frames_after, 20u);
+    // The live poses are the replies' own, one per tracked frame, with the map
+    // each reply named; the merge moved the device's pose into the first map's
+    // frame: a jump at the first frame after it, counted by the server.
+    ASSERT_EQ(b.live_trajectory.size(), b.tracked);
+    EXPECT_EQ(b.live_maps, b.reply_maps);
+    ASSERT_FALSE(b.live_jumps_m.empty());
+    const double merge_jump = *std::max_element(b.live_jumps_m.begin(), b.live_jumps_m.end());
+    EXPECT_GT(merge_jump, 0.1) << "measured 0.199 m: the merge moved the session into the first map";
+    const nlohmann::json status_b = client.get_json("/v1/sessions/" + std::to_string(b.session));
+    EXPECT_EQ(status_b["live_jumps_m"]["count"], b.live_jumps_m.size());
+    const std::size_t jumps = a.live_jumps_m.size() + b.live_jumps_m.size();
+    EXPECT_NE(client.get_text("/metrics").find("orbatlas_live_pose_jump_meters_count " + std::to_string(jumps)),
+              std::string::npos);
+    ASSERT_TRUE(b.live_ate_rmse_m.has_value());
+    ASSERT_TRUE(b.ate_rmse_m.has_value());
+    std::printf(
+        "second session: live ATE %.4f m (its poses before the merge in its own map's frame), final %.4f m; "
+        "%zu jumps, the merge's %.3f m\n",
+        *b.live_ate_rmse_m, *b.ate_rmse_m, b.live_jumps_m.size(), merge_jump);
 
     const auto merges = wait_for_merges(client);
     ASSERT_EQ(merges["live_merges"].size(), 1u) << merges.dump(2);

@@ -15,6 +15,13 @@ nlohmann::json to_json(const DatasetRunReport& report) {
     j["ate_rmse_m"] = *report.ate_rmse_m;
     j["ate_align"] = report.ate_sim3 ? "sim3" : "se3";
   }
+  // What track() returned, frame by frame (the final trajectory is corrected afterwards).
+  j["live_poses"] = report.live_trajectory.size();
+  j["live_fraction"] = report.stats.frames > 0 ? static_cast<double>(report.live_trajectory.size()) /
+                                                     static_cast<double>(report.stats.frames)
+                                               : 0.0;
+  j["live_jumps_m"] = to_json_summary(report.live_jumps_m);
+  if (report.live_ate_rmse_m) j["live_ate_rmse_m"] = *report.live_ate_rmse_m;
   if (report.session) j["session"] = *report.session;
   if (report.loaded_maps > 0 || report.session) {
     j["atlas"] = {{"loaded_maps", report.loaded_maps},

@@ -27,6 +27,7 @@ nlohmann::json to_json(const SessionStatus& s) {
   if (s.map) j["map"] = *s.map;
   if (s.last_frame) j["last_frame"] = {{"t_ns", s.last_frame->t_ns}, {"tracked", s.last_frame->tracked}};
   if (!s.tracking_ms.empty()) j["tracking_ms"] = to_json_summary(s.tracking_ms);
+  if (!s.live_jumps_m.empty()) j["live_jumps_m"] = to_json_summary(s.live_jumps_m);
   if (s.slam) {
     j["slam"] = {{"relocalizations", s.slam->relocalizations},
                  {"loops", s.slam->loops},

@@ -14,9 +14,11 @@
 #include "core/eval/evaluate.h"
 #include "core/io/euroc_reader.h"
 #include "core/io/preloaded_pairs.h"
-#include "core/io/stereo_pair_loader.h"
+#include "core/io/frame_loader.h"
+#include "core/io/kitti_odometry.h"
 #include "core/io/tum_rgbd.h"
 #include "core/io/tum_trajectory.h"
+#include "wire/pose_json.h"
 
 namespace orbatlas {
 namespace {
@@ -46,10 +48,15 @@ void StreamOptions::check() const {
 
 StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) {
   options.check();
-  // An ASL recording; an RGB-D one (the TUM layout: rgb.txt) may have no mav0/.
+  // An ASL recording; an RGB-D one (the TUM layout: rgb.txt) may have no mav0/;
+  // a KITTI odometry sequence has image_0/, image_1/, times.txt and calib.txt.
   const bool tum_layout = std::filesystem::exists(options.dataset / "rgb.txt");
+  std::optional<KittiSequence> kitti;
+  if (is_kitti_sequence(options.dataset)) kitti = read_kitti_sequence(options.dataset);
   EurocDataset dataset;
-  if (!tum_layout || std::filesystem::exists(options.dataset / "mav0")) {
+  if (kitti) {
+    dataset.ground_truth = ground_truth_states(kitti->ground_truth);
+  } else if (!tum_layout || std::filesystem::exists(options.dataset / "mav0")) {
     EurocReadOptions read_options;
     read_options.require_cam1 = false;  // a single camera needs cam0 only
     dataset = read_euroc_dataset(options.dataset, read_options);
@@ -59,8 +66,12 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   StreamReport report;
   std::string name = options.name;
   if (name.empty()) name = std::filesystem::absolute(options.dataset).lexically_normal().filename().string();
-  const nlohmann::json started =
-      client.start_session(options.config, name, options.sensor, options.mode, options.max_lag_s);
+  const bool settings_from_calib = kitti && options.config.empty();
+  const nlohmann::json started = client.start_session(settings_from_calib      ? ""
+                                                      : options.config.empty() ? "euroc/stereo"
+                                                                               : options.config,
+                                                      name, options.sensor, options.mode, options.max_lag_s,
+                                                      settings_from_calib ? kitti_settings_yaml(*kitti) : "");
   report.session = started.at("id").get<std::uint64_t>();
   const std::string sensor = started.at("session").value("sensor", "stereo");
   const bool single_camera = sensor == "mono" || sensor == "mono_inertial";
@@ -71,7 +82,7 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   // samples up to it and the first one past it.
   const bool send_imu = (sensor == "stereo_inertial" || sensor == "mono_inertial") && !dataset.imu.empty();
   std::size_t imu_next = 0;
-  std::vector<StereoFrame> frames;
+  std::vector<DatasetFrame> frames;
   try {
     if (rgbd) {
       ORBATLAS_CHECK(tum_layout, options.dataset << " is not in the TUM RGB-D layout (rgb.txt, depth.txt) an rgbd "
@@ -79,10 +90,13 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
       const TumRgbdDataset tum = read_tum_rgbd(options.dataset);
       frames = rgbd_image_pairs(tum);
       if (dataset.ground_truth.empty()) dataset.ground_truth = ground_truth_states(tum);
+    } else if (kitti) {
+      for (const DatasetFrame& f : kitti->frames)
+        frames.push_back(single_camera ? DatasetFrame{f.t_ns, f.left, {}} : f);
     } else if (dataset.cameras.empty()) {
       throw Error(options.dataset.string() + " holds no ASL recording (mav0/) for a " + sensor + " session");
     } else if (single_camera) {
-      for (const auto& f : dataset.cameras[0].frames) frames.push_back(StereoFrame{f.t_ns, f.path, {}});
+      for (const auto& f : dataset.cameras[0].frames) frames.push_back(DatasetFrame{f.t_ns, f.path, {}});
     } else {
       frames = pair_stereo_frames(dataset);
     }
@@ -98,7 +112,7 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
       frames.reserve(one * static_cast<std::size_t>(options.repeat));
       for (int pass = 1; pass < options.repeat; ++pass)
         for (std::size_t i = 0; i < one; ++i) {
-          StereoFrame f = frames[i];
+          DatasetFrame f = frames[i];
           f.t_ns += span * pass;
           frames.push_back(std::move(f));
         }
@@ -122,8 +136,7 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
   const TimestampNs first_t = frames.front().t_ns;
 
   Progress progress("stream", static_cast<std::int64_t>(frames.size()), options.show_progress);
-  StereoPairLoader loaded(std::move(frames), 4,
-                          rgbd ? StereoPairLoader::Second::kDepth : StereoPairLoader::Second::kImage);
+  FrameLoader loaded(std::move(frames), 4, rgbd ? FrameLoader::Second::kDepth : FrameLoader::Second::kImage);
   // Preloaded pairs wait in an in-memory file, not as images in this
   // process's memory (core/io/preloaded_pairs.h says why).
   std::optional<PreloadedPairs> preloaded;
@@ -133,9 +146,7 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
     log_info("stream: " + std::to_string(preloaded->size()) + " frames read and decoded before streaming (" +
              std::to_string(preloaded->bytes() >> 20) + " MB)");
   }
-  const auto next_pair = [&]() -> std::optional<LoadedStereoPair> {
-    return preloaded ? preloaded->pop() : loaded.next();
-  };
+  const auto next_pair = [&]() -> std::optional<LoadedFrame> { return preloaded ? preloaded->pop() : loaded.next(); };
   // The frames' schedule starts at the start time itself, not when this
   // thread wakes after it: waking up took 5-110 ms on a loaded machine, and a
   // client's schedule anchored at its own wake-up put the cameras of "clients
@@ -208,6 +219,11 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
       if (reply.at("tracked").get<bool>()) {
         ++report.tracked;
         if (reply.contains("map")) report.reply_maps.push_back(reply.at("map").get<std::uint64_t>());
+        if (reply.contains("T_w_b")) {
+          report.live_trajectory.push_back({pair->t_ns, pose_from_json(reply.at("T_w_b"))});
+          report.live_maps.push_back(reply.value("map", std::uint64_t{0}));
+        }
+        if (reply.contains("jump_m")) report.live_jumps_m.push_back(reply.at("jump_m").get<double>());
       }
       if (reply.at("keyframe").get<bool>()) ++report.keyframes;
     } catch (const ServerError& e) {
@@ -230,13 +246,18 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
       if (monocular_map) {
         // The camera's poses; at the map's own scale, unless the IMU made it metric.
         if (sensor != "mono_inertial") eval.align = AlignMode::kSim3;
-        eval.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;
+        eval.estimate_T_b_x = kitti ? Pose3() : dataset.cameras[0].calibration.T_b_c;  // KITTI: camera 0 is the body
       }
-      const EvalResult result =
-          evaluate_trajectory(report.trajectory, from_ground_truth_states(dataset.ground_truth), eval);
+      const Trajectory truth = from_ground_truth_states(dataset.ground_truth);
+      const EvalResult result = evaluate_trajectory(report.trajectory, truth, eval);
       report.ate_rmse_m = result.ate.rmse;
       report.ate_poses = result.matched;
       report.ate_sim3 = eval.align == AlignMode::kSim3;
+      if (report.live_trajectory.size() >= 3) {
+        const EvalResult live = evaluate_trajectory(report.live_trajectory, truth, eval);
+        report.live_ate_rmse_m = live.ate.rmse;
+        report.live_ate_poses = live.matched;
+      }
     } catch (const Error& e) {
       log_warn(std::string("no ATE: ") + e.what());
     }

@@ -1,5 +1,5 @@
 #pragma once
-// Streams a recorded EuRoC ASL sequence to the map server as a live session
+// Streams a recorded sequence (EuRoC ASL, KITTI odometry, TUM RGB-D) to the map server as a live session
 // (what `orbatlas stream` does): images are read ahead by a loader thread, each
 // stereo pair (the left image alone for a single-camera session) is posted at the sensor rate times `rate` (0: as fast
 // as the server answers), the session is finished (stored), and its final trajectory fetched and, with ground truth,
@@ -17,7 +17,9 @@ namespace orbatlas {
 
 struct StreamOptions {
   std::filesystem::path dataset;
-  std::string config = "euroc/stereo";
+  // A config name the server knows or a local settings file (choose_settings);
+  // empty: a KITTI sequence's settings from its calib.txt, else euroc/stereo.
+  std::string config;
   // Empty: the config's Sensor.type. "mono" (or a mono config): only the left
   // images are sent, and the session localises in the stored maps.
   std::string sensor;
@@ -81,9 +83,21 @@ struct StreamReport {
   Trajectory trajectory;  // the server's final trajectory (after the session finished)
   std::vector<std::uint64_t> trajectory_maps;
   std::vector<std::uint64_t> reply_maps;  // per tracked frame: the map its reply named then
-  std::optional<double> ate_rmse_m;       // when the dataset has ground truth (SE3 alignment)
-  std::size_t ate_poses = 0;              // the trajectory's poses the ATE compares (those with ground truth)
-  bool ate_sim3 = false;                  // a single camera that mapped: the camera's poses, Sim3 alignment
+  // The poses the replies carried (what a device steers by), with their maps:
+  // one per tracked frame, as it was answered, never corrected afterwards.
+  Trajectory live_trajectory;
+  std::vector<std::uint64_t> live_maps;
+  // The replies' jumps at corrections of the maps (the server's jump_m).
+  std::vector<double> live_jumps_m;
+  std::optional<double> live_ate_rmse_m;  // the live poses against the ground truth (the final's alignment)
+  std::size_t live_ate_poses = 0;
+  // Frames sent whose reply carried a pose.
+  double live_fraction() const {
+    return frames > 0 ? static_cast<double>(live_trajectory.size()) / static_cast<double>(frames) : 0.0;
+  }
+  std::optional<double> ate_rmse_m;  // when the dataset has ground truth (SE3 alignment)
+  std::size_t ate_poses = 0;         // the trajectory's poses the ATE compares (those with ground truth)
+  bool ate_sim3 = false;             // a single camera that mapped: the camera's poses, Sim3 alignment
   nlohmann::json finish_status;
   double fps() const { return wall_s > 0 ? static_cast<double>(frames) / wall_s : 0.0; }
 };

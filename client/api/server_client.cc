@@ -8,6 +8,7 @@
 #include "core/archive/tar_writer.h"
 #include "core/common/error.h"
 #include "core/common/text_file.h"
+#include "core/io/kitti_odometry.h"
 
 // Last: <httplib.h> pulls in <resolv.h>, whose macro _res breaks Eigen's headers.
 #include <httplib.h>
@@ -149,8 +150,9 @@ SettingsChoice choose_settings(const std::string& config) {
 }
 
 json ServerClient::start_session(const std::string& config, const std::string& name, const std::string& sensor,
-                                 const std::string& mode, std::optional<double> max_lag_s) {
-  const SettingsChoice settings = choose_settings(config);
+                                 const std::string& mode, std::optional<double> max_lag_s,
+                                 const std::string& settings_yaml) {
+  const SettingsChoice settings = settings_yaml.empty() ? choose_settings(config) : SettingsChoice{"", settings_yaml};
   json body = json::object();
   if (!settings.config.empty()) body["config"] = settings.config;
   if (!settings.settings_yaml.empty()) body["settings_yaml"] = settings.settings_yaml;
@@ -221,15 +223,18 @@ json ServerClient::localize(const std::string& config, const cv::Mat& left, cons
 std::uint64_t ServerClient::upload(const std::filesystem::path& dataset, const std::string& config,
                                    const std::string& name,
                                    const std::function<void(std::uint64_t, std::uint64_t)>& progress) {
-  ORBATLAS_CHECK(
-      std::filesystem::is_directory(dataset / "mav0") || std::filesystem::is_regular_file(dataset / "rgb.txt"),
-      dataset << " holds no mav0/ folder (EuRoC ASL) nor rgb.txt (TUM RGB-D)");
+  ORBATLAS_CHECK(std::filesystem::is_directory(dataset / "mav0") ||
+                     std::filesystem::is_regular_file(dataset / "rgb.txt") || is_kitti_sequence(dataset),
+                 dataset << " holds no mav0/ folder (EuRoC ASL), rgb.txt (TUM RGB-D) nor image_0/, times.txt and "
+                            "calib.txt (KITTI odometry)");
   ORBATLAS_CHECK(choose_settings(config).settings_yaml.empty(),
                  "an upload takes a config name the server knows (such as euroc/stereo), not the settings file "
                      << config << ": the body of an upload is the recording");
   const std::uint64_t total = directory_tar_size(dataset);
-  std::string path = "/v1/uploads?config=" + url_encode(config);
-  if (!name.empty()) path += "&name=" + url_encode(name);
+  // No config: the server takes the recording's own (a KITTI sequence's calib.txt), else euroc/stereo.
+  std::string path = "/v1/uploads?";
+  if (!config.empty()) path += "config=" + url_encode(config) + "&";
+  if (!name.empty()) path += "name=" + url_encode(name);
   std::string failure;
   const auto result = client_->Post(
       path, static_cast<std::size_t>(total),

@@ -67,8 +67,10 @@ class ServerClient {
   // `mode`: "map" or "localize" (empty: the server's default for the sensor).
   // `max_lag_s`: a real-time session, whose frames that arrive more than this
   // behind the sensor's clock the server skips.
+  // `settings_yaml`, when given, is sent instead of `config`.
   nlohmann::json start_session(const std::string& config, const std::string& name = {}, const std::string& sensor = {},
-                               const std::string& mode = {}, std::optional<double> max_lag_s = std::nullopt);
+                               const std::string& mode = {}, std::optional<double> max_lag_s = std::nullopt,
+                               const std::string& settings_yaml = {});
   // The same; returns the session id.
   std::uint64_t create_session(const std::string& config, const std::string& name = {}) {
     return start_session(config, name).at("id").get<std::uint64_t>();
@@ -89,9 +91,11 @@ class ServerClient {
                           std::optional<std::uint64_t> map = std::nullopt, ImageEncoding encoding = ImageEncoding::kPng,
                           const std::string& settings_yaml = {});
 
-  // POST /v1/uploads: streams `dataset` (a folder holding mav0/) as a tar; returns
-  // the job id. `config` must be a name the server knows (Error for a local
-  // settings file: an upload's body is the archive). `progress(bytes_sent, bytes_total)` is called as it goes.
+  // POST /v1/uploads: streams `dataset` (an EuRoC ASL, TUM RGB-D or KITTI
+  // odometry folder) as a tar; returns the job id. `config` must be a name the
+  // server knows (Error for a local settings file: an upload's body is the
+  // archive); empty: the recording's own (a KITTI sequence's calib.txt), else euroc/stereo. `progress(bytes_sent,
+  // bytes_total)` is called as it goes.
   std::uint64_t upload(const std::filesystem::path& dataset, const std::string& config, const std::string& name = {},
                        const std::function<void(std::uint64_t, std::uint64_t)>& progress = {});
 

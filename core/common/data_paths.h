@@ -17,5 +17,8 @@ std::filesystem::path three_js_dir();
 
 // The optional folder of real EuRoC data (../shared/data/euroc); empty if absent.
 std::optional<std::filesystem::path> shared_euroc_dir();
+// The optional folder of real KITTI odometry data (../shared/data/kitti, or
+// ORBATLAS_SHARED_KITTI); empty if absent.
+std::optional<std::filesystem::path> shared_kitti_dir();
 
 }  // namespace orbatlas

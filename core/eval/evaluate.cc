@@ -1,6 +1,7 @@
 #include "core/eval/evaluate.h"
 
 #include <algorithm>
+#include <cmath>
 #include <iterator>
 #include <vector>
 
@@ -41,6 +42,9 @@ void EvalOptions::check() const {
                  "eval: align must be none, se3 or sim3, not " << static_cast<int>(align));
   association.check();
   ORBATLAS_CHECK(rpe_delta_ns > 0, "eval: rpe_delta_ns must be > 0, not " << rpe_delta_ns);
+  if (segment_lengths_m)
+    for (const double l : *segment_lengths_m)
+      ORBATLAS_CHECK(std::isfinite(l) && l > 0.0, "eval: a segment length must be > 0 m, not " << l);
 }
 
 EvalResult evaluate_trajectory(const Trajectory& estimate, const Trajectory& body_truth, const EvalOptions& options) {
@@ -75,6 +79,12 @@ EvalResult evaluate_trajectory(const Trajectory& estimate, const Trajectory& bod
   result.alignment = align_positions(est_positions, gt_positions, options.align);
   result.ate = error_stats(ate_errors(association.pairs, result.alignment));
   result.rpe = relative_pose_error(association.pairs, result.alignment.scale, options.rpe_delta_ns);
+  if (options.segment_lengths_m) {
+    const std::vector<double> lengths = options.segment_lengths_m->empty()
+                                            ? kitti_lengths_for_path(ground_truth_path_length(association.pairs))
+                                            : *options.segment_lengths_m;
+    result.segments = kitti_relative_errors(association.pairs, result.alignment.scale, lengths);
+  }
   result.coverage = trajectory_coverage(
       estimate, options.spans.empty() ? std::vector<std::pair<TimestampNs, TimestampNs>>{{ground_truth.front().t_ns,
                                                                                           ground_truth.back().t_ns}}

@@ -9,6 +9,7 @@
 #include "core/eval/alignment.h"
 #include "core/eval/association.h"
 #include "core/eval/metrics.h"
+#include "core/eval/segment_errors.h"
 
 namespace orbatlas {
 
@@ -24,6 +25,9 @@ struct EvalOptions {
   // maps reports its camera's poses): the ground truth's body poses are moved
   // to it (T_w_b * T_b_x) before they are compared. None: the body's.
   std::optional<Pose3> estimate_T_b_x;
+  // KITTI's relative errors over path segments of these lengths (segment_errors.h);
+  // empty: the lengths that suit the path (kitti_lengths_for_path); none: not computed.
+  std::optional<std::vector<double>> segment_lengths_m;
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -47,10 +51,11 @@ struct EvalResult {
   Similarity3 alignment;  // estimate world -> ground-truth world
   ErrorStats ate;         // position error after alignment [m]
   RpeStats rpe;
-  std::size_t matched = 0;    // estimated poses with a ground-truth pose
-  std::size_t est_poses = 0;  // all estimated poses
-  std::size_t gt_poses = 0;   // all ground-truth poses
-  Coverage coverage;          // of EvalOptions::span (the ground truth's by default)
+  std::size_t matched = 0;              // estimated poses with a ground-truth pose
+  std::size_t est_poses = 0;            // all estimated poses
+  std::size_t gt_poses = 0;             // all ground-truth poses
+  Coverage coverage;                    // of EvalOptions::span (the ground truth's by default)
+  std::optional<KittiErrors> segments;  // with EvalOptions::segment_lengths_m
 };
 
 // Throws Error when fewer than 3 estimated poses match the ground truth.

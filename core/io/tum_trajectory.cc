@@ -13,6 +13,7 @@
 #include "core/common/text_file.h"
 #include "core/io/euroc_reader.h"
 #include "core/io/euroc_trajectory.h"
+#include "core/io/kitti_odometry.h"
 
 namespace orbatlas {
 namespace {
@@ -160,9 +161,22 @@ void write_trajectory_text(const fs::path& path, const std::string& text) {
   if (!out) throw Error("cannot write " + path.string());
 }
 
+std::vector<GroundTruthState> ground_truth_states(const Trajectory& poses) {
+  std::vector<GroundTruthState> states;
+  states.reserve(poses.size());
+  for (const StampedPose& p : poses) {
+    GroundTruthState g;
+    g.t_ns = p.t_ns;
+    g.T_w_b = p.pose;
+    states.push_back(g);
+  }
+  return states;
+}
+
 Trajectory read_any_ground_truth(const fs::path& path) {
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
+    if (is_kitti_sequence(path)) return read_kitti_ground_truth(path);
     // The dataset folder, its mav0/, or state_groundtruth_estimate0/ itself.
     for (const fs::path& csv : {path / "mav0" / "state_groundtruth_estimate0" / "data.csv",
                                 path / "state_groundtruth_estimate0" / "data.csv"}) {
@@ -179,6 +193,7 @@ Trajectory read_any_ground_truth(const fs::path& path) {
   const std::vector<std::string> fields = first_csv_fields(path);
   if (fields.size() == 17) return from_ground_truth_states(read_asl_ground_truth_csv(path));
   if (fields.size() >= 8 && !fields[0].empty() && all_digits(trim(fields[0]))) return read_euroc_trajectory(path);
+  if (looks_like_kitti_poses(path)) return read_kitti_ground_truth(path);
   return read_tum_trajectory(path);
 }
 

@@ -36,10 +36,13 @@ std::string format_tum_trajectory(const Trajectory& trajectory, const std::vecto
 
 // Body poses of ground-truth states (a dataset's state_groundtruth_estimate0).
 Trajectory from_ground_truth_states(const std::vector<GroundTruthState>& states);
+// The other way: ground-truth states of poses alone (no velocity or biases).
+std::vector<GroundTruthState> ground_truth_states(const Trajectory& poses);
 
 // Reads ground truth in any of the forms `orbatlas eval --gt` takes: a TUM file,
-// an ASL ground-truth csv, a EuRoC trajectory csv (euroc_trajectory.h), or a
-// dataset folder (its state_groundtruth_estimate0).
+// an ASL ground-truth csv, a EuRoC trajectory csv (euroc_trajectory.h), a KITTI
+// poses file (kitti_odometry.h), or a dataset folder (an ASL recording's
+// state_groundtruth_estimate0, a KITTI sequence's poses).
 Trajectory read_any_ground_truth(const std::filesystem::path& path);
 
 }  // namespace orbatlas

@@ -1,6 +1,7 @@
 #pragma once
 // An atlas: several maps, one of them active, with the id allocator and object
 // counters they share. No process-wide state: atlases are independent.
+#include <atomic>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -65,8 +66,17 @@ class Atlas {
   // such an edit, never half-way. A waiting edit goes before new readers
   // (WriterPriorityMutex), so a stream of frames cannot hold it off. Taken before
   // any map's or object's lock; never twice by one thread.
-  std::unique_lock<WriterPriorityMutex> lock_maps_exclusive() { return std::unique_lock(maps_edit_mutex_); }
+  // Each exclusive hold counts as one whole-map edit (maps_edits): a frame
+  // tracked after one may have moved with the correction (the live pose's jump).
+  std::unique_lock<WriterPriorityMutex> lock_maps_exclusive() {
+    std::unique_lock lock(maps_edit_mutex_);
+    maps_edits_.fetch_add(1, std::memory_order_relaxed);
+    return lock;
+  }
   std::shared_lock<WriterPriorityMutex> lock_maps_shared() const { return std::shared_lock(maps_edit_mutex_); }
+  // Whole-map edits so far (merges, loop corrections, global BA results, inertial
+  // initialisations applied); read under lock_maps_shared() it is stable.
+  std::uint64_t maps_edits() const { return maps_edits_.load(std::memory_order_relaxed); }
 
   IdAllocator& ids() { return *ids_; }
   const IdAllocator& ids() const { return *ids_; }  // for peek() (saving an atlas)
@@ -85,6 +95,7 @@ class Atlas {
   const std::shared_ptr<IdAllocator> ids_;
   const std::shared_ptr<ObjectCounters> counters_;
   mutable WriterPriorityMutex maps_edit_mutex_;
+  std::atomic<std::uint64_t> maps_edits_{0};
   mutable std::mutex mutex_;  // guards maps_ and active_; no other lock is taken under it
   std::map<MapId, std::shared_ptr<Map>> maps_;
   std::vector<MapId> removed_;

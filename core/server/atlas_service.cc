@@ -15,7 +15,7 @@
 #include "core/persistence/map_rigs.h"
 #include "core/slam/mono_localizer.h"
 #include "core/slam/slam_stats.h"
-#include "core/slam/stereo_slam.h"
+#include "core/slam/slam_system.h"
 #include "core/server/service_error.h"
 #include "core/server/session_rules.h"
 #include "core/vocabulary/default_vocabulary.h"
@@ -199,9 +199,9 @@ AtlasService::~AtlasService() {
   }
 }
 
-std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const MapRig& rig,
+std::unique_ptr<SessionSlam> AtlasService::make_slam_system(SessionId id, const MapRig& rig,
                                                             const SlamSettings& settings, SessionMode mode) {
-  StereoSlamOptions slam_options = options_.slam;
+  SlamSystemOptions slam_options = options_.slam;
   SessionWiring wiring;
   if (mode == SessionMode::kLocalize) {
     // Tracks in the stored maps of its own rig and changes nothing: no lease,
@@ -212,7 +212,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
     slam_options.live_merging = false;
     wiring.may_enter_map = [this, cameras = rig.cameras](MapId map) { return cameras_match(cameras, map); };
     try {
-      return std::make_unique<StereoSlam>(atlas_, settings, vocabulary_, slam_options, std::move(wiring));
+      return std::make_unique<SlamSystem>(atlas_, settings, vocabulary_, slam_options, std::move(wiring));
     } catch (const std::exception& e) {
       throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
                          std::string("cannot start a session with these settings: ") + e.what());
@@ -231,7 +231,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_stereo_slam(SessionId id, const 
     return mapping_for(rig, cam, mapping);
   };
   try {
-    return std::make_unique<StereoSlam>(atlas_, settings, vocabulary_, slam_options, std::move(wiring));
+    return std::make_unique<SlamSystem>(atlas_, settings, vocabulary_, slam_options, std::move(wiring));
   } catch (const std::exception& e) {
     throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
                        std::string("cannot start a session with these settings: ") + e.what());
@@ -279,7 +279,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   info.cameras.push_back(loaded.settings.camera0);
   if (loaded.settings.camera1) info.cameras.push_back(*loaded.settings.camera1);
 
-  // As StereoSlam decides whether it fuses the IMU.
+  // As SlamSystem decides whether it fuses the IMU.
   std::optional<GlobalBundleAdjustmentOptions::Inertial> inertial;
   const bool fuses_imu = mode == SessionMode::kMap && options_.slam.inertial && loaded.settings.imu &&
                          (!single_camera || sensor == SensorType::kMonocularInertial);
@@ -293,7 +293,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
 
   std::unique_ptr<SessionSlam> slam;
   if (monocular_mapping) {
-    slam = make_stereo_slam(id, rig, monocular_settings(loaded.settings, sensor), mode);
+    slam = make_slam_system(id, rig, monocular_settings(loaded.settings, sensor), mode);
   } else if (single_camera) {
     MonoLocalizerOptions mono;
     mono.tracker = options_.slam.tracker;
@@ -305,7 +305,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
                          std::string("cannot start a single-camera session with these settings: ") + e.what());
     }
   } else {
-    slam = make_stereo_slam(id, rig, loaded.settings, mode);
+    slam = make_slam_system(id, rig, loaded.settings, mode);
   }
   // Stored before its id is handed out: an id is never given twice, even when
   // the server dies before the session's first checkpoint.
@@ -419,6 +419,8 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     reply.result = out.result;
     reply.tracking_ms = out.tracking_ms;
     reply.skipped = out.skipped;
+    reply.jump_m = out.jump_m;
+    if (out.jump_m) live_pose_jumps_.Observe(*out.jump_m);
   } catch (const ServiceError& e) {
     if (e.code() == "session_failed") {
       end_session_storage(id);

@@ -32,7 +32,7 @@
 #include "core/server/service_results.h"
 #include "core/server/session_request.h"
 #include "core/server/session_rules.h"
-#include "core/slam/stereo_slam.h"
+#include "core/slam/slam_system.h"
 #include "core/vocabulary/vocabulary.h"
 
 namespace orbatlas {
@@ -49,7 +49,7 @@ struct AtlasServiceOptions {
   std::filesystem::path config_dir;  // named configs: <config_dir>/<name>.yaml; empty: the shipped ones
   std::filesystem::path vocabulary;  // empty: the shipped one
   CheckpointOptions checkpoints;
-  StereoSlamOptions slam;
+  SlamSystemOptions slam;
   std::size_t max_live_sessions = 8;
   // A live session without a frame or IMU batch for this long is finished by
   // the server (stored like any other, status "ended_by": "idle_timeout"), so
@@ -57,7 +57,7 @@ struct AtlasServiceOptions {
   double idle_timeout_s = 300.0;
   // A stereo mapping session that ends in a map other sessions mapped too
   // waits (in its finish) at most this long for a global BA of that map when
-  // the map grew since its last one (StereoSlamOptions::shared_map_finish_wait_s),
+  // the map grew since its last one (SlamSystemOptions::shared_map_finish_wait_s),
   // so the trajectory read after the finish has it. 0: no such adjustment.
   double finish_refinement_wait_s = 15.0;
   // A finished session's maps are handed to the server-wide merging worker,
@@ -65,7 +65,7 @@ struct AtlasServiceOptions {
   bool merge_maps = true;
   // With merge_maps: a live session's map is also merged WHILE it runs, when
   // place recognition finds a free map of the atlas made with the same camera
-  // rig that shares a place with it (StereoSlamOptions::live_merging); the
+  // rig that shares a place with it (SlamSystemOptions::live_merging); the
   // session's tracking follows into that map.
   bool live_merging = true;
   // A new session first looks for its place in the free stored maps: found, it
@@ -97,7 +97,8 @@ struct FrameReply {
   SessionId session = 0;
   TrackResult result;
   double tracking_ms = 0.0;
-  bool skipped = false;  // too late (SessionRequest::max_lag_s): not tracked
+  bool skipped = false;          // too late (SessionRequest::max_lag_s): not tracked
+  std::optional<double> jump_m;  // the pose's jump at a correction of the maps (FrameOutcome::jump_m)
 };
 
 struct SessionTrajectory {
@@ -194,7 +195,7 @@ class AtlasService {
   LoadedSettings load_settings(const SettingsSource& source) const;
   std::shared_ptr<LocalizerContext> localizer_for(const SettingsSource& source);
   // A stereo session's SLAM with the server's policies (leases, live merging).
-  std::unique_ptr<SessionSlam> make_stereo_slam(SessionId id, const MapRig& rig, const SlamSettings& settings,
+  std::unique_ptr<SessionSlam> make_slam_system(SessionId id, const MapRig& rig, const SlamSettings& settings,
                                                 SessionMode mode);
   // The mapping (local mapping per map, loop closing) every mapping session of
   // this camera rig shares; made with the first session's options.
@@ -361,6 +362,10 @@ class AtlasService {
       "orbatlas_frames_skipped_total", "Frames of real-time sessions skipped for arriving too late (max_lag_s).");
   prometheus::Histogram& tracking_latency_ = metrics_.histogram(
       "orbatlas_tracking_latency_seconds", "Time to track one frame (features included).", latency_buckets_seconds());
+  prometheus::Histogram& live_pose_jumps_ =
+      metrics_.histogram("orbatlas_live_pose_jump_meters",
+                         "How far a live session's pose jumped at the first frame after a correction of the maps.",
+                         {0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0});
   prometheus::Counter& localize_requests_ =
       metrics_.counter("orbatlas_localize_requests_total", "Localisation requests.");
   prometheus::Counter& localize_recognised_ =

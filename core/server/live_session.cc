@@ -139,6 +139,12 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
   if (out.result.tracked && !out.result.by_imu) ++tracked_;  // the slam stats count the IMU's frames
   if (out.result.keyframe) ++keyframes_;
   tracking_ms_.add(out.tracking_ms);
+  if (out.result.tracked) {
+    out.jump_m = pose_jumps_.add(out.result.T_w_b.t, out.result.map, out.result.maps_edits);
+    if (out.jump_m) live_jumps_m_.add(*out.jump_m);
+  } else {
+    pose_jumps_.lost();
+  }
   last_ = out.result;
   current_map_.store(out.result.tracked ? out.result.map : kInvalidMapId);
   if (out.result.tracked && out.result.map != logged_map_) {
@@ -292,6 +298,7 @@ SessionStatus LiveSession::status() const {
     s.last_frame = SessionStatus::LastFrame{last_->t_ns, last_->tracked};
   }
   s.tracking_ms = tracking_ms_;
+  s.live_jumps_m = live_jumps_m_;
   s.slam = final_counts_;
   return s;
 }

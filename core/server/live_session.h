@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "core/common/sample_summary.h"
+#include "core/eval/live_pose_jumps.h"
 #include "core/io/euroc_types.h"
 #include "core/map/frame_anchor.h"
 #include "core/persistence/session_info.h"
@@ -25,8 +26,11 @@ namespace orbatlas {
 
 struct FrameOutcome {
   TrackResult result;
-  double tracking_ms = 0.0;  // inside StereoSlam::process (features + tracking)
+  double tracking_ms = 0.0;  // inside SlamSystem::process (features + tracking)
   bool skipped = false;      // arrived too late (max_lag_s): not tracked
+  // The first frame after a whole-map correction: how far its pose jumped from
+  // where the frames before predicted it (core/eval/live_pose_jumps.h).
+  std::optional<double> jump_m;
 };
 
 class LiveSession {
@@ -119,6 +123,8 @@ class LiveSession {
   std::optional<std::int64_t> min_offset_ns_;  // smallest arrival - timestamp seen
   std::optional<TrackResult> last_;
   SampleSummary tracking_ms_;
+  LivePoseJumps pose_jumps_;                               // under mutex_
+  SampleSummary live_jumps_m_;                             // under mutex_
   std::optional<SessionStatus::SlamCounts> final_counts_;  // captured by finish()
   std::vector<std::string> final_imu_warnings_;            // captured by finish() or fail()
   std::atomic<std::size_t> worker_errors_{0};

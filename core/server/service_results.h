@@ -50,6 +50,8 @@ struct SessionStatus {
   std::optional<LastFrame> last_frame;
   std::optional<MapId> map;   // the map its last frame is in now (a merge may have moved it)
   SampleSummary tracking_ms;  // per frame (empty before the first)
+  // The live pose's jumps at the map's corrections (FrameOutcome::jump_m).
+  SampleSummary live_jumps_m;
   struct SlamCounts {
     std::size_t relocalizations = 0, loops = 0;
     // Stereo-inertial sessions: the inertial initialisation of its map (s after

@@ -12,6 +12,7 @@
 #include "core/io/tum_rgbd.h"
 #include "core/io/tum_trajectory.h"
 #include "core/server/service_error.h"
+#include "core/io/kitti_odometry.h"
 
 namespace orbatlas {
 namespace {
@@ -21,7 +22,7 @@ namespace fs = std::filesystem;
 // The folder holding mav0/: the archive's root or its only top-level folder.
 // A recording: an EuRoC ASL folder (mav0/) or a TUM RGB-D one (rgb.txt).
 bool is_recording(const fs::path& dir) {
-  return fs::is_directory(dir / "mav0") || fs::is_regular_file(dir / "rgb.txt");
+  return fs::is_directory(dir / "mav0") || fs::is_regular_file(dir / "rgb.txt") || is_kitti_sequence(dir);
 }
 
 fs::path dataset_root(const fs::path& extracted) {
@@ -31,14 +32,15 @@ fs::path dataset_root(const fs::path& extracted) {
     if (e.is_directory()) dirs.push_back(e.path());
   if (dirs.size() == 1 && is_recording(dirs[0])) return dirs[0];
   throw DataError(
-      "the archive holds no EuRoC ASL folder (mav0/) nor TUM RGB-D one (rgb.txt) at its root or in its only folder");
+      "the archive holds no EuRoC ASL folder (mav0/), TUM RGB-D one (rgb.txt) nor KITTI odometry sequence "
+      "(image_0/, times.txt, calib.txt) at its root or in its only folder");
 }
 
 // The frames of the recording at `root` for a session of `sensor`: stereo pairs
 // of an ASL folder, or each colour image with its depth image of a TUM RGB-D
 // one (`rgbd`); the ground truth and the IMU it holds.
 struct UploadedRecording {
-  std::vector<StereoFrame> frames;
+  std::vector<DatasetFrame> frames;
   std::vector<GroundTruthState> ground_truth;
   std::vector<ImuSample> imu;
   // A single camera's: the camera in the body (its poses are the camera's,
@@ -55,6 +57,13 @@ UploadedRecording read_recording(const fs::path& root, SensorType sensor) {
     r.frames = rgbd_image_pairs(d);
     r.ground_truth = ground_truth_states(d);
     ORBATLAS_DATA_CHECK(!r.frames.empty(), "the recording has no colour image with a depth image");
+    return r;
+  }
+  if (is_kitti_sequence(root)) {
+    const KittiSequence kitti = read_kitti_sequence(root, /*confined=*/true);
+    for (const DatasetFrame& f : kitti.frames)
+      r.frames.push_back(is_single_camera(sensor) ? DatasetFrame{f.t_ns, f.left, {}} : f);
+    r.ground_truth = ground_truth_states(kitti.ground_truth);
     return r;
   }
   ORBATLAS_DATA_CHECK(fs::is_directory(root / "mav0"),
@@ -220,6 +229,7 @@ void UploadJobs::check_recording(const fs::path& folder) {
     return;  // no recording at all: the job says so (and keeps its id)
   }
   if (fs::is_regular_file(root / "rgb.txt")) read_tum_rgbd(root, 0.02, /*confined=*/true);
+  if (is_kitti_sequence(root)) read_kitti_sequence(root, /*confined=*/true);
   if (fs::is_directory(root / "mav0")) {
     EurocReadOptions options;
     options.confined = true;
@@ -379,10 +389,18 @@ void UploadJobs::run(JobId id) {
   });
   const RemoveOnExit remove_folder{folder};
   const fs::path root = dataset_root(folder);
+  // An upload without settings takes the recording's own: a KITTI sequence's
+  // from its calib.txt, else euroc/stereo.
+  if (request.settings.config.empty() && request.settings.settings_yaml.empty()) {
+    if (is_kitti_sequence(root))
+      request.settings.settings_yaml = kitti_settings_yaml(read_kitti_sequence(root, /*confined=*/true));
+    else
+      request.settings.config = "euroc/stereo";
+  }
   const SensorType sensor = service_.request_sensor(request);
   const bool rgbd = sensor == SensorType::kRgbd;
   const UploadedRecording recording = read_recording(root, sensor);
-  const std::vector<StereoFrame>& frames = recording.frames;
+  const std::vector<DatasetFrame>& frames = recording.frames;
   if (request.name.empty()) request.name = "upload " + std::to_string(id);
   const SessionId session = service_.create_session(request);
   update(id, [&](Job& j) {

@@ -15,9 +15,11 @@
 #include "core/common/worker_errors.h"
 #include "core/eval/evaluate.h"
 #include "core/eval/gap_error.h"
+#include "core/eval/live_pose_jumps.h"
 #include "core/io/euroc_reader.h"
 #include "core/io/imu_batches.h"
-#include "core/io/stereo_pair_loader.h"
+#include "core/io/frame_loader.h"
+#include "core/io/kitti_odometry.h"
 #include "core/io/tum_rgbd.h"
 #include "core/io/tum_trajectory.h"
 #include "core/persistence/atlas_location.h"
@@ -40,7 +42,7 @@ namespace {
 struct RunInputs {
   SlamSettings settings;
   EurocDataset dataset;
-  std::vector<StereoFrame> frames;
+  std::vector<DatasetFrame> frames;
 };
 
 // An RGB-D recording in the TUM layout: each colour image with its depth image
@@ -59,7 +61,42 @@ RunInputs read_rgbd_inputs(const DatasetRunOptions& options, SlamSettings settin
   return in;
 }
 
+// A KITTI odometry sequence: its stereo pairs, its settings from calib.txt
+// unless a settings file is given, its poses as the ground truth (camera 0 is
+// the body). --sensor mono takes the left images alone.
+RunInputs read_kitti_inputs(const DatasetRunOptions& options) {
+  const KittiSequence sequence = read_kitti_sequence(options.dataset);
+  RunInputs in;
+  if (options.settings.empty()) {
+    in.settings = read_settings_text(kitti_settings_yaml(sequence), (options.dataset / "calib.txt").string());
+    log_info("run: " + options.dataset.string() +
+             " is a KITTI odometry sequence; its settings come from calib.txt "
+             "(rectified stereo, ORB-SLAM3's KITTI features; docs/kitti.md)");
+  } else {
+    in.settings = read_settings(options.settings, SensorType::kStereo);
+  }
+  ORBATLAS_CHECK(in.settings.sensor == SensorType::kStereo, "run: a KITTI sequence is stereo without an IMU; "
+                                                                << options.settings << " is a "
+                                                                << sensor_type_name(in.settings.sensor) << " one");
+  if (options.sensor) {
+    ORBATLAS_CHECK(*options.sensor == SensorType::kMonocular,
+                   "run: a KITTI sequence has no IMU: --sensor can be mono (its left camera), not "
+                       << sensor_type_name(*options.sensor));
+    in.settings.sensor = SensorType::kMonocular;
+    in.settings.camera1.reset();
+  }
+  for (const DatasetFrame& f : sequence.frames)
+    in.frames.push_back(options.sensor ? DatasetFrame{f.t_ns, f.left, {}} : f);
+  in.dataset.ground_truth = ground_truth_states(sequence.ground_truth);
+  keep_time_window(in.frames, options.start_s, options.duration_s, options.dataset);
+  return in;
+}
+
 RunInputs read_inputs(const DatasetRunOptions& options) {
+  if (is_kitti_sequence(options.dataset)) return read_kitti_inputs(options);
+  ORBATLAS_CHECK(!options.settings.empty(), "run: --config is needed for "
+                                                << options.dataset
+                                                << " (only a KITTI sequence's settings come from its calib.txt)");
   SlamSettings settings = read_settings(options.settings, SensorType::kStereo);
   if (options.sensor && *options.sensor != settings.sensor) {
     const bool inertial = *options.sensor == SensorType::kMonocularInertial;
@@ -178,8 +215,8 @@ constexpr double kOfflineMappingWaitMs = 10000.0;  // the bound TrackerOptions a
 // places its map has no points for yet (a visual-inertial local BA takes
 // several frame intervals); the figures are then those of a machine whose
 // mapping keeps up, whatever this one's speed.
-StereoSlamOptions run_slam_options(const DatasetRunOptions& options) {
-  StereoSlamOptions slam_options = options.slam;
+SlamSystemOptions run_slam_options(const DatasetRunOptions& options) {
+  SlamSystemOptions slam_options = options.slam;
   if (!options.realtime && slam_options.tracker.max_mapping_wait_ms == 0.0)
     slam_options.tracker.max_mapping_wait_ms = kOfflineMappingWaitMs;
   if (options.localize_only) {
@@ -208,15 +245,16 @@ void note_black_out(DatasetRunReport::BlackOut& b, bool blacked, const TrackResu
 // Every frame through SLAM (decoded ahead on a loader thread), paced at the sensor
 // rate with --realtime; bad frames are skipped and counted; a failure that leaves
 // the map unusable stops the run with what was tracked.
-void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame>& frames,
-                 const std::vector<ImuSample>& imu, StereoSlam& slam, AtlasCheckpointer* checkpointer,
+void feed_frames(const DatasetRunOptions& options, const std::vector<DatasetFrame>& frames,
+                 const std::vector<ImuSample>& imu, SlamSystem& slam, AtlasCheckpointer* checkpointer,
                  Clock::time_point wall_start, DatasetRunReport& report, const std::string& label = "run") {
   // Decodes images ahead of tracking (an RGB-D frame's second image is its depth).
-  StereoPairLoader loaded(frames, 4, slam.rgbd() ? StereoPairLoader::Second::kDepth : StereoPairLoader::Second::kImage);
+  FrameLoader loaded(frames, 4, slam.rgbd() ? FrameLoader::Second::kDepth : FrameLoader::Second::kImage);
   Progress progress(label, static_cast<std::int64_t>(frames.size()), options.show_progress);
   std::size_t index = 0, imu_next = 0;
   std::size_t after_black_out = 0;  // frames since the gap ended, not tracked visually
   if (options.black_out_s) report.black_out.emplace();
+  LivePoseJumps jumps;
   while (auto pair = loaded.next()) {
     if (slam.inertial()) {
       // The IMU up to this frame and the first sample after it (as a device
@@ -245,6 +283,13 @@ void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame
       try {
         const TrackResult r = slam.process(pair->t_ns, pair->left, pair->right);
         if (report.black_out) note_black_out(*report.black_out, blacked, r, after_black_out);
+        if (r.tracked) {
+          report.live_trajectory.push_back({r.t_ns, r.T_w_b});
+          report.live_maps.push_back(r.map);
+          if (const auto jump = jumps.add(r.T_w_b.t, r.map, r.maps_edits)) report.live_jumps_m.push_back(*jump);
+        } else {
+          jumps.lost();
+        }
         if (r.keyframe && checkpointer) {
           if (report.session) {
             checkpointer->notify_keyframe(*report.session, r.keyframe_id);
@@ -272,7 +317,7 @@ void feed_frames(const DatasetRunOptions& options, const std::vector<StereoFrame
 
 // Lets mapping and loop closing finish, then writes the final durable checkpoint
 // (every keyframe and the whole trajectory) and records a clean stop.
-void finish_session(StereoSlam& slam, DatasetRunReport& report) {
+void finish_session(SlamSystem& slam, DatasetRunReport& report) {
   try {
     slam.finish();
     if (const auto refine = slam.take_end_refinement()) refine();
@@ -293,7 +338,7 @@ void finish_storage(AtlasCheckpointer* checkpointer, DatabaseLock* lock, Dataset
 
 // The trajectory and figures of the run, and with ground truth its ATE and each
 // closed loop's relative pose error (false loops).
-void collect_results(const StereoSlam& slam, const EurocDataset& dataset, DatasetRunReport& report,
+void collect_results(const SlamSystem& slam, const EurocDataset& dataset, DatasetRunReport& report,
                      const std::optional<std::pair<double, double>>& black_out_s = std::nullopt,
                      TimestampNs first_frame_ns = 0) {
   for (const TimedPose& p : slam.trajectory()) {
@@ -312,6 +357,8 @@ void collect_results(const StereoSlam& slam, const EurocDataset& dataset, Datase
     if (slam.monocular() && !slam.inertial()) eval.align = AlignMode::kSim3;
     report.ate_rmse_m = evaluate_trajectory(report.trajectory, gt, eval).ate.rmse;
     report.ate_sim3 = eval.align == AlignMode::kSim3;
+    if (report.live_trajectory.size() >= 3)
+      report.live_ate_rmse_m = evaluate_trajectory(report.live_trajectory, gt, eval).ate.rmse;
   } catch (const Error& e) {
     log_warn(std::string("no ATE: ") + e.what());
   }
@@ -348,7 +395,7 @@ void DatasetRunOptions::check() const {
   checkpoints.check();
 }
 
-DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
+DatasetRunReport run_dataset(const DatasetRunOptions& options) {
   options.check();
   const RunInputs in = read_inputs(options);
   const Vocabulary vocabulary =
@@ -358,12 +405,13 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   Atlas atlas;
   DatasetRunReport report;
   const StoredAtlas stored = open_atlas(options, in.settings, vocabulary, atlas, report);
-  StereoSlam slam(atlas, in.settings, vocabulary, run_slam_options(options), run_wiring(stored));
+  SlamSystem slam(atlas, in.settings, vocabulary, run_slam_options(options), run_wiring(stored));
   std::unique_ptr<AtlasCheckpointer> checkpointer;
   if (stored.session) {
     checkpointer = std::make_unique<AtlasCheckpointer>(
         atlas, options.atlas, vocabulary.hash(), options.checkpoints,
-        CheckpointSession{*stored.session, [&slam](std::size_t first) { return slam.anchors_from(first); }});
+        CheckpointSession{*stored.session, [&slam](std::size_t first) { return slam.anchors_from(first); },
+                          /*record=*/{}});
   }
   const auto wall_start = Clock::now();
   feed_frames(options, in.frames, in.dataset.imu, slam, checkpointer.get(), wall_start, report);
@@ -374,8 +422,8 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options) {
   return report;
 }
 
-std::vector<DatasetRunReport> run_stereo_datasets(const DatasetRunOptions& options,
-                                                  const std::vector<std::filesystem::path>& datasets) {
+std::vector<DatasetRunReport> run_datasets(const DatasetRunOptions& options,
+                                           const std::vector<std::filesystem::path>& datasets) {
   ORBATLAS_CHECK(!datasets.empty(), "run: no dataset given");
   const std::size_t n = datasets.size();
   std::vector<DatasetRunOptions> each(n, options);
@@ -383,7 +431,7 @@ std::vector<DatasetRunReport> run_stereo_datasets(const DatasetRunOptions& optio
     each[i].dataset = datasets[i];
     each[i].show_progress = options.show_progress && i == 0;  // one progress line, the first recording's
   }
-  if (n == 1) return {run_stereo_dataset(each[0])};
+  if (n == 1) return {run_dataset(each[0])};
   options.check();
   std::vector<RunInputs> inputs;
   for (const auto& o : each) inputs.push_back(read_inputs(o));
@@ -420,19 +468,21 @@ std::vector<DatasetRunReport> run_stereo_datasets(const DatasetRunOptions& optio
     }
     return mapping;
   };
-  std::vector<std::unique_ptr<StereoSlam>> slams;
+  std::vector<std::unique_ptr<SlamSystem>> slams;
   for (std::size_t i = 0; i < n; ++i)
     slams.push_back(
-        std::make_unique<StereoSlam>(atlas, inputs[i].settings, vocabulary, run_slam_options(each[i]), wiring));
+        std::make_unique<SlamSystem>(atlas, inputs[i].settings, vocabulary, run_slam_options(each[i]), wiring));
   std::unique_ptr<AtlasCheckpointer> checkpointer;
   if (stored.session) {
     checkpointer = std::make_unique<AtlasCheckpointer>(
         atlas, options.atlas, vocabulary.hash(), options.checkpoints,
         CheckpointSession{*sessions[0],
-                          [slam = slams[0].get()](std::size_t first) { return slam->anchors_from(first); }});
+                          [slam = slams[0].get()](std::size_t first) { return slam->anchors_from(first); },
+                          /*record=*/{}});
     for (std::size_t i = 1; i < n; ++i)
       checkpointer->add_session(CheckpointSession{
-          *sessions[i], [slam = slams[i].get()](std::size_t first) { return slam->anchors_from(first); }});
+          *sessions[i], [slam = slams[i].get()](std::size_t first) { return slam->anchors_from(first); },
+          /*record=*/{}});
   }
   // Every recording on a thread of its own, at once.
   const auto wall_start = Clock::now();

@@ -1,7 +1,8 @@
 #pragma once
-// Runs a stereo SLAM session over an EuRoC ASL dataset (what `orbatlas run`
-// does): images are decoded by a loader thread into a bounded queue, tracked,
-// and optionally paced at the sensor rate.
+// Runs a SLAM session over a recording (what `orbatlas run` does): an EuRoC
+// ASL folder, a KITTI odometry sequence or a TUM RGB-D folder; images are
+// decoded by a loader thread into a bounded queue, tracked, and optionally
+// paced at the sensor rate.
 #include <filesystem>
 #include <functional>
 #include <optional>
@@ -10,15 +11,15 @@
 
 #include "core/geometry/trajectory.h"
 #include "core/persistence/atlas_checkpointer.h"
-#include "core/slam/stereo_slam.h"
+#include "core/slam/slam_system.h"
 
 namespace orbatlas {
 
 struct DatasetRunOptions {
-  std::filesystem::path settings;    // ORB-SLAM3-style YAML (stereo)
-  std::filesystem::path dataset;     // folder holding mav0/
+  std::filesystem::path settings;    // ORB-SLAM3-style YAML; empty: a KITTI sequence's from its calib.txt
+  std::filesystem::path dataset;     // the recording's folder
   std::filesystem::path vocabulary;  // empty: the shipped one
-  StereoSlamOptions slam;
+  SlamSystemOptions slam;
   double start_s = 0.0;              // skip this much of the sequence
   std::optional<double> duration_s;  // and stop after this much
   bool realtime = false;             // feed frames at their timestamps; count the late ones
@@ -50,8 +51,15 @@ struct DatasetRunReport {
   std::size_t late_frames = 0;     // realtime: processing ended after the next frame arrived
   double peak_rss_mb = 0.0;
   double wall_s = 0.0;
-  std::optional<double> ate_rmse_m;  // when the dataset has ground truth (SE3 alignment)
-  bool ate_sim3 = false;             // monocular: the camera's poses, Sim(3) alignment
+  // The pose track() returned for each frame it tracked, as it was returned
+  // (what a device would have steered by; `trajectory` is the final, corrected
+  // one), with its map and the jumps at corrections of the maps (live_pose_jumps.h).
+  Trajectory live_trajectory;
+  std::vector<MapId> live_maps;
+  std::vector<double> live_jumps_m;
+  std::optional<double> live_ate_rmse_m;  // the live poses, scored as the final ones
+  std::optional<double> ate_rmse_m;       // when the dataset has ground truth (SE3 alignment)
+  bool ate_sim3 = false;                  // monocular: the camera's poses, Sim(3) alignment
   // With an atlas: what was loaded, the session stored, and the checkpoints.
   std::size_t loaded_maps = 0, loaded_keyframes = 0;
   double atlas_load_s = 0.0;
@@ -74,7 +82,7 @@ struct DatasetRunReport {
 
 // Throws Error for unusable settings, a missing dataset or a non-stereo dataset;
 // a session that fails while it runs ends the run with `failed` set instead.
-DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options);
+DatasetRunReport run_dataset(const DatasetRunOptions& options);
 
 // Several recordings at once into one atlas (`orbatlas run --dataset A
 // --dataset B`): one session each (options.dataset is ignored), each on its own
@@ -82,8 +90,8 @@ DatasetRunReport run_stereo_dataset(const DatasetRunOptions& options);
 // same place map in one map together). One report per recording, in order; the
 // mapping and loop-closing figures in each are those of the shared mapping.
 // --final-ba is not run (it is a single session's refinement). One recording:
-// exactly run_stereo_dataset().
-std::vector<DatasetRunReport> run_stereo_datasets(const DatasetRunOptions& options,
-                                                  const std::vector<std::filesystem::path>& datasets);
+// exactly run_dataset().
+std::vector<DatasetRunReport> run_datasets(const DatasetRunOptions& options,
+                                           const std::vector<std::filesystem::path>& datasets);
 
 }  // namespace orbatlas

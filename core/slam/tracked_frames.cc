@@ -16,7 +16,9 @@ TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, const Atlas& atl
     const auto waiting = std::chrono::steady_clock::now();
     const auto whole = atlas.lock_maps_shared();
     maps_wait_ms = ms_since(waiting);
+    const std::uint64_t edits = atlas.maps_edits();  // stable while the maps are held shared
     result = tracker.track(std::move(frame));
+    result.maps_edits = edits;
     errors_.succeeded();
   } catch (const DataError&) {
     throw;  // the frame's fault: the caller says so to the user

@@ -103,6 +103,9 @@ struct TrackResult {
   // The wait for the atlas's maps before tracking (TrackedFrames: a loop
   // correction, a merge or a global BA's result being applied holds them).
   double maps_wait_ms = 0.0;
+  // The atlas's whole-map edits when the frame was tracked (Atlas::maps_edits):
+  // more than at the frame before, and the pose may have jumped with a correction.
+  std::uint64_t maps_edits = 0;
 };
 
 class Tracker {

@@ -153,11 +153,13 @@ void install_session_routes(Router& router, AtlasService& service, const std::sh
                      {"skipped", r.skipped},
                      {"local_keyframes", r.result.local_keyframes},
                      {"local_points", r.result.local_points},
-                     {"maps_wait_ms", r.result.maps_wait_ms}};
+                     {"maps_wait_ms", r.result.maps_wait_ms},
+                     {"maps_edits", r.result.maps_edits}};
         if (r.result.tracked) {
           body["map"] = r.result.map;
           body["T_w_b"] = pose_to_json(r.result.T_w_b);
         }
+        if (r.jump_m) body["jump_m"] = *r.jump_m;
         body["server_ms"] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
         reply_json(res, body);
       }));

@@ -22,7 +22,8 @@ void install_upload_routes(Router& router, AtlasService& service, UploadJobs* jo
       if (!jobs) throw ServiceError(ServiceErrorKind::kUnavailable, "unavailable", "this server takes no uploads");
       SessionRequest request;
       request.name = req.get_param_value("name");
-      request.settings.config = req.has_param("config") ? req.get_param_value("config") : "euroc/stereo";
+      // No config: the recording's own (a KITTI sequence's calib.txt), else euroc/stereo (UploadJobs).
+      request.settings.config = req.has_param("config") ? req.get_param_value("config") : "";
       if (req.has_param("sensor")) request.sensor = req.get_param_value("sensor");
       if (req.has_param("mode")) request.mode = req.get_param_value("mode");
       service.check_upload(request);  // before receiving gigabytes for nothing
