@@ -308,6 +308,7 @@ TEST(SlamStats, PercentilesOfKnownValues) {
   const Percentiles p = percentiles(v);
   EXPECT_DOUBLE_EQ(p.p50, 50.0);
   EXPECT_DOUBLE_EQ(p.p95, 95.0);
+  EXPECT_DOUBLE_EQ(p.p99, 99.0);
   EXPECT_DOUBLE_EQ(p.max, 100.0);
   EXPECT_DOUBLE_EQ(p.mean, 50.0);
   EXPECT_EQ(percentiles(std::vector<double>{}).count, 0u);

@@ -28,6 +28,9 @@ nlohmann::json to_json(const SessionStatus& s) {
   if (s.last_frame) j["last_frame"] = {{"t_ns", s.last_frame->t_ns}, {"tracked", s.last_frame->tracked}};
   if (!s.tracking_ms.empty()) j["tracking_ms"] = to_json_summary(s.tracking_ms);
   if (!s.live_jumps_m.empty()) j["live_jumps_m"] = to_json_summary(s.live_jumps_m);
+  if (!s.request_ms.empty()) j["request_ms"] = to_json_summary(s.request_ms);
+  if (!s.decode_ms.empty()) j["decode_ms"] = to_json_summary(s.decode_ms);
+  if (!s.maps_wait_ms.empty()) j["maps_wait_ms"] = to_json_summary(s.maps_wait_ms);
   if (s.slam) {
     j["slam"] = {{"relocalizations", s.slam->relocalizations},
                  {"loops", s.slam->loops},

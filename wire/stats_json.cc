@@ -9,7 +9,7 @@ namespace orbatlas {
 namespace {
 
 nlohmann::json summary(const Percentiles& p) {
-  return {{"p50", p.p50}, {"p95", p.p95}, {"max", p.max}, {"mean", p.mean}, {"count", p.count}};
+  return {{"p50", p.p50}, {"p95", p.p95}, {"p99", p.p99}, {"max", p.max}, {"mean", p.mean}, {"count", p.count}};
 }
 nlohmann::json summary(const std::vector<double>& values) { return summary(percentiles(values)); }
 nlohmann::json summary(const SampleSummary& values) { return summary(values.percentiles()); }

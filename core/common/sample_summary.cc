@@ -17,6 +17,7 @@ Percentiles percentiles(std::vector<double> values) {
   };
   p.p50 = at(0.50);
   p.p95 = at(0.95);
+  p.p99 = at(0.99);
   p.max = values.back();
   p.mean = std::accumulate(values.begin(), values.end(), 0.0) / static_cast<double>(values.size());
   return p;

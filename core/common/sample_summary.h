@@ -11,7 +11,7 @@
 namespace orbatlas {
 
 struct Percentiles {
-  double p50 = 0.0, p95 = 0.0, max = 0.0, mean = 0.0;
+  double p50 = 0.0, p95 = 0.0, p99 = 0.0, max = 0.0, mean = 0.0;
   std::size_t count = 0;
 };
 // Of all the values (nearest rank).
@@ -26,7 +26,7 @@ class SampleSummary {
   bool empty() const { return count_ == 0; }
   double mean() const { return count_ == 0 ? 0.0 : sum_ / static_cast<double>(count_); }
   double max() const { return max_; }
-  // p50 and p95 from the sample; count, mean and max exact.
+  // p50, p95 and p99 from the sample; count, mean and max exact.
   Percentiles percentiles() const;
   const std::vector<double>& sample() const { return sample_; }
 

@@ -410,7 +410,9 @@ std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
   return held;
 }
 
-FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right) {
+FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right,
+                                       const FrameRequestTiming& timing) {
+  const auto started = timing.started.value_or(std::chrono::steady_clock::now());
   const auto live = session(id);
   FrameReply reply;
   reply.session = id;
@@ -456,6 +458,10 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
   if (reply.result.keyframe) checkpointer_->notify_keyframe(id, reply.result.keyframe_id);
   frames_.Increment();
   tracking_latency_.Observe(reply.tracking_ms / 1000.0);
+  const double request_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
+  live->note_request(timing.decode_ms, request_ms);
+  frame_request_latency_.Observe(request_ms / 1000.0);
   return reply;
 }
 

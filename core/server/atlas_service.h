@@ -6,6 +6,7 @@
 // formats replies. Errors are ServiceError (a kind and a code, which the HTTP
 // layer maps to a status), DataError (bad input: 422 there) or Error (500).
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <thread>
 #include <filesystem>
@@ -93,6 +94,13 @@ struct AtlasServiceOptions {
   void check() const;
 };
 
+// When a frame's request began to be handled and how long its images took to
+// decode (the HTTP layer's part), so that its latency is counted whole.
+struct FrameRequestTiming {
+  std::optional<std::chrono::steady_clock::time_point> started;  // none: when process_frame is called
+  double decode_ms = 0.0;
+};
+
 struct FrameReply {
   SessionId session = 0;
   TrackResult result;
@@ -146,7 +154,10 @@ class AtlasService {
   // GET /v1/sessions/{id}: LiveSession::status with `map` the map the session's
   // last frame is in now (a merge may have moved it). ServiceError 404.
   SessionStatus session_status(SessionId id) const;
-  FrameReply process_frame(SessionId id, TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
+  // One frame of a live session; `timing`: when its request began and its
+  // decoding (the session's request_ms / decode_ms and /metrics' latency).
+  FrameReply process_frame(SessionId id, TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right,
+                           const FrameRequestTiming& timing = {});
   std::size_t add_imu(SessionId id, const std::vector<ImuSample>& samples);
   // Ends the session and stores it (a durable checkpoint); idempotent for a
   // finished session, ServiceError 409 for a stored one. Returns its status.
@@ -362,6 +373,10 @@ class AtlasService {
       "orbatlas_frames_skipped_total", "Frames of real-time sessions skipped for arriving too late (max_lag_s).");
   prometheus::Histogram& tracking_latency_ = metrics_.histogram(
       "orbatlas_tracking_latency_seconds", "Time to track one frame (features included).", latency_buckets_seconds());
+  prometheus::Histogram& frame_request_latency_ = metrics_.histogram(
+      "orbatlas_frame_request_seconds",
+      "A live frame's time in the server, from its request's handling to its reply (decoding and tracking).",
+      latency_buckets_seconds());
   prometheus::Histogram& live_pose_jumps_ =
       metrics_.histogram("orbatlas_live_pose_jump_meters",
                          "How far a live session's pose jumped at the first frame after a correction of the maps.",

@@ -139,6 +139,7 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
   if (out.result.tracked && !out.result.by_imu) ++tracked_;  // the slam stats count the IMU's frames
   if (out.result.keyframe) ++keyframes_;
   tracking_ms_.add(out.tracking_ms);
+  maps_wait_ms_.add(out.result.maps_wait_ms);
   if (out.result.tracked) {
     out.jump_m = pose_jumps_.add(out.result.T_w_b.t, out.result.map, out.result.maps_edits);
     if (out.jump_m) live_jumps_m_.add(*out.jump_m);
@@ -157,6 +158,12 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
     logged_map_ = out.result.map;
   }
   return out;
+}
+
+void LiveSession::note_request(double decode_ms, double request_ms) {
+  std::lock_guard lock(mutex_);
+  decode_ms_.add(decode_ms);
+  request_ms_.add(request_ms);
 }
 
 std::size_t LiveSession::add_imu(const std::vector<ImuSample>& samples) {
@@ -299,6 +306,9 @@ SessionStatus LiveSession::status() const {
   }
   s.tracking_ms = tracking_ms_;
   s.live_jumps_m = live_jumps_m_;
+  s.request_ms = request_ms_;
+  s.decode_ms = decode_ms_;
+  s.maps_wait_ms = maps_wait_ms_;
   s.slam = final_counts_;
   return s;
 }

@@ -96,6 +96,9 @@ class LiveSession {
   // Errors the session's workers contained (as of its last frame; any thread).
   std::size_t worker_errors() const { return worker_errors_.load(); }
   SessionStatus status() const;  // GET /v1/sessions/{id}
+  // A tracked frame's request as the server handled it: its images' decoding and
+  // its whole time from the request's handling to the reply (status: decode_ms, request_ms).
+  void note_request(double decode_ms, double request_ms);
   // What the database keeps of it (counts, mode, config, how it ended); any thread.
   SessionRecord record() const;
 
@@ -123,6 +126,7 @@ class LiveSession {
   std::optional<std::int64_t> min_offset_ns_;  // smallest arrival - timestamp seen
   std::optional<TrackResult> last_;
   SampleSummary tracking_ms_;
+  SampleSummary request_ms_, decode_ms_, maps_wait_ms_;    // under mutex_
   LivePoseJumps pose_jumps_;                               // under mutex_
   SampleSummary live_jumps_m_;                             // under mutex_
   std::optional<SessionStatus::SlamCounts> final_counts_;  // captured by finish()

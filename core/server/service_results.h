@@ -50,6 +50,11 @@ struct SessionStatus {
   std::optional<LastFrame> last_frame;
   std::optional<MapId> map;   // the map its last frame is in now (a merge may have moved it)
   SampleSummary tracking_ms;  // per frame (empty before the first)
+  // Where a frame's time in the server went: the whole request (from its
+  // handling to the reply), decoding its images, and, inside tracking, waiting
+  // for the atlas's maps (held whole by a merge, a loop correction or a global
+  // BA's result). Reading the body off the socket comes before and is not counted.
+  SampleSummary request_ms, decode_ms, maps_wait_ms;
   // The live pose's jumps at the map's corrections (FrameOutcome::jump_m).
   SampleSummary live_jumps_m;
   struct SlamCounts {

@@ -11,81 +11,14 @@
 #include "core/io/imu_batches.h"
 #include "core/io/tum_rgbd.h"
 #include "core/io/tum_trajectory.h"
-#include "core/server/service_error.h"
 #include "core/io/kitti_odometry.h"
+#include "core/server/service_error.h"
+#include "core/server/uploaded_recording.h"
 
 namespace orbatlas {
 namespace {
 
 namespace fs = std::filesystem;
-
-// The folder holding mav0/: the archive's root or its only top-level folder.
-// A recording: an EuRoC ASL folder (mav0/) or a TUM RGB-D one (rgb.txt).
-bool is_recording(const fs::path& dir) {
-  return fs::is_directory(dir / "mav0") || fs::is_regular_file(dir / "rgb.txt") || is_kitti_sequence(dir);
-}
-
-fs::path dataset_root(const fs::path& extracted) {
-  if (is_recording(extracted)) return extracted;
-  std::vector<fs::path> dirs;
-  for (const auto& e : fs::directory_iterator(extracted))
-    if (e.is_directory()) dirs.push_back(e.path());
-  if (dirs.size() == 1 && is_recording(dirs[0])) return dirs[0];
-  throw DataError(
-      "the archive holds no EuRoC ASL folder (mav0/), TUM RGB-D one (rgb.txt) nor KITTI odometry sequence "
-      "(image_0/, times.txt, calib.txt) at its root or in its only folder");
-}
-
-// The frames of the recording at `root` for a session of `sensor`: stereo pairs
-// of an ASL folder, or each colour image with its depth image of a TUM RGB-D
-// one (`rgbd`); the ground truth and the IMU it holds.
-struct UploadedRecording {
-  std::vector<DatasetFrame> frames;
-  std::vector<GroundTruthState> ground_truth;
-  std::vector<ImuSample> imu;
-  // A single camera's: the camera in the body (its poses are the camera's,
-  // at its map's scale: scored with a similarity against the camera's truth).
-  std::optional<Pose3> T_b_c0;
-};
-
-UploadedRecording read_recording(const fs::path& root, SensorType sensor) {
-  UploadedRecording r;
-  if (sensor == SensorType::kRgbd) {
-    ORBATLAS_DATA_CHECK(fs::is_regular_file(root / "rgb.txt"),
-                        "an RGB-D session's upload is a TUM RGB-D recording (rgb.txt, depth.txt, rgb/, depth/)");
-    const TumRgbdDataset d = read_tum_rgbd(root, 0.02, /*confined=*/true);
-    r.frames = rgbd_image_pairs(d);
-    r.ground_truth = ground_truth_states(d);
-    ORBATLAS_DATA_CHECK(!r.frames.empty(), "the recording has no colour image with a depth image");
-    return r;
-  }
-  if (is_kitti_sequence(root)) {
-    const KittiSequence kitti = read_kitti_sequence(root, /*confined=*/true);
-    for (const DatasetFrame& f : kitti.frames)
-      r.frames.push_back(is_single_camera(sensor) ? DatasetFrame{f.t_ns, f.left, {}} : f);
-    r.ground_truth = ground_truth_states(kitti.ground_truth);
-    return r;
-  }
-  ORBATLAS_DATA_CHECK(fs::is_directory(root / "mav0"),
-                      "a stereo session's upload is an EuRoC ASL recording (mav0/); a TUM RGB-D one needs an rgbd "
-                      "config");
-  const bool single_camera = is_single_camera(sensor);
-  EurocReadOptions read_options;
-  read_options.require_cam1 = !single_camera;
-  read_options.confined = true;
-  EurocDataset dataset = read_euroc_dataset(root, read_options);
-  if (single_camera) {
-    ORBATLAS_DATA_CHECK(!dataset.cameras.empty(), "the recording has no cam0");
-    for (const auto& image : dataset.cameras[0].frames) r.frames.push_back({image.t_ns, image.path, {}});
-    r.T_b_c0 = dataset.cameras[0].calibration.T_b_c;
-  } else {
-    r.frames = pair_stereo_frames(dataset);
-  }
-  ORBATLAS_DATA_CHECK(!r.frames.empty(), "the recording has no " << (single_camera ? "images" : "stereo frames"));
-  r.ground_truth = std::move(dataset.ground_truth);
-  r.imu = std::move(dataset.imu);
-  return r;
-}
 
 struct RemoveOnExit {
   fs::path path;
@@ -221,21 +154,7 @@ fs::path UploadJobs::new_upload_folder() {
   return folder;
 }
 
-void UploadJobs::check_recording(const fs::path& folder) {
-  fs::path root;
-  try {
-    root = dataset_root(folder);
-  } catch (const DataError&) {
-    return;  // no recording at all: the job says so (and keeps its id)
-  }
-  if (fs::is_regular_file(root / "rgb.txt")) read_tum_rgbd(root, 0.02, /*confined=*/true);
-  if (is_kitti_sequence(root)) read_kitti_sequence(root, /*confined=*/true);
-  if (fs::is_directory(root / "mav0")) {
-    EurocReadOptions options;
-    options.confined = true;
-    read_euroc_dataset(root, options);
-  }
-}
+void UploadJobs::check_recording(const fs::path& folder) { check_uploaded_recording(folder); }
 
 JobId UploadJobs::submit(const fs::path& folder, SessionRequest request, std::uint64_t archive_bytes) {
   Job job;
@@ -388,7 +307,7 @@ void UploadJobs::run(JobId id) {
     request = j.request;
   });
   const RemoveOnExit remove_folder{folder};
-  const fs::path root = dataset_root(folder);
+  const fs::path root = uploaded_recording_root(folder);
   // An upload without settings takes the recording's own: a KITTI sequence's
   // from its calib.txt, else euroc/stereo.
   if (request.settings.config.empty() && request.settings.settings_yaml.empty()) {
@@ -399,7 +318,7 @@ void UploadJobs::run(JobId id) {
   }
   const SensorType sensor = service_.request_sensor(request);
   const bool rgbd = sensor == SensorType::kRgbd;
-  const UploadedRecording recording = read_recording(root, sensor);
+  const UploadedRecording recording = read_uploaded_recording(root, sensor);
   const std::vector<DatasetFrame>& frames = recording.frames;
   if (request.name.empty()) request.name = "upload " + std::to_string(id);
   const SessionId session = service_.create_session(request);

@@ -142,7 +142,9 @@ void install_session_routes(Router& router, AtlasService& service, const std::sh
                       ? decode_request_image(req.get_file_value("right").content, raw, "right image", expected)
                       : cv::Mat();
         }
-        const FrameReply r = service.process_frame(id, t_ns, left, right);
+        const double decode_ms =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+        const FrameReply r = service.process_frame(id, t_ns, left, right, FrameRequestTiming{start, decode_ms});
         json body = {{"t_ns", r.result.t_ns},
                      {"state", tracking_state_name(r.result.state)},
                      {"tracked", r.result.tracked},
