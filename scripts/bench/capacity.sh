@@ -10,7 +10,9 @@
 # checkpoints), its peak resident size, and each session's ATE against the same
 # clip streamed alone (N = 1 for every sequence used): as each client got it
 # when its session finished, and as the atlas holds it once the server's
-# end-of-session work (merge search, global BA) is done. The clients read and
+# end-of-session work (merge search, global BA) is done; beside it the live ATE
+# (the poses the replies carried) and the replies' round trip p50/p99. The
+# server runs with its defaults unless BACKGROUND_NICE or SERVER_FLAGS say otherwise. The clients read and
 # decode their clips before they begin (`--preload`, then `--start-at` one
 # time), so what competes for the cores while they stream is the server (and
 # the clients' HTTP work), not PNG decoding a device would not do.
@@ -55,9 +57,11 @@ LOOK="${LOOK:-real}"
 MAX_LAG="${MAX_LAG:-0.1}"
 PHASES="${PHASES:-together}"
 RATE="${RATE:-1}"
-# Background threads (mapping, loop closing, merging) at this nice value: 10
-# serves live sessions' tracking first (docs/api.md, --background-nice).
-BACKGROUND_NICE="${BACKGROUND_NICE:-10}"
+# The server runs with its defaults; BACKGROUND_NICE=10 puts its background
+# threads (mapping, loop closing, merging) at that nice value (docs/api.md,
+# --background-nice).
+BACKGROUND_NICE="${BACKGROUND_NICE:-}"
+NICE_FLAGS=(); [ -n "$BACKGROUND_NICE" ] && NICE_FLAGS=(--background-nice "$BACKGROUND_NICE")
 # taskset prefixes: the server's and the clients' CPUs (empty: any)
 SERVER_TASKSET=(); [ -n "${SERVER_CPUS:-}" ] && SERVER_TASKSET=(taskset -c "$SERVER_CPUS")
 CLIENT_TASKSET=(); [ -n "${CLIENT_CPUS:-}" ] && CLIENT_TASKSET=(taskset -c "$CLIENT_CPUS")
@@ -112,7 +116,7 @@ run_sessions() {
   mkdir -p "$dir"
   # shellcheck disable=SC2086  # SERVER_FLAGS: several flags, split on spaces
   "${SERVER_TASKSET[@]}" "$SERVER_BIN" --db "$dir/atlas.db" --listen 127.0.0.1:0 --port-file "$dir/port" \
-      --background-nice "$BACKGROUND_NICE" "${CONFIG_FLAGS[@]}" ${SERVER_FLAGS:-} 2>"$dir/server.log" &
+      "${NICE_FLAGS[@]}" "${CONFIG_FLAGS[@]}" ${SERVER_FLAGS:-} 2>"$dir/server.log" &
   SERVER_PID=$!
   for _ in $(seq 1 300); do [ -s "$dir/port" ] && break; sleep 0.1; done
   [ -s "$dir/port" ] || { cat "$dir/server.log" >&2; echo "bench_capacity: the server did not start" >&2; exit 1; }
@@ -251,10 +255,16 @@ for n in ns:
     rss = server["peak_rss_kb"] / 1024.0
     ates = " ".join(f"{r.get('ate_rmse_m', float('nan')):.4f}({alone[s].get('ate_rmse_m', float('nan')):.4f})"
                     for r, s in zip(runs, seqs))
+    live = " ".join(f"{r.get('live_ate_rmse_m', float('nan')):.4f}/{r.get('ate_rmse_m', float('nan')):.4f}"
+                    f" ({r.get('live_fraction', float('nan')):.3f})" for r in runs)
+    trip = [r["round_trip_ms"] for r in runs]
     settled_ates = [settled_ate(d, i + 1, s) for i, s in enumerate(seqs[:n])]
     settled_alone = {s: settled_ate(f"alone_{s}", 1, s) for s in seqs[:n]}
     print(f"{n:>2} {sent:>7} {late:>6} {100.0 * late / sent:>5.2f}% {skipped:>7} {100.0 * skipped / sent:>5.2f}% "
           f"{p50:>10.1f}/{p95:<8.1f} {cores:>6.2f} {cores / n:>13.2f} {rss:>13.0f} {rss / n:>11.0f}  {ates}")
+    print("    live ATE / final ATE per session [m] (fraction of frames with a live pose): " + live)
+    print(f"    reply round trip p50 {sum(t['p50'] for t in trip) / n:.1f} ms (mean of the sessions), "
+          f"p99 {max(t.get('p99', float('nan')) for t in trip):.1f} ms, max {max(t['max'] for t in trip):.1f} ms (worst session)")
     settle = os.path.join(out, d, "settle_s.txt")
     print("    ATE once the atlas settled [m] (alone): " + " ".join(
         f"{a:.4f}({settled_alone[s]:.4f})" for a, s in zip(settled_ates, seqs)) +
