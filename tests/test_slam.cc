@@ -72,6 +72,19 @@ TEST(SlamSystem, TenSecondClipTracksWithinFourMillimetres) {
                           "late_frames", "loops", "loop_closing", "worker_errors", "worker_errors_by", "slot_races"})
     EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_EQ(j["objects"]["mappoints"]["reclaimed"].get<std::uint64_t>(), r.stats.mappoint_objects.reclaimed);
+  // The live poses: what track() returned for each tracked frame, in its order,
+  // scored beside the final trajectory, both in the stats.
+  ASSERT_EQ(r.live_trajectory.size(), r.stats.tracked);
+  ASSERT_EQ(r.live_maps.size(), r.live_trajectory.size());
+  for (std::size_t i = 0; i < r.live_trajectory.size(); ++i)
+    ASSERT_EQ(r.live_trajectory[i].t_ns, r.trajectory[i].t_ns) << i;
+  ASSERT_TRUE(r.live_ate_rmse_m.has_value());
+  std::printf("10 s clip: live ATE %.4f m, final %.4f m\n", *r.live_ate_rmse_m, *r.ate_rmse_m);
+  EXPECT_LT(*r.live_ate_rmse_m, 0.004);  // measured 0.0018 m (the final 0.0017 m)
+  EXPECT_EQ(j["live_ate_rmse_m"].get<double>(), *r.live_ate_rmse_m);
+  EXPECT_EQ(j["ate_rmse_m"].get<double>(), *r.ate_rmse_m);
+  EXPECT_EQ(j["live_poses"].get<std::size_t>(), r.stats.tracked);
+  EXPECT_DOUBLE_EQ(j["live_fraction"].get<double>(), 1.0);
 }
 
 // The optional final global BA (orbatlas run --final-ba): it covers every
