@@ -91,7 +91,12 @@ Capture capture(const std::string& chromium, const std::string& url, const fs::p
   // before the map's data arrived: once a DOM without the page's status, once a
   // blank screenshot (a page load of its own) though the DOM's look had drawn
   // the map. Up to three tries each; a page that never gets there still fails.
-  for (int attempt = 0; attempt < 3 && !c.status.is_object(); ++attempt) {
+  // With WebGL, a look whose 3D view did not start (a script not served in time
+  // under that load) is taken again too.
+  const auto usable = [&] {
+    return c.status.is_object() && (graphics != kWithWebGL || c.status.value("webgl", false));
+  };
+  for (int attempt = 0; attempt < 3 && !usable(); ++attempt) {
     const std::string dom = run_command("timeout 90 " + chromium + flags + " --dump-dom '" + url + "' 2>/dev/null");
     std::smatch m;
     if (std::regex_search(dom, m, std::regex(R"(<pre id="status"[^>]*>([^<]*)</pre>)"))) {

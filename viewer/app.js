@@ -47,7 +47,8 @@
     scene = window.createMapScene(view);
     status.webgl = true;
   } catch (e) {
-    status.no_3d = 'No 3D view: this browser cannot draw with WebGL (' + e.message + '). ' +
+    status.no_3d = (e.scriptsMissing ? 'No 3D view: ' + e.message + ' (reload the page). '
+                                     : 'No 3D view: this browser cannot draw with WebGL (' + e.message + '). ') +
                    'The maps, live sessions and merges are listed on the left.';
     const reason = document.createElement('p');
     reason.id = 'no-3d';

@@ -4,6 +4,11 @@
 // the page (app.js) then keeps its side panel and says why the view is empty.
 'use strict';
 window.createMapScene = function createMapScene(view) {
+  if (typeof THREE === 'undefined' || !THREE.OrbitControls) {
+    const error = new Error("the 3D view's scripts (three.js) did not load");
+    error.scriptsMissing = true;
+    throw error;
+  }
   // three.js reports a failed context through console.error before it throws;
   // that message is the reason, not an error of the page.
   const said = [];
