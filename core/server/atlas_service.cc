@@ -30,22 +30,6 @@ TimestampNs unix_now_ns() {
 
 }  // namespace
 
-void AtlasServiceOptions::check() const {
-  ORBATLAS_CHECK(!db.empty(), "the server needs a database path (--db)");
-  ORBATLAS_CHECK(max_live_sessions > 0, "server: max_live_sessions must be > 0, not " << max_live_sessions);
-  ORBATLAS_CHECK(!std::isnan(idle_timeout_s), "server: idle_timeout_s is not a number");
-  ORBATLAS_CHECK(
-      std::isfinite(finish_refinement_wait_s) && finish_refinement_wait_s >= 0.0 && finish_refinement_wait_s <= 3600.0,
-      "server: finish_refinement_wait_s must be in 0..3600, not " << finish_refinement_wait_s);
-  ORBATLAS_CHECK(loop_queue > 0, "server: loop_queue must be > 0, not " << loop_queue);
-  ORBATLAS_CHECK(background_nice >= 0 && background_nice <= 19,
-                 "server: background_nice must be in 0..19, not " << background_nice);
-  slam.check();
-  merging.check();
-  checkpoints.check();
-  replica.check();
-}
-
 namespace {
 
 // Every background worker of the sessions (their options are copied from
@@ -67,46 +51,18 @@ AtlasService::AtlasService(AtlasServiceOptions options)
       ownership_(replica_->shared() ? std::make_unique<MapOwnership>(*replica_, options_.db.string()) : nullptr),
       shared_merges_(replica_->shared() ? std::make_unique<SharedMerges>(options_.db.string()) : nullptr),
       vocabulary_(Vocabulary::load(options_.vocabulary.empty() ? default_vocabulary_path() : options_.vocabulary)),
-      loop_worker_(std::make_shared<SerialWorker>(options_.loop_queue, options_.background_nice, "loop closing")) {
-  const auto start = std::chrono::steady_clock::now();
-  {
-    // A shared atlas: the maps nobody owns and those of dead replicas are
-    // claimed before they are read, so what is read is what they last committed.
-    const std::vector<MapId> claimed = ownership_ ? ownership_->claim_free_and_dead() : std::vector<MapId>{};
-    // The versions before the maps are read: a map changed meanwhile is read again later.
-    if (ownership_)
-      for (const MapOwnership::Owned& o : ownership_->owners()) seen_versions_[o.map] = o.version;
-    AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());
-    const AtlasLoadReport loaded = store.load_atlas(atlas_, &vocabulary_);
-    if (ownership_) start_as_replica(claimed);
-    atlas_.index_all_keyframes();
-    if (db_lock_->previous_holder_crashed()) {
-      skip_ids_after_crash(atlas_);
-      log_warn("atlas " + store.location() +
-               ": the previous server stopped without its final checkpoint (killed?); what it did after its last "
-               "checkpoint is lost, and new ids continue past any it may have handed out");
-    }
-    // Mapping, merging and entering (leases): only the maps this replica writes.
-    for (const auto& map : atlas_.maps())
-      if (!ownership_ || ownership_->owns(map->id())) leases_.add_free(map->id());
-    const std::map<SessionId, SessionRecord> records = store.load_session_records();
-    for (const SessionInfo& info : store.load_sessions()) {
-      const auto anchors = store.load_trajectory(info.id);
-      // The rig each stored map was made with (for merging, and for entering
-      // it): its stereo sessions' cameras (a single camera only localised there).
-      record_map_rigs(atlas_, info, anchors, map_rigs_);
-      // The trajectory itself stays in the database (read when asked for).
-      const auto record = records.find(info.id);
-      sessions_[info.id] = std::make_shared<LiveSession>(
-          info, record == records.end() ? std::nullopt : std::optional<SessionRecord>(record->second), anchors);
-      if (!ownership_ || replica_id_range(replica_->id(), kReplicaMapIdShift).contains(info.id))
-        next_session_ = std::max(next_session_, info.id + 1);
-    }
-    log_info("atlas " + store.location() + ": " + std::to_string(loaded.maps) + " maps, " +
-             std::to_string(loaded.keyframes) + " keyframes, " + std::to_string(loaded.map_points) + " map points, " +
-             std::to_string(sessions_.size()) + " sessions loaded in " +
-             std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()) + " s");
-  }
+      mappings_(options_.loop_queue, options_.background_nice),
+      sessions_(options_.max_live_sessions),
+      localizers_(atlas_, vocabulary_,
+                  [dir = config_dir()](const SettingsSource& source) { return load_request_settings(source, dir); }) {
+  // A shared atlas: the maps nobody owns and those of dead replicas are
+  // claimed before they are read, so what is read is what they last committed;
+  // the versions before the maps are read (a map changed meanwhile is read again later).
+  const std::vector<MapId> claimed = ownership_ ? ownership_->claim_free_and_dead() : std::vector<MapId>{};
+  std::map<MapId, std::int64_t> seen_versions;
+  if (ownership_)
+    for (const MapOwnership::Owned& o : ownership_->owners()) seen_versions[o.map] = o.version;
+  load_atlas(claimed);
   CheckpointOptions checkpoints = options_.checkpoints;
   if (ownership_) {
     checkpoints.writable_maps = [this](SqlConnection& db, const std::vector<MapId>& candidates,
@@ -123,72 +79,78 @@ AtlasService::AtlasService(AtlasServiceOptions options)
     merger_ = std::make_unique<MapMergeWorker>(
         atlas_, leases_, [this](MapId a, MapId b) { return rigs_match(a, b); },
         [this](const MergeRecord& r) { merged(r); }, options_.merging);
-  if (merger_ && shared_merges_) {
-    merger_->set_on_done([this](MapId map) {
-      try {
-        shared_merges_->remove(map);
-      } catch (const std::exception& e) {
-        log_warn("map merging: the stored merge work of map " + std::to_string(map) + " stays: " + e.what());
-      }
-      {
-        std::lock_guard lock(merge_work_mutex_);
-        claimed_merges_.erase(map);
-      }
-      wake_merge_work();  // the next row
-    });
-    merger_->set_put_off([this](MapId target) { return ownership_->owns(target); },
-                         [this](MapId source, MapId target) { merge_put_off(source, target); });
-  }
-  if (options_.idle_timeout_s > 0) idle_thread_ = std::thread([this] { finish_idle_sessions(); });
   if (ownership_) {
-    takeover_thread_ = std::thread([this] { take_over_until_stopped(); });
-    // The merge work left with the maps this replica writes now is claimed there too.
-    merge_work_thread_ = std::thread([this] { share_merge_work_until_stopped(); });
+    replicas_ = std::make_unique<ReplicaCoordinator>(
+        ReplicaParts{.db = options_.db,
+                     .lease_s = options_.replica.lease_s,
+                     .vocabulary = &vocabulary_,
+                     .atlas = &atlas_,
+                     .leases = &leases_,
+                     .checkpointer = checkpointer_.get(),
+                     .replica = replica_.get(),
+                     .ownership = ownership_.get(),
+                     .shared_merges = shared_merges_.get(),
+                     .merger = merger_.get(),
+                     .sessions = &sessions_,
+                     .rigs = &rigs_,
+                     .merge_camera = [this](const SettingsSource& s) { return localizers_.map_camera(s); }},
+        std::move(seen_versions));
+    if (merger_) {
+      merger_->set_on_done([this](MapId map) { replicas_->merge_done(map); });
+      merger_->set_put_off([this](MapId target) { return ownership_->owns(target); },
+                           [this](MapId source, MapId target) { replicas_->merge_put_off(source, target); });
+    }
   }
+  if (options_.idle_timeout_s > 0)
+    sessions_.expire_idle_sessions(options_.idle_timeout_s, [this](SessionId id) {
+      log_info("session " + std::to_string(id) + ": no frame for " + std::to_string(options_.idle_timeout_s) +
+               " s; finishing it (its data is stored)");
+      metrics_.session_timed_out();  // counted as it ends (the status says finished right after)
+      finish_session(id, "idle_timeout");
+    });
+  if (replicas_) replicas_->start();
 }
 
-void AtlasService::finish_idle_sessions() {
-  const auto timeout = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-      std::chrono::duration<double>(std::min(options_.idle_timeout_s, 3.15e7)));
-  std::unique_lock lock(mutex_);
-  while (!shut_down_) {
-    const auto now = std::chrono::steady_clock::now();
-    std::vector<SessionId> idle;
-    auto next = std::chrono::steady_clock::time_point::max();
-    for (const auto& [id, s] : sessions_) {
-      if (s->state() != SessionState::kActive) continue;
-      const auto deadline = s->last_activity() + timeout;
-      if (deadline <= now) {
-        idle.push_back(id);
-      } else {
-        next = std::min(next, deadline);
-      }
-    }
-    if (idle.empty()) {
-      // Until the earliest deadline (a new session's is later than all of them).
-      if (next == std::chrono::steady_clock::time_point::max()) {
-        idle_wake_.wait(lock);
-      } else {
-        idle_wake_.wait_until(lock, next);
-      }
-      continue;
-    }
-    lock.unlock();
-    for (const SessionId id : idle) {
-      try {
-        // Activity may have come meanwhile: only a session still idle is ended.
-        const auto live = session(id);
-        if (std::chrono::steady_clock::now() - live->last_activity() < timeout) continue;
-        log_info("session " + std::to_string(id) + ": no frame for " + std::to_string(options_.idle_timeout_s) +
-                 " s; finishing it (its data is stored)");
-        sessions_timed_out_.Increment();  // counted as it ends (the status says finished right after)
-        finish_session(id, "idle_timeout");
-      } catch (const std::exception& e) {
-        log_warn("session " + std::to_string(id) + ": finishing it after its idle timeout failed: " + e.what());
-      }
-    }
-    lock.lock();
+void AtlasService::load_atlas(const std::vector<MapId>& claimed) {
+  const auto start = std::chrono::steady_clock::now();
+  AtlasStore store = AtlasStore::open(options_.db, vocabulary_.hash());
+  const AtlasLoadReport loaded = store.load_atlas(atlas_, &vocabulary_);
+  if (ownership_) {
+    // Ids of this replica's own ranges from here on; the maps claimed before the load may be written.
+    confine_ids_to_replica(atlas_, sessions_, replica_->id());
+    ownership_->ready(claimed);
+    if (!claimed.empty())
+      log_info("replica " + std::to_string(replica_->id()) + " writes " + std::to_string(claimed.size()) +
+               " stored map(s) that no live replica writes (their replica stopped or died, or none ever did)");
   }
+  atlas_.index_all_keyframes();
+  if (db_lock_->previous_holder_crashed()) {
+    skip_ids_after_crash(atlas_);
+    log_warn("atlas " + store.location() +
+             ": the previous server stopped without its final checkpoint (killed?); what it did after its last "
+             "checkpoint is lost, and new ids continue past any it may have handed out");
+  }
+  // Mapping, merging and entering (leases): only the maps this replica writes.
+  for (const auto& map : atlas_.maps())
+    if (!ownership_ || ownership_->owns(map->id())) leases_.add_free(map->id());
+  const std::map<SessionId, SessionRecord> records = store.load_session_records();
+  for (const SessionInfo& info : store.load_sessions()) {
+    const auto anchors = store.load_trajectory(info.id);
+    // The rig each stored map was made with (for merging, and for entering
+    // it): its stereo sessions' cameras (a single camera only localised there).
+    rigs_.record_session(atlas_, info, anchors);
+    // The trajectory itself stays in the database (read when asked for).
+    const auto record = records.find(info.id);
+    const bool own_id = !ownership_ || replica_id_range(replica_->id(), kReplicaMapIdShift).contains(info.id);
+    sessions_.add_stored(
+        std::make_shared<LiveSession>(
+            info, record == records.end() ? std::nullopt : std::optional<SessionRecord>(record->second), anchors),
+        own_id);
+  }
+  log_info("atlas " + store.location() + ": " + std::to_string(loaded.maps) + " maps, " +
+           std::to_string(loaded.keyframes) + " keyframes, " + std::to_string(loaded.map_points) + " map points, " +
+           std::to_string(sessions_.size()) + " sessions loaded in " +
+           std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()) + " s");
 }
 
 AtlasService::~AtlasService() {
@@ -210,7 +172,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_slam_system(SessionId id, const 
     slam_options.relocalization = true;
     slam_options.loop_closing = false;
     slam_options.live_merging = false;
-    wiring.may_enter_map = [this, cameras = rig.cameras](MapId map) { return cameras_match(cameras, map); };
+    wiring.may_enter_map = [this, cameras = rig.cameras](MapId map) { return rigs_.cameras_match(cameras, map); };
     try {
       return std::make_unique<SlamSystem>(atlas_, settings, vocabulary_, slam_options, std::move(wiring));
     } catch (const std::exception& e) {
@@ -241,7 +203,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_slam_system(SessionId id, const 
 SessionId AtlasService::create_session(const SessionRequest& request) {
   check_session_name(request.name);
   check_max_lag(request.max_lag_s);
-  const LoadedSettings loaded = load_settings(request.settings);
+  const LoadedSettings loaded = load_request_settings(request.settings, config_dir());
   const SensorType sensor = session_sensor(request.sensor, loaded.settings);
   // A single camera maps (monocular SLAM, its own maps at their own scale;
   // metric with its IMU, mono_inertial) or localises in the stored maps,
@@ -259,18 +221,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
                            sensor_type_name(loaded.settings.sensor) +
                            " config): an RGB-D session needs an rgbd config and the reverse");
 
-  SessionId id = 0;
-  {
-    std::lock_guard lock(mutex_);
-    if (shut_down_) throw ServiceError(ServiceErrorKind::kUnavailable, "shutting_down", "the server is shutting down");
-    std::size_t live = 0;
-    for (const auto& [_, s] : sessions_) live += s->state() == SessionState::kActive ? 1 : 0;
-    if (live >= options_.max_live_sessions)
-      throw ServiceError(ServiceErrorKind::kUnavailable, "too_many_sessions",
-                         std::to_string(live) + " sessions are live; the limit is " +
-                             std::to_string(options_.max_live_sessions) + " (finish one first)");
-    id = next_session_++;
-  }
+  const SessionId id = sessions_.reserve_id();
   SessionInfo info;
   info.id = id;
   info.name = request.name.empty() ? "session " + std::to_string(id) : request.name;
@@ -322,35 +273,21 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
   }
   auto live = std::make_shared<LiveSession>(info, loaded.label, std::move(slam), mode, request.max_lag_s);
   const SessionStart start{request.settings, atlas_.ids().peek(IdKind::keyframe), inertial, rig};
-  {
-    std::lock_guard lock(mutex_);
-    sessions_[id] = live;
-    session_starts_[id] = start;
-  }
-  if (mode == SessionMode::kMap)
-    begin_session_work(id, StoredMerge{0, start.settings, start.first_keyframe, start.inertial, rig.monocular});
-  idle_wake_.notify_all();
+  sessions_.add_live(id, live, start);
+  if (mode == SessionMode::kMap && replicas_)
+    replicas_->begin_session_work(id,
+                                  StoredMerge{0, start.settings, start.first_keyframe, start.inertial, rig.monocular});
   // The checkpoint thread reads the frames through its own reference.
   checkpointer_->add_session(CheckpointSession{info, [live](std::size_t first) { return live->anchors_from(first); },
                                                [live] { return live->record(); }});
-  sessions_created_.Increment();
+  metrics_.session_created();
   log_info("session " + std::to_string(id) + " started (" + info.name + ", config " + loaded.label + ")");
   return id;
 }
 
-std::shared_ptr<LiveSession> AtlasService::session(SessionId id) const {
-  std::lock_guard lock(mutex_);
-  const auto it = sessions_.find(id);
-  if (it == sessions_.end()) throw_not_found("no session " + std::to_string(id));
-  return it->second;
-}
+std::shared_ptr<LiveSession> AtlasService::session(SessionId id) const { return sessions_.get(id); }
 
-std::vector<std::shared_ptr<LiveSession>> AtlasService::sessions() const {
-  std::lock_guard lock(mutex_);
-  std::vector<std::shared_ptr<LiveSession>> out;
-  for (const auto& [_, s] : sessions_) out.push_back(s);
-  return out;
-}
+std::vector<std::shared_ptr<LiveSession>> AtlasService::sessions() const { return sessions_.all(); }
 
 SessionStatus AtlasService::session_status(SessionId id) const {
   const auto live = session(id);
@@ -364,46 +301,35 @@ SessionStatus AtlasService::session_status(SessionId id) const {
 
 std::shared_ptr<MappingWorkers> AtlasService::mapping_for(const MapRig& rig, const FrameCamera& cam,
                                                           const MappingWorkersOptions& options) {
-  std::lock_guard lock(mappings_mutex_);
-  for (const RigMapping& m : mappings_)
-    if (same_mapping_rig(m.rig, rig)) return m.workers;
-  LoopCloserWiring wiring;
-  wiring.shared_worker = loop_worker_;
-  // Live merging into maps of the same rig, also those other sessions are
-  // mapping now (their sessions and the merged map's then share the joined
-  // map), never one the merging worker holds.
-  // A metric rig (stereo, RGB-D) merges only into maps of metric scale.
-  wiring.may_merge_into = [this, rig, metric = cam.bf > 0.0](MapId map) {
-    const auto holders = leases_.holders(map);
-    if (holders == std::vector<SessionId>{kMergeWorkerLease} || !mapping_rig_matches(rig, map)) return false;
-    const auto target = metric ? atlas_.map(map) : nullptr;
-    return !metric || (target && target->metric_scale());
-  };
-  wiring.hold_map = [this](MapId source, MapId target) { return leases_.share(source, target); };
-  wiring.on_merged = [this](const LiveMerge& merge) { merged_live(merge); };
-  auto workers = std::make_shared<MappingWorkers>(atlas_, cam, options, std::move(wiring));
-  mappings_.push_back({rig, workers});
-  return workers;
+  return mappings_.for_rig(rig, [&](const std::shared_ptr<SerialWorker>& loop_worker) {
+    LoopCloserWiring wiring;
+    wiring.shared_worker = loop_worker;
+    // Live merging into maps of the same rig, also those other sessions are
+    // mapping now (their sessions and the merged map's then share the joined
+    // map), never one the merging worker holds.
+    // A metric rig (stereo, RGB-D) merges only into maps of metric scale.
+    wiring.may_merge_into = [this, rig, metric = cam.bf > 0.0](MapId map) {
+      const auto holders = leases_.holders(map);
+      if (holders == std::vector<SessionId>{kMergeWorkerLease} || !mapping_rig_matches(rig, map)) return false;
+      const auto target = metric ? atlas_.map(map) : nullptr;
+      return !metric || (target && target->metric_scale());
+    };
+    wiring.hold_map = [this](MapId source, MapId target) { return leases_.share(source, target); };
+    wiring.on_merged = [this](const LiveMerge& merge) { merged_live(merge); };
+    return std::make_shared<MappingWorkers>(atlas_, cam, options, std::move(wiring));
+  });
 }
 
 std::vector<MapId> AtlasService::end_session_storage(SessionId id) {
   const std::vector<MapId> held = leases_.held_by(id);
   const auto live = session(id);
-  const MapRig rig = mapping_rig(id);
-  if (live->mode() == SessionMode::kMap) {
-    std::lock_guard lock(rigs_mutex_);
-    for (const MapId map : held) map_rigs_.try_emplace(map, rig);
-  }
+  const MapRig rig = sessions_.mapping_rig(id);
+  if (live->mode() == SessionMode::kMap)
+    for (const MapId map : held) rigs_.record(map, rig);
   leases_.release_all(id);
   // The local mapping of maps nobody maps now ends (its thread goes); the
   // merging worker may take those maps from here on.
-  std::shared_ptr<MappingWorkers> mapping;
-  {
-    std::lock_guard lock(mappings_mutex_);
-    for (const RigMapping& m : mappings_)
-      if (same_mapping_rig(m.rig, rig)) mapping = m.workers;
-  }
-  if (mapping)
+  if (const auto mapping = mappings_.find(rig))
     for (const MapId map : held)
       if (leases_.is_free(map)) mapping->retire(map);
   checkpointer_->end_session(id);
@@ -422,7 +348,7 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     reply.tracking_ms = out.tracking_ms;
     reply.skipped = out.skipped;
     reply.jump_m = out.jump_m;
-    if (out.jump_m) live_pose_jumps_.Observe(*out.jump_m);
+    if (out.jump_m) metrics_.live_pose_jump(*out.jump_m);
   } catch (const ServiceError& e) {
     if (e.code() == "session_failed") {
       end_session_storage(id);
@@ -430,11 +356,11 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     }
     throw;
   } catch (const DataError&) {
-    frames_rejected_.Increment();
+    metrics_.frame_rejected();
     throw;
   }
   if (reply.skipped) {
-    frames_skipped_.Increment();
+    metrics_.frame_skipped();
     return reply;  // nothing tracked: the leases and the checkpoints stay as they are
   }
   // A localisation holds no lease: it changes nothing, any number share a map.
@@ -443,33 +369,20 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     if (reply.result.tracked) {
       // Known to be of this rig from its first frame: other sessions may enter it.
       // (Its rig is looked up only for a map not recorded yet: not on every frame.)
-      bool known = false;
-      {
-        std::lock_guard lock(rigs_mutex_);
-        known = map_rigs_.count(reply.result.map) > 0;
-      }
-      if (!known) {
-        const MapRig rig = mapping_rig(id);
-        std::lock_guard lock(rigs_mutex_);
-        map_rigs_.try_emplace(reply.result.map, rig);
-      }
+      if (!rigs_.known(reply.result.map)) rigs_.record(reply.result.map, sessions_.mapping_rig(id));
     }
   }
   if (reply.result.keyframe) checkpointer_->notify_keyframe(id, reply.result.keyframe_id);
-  frames_.Increment();
-  tracking_latency_.Observe(reply.tracking_ms / 1000.0);
   const double request_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
   live->note_request(timing.decode_ms, request_ms);
-  frame_request_latency_.Observe(request_ms / 1000.0);
+  metrics_.frame_done(reply.tracking_ms, request_ms);
   return reply;
 }
 
 std::size_t AtlasService::add_imu(SessionId id, const std::vector<ImuSample>& samples) {
   return session(id)->add_imu(samples);
 }
-
-SessionStatus AtlasService::finish_session(SessionId id) { return finish_session(id, std::string()); }
 
 SessionStatus AtlasService::finish_session(SessionId id, const std::string& ended_by) {
   const auto live = session(id);
@@ -497,24 +410,14 @@ SessionStatus AtlasService::finish_session(SessionId id, const std::string& ende
   return live->status();
 }
 
+void AtlasService::end_session_work(SessionId id) {
+  if (replicas_) replicas_->end_session_work(id);
+}
+
 void AtlasService::shutdown() {
-  std::vector<std::shared_ptr<LiveSession>> live;
-  {
-    std::lock_guard lock(mutex_);
-    if (shut_down_) return;
-    shut_down_ = true;
-  }
-  idle_wake_.notify_all();
-  if (idle_thread_.joinable()) idle_thread_.join();  // it may be finishing a session: let it end
-  takeover_wake_.notify_all();
-  if (takeover_thread_.joinable()) takeover_thread_.join();
-  merge_work_wake_.notify_all();
-  if (merge_work_thread_.joinable()) merge_work_thread_.join();
-  {
-    std::lock_guard lock(mutex_);
-    for (const auto& [_, s] : sessions_)
-      if (s->state() == SessionState::kActive) live.push_back(s);
-  }
+  if (!sessions_.stop()) return;  // no new session; the idle-expiry thread has ended
+  if (replicas_) replicas_->stop();
+  const std::vector<std::shared_ptr<LiveSession>> live = sessions_.active();
   // Merging stops first (a running global adjustment is interrupted; a merge
   // already made is in the final checkpoint); the sessions below submit none
   // (on a shared atlas their stored work stays, for another replica to adopt).
@@ -527,23 +430,9 @@ void AtlasService::shutdown() {
     }
     end_session_storage(s->id());
   }
-  {
-    // Every session has finished above: the mappings finish (a running global
-    // adjustment is waited for), then the loop-closing thread stops.
-    std::vector<RigMapping> mappings;
-    {
-      std::lock_guard lock(mappings_mutex_);
-      mappings.swap(mappings_);
-    }
-    for (const RigMapping& m : mappings) {
-      try {
-        m.workers->finish();
-      } catch (const std::exception& e) {
-        log_warn(std::string("mapping stopped with an error: ") + e.what());
-      }
-    }
-  }
-  loop_worker_->stop();
+  // Every session has finished above: the mappings finish (a running global
+  // adjustment is waited for), then the loop-closing thread stops.
+  mappings_.finish();
   checkpointer_->stop();  // the final, durable checkpoint
   const CheckpointStats stats = checkpointer_->stats();
   if (stats.failures > 0)

@@ -44,14 +44,6 @@ std::vector<MapSummary> AtlasService::maps() const {
   return out;
 }
 
-std::vector<SessionId> AtlasService::sessions_in(MapId map) const {
-  std::vector<SessionId> in;
-  std::lock_guard lock(mutex_);
-  for (const auto& [id, s] : sessions_)
-    if (s->current_map() == map) in.push_back(id);
-  return in;
-}
-
 MapSummary AtlasService::map(MapId id) const {
   const auto map = atlas_.map(id);
   if (!map) throw_not_found("no map " + std::to_string(id));
@@ -61,7 +53,7 @@ MapSummary AtlasService::map(MapId id) const {
   out.map_points = map->map_point_count();
   if (const auto holders = leases_.holders(id); !holders.empty() && holders.front() != kMergeWorkerLease)
     out.live_session = holders.front();
-  out.sessions = sessions_in(id);
+  out.sessions = sessions_.in_map(id);
   out.writable = !ownership_ || ownership_->owns(id);
   const auto points = map->map_points();
   if (!points.empty()) {

@@ -8,57 +8,28 @@
 
 #include "core/common/log.h"
 #include "core/server/atlas_service.h"
-#include "core/server/atlas_service_localizer.h"
 #include "core/server/session_rules.h"
-#include "core/server/shared_merges.h"
 
 namespace orbatlas {
 
-std::shared_ptr<const FrameCamera> AtlasService::merge_camera(const SettingsSource& settings) {
-  const std::shared_ptr<LocalizerContext> context = localizer_for(settings);
-  // The camera shares the context's ownership: it lives while a request holds it.
-  return std::shared_ptr<const FrameCamera>(context, &context->map_cam);
-}
-
 void AtlasService::submit_merges(SessionId id, const std::vector<MapId>& maps) {
-  if ((!merger_ && !shared_merges_) || maps.empty()) return;
-  SessionStart start;
-  bool shutting_down = false;
-  {
-    std::lock_guard lock(mutex_);
-    const auto it = session_starts_.find(id);
-    if (it == session_starts_.end()) return;
-    start = it->second;
-    shutting_down = shut_down_;
-  }
+  if ((!merger_ && !replicas_) || maps.empty()) return;
+  const std::optional<SessionStart> start = sessions_.start_of(id);
+  if (!start) return;
   // A shared atlas keeps the work in the database: the merge-work thread
   // claims it for this replica's worker, or hands the map to a replica that
   // asks for it (also when this replica does not merge, or stops first).
-  std::vector<MapId> direct = maps;
-  if (shared_merges_) {
-    direct.clear();
-    for (const MapId map : maps) {
-      try {
-        shared_merges_->add(
-            StoredMerge{map, start.settings, start.first_keyframe, start.inertial, start.rig.monocular});
-      } catch (const std::exception& e) {
-        log_warn("map merging: cannot store the merge work of map " + std::to_string(map) +
-                 " (done here): " + e.what());
-        direct.push_back(map);
-      }
-    }
-    wake_merge_work();
-  }
-  if (!merger_ || shutting_down || direct.empty()) return;
+  const std::vector<MapId> direct = replicas_ ? replicas_->store_merge_work(maps, *start) : maps;
+  if (!merger_ || sessions_.stopped() || direct.empty()) return;
   std::shared_ptr<const FrameCamera> cam;
   try {
-    cam = merge_camera(start.settings);
+    cam = localizers_.map_camera(start->settings);
   } catch (const std::exception& e) {
     log_warn("session " + std::to_string(id) + ": no merging (" + e.what() + ")");
     return;
   }
   for (const MapId map : direct)
-    merger_->submit(MergeRequest{map, cam, start.first_keyframe, start.inertial, start.rig.monocular});
+    merger_->submit(MergeRequest{map, cam, start->first_keyframe, start->inertial, start->rig.monocular});
 }
 
 bool AtlasService::rigs_match(MapId source, MapId target) const {
@@ -67,44 +38,18 @@ bool AtlasService::rigs_match(MapId source, MapId target) const {
   // (MapMergeWorker::set_put_off).
   if (ownership_ && !ownership_->owns(source)) return false;
   // Maps of one rig; a single camera's map goes into a stereo one of its rig,
-  // not the other way (merge_maps gives the first the target's scale). Maps
-  // of single-camera sessions have a rig only in the server run that made
-  // them (record_map_rigs).
-  std::lock_guard lock(rigs_mutex_);
-  const auto a = map_rigs_.find(source);
-  const auto b = map_rigs_.find(target);
-  return a != map_rigs_.end() && b != map_rigs_.end() && (a->second.monocular || !b->second.monocular) &&
-         same_rig(a->second.cameras, b->second.cameras);
-}
-
-bool AtlasService::cameras_match(const CameraRig& cameras, MapId target) const {
-  std::lock_guard lock(rigs_mutex_);
-  const auto b = map_rigs_.find(target);
-  return b != map_rigs_.end() && same_rig(cameras, b->second.cameras);
+  // not the other way (merge_maps gives the first the target's scale).
+  return rigs_.may_merge(source, target);
 }
 
 bool AtlasService::mapping_rig_matches(const MapRig& rig, MapId target) const {
   if (ownership_ && !ownership_->owns(target)) return false;  // another replica's map: read, never mapped
-  {
-    std::lock_guard lock(rigs_mutex_);
-    const auto b = map_rigs_.find(target);
-    if (b == map_rigs_.end() || !may_map_into(rig, b->second)) return false;
-  }
+  if (!rigs_.may_map(rig, target)) return false;
   // One local mapping per map: the sessions mapping in it now map as `rig` does
   // (a monocular session and a stereo one never map one map at once).
   for (const SessionId holder : leases_.holders(target))
-    if (holder != kMergeWorkerLease && !same_mapping_rig(mapping_rig(holder), rig)) return false;
+    if (holder != kMergeWorkerLease && !same_mapping_rig(sessions_.mapping_rig(holder), rig)) return false;
   return true;
-}
-
-MapRig AtlasService::mapping_rig(SessionId id) const {
-  std::lock_guard lock(mutex_);
-  const auto it = session_starts_.find(id);
-  if (it != session_starts_.end()) return it->second.rig;
-  const auto s = sessions_.find(id);  // a stored session (this run did not start it)
-  if (s == sessions_.end()) return {};
-  const SensorType sensor = s->second->info().sensor;
-  return MapRig{s->second->info().cameras, sensor == SensorType::kStereoInertial, is_single_camera(sensor)};
 }
 
 void AtlasService::merged_live(const LiveMerge& merge) {
@@ -112,10 +57,7 @@ void AtlasService::merged_live(const LiveMerge& merge) {
   const std::vector<SessionId> moved = leases_.holders(merge.merge.source);
   const SessionId session = moved.empty() ? kInvalidSessionId : moved.front();
   leases_.forget(merge.merge.source);
-  {
-    std::lock_guard lock(rigs_mutex_);
-    map_rigs_.erase(merge.merge.source);
-  }
+  rigs_.forget(merge.merge.source);
   {
     // Its own leaf lock, not mutex_: this runs on the loop-closing thread, which a
     // session's finish waits for while holding that session's mutex, and mutex_ is
@@ -130,10 +72,7 @@ void AtlasService::merged_live(const LiveMerge& merge) {
 }
 
 void AtlasService::merged(const MergeRecord& record) {
-  {
-    std::lock_guard lock(rigs_mutex_);
-    map_rigs_.erase(record.merge.source);
-  }
+  rigs_.forget(record.merge.source);
   if (!checkpointer_->checkpoint_now())
     log_warn("the merge of map " + std::to_string(record.merge.source) +
              " is not stored yet: " + checkpointer_->stats().last_error + " (retried at the next checkpoint)");

@@ -11,10 +11,12 @@
 #include "core/common/ids.h"
 #include "core/common/sample_summary.h"
 #include "core/common/timestamp.h"
+#include "core/geometry/trajectory.h"
 #include "core/imu/imu_noise.h"
 #include "core/io/settings.h"
 #include "core/loop/loop_closer.h"
 #include "core/server/map_merge_worker.h"
+#include "core/tracking/tracker.h"
 
 namespace orbatlas {
 
@@ -105,6 +107,21 @@ struct MergesReport {
   MapMergeWorkerStats worker;                // the server-wide worker (sessions' ends)
   std::vector<LiveMergeRecord> live_merges;  // the last kMergeHistory
   std::size_t live_merges_total = 0;
+};
+
+struct FrameReply {
+  SessionId session = 0;
+  TrackResult result;
+  double tracking_ms = 0.0;
+  bool skipped = false;          // too late (SessionRequest::max_lag_s): not tracked
+  std::optional<double> jump_m;  // the pose's jump at a correction of the maps (FrameOutcome::jump_m)
+};
+
+struct SessionTrajectory {
+  Trajectory poses;                 // the frames that resolve, by time
+  std::vector<std::uint64_t> maps;  // the map each is in now (after merges)
+  std::size_t frames = 0;           // frames the session tracked
+  std::size_t unresolved = 0;       // of them, anchored to a keyframe no map has any more
 };
 
 // GET /healthz.

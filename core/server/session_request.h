@@ -1,6 +1,8 @@
 #pragma once
 // What a client asks for when it starts a session (POST /v1/sessions) or
-// localises an image: its settings, sensor, mode and real-time bound.
+// localises an image: its settings, sensor, mode and real-time bound; when a
+// frame's request began (its latency is counted from there).
+#include <chrono>
 #include <optional>
 #include <string>
 
@@ -24,6 +26,13 @@ struct SessionRequest {
   // session catches up instead of falling further behind. None: every frame is
   // tracked however late.
   std::optional<double> max_lag_s;
+};
+
+// When a frame's request began to be handled and how long its images took to
+// decode (the HTTP layer's part), so that its latency is counted whole.
+struct FrameRequestTiming {
+  std::optional<std::chrono::steady_clock::time_point> started;  // none: when process_frame is called
+  double decode_ms = 0.0;
 };
 
 }  // namespace orbatlas

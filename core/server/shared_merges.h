@@ -25,7 +25,7 @@
 
 #include "core/common/ids.h"
 #include "core/optimization/global_bundle_adjustment.h"
-#include "core/server/atlas_service.h"
+#include "core/server/session_request.h"
 
 namespace orbatlas {
 
