@@ -51,6 +51,7 @@
 #include <vector>
 
 #include "core/persistence/sql_connection.h"
+#include "core/persistence/sql_dialect.h"
 
 struct pg_conn;
 struct pg_result;
@@ -61,10 +62,6 @@ namespace orbatlas {
 // the server-side prepared statements by SQL text and parameter types, and the
 // queue of batched executions whose replies are not read yet.
 struct PgConnectionState;
-
-// `?NNN` and `?` -> `$NNN` outside quoted strings and identifiers (tested).
-// `parameter_count`, when given, receives the largest parameter number (0 for none).
-std::string sqlite_params_to_postgres(std::string_view sql, int* parameter_count = nullptr);
 
 class PgStatement final : public SqlStatement {
  public:
