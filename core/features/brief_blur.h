@@ -4,7 +4,7 @@
 // summing to 256: cv::GaussianBlur's bit-exact kernel, the one ORB-SLAM3's
 // blur of a whole level image gets). Rows are filtered exactly; columns with
 // 16-bit products, so a pixel can end one grey level off the exact rounding
-// (tests/test_rotated_brief.cc measures how often). Pixels outside the level
+// (tests/features/test_rotated_brief.cc measures how often). Pixels outside the level
 // are read from its bordered buffer, not extrapolated.
 //
 // Why not cv::GaussianBlur: on a view into a bordered buffer OpenCV takes its

@@ -1,7 +1,7 @@
 // OpenCV's computeOrbDescriptors, re-derived: angle in radians as a float times
 // (float)(pi / 180), a = cos, b = sin as floats, a point (px, py) lands at
 // (round(px a - py b), round(px b + py a)) with round-half-even, and the test is
-// I(first) < I(second). tests/test_rotated_brief.cc holds us to OpenCV's bits.
+// I(first) < I(second). tests/features/test_rotated_brief.cc holds us to OpenCV's bits.
 #include "core/features/rotated_brief.h"
 
 #include <algorithm>

@@ -9,7 +9,7 @@
 // A bag is read by unpacking it into an EuRoC ASL folder (lossless PNG images,
 // the IMU csv, sensor.yaml files from the calibration), which every command
 // already reads: the same frames, IMU and runs as the ASL folder of the same
-// recording (tests/test_bag.cc). The folder takes about the bag's size on disk.
+// recording (tests/io/test_bag.cc). The folder takes about the bag's size on disk.
 #include <cstddef>
 #include <filesystem>
 #include <string>

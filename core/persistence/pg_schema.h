@@ -6,7 +6,7 @@
 // creates SQLite's schema 8 at once) is recorded alone. PostgreSQL has no PRAGMA
 // user_version: the version is schema_migrations' largest row (0 for a database
 // without the table). The tables are SQLite's in PostgreSQL's dialect
-// (tests/test_pg_schema.cc compares them column by column).
+// (tests/persistence/test_pg_schema.cc compares them column by column).
 #include <span>
 
 #include "core/common/timestamp.h"

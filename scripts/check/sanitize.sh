@@ -31,8 +31,7 @@ DURATION="${DURATION:-20}"
 START="${START:-40}"
 [ "$DURATION" = "full" ] && START=0
 TARGETS=(orbatlas test_map test_mapping test_slam)
-[ "${SERVER:-0}" = "1" ] && TARGETS+=(test_server test_server_shared_maps test_replicas test_server_kill orbatlas-server)
-[ "${SHARED:-0}" = "1" ] && TARGETS+=(test_atlas_sessions)
+[ "${SERVER:-0}" = "1" ] && TARGETS+=(test_server orbatlas-server)
 cmake -S "$ROOT" -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DORBATLAS_SANITIZE="$MODE" >/dev/null
 ninja -C "$BUILD" -j"$(nproc)" "${TARGETS[@]}"
 CLIP="${CLIP:-$BUILD/clip_${SEQUENCE}_${LOOK}_${START}_${DURATION}}"
@@ -60,12 +59,13 @@ echo "sanitize_run: orbatlas run on $SEQUENCE ($LOOK, start $START s, duration $
 for t in test_map test_mapping test_slam; do "$BUILD/tests/$t" --gtest_brief=1; done
 if [ "${SERVER:-0}" = "1" ]; then
   "$BUILD/tests/test_server" --gtest_brief=1 --gtest_filter='ServerEndToEnd.ThreeSessionsStreamConcurrently:ServerHardening.*'
-  "$BUILD/tests/test_server_shared_maps" --gtest_brief=1
+  "$BUILD/tests/test_server" --gtest_brief=1 --gtest_filter='SharedMaps.*'
   # Replicas over one PostgreSQL atlas (skipped without PostgreSQL). The
   # killed-replica test forks a child that starts threads: die_after_fork=0.
-  TSAN_OPTIONS="$TSAN_OPTIONS:die_after_fork=0" ASAN_OPTIONS="$ASAN_OPTIONS" "$BUILD/tests/test_replicas" --gtest_brief=1
+  TSAN_OPTIONS="$TSAN_OPTIONS:die_after_fork=0" ASAN_OPTIONS="$ASAN_OPTIONS" "$BUILD/tests/test_server" --gtest_brief=1 \
+    --gtest_filter='ReplicaRegistry*:SharedJobQueue*:SharedMergeWork*'
   # The server processes run under the sanitizer too (a report ends one, and its test fails).
-  "$BUILD/tests/test_server_kill" --gtest_brief=1 --gtest_filter='*TwoReplicas*:*AnUploadWhose*:*TheMergeWork*'
+  "$BUILD/tests/test_server" --gtest_brief=1 --gtest_filter='ServerProcess.*TwoReplicas*:ServerProcess.*AnUploadWhose*:ServerProcess.*TheMergeWork*'
 fi
 if [ "${SHARED:-0}" = "1" ]; then
   # The same window of the next Machine Hall sequence: another flight, at once.
@@ -85,6 +85,6 @@ if [ "${SHARED:-0}" = "1" ]; then
       --dataset "$CLIP" --out-trajectory "$BUILD/sanitize_shared_a.txt" \
       --dataset "$CLIP2" --out-trajectory "$BUILD/sanitize_shared_b.txt" --no-progress
   echo "sanitize_run: $SEQUENCE and $NEXT at once into one atlas clean in $(( $(date +%s) - start )) s"
-  "$BUILD/tests/test_atlas_sessions" --gtest_brief=1 --gtest_filter='AtlasSessions.SeveralRecordingsAtOnce*'
+  "$BUILD/tests/test_slam" --gtest_brief=1 --gtest_filter='AtlasSessions.SeveralRecordingsAtOnce*'
 fi
 echo "sanitize_run: clean ($MODE)"

@@ -14,7 +14,7 @@
 
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/sql_connection.h"
-#include "tests/test_persistence_random_atlas.h"
+#include "tests/persistence/test_persistence_random_atlas.h"
 #include "tests/support/throwaway_postgres.h"
 
 namespace orbatlas::test {

@@ -14,7 +14,7 @@
 
 #include "core/persistence/atlas_store.h"
 #include "tests/support/persistence_backends.h"
-#include "tests/test_persistence_random_atlas.h"
+#include "tests/persistence/test_persistence_random_atlas.h"
 
 namespace orbatlas {
 namespace {

@@ -1,4 +1,4 @@
-// Helper program of test_crash_safety: builds the deterministic evolving atlas
+// Helper program of the crash-safety test (test_persistence): builds the deterministic evolving atlas
 // (test_crash_safety_model.h) and checkpoints it after every step k, reporting
 // on stdout, unbuffered, one line per event:
 //   "B k"  a checkpoint of state k is about to open its write transaction
@@ -14,7 +14,7 @@
 #include <exception>
 
 #include "core/persistence/atlas_checkpointer.h"
-#include "tests/test_crash_safety_model.h"
+#include "tests/persistence/test_crash_safety_model.h"
 
 namespace {
 

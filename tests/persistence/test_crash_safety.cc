@@ -24,9 +24,9 @@
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/sqlite_db.h"
 #include "tests/support/persistence_backends.h"
-#include "tests/test_crash_safety_model.h"
-#include "tests/test_persistence_expect.h"
-#include "tests/test_persistence_random_atlas.h"
+#include "tests/persistence/test_crash_safety_model.h"
+#include "tests/persistence/test_persistence_expect.h"
+#include "tests/persistence/test_persistence_random_atlas.h"
 
 extern char** environ;
 

@@ -21,8 +21,8 @@
 #include "core/persistence/atlas_checkpointer.h"
 #include "core/persistence/atlas_store.h"
 #include "tests/support/persistence_backends.h"
-#include "tests/test_persistence_expect.h"
-#include "tests/test_persistence_random_atlas.h"
+#include "tests/persistence/test_persistence_expect.h"
+#include "tests/persistence/test_persistence_random_atlas.h"
 
 namespace orbatlas {
 namespace {

@@ -1,9 +1,9 @@
-#include "tests/test_crash_safety_model.h"
+#include "tests/persistence/test_crash_safety_model.h"
 
 #include <algorithm>
 #include <random>
 
-#include "tests/test_persistence_random_atlas.h"
+#include "tests/persistence/test_persistence_random_atlas.h"
 
 namespace orbatlas::test {
 

@@ -1,4 +1,4 @@
-#include "tests/test_persistence_expect.h"
+#include "tests/persistence/test_persistence_expect.h"
 
 #include <gtest/gtest.h>
 

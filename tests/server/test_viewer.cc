@@ -153,16 +153,31 @@ TEST(Viewer, AHeadlessBrowserShowsTheStoredMapAndALiveSessionMoving) {
   }
   ASSERT_TRUE(live_map.has_value()) << "the live session never tracked a frame";
   const std::string url = server.url() + "/?token=" + api.token + "&map=" + std::to_string(*live_map);
+  // The pixels of the 3D view that differ between two looks.
+  const auto changed_pixels = [](const Capture& x, const Capture& y) {
+    if (x.screenshot.empty() || y.screenshot.empty() || x.screenshot.size() != y.screenshot.size()) return 0;
+    cv::Mat d;
+    cv::absdiff(x.screenshot, y.screenshot, d);
+    cv::cvtColor(d, d, cv::COLOR_BGR2GRAY);
+    return cv::countNonZero(d(cv::Rect(380, 0, d.cols - 380, d.rows - 20)) > 30);
+  };
   const Capture a = capture(*chromium, url, "viewer_first.png", profile);
   std::this_thread::sleep_for(std::chrono::milliseconds(2500));
-  const Capture b = capture(*chromium, url, "viewer_second.png", profile);
+  Capture b = capture(*chromium, url, "viewer_second.png", profile);
+  // The screenshot is a page load of its own: on a loaded machine (the first
+  // test of the suite, beside the server-kill test) it once drew before the
+  // new data came, the same picture twice. Looked at again, up to twice.
+  for (int k = 0; k < 2 && changed_pixels(a, b) <= 50; ++k) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+    b = capture(*chromium, url, "viewer_second.png", profile);
+  }
   looked = true;
   live.join();
   std::error_code ec;
   fs::remove_all(profile, ec);
   ASSERT_TRUE(streamed);
 
-  for (const Capture* c : {&a, &b}) {
+  for (const Capture* c : std::initializer_list<const Capture*>{&a, &b}) {
     ASSERT_TRUE(c->status.is_object()) << "the page wrote no status";
     std::printf("viewer status: %s\n", c->status.dump().c_str());
     EXPECT_TRUE(c->status.at("webgl").get<bool>());
@@ -185,10 +200,7 @@ TEST(Viewer, AHeadlessBrowserShowsTheStoredMapAndALiveSessionMoving) {
   ASSERT_EQ(pa.size(), 3u);
   ASSERT_EQ(pb.size(), 3u) << "the live session was not drawn at the second look";
   const double moved = std::hypot(pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]);
-  cv::Mat diff;
-  cv::absdiff(a.screenshot, b.screenshot, diff);
-  cv::cvtColor(diff, diff, cv::COLOR_BGR2GRAY);
-  const int changed = cv::countNonZero(diff(cv::Rect(380, 0, diff.cols - 380, diff.rows - 20)) > 30);
+  const int changed = changed_pixels(a, b);
   std::printf(
       "viewer: the live camera moved %.2f m between the looks; %d pixels of the 3D view changed; "
       "screenshots %s, %s\n",

@@ -14,8 +14,8 @@
 #include "core/persistence/blob_codec.h"
 #include "core/persistence/inertial_blob.h"
 #include "tests/support/persistence_backends.h"
-#include "tests/test_persistence_expect.h"
-#include "tests/test_persistence_random_atlas.h"
+#include "tests/persistence/test_persistence_expect.h"
+#include "tests/persistence/test_persistence_random_atlas.h"
 
 namespace orbatlas {
 namespace {

@@ -1,4 +1,4 @@
-#include "tests/test_persistence_random_atlas.h"
+#include "tests/persistence/test_persistence_random_atlas.h"
 
 #include <unistd.h>
 
