@@ -32,6 +32,10 @@ TimestampNs unix_now_ns() {
 
 namespace {
 
+// How long a session that is not real-time waits for its local mapping at a
+// keyframe at most (the bound TrackerOptions allows).
+constexpr double kNonRealTimeMappingWaitMs = 10000.0;
+
 // Every background worker of the sessions (their options are copied from
 // these) at the server's background nice value.
 AtlasServiceOptions with_background_nice(AtlasServiceOptions options) {
@@ -162,7 +166,8 @@ AtlasService::~AtlasService() {
 }
 
 std::unique_ptr<SessionSlam> AtlasService::make_slam_system(SessionId id, const MapRig& rig,
-                                                            const SlamSettings& settings, SessionMode mode) {
+                                                            const SlamSettings& settings, SessionMode mode,
+                                                            bool real_time) {
   SlamSystemOptions slam_options = options_.slam;
   SessionWiring wiring;
   if (mode == SessionMode::kLocalize) {
@@ -187,6 +192,13 @@ std::unique_ptr<SessionSlam> AtlasService::make_slam_system(SessionId id, const 
   // one that does not only where theirs did not (one mapping, one set of options).
   wiring.may_enter_map = [this, id, rig](MapId map) { return mapping_rig_matches(rig, map) && leases_.claim(id, map); };
   slam_options.tracker.start_in_stored_map = options_.start_in_stored_maps;
+  // A session that is not real-time (no max_lag_s: an upload, a stream sent as
+  // fast as the server answers) waits for its local mapping at each keyframe,
+  // as an offline run does: with the background niced, its tracking would
+  // otherwise outrun a starved mapping. A real-time one is served first and
+  // never waits. Settings that set the wait keep theirs.
+  if (!real_time && slam_options.tracker.max_mapping_wait_ms == 0.0)
+    slam_options.tracker.max_mapping_wait_ms = kNonRealTimeMappingWaitMs;
   slam_options.live_merging = options_.merge_maps && options_.live_merging;
   slam_options.shared_map_finish_wait_s = options_.finish_refinement_wait_s;
   wiring.mapping = [this, rig](const FrameCamera& cam, const MappingWorkersOptions& mapping) {
@@ -244,7 +256,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
 
   std::unique_ptr<SessionSlam> slam;
   if (monocular_mapping) {
-    slam = make_slam_system(id, rig, monocular_settings(loaded.settings, sensor), mode);
+    slam = make_slam_system(id, rig, monocular_settings(loaded.settings, sensor), mode, request.max_lag_s.has_value());
   } else if (single_camera) {
     MonoLocalizerOptions mono;
     mono.tracker = options_.slam.tracker;
@@ -256,7 +268,7 @@ SessionId AtlasService::create_session(const SessionRequest& request) {
                          std::string("cannot start a single-camera session with these settings: ") + e.what());
     }
   } else {
-    slam = make_slam_system(id, rig, loaded.settings, mode);
+    slam = make_slam_system(id, rig, loaded.settings, mode, request.max_lag_s.has_value());
   }
   // Stored before its id is handed out: an id is never given twice, even when
   // the server dies before the session's first checkpoint.

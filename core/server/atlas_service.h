@@ -95,8 +95,9 @@ class AtlasService {
  private:
   // The constructor's: the maps (those `claimed` writable on a shared atlas), sessions, their rigs.
   void load_atlas(const std::vector<MapId>& claimed);
+  // `real_time`: the session set max_lag_s (served first; it never waits for its mapping).
   std::unique_ptr<SessionSlam> make_slam_system(SessionId id, const MapRig& rig, const SlamSettings& settings,
-                                                SessionMode mode);
+                                                SessionMode mode, bool real_time);
   std::shared_ptr<MappingWorkers> mapping_for(const MapRig& rig, const FrameCamera& cam,
                                               const MappingWorkersOptions& options);
   std::vector<MapId> end_session_storage(SessionId id);  // leases and checkpoints; the maps it held

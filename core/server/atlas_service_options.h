@@ -45,15 +45,13 @@ struct AtlasServiceOptions {
   std::size_t loop_queue = 64;
   MapMergeWorkerOptions merging;
   // The nice value (0..19) of every background thread: local mapping, loop
-  // closing and its global BAs, map merging, checkpoints (thread_priority.h); above 0 the
-  // sessions' tracking is served first on a loaded machine, mapping takes the
-  // cores' rest. For live sessions at the camera's rate, 10 measured best: four
-  // sessions on two cores were late 4.7 % of the time at 0, 1.4-1.6 % at 10
-  // (CHANGELOG.md, 2026-11-26). 0 by default because a stream sent as
-  // fast as the server takes it (an upload, a test) keeps tracking busy and
-  // starves mapping at 10: a single camera's map then ended with scale errors of
-  // 0.13-0.46 % instead of 0-0.18 % (ServerMerging.TheMergingWorkerMerges...).
-  int background_nice = 0;
+  // closing and its global BAs, map merging, checkpoints (thread_priority.h).
+  // Above 0 the sessions' tracking is served first on a loaded machine and
+  // mapping takes the cores' rest; a session that is not real-time (no
+  // max_lag_s) then waits for its mapping at each keyframe, so that a stream
+  // sent as fast as the server answers cannot starve it (docs/server.md,
+  // "Serving live sessions first"). 0: every thread alike.
+  int background_nice = 10;
   // This server as one replica of the atlas's database (replica_registry.h).
   ReplicaOptions replica;
 

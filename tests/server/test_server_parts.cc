@@ -19,9 +19,12 @@
 #include "core/server/service_metrics.h"
 #include "core/server/session_registry.h"
 #include "core/vocabulary/default_vocabulary.h"
+#include "client/api/dataset_streamer.h"
 #include "core/camera/camera_factory.h"
 #include "core/common/data_paths.h"
+#include "tests/support/server_test_fixture.h"
 #include "tests/support/sim_test_helpers.h"
+#include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
 namespace {
@@ -230,6 +233,38 @@ TEST(ServiceMetrics, CountsEventsAndShowsTheStateItIsGiven) {
   now.worker_errors = 1;
   const std::string again = prometheus::TextSerializer().Serialize(metrics.collect(now));
   EXPECT_NE(again.find("orbatlas_worker_errors_total 3\n"), std::string::npos);
+}
+
+// With the background niced (the default), a session that is not real-time
+// (no max_lag_s) waits for its local mapping after each keyframe, so that its
+// tracking at full speed cannot starve it; a real-time one never waits.
+TEST(ServingLiveSessionsFirst, OnlyASessionThatIsNotRealTimeWaitsForItsMapping) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 10.0);
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath db("live_first");
+  AtlasServiceOptions options = test::server_options(db.path);
+  EXPECT_EQ(options.background_nice, 10);
+  options.merge_maps = false;
+  options.start_in_stored_maps = false;
+  test::TestServer server(options);
+  ServerClient client(server.url());
+  const auto mapping_waits = [&](std::optional<double> max_lag_s) {
+    StreamOptions o = test::stream_options(clip);
+    o.max_lag_s = max_lag_s;
+    o.rate = 0.0;  // as fast as the server answers (a lag of 60 s never skips a frame)
+    const StreamReport report = stream_dataset(client, o);
+    const nlohmann::json status = client.get_json("/v1/sessions/" + std::to_string(report.session));
+    EXPECT_EQ(status["skipped_frames"], 0u);
+    EXPECT_GT(status["keyframes"].get<std::size_t>(), 2u) << status.dump();
+    return std::pair{status["slam"]["mapping_wait_ms"]["count"].get<std::size_t>(),
+                     status["keyframes"].get<std::size_t>()};
+  };
+  const auto [waits, keyframes] = mapping_waits(std::nullopt);
+  const auto [real_time_waits, real_time_keyframes] = mapping_waits(60.0);
+  std::printf("not real-time: %zu waits for %zu keyframes; real-time: %zu waits for %zu keyframes\n", waits, keyframes,
+              real_time_waits, real_time_keyframes);
+  EXPECT_GE(waits + 1, keyframes);  // after every keyframe but perhaps the last
+  EXPECT_EQ(real_time_waits, 0u);
 }
 
 }  // namespace
