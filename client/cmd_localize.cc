@@ -24,7 +24,7 @@
 #include "core/common/error.h"
 #include "core/io/euroc_trajectory.h"
 #include "core/io/tum_trajectory.h"
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 #include "wire/run_report_json.h"
 
 namespace orbatlas::cli {

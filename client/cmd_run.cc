@@ -18,7 +18,7 @@
 #include "core/common/log.h"
 #include "core/io/euroc_trajectory.h"
 #include "core/io/tum_trajectory.h"
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 #include "wire/run_report_json.h"
 
 namespace orbatlas::cli {

@@ -4,7 +4,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 
 namespace orbatlas::cli {
 

@@ -5,7 +5,7 @@
 // atlas{loaded_maps, loaded_keyframes, load_s}, black_out{...}, checkpoints{...}.
 #include <nlohmann/json.hpp>
 
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 
 namespace orbatlas {
 

@@ -40,7 +40,7 @@
 #include "core/sim/renderer.h"
 #include "core/sim/sequence_simulator.h"
 #include "core/sim/trajectory_spline.h"
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 #include "core/slam/mono_localizer.h"
 #include "core/slam/slam_system.h"
 #include "core/tracking/keyframe_points.h"

@@ -11,7 +11,7 @@
 #include "core/geometry/pose.h"
 #include "core/io/bag_dataset.h"
 #include "core/io/euroc_reader.h"
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 #include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {

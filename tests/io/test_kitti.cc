@@ -22,7 +22,7 @@
 #include "core/io/kitti_odometry.h"
 #include "core/io/settings.h"
 #include "core/io/tum_trajectory.h"
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 #include "tests/support/requirement.h"
 
 namespace orbatlas {

@@ -19,7 +19,7 @@
 #include "core/io/tum_rgbd.h"
 #include "core/io/tum_trajectory.h"
 #include "wire/pose_json.h"
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 #include "core/slam/slam_stats.h"
 #include "tests/support/server_test_fixture.h"
 #include "tests/support/server_test_reply.h"

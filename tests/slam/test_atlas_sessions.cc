@@ -18,7 +18,7 @@
 #include "core/common/data_paths.h"
 #include "core/eval/evaluate.h"
 #include "core/persistence/atlas_store.h"
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 #include "core/vocabulary/default_vocabulary.h"
 #include "tests/support/slam_test_clip.h"
 

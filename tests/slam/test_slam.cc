@@ -12,7 +12,7 @@
 #include "core/common/data_paths.h"
 #include "core/common/error.h"
 #include "core/io/euroc_reader.h"
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 #include "wire/run_report_json.h"
 #include "core/slam/slam_tuning.h"
 #include "core/tracking/keyframe_sink.h"

@@ -15,7 +15,7 @@
 
 #include "core/common/data_paths.h"
 #include "core/eval/gap_error.h"
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 #include "wire/run_report_json.h"
 #include "tests/support/slam_test_clip.h"
 

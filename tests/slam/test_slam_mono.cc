@@ -8,7 +8,7 @@
 #include "core/common/data_paths.h"
 #include "core/eval/evaluate.h"
 #include "core/io/tum_trajectory.h"
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 #include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {

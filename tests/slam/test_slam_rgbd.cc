@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "core/common/data_paths.h"
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 #include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {

@@ -1,4 +1,4 @@
-#include "core/slam/run_inputs.h"
+#include "core/pipeline/run_inputs.h"
 
 #include "core/common/error.h"
 #include "core/common/log.h"

@@ -1,4 +1,4 @@
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 
 #include <chrono>
 #include <cmath>
@@ -24,7 +24,7 @@
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/database_lock.h"
 #include "core/persistence/map_rigs.h"
-#include "core/slam/run_inputs.h"
+#include "core/pipeline/run_inputs.h"
 #include "core/vocabulary/default_vocabulary.h"
 
 namespace orbatlas {

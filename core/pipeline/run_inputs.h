@@ -1,5 +1,5 @@
 #pragma once
-// What `orbatlas run` reads before anything starts (core/slam/dataset_runner):
+// What `orbatlas run` reads before anything starts (core/pipeline/dataset_runner):
 // the settings, the recording and the frames of its time window, for each kind
 // of recording (an EuRoC ASL folder, a KITTI odometry sequence, a TUM RGB-D
 // folder) and sensor (a stereo rig, its left camera alone, RGB-D, with an IMU).
@@ -7,7 +7,7 @@
 
 #include "core/io/euroc_reader.h"
 #include "core/io/settings.h"
-#include "core/slam/dataset_runner.h"
+#include "core/pipeline/dataset_runner.h"
 
 namespace orbatlas {
 
