@@ -113,8 +113,6 @@ SessionWiring run_wiring(const StoredAtlas& stored) {
   return wiring;
 }
 
-constexpr double kOfflineMappingWaitMs = 10000.0;  // the bound TrackerOptions allows
-
 // The SLAM options of this run: a localisation changes nothing. Offline (not
 // --realtime) tracking waits for local mapping to adjust each keyframe
 // (TrackerOptions::max_mapping_wait_ms, unless set): frames come as fast as
@@ -125,7 +123,7 @@ constexpr double kOfflineMappingWaitMs = 10000.0;  // the bound TrackerOptions a
 SlamSystemOptions run_slam_options(const DatasetRunOptions& options) {
   SlamSystemOptions slam_options = options.slam;
   if (!options.realtime && slam_options.tracker.max_mapping_wait_ms == 0.0)
-    slam_options.tracker.max_mapping_wait_ms = kOfflineMappingWaitMs;
+    slam_options.tracker.max_mapping_wait_ms = TrackerOptions::kLongestMappingWaitMs;
   if (options.localize_only) {
     slam_options.tracker.localization_only = true;
     slam_options.relocalization = true;

@@ -32,10 +32,6 @@ TimestampNs unix_now_ns() {
 
 namespace {
 
-// How long a session that is not real-time waits for its local mapping at a
-// keyframe at most (the bound TrackerOptions allows).
-constexpr double kNonRealTimeMappingWaitMs = 10000.0;
-
 // Every background worker of the sessions (their options are copied from
 // these) at the server's background nice value.
 AtlasServiceOptions with_background_nice(AtlasServiceOptions options) {
@@ -198,7 +194,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_slam_system(SessionId id, const 
   // otherwise outrun a starved mapping. A real-time one is served first and
   // never waits. Settings that set the wait keep theirs.
   if (!real_time && slam_options.tracker.max_mapping_wait_ms == 0.0)
-    slam_options.tracker.max_mapping_wait_ms = kNonRealTimeMappingWaitMs;
+    slam_options.tracker.max_mapping_wait_ms = TrackerOptions::kLongestMappingWaitMs;
   slam_options.live_merging = options_.merge_maps && options_.live_merging;
   slam_options.shared_map_finish_wait_s = options_.finish_refinement_wait_s;
   wiring.mapping = [this, rig](const FrameCamera& cam, const MappingWorkersOptions& mapping) {

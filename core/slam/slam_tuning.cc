@@ -41,7 +41,7 @@ const std::vector<Binding>& bindings() {
                       "a keyframe at least this often (default: the frame rate)", tracker.max_frames_between_keyframes),
       ORBATLAS_TUNING("Tracker.RecentlyLostSeconds", 0, 3600, false,
                       "relocalisation is tried this long before a lost map is given up", tracker.recently_lost_s),
-      ORBATLAS_TUNING("Tracker.MaxMappingWaitMs", 0, 10000, false,
+      ORBATLAS_TUNING("Tracker.MaxMappingWaitMs", 0, TrackerOptions::kLongestMappingWaitMs, false,
                       "the frame after a keyframe waits this long at most for local mapping to adjust it (0: never)",
                       tracker.max_mapping_wait_ms),
       ORBATLAS_TUNING("Tracker.OwnClosePoints", 0, 1, true,

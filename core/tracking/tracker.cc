@@ -46,8 +46,9 @@ void TrackerOptions::check() const {
   ORBATLAS_CHECK(
       new_map_after_failed_relocalizations >= 0,
       "tracker: new_map_after_failed_relocalizations must be >= 0, not " << new_map_after_failed_relocalizations);
-  ORBATLAS_CHECK(std::isfinite(max_mapping_wait_ms) && max_mapping_wait_ms >= 0.0 && max_mapping_wait_ms <= 10000.0,
-                 "tracker: max_mapping_wait_ms must be in [0, 10000], not " << max_mapping_wait_ms);
+  ORBATLAS_CHECK(
+      std::isfinite(max_mapping_wait_ms) && max_mapping_wait_ms >= 0.0 && max_mapping_wait_ms <= kLongestMappingWaitMs,
+      "tracker: max_mapping_wait_ms must be in [0, " << kLongestMappingWaitMs << "], not " << max_mapping_wait_ms);
   ORBATLAS_CHECK(max_local_keyframes >= 0, "tracker: max_local_keyframes must be >= 0, not " << max_local_keyframes);
   ORBATLAS_CHECK(min_keyframes_to_keep_map >= 0,
                  "tracker: min_keyframes_to_keep_map must be >= 0, not " << min_keyframes_to_keep_map);

@@ -65,6 +65,9 @@ struct TrackerOptions {
   // BA outlasts a frame interval (docs/mapping.md, "Tracking's wait for its
   // keyframe"). 0 (the default): tracking never waits, as ORB-SLAM.
   double max_mapping_wait_ms = 0.0;
+  // The longest wait allowed, given to every session that is not real-time
+  // (an offline run, an upload, a stream without max_lag_s).
+  static constexpr double kLongestMappingWaitMs = 10000.0;
   // At most this many keyframes in a frame's local map, those observing its points first.
   int max_local_keyframes = 80;
   int min_keyframes_to_keep_map = 10;  // a map lost with fewer keyframes goes straight to LOST
