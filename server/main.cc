@@ -129,6 +129,11 @@ int main(int argc, char** argv) {
                  "served first on a loaded machine, mapping takes the rest (0: all alike)")
       ->capture_default_str()
       ->check(CLI::Range(0, 19));
+  app.add_option("--max-maps-wait-ms", service_options.max_maps_wait_ms,
+                 "A real-time session's frame (max_lag_s) waits at most this long for the maps while a merge, loop "
+                 "correction or global BA result is applied; past it the reply is untracked, maps_busy (0: no bound)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 10000.0));
   bool serial_stereo = false;
   app.add_flag("--serial-stereo-frontend", serial_stereo,
                "Extract a stereo frame's two images one after the other on the session's thread instead of the right "

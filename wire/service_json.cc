@@ -17,6 +17,7 @@ nlohmann::json to_json(const SessionStatus& s) {
                       {"keyframes", s.keyframes},
                       {"rejected_frames", s.rejected_frames},
                       {"skipped_frames", s.skipped_frames},
+                      {"maps_busy_frames", s.maps_busy_frames},
                       {"imu_samples", s.imu_samples},
                       {"worker_errors", s.worker_errors}};
   if (s.mode) j["mode"] = session_mode_name(*s.mode);

@@ -97,6 +97,7 @@ nlohmann::json to_json(const SlamStats& s) {
   j["local_map_keyframes"] = summary(s.local_map_keyframes);
   j["local_map_points"] = summary(s.local_map_points);
   j["maps_wait_ms"] = summary(s.maps_wait_ms);
+  j["maps_busy_frames"] = s.maps_busy_frames;
   j["mapping_wait_ms"] = summary(s.mapping_wait_ms);
   j["mapping_waits_cut"] = s.mapping_waits_cut;
   j["local_mapping_ms_per_kf"] = summary(s.mapping.keyframe_ms);

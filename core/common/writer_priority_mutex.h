@@ -6,6 +6,7 @@
 // ever. Not recursive in either mode: a thread holding it shared must not take
 // it shared again (a writer waiting in between would deadlock both).
 // Meets the standard's SharedMutex requirements (std::unique_lock, std::shared_lock).
+#include <chrono>
 #include <condition_variable>
 #include <cstddef>
 #include <mutex>
@@ -49,6 +50,18 @@ class WriterPriorityMutex {
     if (writer_ || writers_waiting_ > 0) return false;
     ++readers_;
     return true;
+  }
+  // As lock_shared(), giving up at `deadline` (false: not taken).
+  template <class Clock, class Duration>
+  bool try_lock_shared_until(const std::chrono::time_point<Clock, Duration>& deadline) {
+    std::unique_lock lock(mutex_);
+    if (!writer_gone_.wait_until(lock, deadline, [&] { return !writer_ && writers_waiting_ == 0; })) return false;
+    ++readers_;
+    return true;
+  }
+  template <class Rep, class Period>
+  bool try_lock_shared_for(const std::chrono::duration<Rep, Period>& timeout) {
+    return try_lock_shared_until(std::chrono::steady_clock::now() + timeout);
   }
   void unlock_shared() {
     bool last = false;

@@ -74,6 +74,10 @@ class Atlas {
     return lock;
   }
   std::shared_lock<WriterPriorityMutex> lock_maps_shared() const { return std::shared_lock(maps_edit_mutex_); }
+  // As lock_maps_shared(), giving up at `deadline` (the lock does not own it then).
+  std::shared_lock<WriterPriorityMutex> lock_maps_shared_until(std::chrono::steady_clock::time_point deadline) const {
+    return std::shared_lock(maps_edit_mutex_, deadline);
+  }
   // Whole-map edits so far (merges, loop corrections, global BA results, inertial
   // initialisations applied); read under lock_maps_shared() it is stable.
   std::uint64_t maps_edits() const { return maps_edits_.load(std::memory_order_relaxed); }

@@ -195,6 +195,7 @@ std::unique_ptr<SessionSlam> AtlasService::make_slam_system(SessionId id, const 
   // never waits. Settings that set the wait keep theirs.
   if (!real_time && slam_options.tracker.max_mapping_wait_ms == 0.0)
     slam_options.tracker.max_mapping_wait_ms = TrackerOptions::kLongestMappingWaitMs;
+  if (real_time) slam_options.max_maps_wait_ms = options_.max_maps_wait_ms;
   slam_options.live_merging = options_.merge_maps && options_.live_merging;
   slam_options.shared_map_finish_wait_s = options_.finish_refinement_wait_s;
   wiring.mapping = [this, rig](const FrameCamera& cam, const MappingWorkersOptions& mapping) {
@@ -367,8 +368,9 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     metrics_.frame_rejected();
     throw;
   }
-  if (reply.skipped) {
-    metrics_.frame_skipped();
+  if (reply.skipped || reply.result.maps_busy) {
+    if (reply.skipped) metrics_.frame_skipped();
+    if (reply.result.maps_busy) metrics_.frame_maps_busy();
     return reply;  // nothing tracked: the leases and the checkpoints stay as they are
   }
   // A localisation holds no lease: it changes nothing, any number share a map.

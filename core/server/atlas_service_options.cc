@@ -16,6 +16,8 @@ void AtlasServiceOptions::check() const {
   ORBATLAS_CHECK(loop_queue > 0, "server: loop_queue must be > 0, not " << loop_queue);
   ORBATLAS_CHECK(background_nice >= 0 && background_nice <= 19,
                  "server: background_nice must be in 0..19, not " << background_nice);
+  ORBATLAS_CHECK(std::isfinite(max_maps_wait_ms) && max_maps_wait_ms >= 0.0 && max_maps_wait_ms <= 10000.0,
+                 "server: max_maps_wait_ms must be in 0..10000, not " << max_maps_wait_ms);
   slam.check();
   merging.check();
   checkpoints.check();

@@ -52,6 +52,12 @@ struct AtlasServiceOptions {
   // sent as fast as the server answers cannot starve it (docs/server.md,
   // "Serving live sessions first"). 0: every thread alike.
   int background_nice = 10;
+  // A real-time session's frame (one with max_lag_s) waits at most this long
+  // for the atlas's maps while an edit holds them (a merge, a loop correction,
+  // a global BA's result or an inertial initialisation being applied); past it
+  // the frame is answered untracked, `maps_busy` (SlamSystemOptions::max_maps_wait_ms).
+  // 0: it waits for the edit, however long.
+  double max_maps_wait_ms = 50.0;
   // This server as one replica of the atlas's database (replica_registry.h).
   ReplicaOptions replica;
 

@@ -138,8 +138,12 @@ FrameOutcome LiveSession::process(TimestampNs t_ns, const cv::Mat& left, const c
   ++frames_;
   if (out.result.tracked && !out.result.by_imu) ++tracked_;  // the slam stats count the IMU's frames
   if (out.result.keyframe) ++keyframes_;
+  if (out.result.maps_busy) ++maps_busy_frames_;
   tracking_ms_.add(out.tracking_ms);
   maps_wait_ms_.add(out.result.maps_wait_ms);
+  // Answered untracked because the maps were held too long: the tracker has
+  // not seen the frame, and the session's pose and map stay those of the last.
+  if (out.result.maps_busy) return out;
   if (out.result.tracked) {
     out.jump_m = pose_jumps_.add(out.result.T_w_b.t, out.result.map, out.result.maps_edits);
     if (out.jump_m) live_jumps_m_.add(*out.jump_m);
@@ -294,6 +298,7 @@ SessionStatus LiveSession::status() const {
   s.keyframes = keyframes_;
   s.rejected_frames = rejected_frames_;
   s.skipped_frames = skipped_frames_;
+  s.maps_busy_frames = maps_busy_frames_;
   s.imu_samples = imu_samples_;
   s.worker_errors = worker_errors_.load();
   s.imu_warnings = slam_ ? slam_->imu_warnings() : final_imu_warnings_;

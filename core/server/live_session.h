@@ -60,7 +60,10 @@ class LiveSession {
   // server goes on. With a largest lag, a frame whose arrival is more than it
   // behind its timestamp, measured against the earliest arrival seen (the
   // frame that came soonest after its capture sets the clock offset), is
-  // skipped: not tracked, counted (`skipped_frames`), the reply says so.
+  // skipped: not tracked, counted (`skipped_frames`), the reply says so. A
+  // frame whose session may wait only so long for the maps
+  // (SlamSystemOptions::max_maps_wait_ms) and could not have them is answered
+  // untracked (`maps_busy`, counted in `maps_busy_frames`).
   FrameOutcome process(TimestampNs t_ns, const cv::Mat& left, const cv::Mat& right);
   // A batch of IMU samples, checked (valid stamps, strictly increasing across
   // batches; values no IMU measures, beyond kMaxImuGyro / kMaxImuAccel: DataError
@@ -121,7 +124,8 @@ class LiveSession {
   bool anchors_released_ = false;
   std::optional<FrameAnchor> last_anchor_;  // kept when released
   std::optional<TimestampNs> last_frame_t_, last_imu_t_;
-  std::size_t frames_ = 0, tracked_ = 0, keyframes_ = 0, rejected_frames_ = 0, imu_samples_ = 0, skipped_frames_ = 0;
+  std::size_t frames_ = 0, tracked_ = 0, keyframes_ = 0, rejected_frames_ = 0, imu_samples_ = 0, skipped_frames_ = 0,
+              maps_busy_frames_ = 0;
   const std::optional<std::int64_t> max_lag_ns_;
   std::optional<std::int64_t> min_offset_ns_;  // smallest arrival - timestamp seen
   std::optional<TrackResult> last_;

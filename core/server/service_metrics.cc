@@ -16,6 +16,9 @@ ServiceMetrics::ServiceMetrics()
       frames_rejected_(registry_.counter("orbatlas_frames_rejected_total", "Frames refused as bad input.")),
       frames_skipped_(registry_.counter("orbatlas_frames_skipped_total",
                                         "Frames of real-time sessions skipped for arriving too late (max_lag_s).")),
+      frames_maps_busy_(registry_.counter(
+          "orbatlas_frames_maps_busy_total",
+          "Frames of real-time sessions answered untracked: the maps were held by an edit past --max-maps-wait-ms.")),
       tracking_latency_(registry_.histogram("orbatlas_tracking_latency_seconds",
                                             "Time to track one frame (features included).", latency_buckets_seconds())),
       frame_request_latency_(registry_.histogram(

@@ -47,6 +47,7 @@ class ServiceMetrics {
   void session_timed_out() { sessions_timed_out_.Increment(); }
   void frame_rejected() { frames_rejected_.Increment(); }
   void frame_skipped() { frames_skipped_.Increment(); }
+  void frame_maps_busy() { frames_maps_busy_.Increment(); }
   // A tracked frame: its tracking and its whole time in the server.
   void frame_done(double tracking_ms, double request_ms);
   void live_pose_jump(double m) { live_pose_jumps_.Observe(m); }
@@ -64,6 +65,7 @@ class ServiceMetrics {
   prometheus::Counter& frames_;
   prometheus::Counter& frames_rejected_;
   prometheus::Counter& frames_skipped_;
+  prometheus::Counter& frames_maps_busy_;
   prometheus::Histogram& tracking_latency_;
   prometheus::Histogram& frame_request_latency_;
   prometheus::Histogram& live_pose_jumps_;

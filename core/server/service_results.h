@@ -37,7 +37,8 @@ struct SessionStatus {
   SensorType sensor = SensorType::kStereo;
   std::optional<SessionMode> mode;  // none for a session of an earlier run (not stored)
   std::size_t frames = 0, tracked = 0, keyframes = 0, rejected_frames = 0, imu_samples = 0;
-  std::size_t skipped_frames = 0;  // too late for a real-time session (max_lag_s)
+  std::size_t skipped_frames = 0;    // too late for a real-time session (max_lag_s)
+  std::size_t maps_busy_frames = 0;  // answered untracked: the maps were held past the session's bound
   std::size_t worker_errors = 0;
   // What was wrong with the session's IMU stream (gaps, dropped samples, its
   // rate, frames it does not cover), one line per kind; empty when nothing.

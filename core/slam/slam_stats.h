@@ -28,6 +28,7 @@ struct SlamStats {
   // Per frame: the wait for the atlas's maps (an edit of loop closing,
   // merging or a global BA holds them), in tracking_ms.
   SampleSummary maps_wait_ms;
+  std::size_t maps_busy_frames = 0;  // not tracked: the maps were held past max_maps_wait_ms
   // Before the frame after each keyframe: the wait for local mapping to adjust
   // it (TrackerOptions::max_mapping_wait_ms), and the waits cut at that bound.
   SampleSummary mapping_wait_ms;

@@ -22,6 +22,8 @@ void SlamSystemOptions::check() const {
   ORBATLAS_CHECK(
       std::isfinite(shared_map_finish_wait_s) && shared_map_finish_wait_s >= 0.0 && shared_map_finish_wait_s <= 3600.0,
       "slam: shared_map_finish_wait_s must be in 0..3600, not " << shared_map_finish_wait_s);
+  ORBATLAS_CHECK(std::isfinite(max_maps_wait_ms) && max_maps_wait_ms >= 0.0 && max_maps_wait_ms <= 10000.0,
+                 "slam: max_maps_wait_ms must be in 0..10000, not " << max_maps_wait_ms);
   tracker.check();
   inertial_tracking.check();
   imu_time_offset.check();
@@ -221,8 +223,8 @@ TrackResult SlamSystem::process(TimestampNs t_ns, const cv::Mat& left, const cv:
     start += std::chrono::duration_cast<std::chrono::steady_clock::duration>(
         std::chrono::duration<double, std::milli>(*waited));
   }
-  const TrackResult result = frames_.track(*tracker_, std::move(frame), atlas_, start);
-  if (imu_noise_) follow_imu_clock(result);
+  const TrackResult result = frames_.track(*tracker_, std::move(frame), atlas_, start, options_.max_maps_wait_ms);
+  if (imu_noise_ && !result.maps_busy) follow_imu_clock(result);
   if (result.keyframe) {
     ++keyframes_made_;
     if (options_.synchronous_mapping && mapping_) mapping_->wait_until_idle();

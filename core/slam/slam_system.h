@@ -79,6 +79,13 @@ struct SlamSystemOptions {
   // it too and it grew since its last one (LoopCloser::refine_at_stream_end),
   // so the trajectory read after finish() has it. 0: no such adjustment.
   double shared_map_finish_wait_s = 0.0;
+  // The longest a frame waits for the atlas's maps while an edit (a merge, a
+  // loop correction, a global BA's result, an inertial initialisation being
+  // applied) holds them; past it the frame is answered untracked at once
+  // (TrackResult::maps_busy) and tracking goes on at the next. 0: as long as
+  // the edit takes (offline runs). The server gives real-time sessions
+  // --max-maps-wait-ms.
+  double max_maps_wait_ms = 0.0;
 
   // Throws Error naming the first value out of range (also of the parts).
   void check() const;

@@ -8,14 +8,28 @@
 namespace orbatlas {
 
 TrackResult TrackedFrames::track(Tracker& tracker, Frame frame, const Atlas& atlas,
-                                 std::chrono::steady_clock::time_point started) {
+                                 std::chrono::steady_clock::time_point started, double max_maps_wait_ms) {
   const TimestampNs t_ns = frame.t_ns;
   TrackResult result;
   double maps_wait_ms = 0.0;
   try {
     const auto waiting = std::chrono::steady_clock::now();
-    const auto whole = atlas.lock_maps_shared();
+    const auto whole =
+        max_maps_wait_ms > 0.0
+            ? atlas.lock_maps_shared_until(waiting + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                         std::chrono::duration<double, std::milli>(max_maps_wait_ms)))
+            : atlas.lock_maps_shared();
     maps_wait_ms = ms_since(waiting);
+    if (!whole.owns_lock()) {
+      result.t_ns = t_ns;
+      result.state = tracker.state();
+      result.maps_busy = true;
+      result.maps_wait_ms = maps_wait_ms;
+      maps_wait_ms_.add(maps_wait_ms);
+      ++maps_busy_;
+      ++frames_;
+      return result;
+    }
     const std::uint64_t edits = atlas.maps_edits();  // stable while the maps are held shared
     result = tracker.track(std::move(frame));
     result.maps_edits = edits;
@@ -51,6 +65,7 @@ void TrackedFrames::report(SlamStats& stats) const {
   stats.local_map_keyframes = local_keyframes_;
   stats.local_map_points = local_points_;
   stats.maps_wait_ms = maps_wait_ms_;
+  stats.maps_busy_frames = maps_busy_;
 }
 
 std::vector<FrameAnchor> TrackedFrames::anchors_from(std::size_t first) const {

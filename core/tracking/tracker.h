@@ -106,6 +106,10 @@ struct TrackResult {
   // The wait for the atlas's maps before tracking (TrackedFrames: a loop
   // correction, a merge or a global BA's result being applied holds them).
   double maps_wait_ms = 0.0;
+  // The maps were held by an edit for longer than the session may wait
+  // (SlamSystemOptions::max_maps_wait_ms): the frame was answered untracked
+  // at once, and tracking goes on from the frame before it at the next one.
+  bool maps_busy = false;
   // The atlas's whole-map edits when the frame was tracked (Atlas::maps_edits):
   // more than at the frame before, and the pose may have jumped with a correction.
   std::uint64_t maps_edits = 0;

@@ -153,6 +153,7 @@ void install_session_routes(Router& router, AtlasService& service, const std::sh
                      {"inliers", r.result.inliers},
                      {"tracking_ms", r.tracking_ms},
                      {"skipped", r.skipped},
+                     {"maps_busy", r.result.maps_busy},
                      {"local_keyframes", r.result.local_keyframes},
                      {"local_points", r.result.local_points},
                      {"maps_wait_ms", r.result.maps_wait_ms},

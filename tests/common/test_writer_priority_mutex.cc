@@ -32,6 +32,29 @@ TEST(WriterPriorityMutex, ReadersShareAWriterIsAlone) {
   m.unlock();
 }
 
+// A shared owner with a deadline: in at once when the mutex is free, and out
+// at the deadline (not before, not long after) while a writer holds it.
+TEST(WriterPriorityMutex, ASharedOwnerWithADeadlineGivesUpAtIt) {
+  WriterPriorityMutex m;
+  EXPECT_TRUE(m.try_lock_shared_for(std::chrono::milliseconds(1)));
+  m.unlock_shared();
+  std::unique_lock w(m);
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_FALSE(m.try_lock_shared_for(std::chrono::milliseconds(30)));
+  const double waited_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_GE(waited_ms, 30.0);
+  EXPECT_LT(waited_ms, 60.0);
+  // Released while it waits: it gets in then.
+  auto reader = std::async(std::launch::async, [&m] {
+    const bool in = m.try_lock_shared_for(std::chrono::seconds(10));
+    if (in) m.unlock_shared();
+    return in;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  w.unlock();
+  EXPECT_TRUE(reader.get());
+}
+
 TEST(WriterPriorityMutex, AWaitingWriterGetsInDespiteOverlappingReaders) {
   WriterPriorityMutex m;
   std::atomic<bool> stop{false};
