@@ -126,6 +126,10 @@ const std::vector<Binding>& bindings() {
                       "a single camera's inertial map is merged as a similarity (taking the target's scale) until "
                       "this many inertial refinements",
                       loop.settled_inertial_refinements),
+      ORBATLAS_TUNING("LoopClosing.FinalBaForImuScale", 0, 1, true,
+                      "1: an offline single camera with an IMU ends with a full visual-inertial global BA (its map's "
+                      "scale from every inertial term)",
+                      final_ba_for_imu_scale),
   };
   return all;
 }
