@@ -99,11 +99,6 @@ TEST(TwoViewReconstruction, AGeneralSceneIsReconstructedFromTheFundamentalMatrix
   const TwoViewResult r = reconstruct_two_views(s.x1, s.x2);
   ASSERT_TRUE(r.success) << r.failure;
   const PoseError e = errors(s, r);
-  std::printf(
-      "general, exact: %s (R_H %.2f), %d triangulated, parallax %.1f deg; rotation %.1e rad, direction %.1e "
-      "rad, points %.1e\n",
-      to_string(r.model), r.homography_ratio, r.triangulated_count, r.parallax_deg, e.rotation_rad, e.direction_rad,
-      e.point_rel);
   EXPECT_EQ(r.model, TwoViewModel::kFundamental);
   EXPECT_LT(r.homography_ratio, 0.45);
   EXPECT_EQ(r.triangulated_count, static_cast<int>(s.x1.size()));
@@ -120,7 +115,6 @@ TEST(TwoViewReconstruction, AGeneralSceneIsReconstructedFromTheFundamentalMatrix
 TEST(TwoViewReconstruction, AnAmbiguousPlanarSceneIsRefused) {
   const Scene s = make_scene(true, 0.0, 0.0, 300, 0.3);
   const TwoViewResult r = reconstruct_two_views(s.x1, s.x2);
-  std::printf("planar, 0.3 m: %s (R_H %.2f): %s\n", to_string(r.model), r.homography_ratio, r.failure.c_str());
   EXPECT_EQ(r.model, TwoViewModel::kHomography);
   EXPECT_FALSE(r.success);
   EXPECT_NE(r.failure.find("ambiguous"), std::string::npos) << r.failure;
@@ -131,11 +125,6 @@ TEST(TwoViewReconstruction, APlanarSceneIsReconstructedFromTheHomography) {
   const TwoViewResult r = reconstruct_two_views(s.x1, s.x2);
   ASSERT_TRUE(r.success) << r.failure;
   const PoseError e = errors(s, r);
-  std::printf(
-      "planar, exact: %s (R_H %.2f), %d triangulated, parallax %.1f deg; rotation %.1e rad, direction %.1e "
-      "rad, points %.1e\n",
-      to_string(r.model), r.homography_ratio, r.triangulated_count, r.parallax_deg, e.rotation_rad, e.direction_rad,
-      e.point_rel);
   EXPECT_EQ(r.model, TwoViewModel::kHomography);
   EXPECT_GT(r.homography_ratio, 0.45);
   EXPECT_EQ(r.triangulated_count, static_cast<int>(s.x1.size()));
@@ -153,11 +142,6 @@ TEST(TwoViewReconstruction, NoiseAndOutliersKeepTheModelAndThePose) {
     const TwoViewResult r = reconstruct_two_views(s.x1, s.x2);
     ASSERT_TRUE(r.success) << r.failure;
     const PoseError e = errors(s, r);
-    std::printf(
-        "%s, 0.5 px noise, 20 %% outliers: %s (R_H %.2f), %d of %zu triangulated; rotation %.2e rad, "
-        "direction %.2e rad\n",
-        planar ? "planar" : "general", to_string(r.model), r.homography_ratio, r.triangulated_count, s.x1.size(),
-        e.rotation_rad, e.direction_rad);
     EXPECT_EQ(r.model, planar ? TwoViewModel::kHomography : TwoViewModel::kFundamental);
     EXPECT_GT(r.triangulated_count, 200);  // of 300, 60 of them wrong
     // Measured: rotation 1.5e-3 / 1.1e-3 rad, direction 1.2e-2 / 5.6e-3 rad (general / planar).
@@ -174,7 +158,6 @@ TEST(TwoViewReconstruction, ARotationWithoutTranslationIsRefused) {
   for (std::size_t i = 0; i < s.x1.size(); ++i) s.x2[i] = (turn * s.points_c1[i]).hnormalized();
   const TwoViewResult r = reconstruct_two_views(s.x1, s.x2);
   EXPECT_FALSE(r.success);
-  std::printf("pure rotation: %s (R_H %.2f): %s\n", to_string(r.model), r.homography_ratio, r.failure.c_str());
   const TwoViewResult few = reconstruct_two_views({s.x1.begin(), s.x1.begin() + 5}, {s.x2.begin(), s.x2.begin() + 5});
   EXPECT_FALSE(few.success);
   EXPECT_NE(few.failure.find("too few"), std::string::npos) << few.failure;

@@ -7,7 +7,6 @@
 
 #include <cmath>
 #include <filesystem>
-#include <iostream>
 #include <numbers>
 
 #include "core/common/data_paths.h"
@@ -342,9 +341,6 @@ TEST(Eval, OrbSlam3OnRealMh01IsPlausible) {
   const Trajectory est = read_tum_trajectory(dir / "peer_trajectories" / "orbslam3_MH01_monoi_frames.txt.gz");
   const EvalResult se3 = eval(est, gt, AlignMode::kSe3);
   const EvalResult sim3 = eval(est, gt, AlignMode::kSim3);
-  std::cout << "ORB-SLAM3 MH_01 mono-inertial: matched " << se3.matched << "/" << se3.est_poses << ", ATE RMSE se3 "
-            << se3.ate.rmse << " m, sim3 " << sim3.ate.rmse << " m (scale " << sim3.alignment.scale << "), RPE 1 s "
-            << se3.rpe.trans_rmse_m << " m / " << se3.rpe.rot_rmse_deg << " deg\n";
   EXPECT_GT(se3.matched, 3500u);
   for (const EvalResult* r : {&se3, &sim3}) {
     EXPECT_GT(r->ate.rmse, 0.01);

@@ -268,8 +268,6 @@ TEST_F(RotatedFrame, BruteForceMatchesLandOnTheRotatedPositions) {
 
   const std::vector<FeatureMatch> checked = match_brute_force(a_, b_);
   const double correct = fraction_correct(checked);
-  std::cout << checked.size() << " brute-force matches of " << a_.keypoints.size() << " keypoints, " << 100.0 * correct
-            << "% within 2 px of the rotated position\n";
   EXPECT_GT(checked.size(), 300u);
   EXPECT_GT(correct, 0.8);
   EXPECT_GE(fraction_correct(checked), fraction_correct(raw));
@@ -281,7 +279,6 @@ TEST_F(RotatedFrame, GuidedMatchesAroundPredictions) {
   const FeatureGrid grid(b_);
   const std::vector<FeatureMatch> m = match_guided(a_, predicted, b_, grid);
   const double correct = fraction_correct(m);
-  std::cout << m.size() << " guided matches, " << 100.0 * correct << "% within 2 px of the rotated position\n";
   EXPECT_GT(m.size(), 400u);
   EXPECT_GT(correct, 0.9);
 }

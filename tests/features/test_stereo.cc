@@ -77,16 +77,12 @@ TEST_P(RectifiedStereoDepth, MedianDepthErrorBelowOnePercent) {
   const auto rect_cam = make_camera(rectifier.rectified_left());
   compute_keypoint_geometry(*rect_cam, fl.keypoints);
   const Pose3 T_w_rect = T_w_b * rectifier.rectified_left().T_b_c;
-  std::vector<double> rel_errors, signed_errors;
+  std::vector<double> rel_errors;
   for (std::size_t i = 0; i < fl.keypoints.size(); ++i) {
     if (depths.depth[i] <= 0) continue;
     const double truth = wall_depth_along(T_w_rect, fl.keypoints[i].bearing, T_w_c0, depth);
     rel_errors.push_back(std::abs(depths.depth[i] - truth) / truth);
-    signed_errors.push_back((depths.depth[i] - truth) / truth);
   }
-  std::cout << "signed median " << median(signed_errors) << "\n";
-  std::cout << "depth " << depth << " m: " << rel_errors.size() << " of " << fl.keypoints.size()
-            << " keypoints with depth, median relative error " << median(rel_errors) << "\n";
   ASSERT_GT(rel_errors.size(), fl.keypoints.size() / 3);
   EXPECT_LT(median(rel_errors), 0.01);
   // Outlier rejection keeps gross errors rare.
@@ -230,8 +226,6 @@ TEST(TriangulatedStereo, FisheyeDepthAtFiveMetres) {
     const double truth = wall_depth_along(T_w_c0, fl.keypoints[i].bearing, T_w_c0, depth);
     rel_errors.push_back(std::abs(st.depth[i] - truth) / truth);
   }
-  std::cout << "fisheye: " << rel_errors.size() << " triangulated, median relative depth error " << median(rel_errors)
-            << "\n";
   ASSERT_GT(rel_errors.size(), 200u);
   EXPECT_LT(median(rel_errors), 0.01);
 }

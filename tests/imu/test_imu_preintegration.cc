@@ -61,8 +61,6 @@ TEST(Preintegration, CarriesTheTrueStateToTheTrueStateLater) {
       EXPECT_LT(pre.residual(state_at(spline, t0), predicted, ImuBias{}, kGravity).norm(), 1e-9);
     }
   }
-  std::printf("preintegration over 0.5-2 s of MH_01: worst error %.2e m, %.2e m/s, %.2e deg\n", worst_p, worst_v,
-              worst_deg);
   EXPECT_LT(worst_p, 2e-4);      // measured 1.0e-4 m (the middle rotation at 200 Hz; the start's: 5.7e-3)
   EXPECT_LT(worst_v, 2e-4);      // measured 8.3e-5 m/s
   EXPECT_LT(worst_deg, 1.5e-3);  // measured 6.9e-4 deg
@@ -85,8 +83,6 @@ TEST(Preintegration, BiasJacobiansPredictAReintegration) {
   const double first_order_p = (at_zero.delta_p(bias) - exact.delta_p()).norm();
   const double first_order_v = (at_zero.delta_v(bias) - exact.delta_v()).norm();
   const double first_order_deg = rotation_error_deg(at_zero.delta_R(bias), exact.delta_R());
-  std::printf("bias change moves dp %.2e m, dR %.2e deg; first order leaves %.2e m, %.2e m/s, %.2e deg\n", moved_p,
-              moved_deg, first_order_p, first_order_v, first_order_deg);
   ASSERT_GT(moved_p, 1e-2);
   // Second-order terms only: measured 1.0e-3, 1.5e-3 and 1.3e-7 of what the bias moved.
   EXPECT_LT(first_order_p, 2e-3 * moved_p);
@@ -136,8 +132,6 @@ TEST(Preintegration, CovarianceMatchesTheSpreadOfNoisyIntegrations) {
     const double ratio = spread(i, i) / clean.covariance()(i, i);
     worst = std::max(worst, std::abs(ratio - 1.0));
   }
-  std::printf("Monte Carlo (%d runs) over the propagated covariance: worst diagonal off by %.1f %%\n", runs,
-              100.0 * worst);
   EXPECT_LT(worst, 0.12);  // 2000 samples: a variance estimate is good to ~3 % (1 sigma)
 }
 

@@ -5,8 +5,6 @@
 // IMU without vibration measures (almost) none.
 #include <gtest/gtest.h>
 
-#include <cstdio>
-
 #include "core/imu/imu_buffer.h"
 #include "core/imu/vibration_estimate.h"
 #include "core/sim/euroc_sequences.h"
@@ -63,8 +61,6 @@ TEST(VibrationEstimate, TheIncrementsCovarianceFitsTheFlightsVibration) {
   const sim::SyntheticImu shaking = flight_imu(1.0);
   for (const double span_s : {0.05, 0.5}) {
     const double measured = mean_chi2(shaking, span_s, true), white = mean_chi2(shaking, span_s, false);
-    std::printf("vibration, %.2f s intervals: mean chi2 (6 dof) %.2f with the vibration measured, %.1f without\n",
-                span_s, measured, white);
     EXPECT_GT(measured, 3.0);  // measured 6.6 (0.05 s) and 5.3 (0.5 s)
     EXPECT_LT(measured, 12.0);
     EXPECT_GT(white, 60.0) << "the white-noise model alone should not fit a vibrating IMU";
@@ -73,10 +69,6 @@ TEST(VibrationEstimate, TheIncrementsCovarianceFitsTheFlightsVibration) {
   ImuBuffer buffer;
   buffer.add(shaking.samples);
   const ImuVibration v = buffer.vibration(shaking.samples[6000].t_ns, ImuNoise{});
-  std::printf("vibration measured at 90 s: rotation %.2f %.2f %.2f mrad, velocity %.1f %.1f %.1f mm/s\n",
-              1e3 * std::sqrt(v.rotation_var.x()), 1e3 * std::sqrt(v.rotation_var.y()),
-              1e3 * std::sqrt(v.rotation_var.z()), 1e3 * std::sqrt(v.velocity_var.x()),
-              1e3 * std::sqrt(v.velocity_var.y()), 1e3 * std::sqrt(v.velocity_var.z()));
   EXPECT_GT(std::sqrt(v.rotation_var.maxCoeff()), 3e-4);
   EXPECT_LT(std::sqrt(v.rotation_var.maxCoeff()), 3e-3);
   EXPECT_GT(std::sqrt(v.velocity_var.maxCoeff()), 2e-3);
@@ -93,13 +85,11 @@ TEST(VibrationEstimate, AnIdealImuMeasuresNone) {
     worst_rotation = std::max(worst_rotation, std::sqrt(v.rotation_var.maxCoeff()));
     worst_velocity = std::max(worst_velocity, std::sqrt(v.velocity_var.maxCoeff()));
   }
-  std::printf("no vibration: worst measured %.3f mrad, %.2f mm/s\n", 1e3 * worst_rotation, 1e3 * worst_velocity);
   // What it takes for vibration is the trajectory's own motion above the corner.
   EXPECT_LT(worst_rotation, 6e-4);    // measured 3.3e-4 rad
   EXPECT_LT(worst_velocity, 3.5e-3);  // measured 1.7e-3 m/s
   // The model fits that IMU nearly as the white noise alone does.
-  const double chi2 = mean_chi2(calm, 0.5, true), white = mean_chi2(calm, 0.5, false);
-  std::printf("no vibration, 0.5 s intervals: mean chi2 (6 dof) %.2f measured, %.2f white noise alone\n", chi2, white);
+  const double chi2 = mean_chi2(calm, 0.5, true);
   EXPECT_GT(chi2, 3.0);
   EXPECT_LT(chi2, 10.0);
   // Too few samples, or a gap: nothing measured.

@@ -93,8 +93,6 @@ TEST(Bag, ABagAndTheAslFolderOfOneRecordingGiveTheSameFramesImuAndRun) {
     worst_m = std::max(worst_m, translation_distance(a.trajectory[i].pose, b.trajectory[i].pose));
     worst_rad = std::max(worst_rad, rotation_distance(a.trajectory[i].pose, b.trajectory[i].pose));
   }
-  std::printf("bag against folder: %zu poses, at most %.1e m and %.1e rad apart\n", a.trajectory.size(), worst_m,
-              worst_rad);
   EXPECT_LT(worst_m, 1e-9);
   EXPECT_LT(worst_rad, 1e-9);
   EXPECT_EQ(a.stats.keyframes, b.stats.keyframes);

@@ -214,11 +214,6 @@ TEST(KittiReal, StereoSlamTracksEveryFrameOfTheExcerpt) {
   sim3.align = AlignMode::kSim3;
   const EvalResult s = evaluate_trajectory(report.trajectory, sequence.ground_truth, sim3);
   ASSERT_TRUE(r.segments.has_value());
-  std::printf(
-      "KITTI excerpt_1, stereo: %zu of 51 frames, ATE %.4f m (se3), scale %.5f (sim3), path %.1f m, "
-      "KITTI errors %.3f %% / %.5f deg/m over %zu segments\n",
-      report.trajectory.size(), r.ate.rmse, s.alignment.scale, r.segments->path_m, r.segments->trans_percent,
-      r.segments->rot_deg_per_m, r.segments->segments);
   // Measured: ATE 0.0623 m, scale 0.9969, 0.83 % and 0.018 deg/m over 26 segments of 6-48 m.
   EXPECT_LT(r.ate.rmse, 0.12);
   EXPECT_NEAR(s.alignment.scale, 1.0, 0.006);
@@ -261,10 +256,6 @@ TEST(KittiReal, ItsFramesLocaliseInAStoredMapBuiltFromTheOthers) {
   const EvalResult unaligned = evaluate_trajectory(localised.trajectory, truth, none);
   const EvalResult map_unaligned =
       evaluate_trajectory(mapped.trajectory, read_kitti_sequence(tmp.path / "even").ground_truth, none);
-  std::printf(
-      "KITTI excerpt_1: %zu of 25 odd frames localised in the stored map of the even ones: %.4f m from the map's "
-      "trajectory (max %.4f m); ATE %.4f m; without alignment %.4f m (the map's own frames %.4f m)\n",
-      localised.trajectory.size(), m.ate.rmse, m.ate.max, r.ate.rmse, unaligned.ate.rmse, map_unaligned.ate.rmse);
   // Measured: 0.0065 m from the map (max 0.018); ATE 0.065 m; unaligned 0.366 m, the map's own 0.370 m.
   EXPECT_LT(m.ate.rmse, 0.013);
   EXPECT_LT(r.ate.rmse, 0.13);

@@ -121,9 +121,7 @@ TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {
 
   PlaceRecognizer recognizer(atlas.keyframe_index(), cam, ro);
   std::optional<PlaceMatch> match;
-  std::size_t searched = 0;
   for (const auto& kf : atlas.map(b.map)->keyframes()) {
-    ++searched;
     if (auto step = recognizer.process(kf); step.match) {
       match = std::move(step.match);
       break;
@@ -135,12 +133,6 @@ TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {
   EXPECT_GE(match->verified_keyframes, 3);
 
   const MapMergeStats merged = merge_maps(atlas, *match, cam);
-  std::printf(
-      "merge after %zu keyframes searched: keyframe %llu ~ %llu, %d matches; %zu keyframes and %zu points "
-      "moved, %zu points fused, %zu new links, %.1f ms\n",
-      searched, static_cast<unsigned long long>(match->current->id()),
-      static_cast<unsigned long long>(match->matched->id()), match->matches, merged.keyframes_moved,
-      merged.points_moved, merged.points_fused, merged.new_links, merged.ms);
   ASSERT_EQ(atlas.maps().size(), 1u);
   EXPECT_EQ(atlas.maps().front()->id(), a.map);
   EXPECT_EQ(atlas.maps().front()->keyframe_count(), keyframes);
@@ -155,10 +147,6 @@ TEST(MapMerge, TwoOverlappingSessionsBecomeOneMapInOneFrame) {
   const GlobalBundleAdjustmentResult ba = global_bundle_adjustment(map, *cam.camera, cam.bf);
   apply_global_adjustment(map, ba, cam.pyramid);
   const double ate_refined = joint_ate(atlas, {&a, &b});
-  std::printf(
-      "joint ATE of both sessions under one alignment: apart %.3f m, merged %.4f m, after global BA %.4f m "
-      "(%zu keyframes)\n",
-      ate_apart, ate_merged, ate_refined, ba.keyframes);
   EXPECT_GT(ate_apart, 0.1);      // two maps, two frames: one alignment cannot fit both
   EXPECT_LT(ate_merged, 0.009);   // measured 0.0046 m
   EXPECT_LT(ate_refined, 0.008);  // measured 0.0038 m
@@ -203,14 +191,6 @@ TEST(MapMerge, ARunningSessionsMapIsMergedLiveAndTrackingFollows) {
   for (const auto& kf : atlas.maps().front()->keyframes()) roots += kf->parent() ? 0 : 1;
   EXPECT_EQ(roots, 1u);
   const double ate = joint_ate(atlas, {&a, &b});
-  std::printf(
-      "live merge at %.2f s of the second session (frame %zu of %zu): %d matches, %zu keyframes and %zu "
-      "points moved, %zu points fused, %.1f ms; joint ATE of both sessions under one alignment %.4f m\n",
-      static_cast<double>(merge.current_t_ns - b.results.front().t_ns) * 1e-9,
-      static_cast<std::size_t>(std::count_if(b.results.begin(), b.results.end(),
-                                             [&](const TrackResult& r) { return r.t_ns <= merge.current_t_ns; })),
-      b.results.size(), merge.matches, merge.merge.keyframes_moved, merge.merge.points_moved, merge.merge.points_fused,
-      merge.merge.ms, ate);
   EXPECT_LT(ate, 0.007);  // measured 0.0033 m
 }
 
@@ -242,11 +222,6 @@ TEST(MapMerge, AMonocularSessionMergedIntoAStereoMapBecomesMetric) {
   EvalOptions sim3;
   sim3.align = AlignMode::kSim3;
   const EvalResult b_alone = evaluate_trajectory(b_frames, b.ground_truth, sim3);
-  std::printf(
-      "monocular session merged into the stereo map at %.2f s (%d matches, scale x%.3f): joint ATE of both sessions "
-      "under one rigid alignment %.4f m; the monocular session alone: scale error %.4f, %zu of %zu frames placed\n",
-      static_cast<double>(merge.current_t_ns - b.results.front().t_ns) * 1e-9, merge.matches, merge.merge.scale, ate,
-      b_alone.alignment.scale - 1.0, b_frames.size(), b.results.size());
   EXPECT_LT(std::abs(b_alone.alignment.scale - 1.0), 0.012);  // measured -0.0058
   EXPECT_LT(ate, 0.011);                                      // measured 0.0052 m
   std::size_t after = 0;

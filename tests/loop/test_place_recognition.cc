@@ -77,8 +77,6 @@ TEST(PlaceRecognition, TruePlaceInTopThreeOnMachineHallRevisits) {
     });
     found += hit ? 1 : 0;
   }
-  std::cout << keyframes.size() << " MH_01 keyframes; " << queries << " MH_02 revisit queries; true place in top 3 for "
-            << found << " (" << 100.0 * found / std::max(1, queries) << "%)\n";
   ASSERT_GE(queries, 20) << "too few revisits to measure";
   EXPECT_GE(found, static_cast<int>(std::ceil(0.9 * queries)));
 }

@@ -1,8 +1,6 @@
 // Keyframe redundancy: the incremental count equals the scan at every step.
 #include <gtest/gtest.h>
 
-#include <chrono>
-#include <iostream>
 #include <random>
 #include <thread>
 
@@ -190,35 +188,21 @@ TEST(Redundancy, BenchmarkCullingDecision) {
   const int n_kf = 300, n_mp = 6000, slots = 400, obs = 200;
   std::vector<std::shared_ptr<MapPoint>> mps;
   for (int i = 0; i < n_mp; ++i) mps.push_back(map->new_map_point({}));
-  const auto t_build = std::chrono::steady_clock::now();
-  long edits = 0;
   for (int k = 0; k < n_kf; ++k) {
     auto kf = map->new_keyframe(random_keyframe_data(slots, rng));
     const int base = k * (n_mp - obs) / (n_kf - 1);  // a sliding window: ~10 observers per point
     for (int p = 0; p < obs; ++p)
-      edits += kf->add_observation(static_cast<std::size_t>(p), mps[static_cast<std::size_t>(base + p)]);
+      kf->add_observation(static_cast<std::size_t>(p), mps[static_cast<std::size_t>(base + p)]);
   }
-  const double build_ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t_build).count();
   const auto kfs = map->keyframes();
   const int repeats = 5;
   long redundant_scan = 0, redundant_incremental = 0;
-  int decisions = 0;
-  auto t0 = std::chrono::steady_clock::now();
   for (int r = 0; r < repeats; ++r)
-    for (const auto& kf : kfs) {
-      redundant_scan += is_redundant(count_redundant_scan(*kf));
-      ++decisions;
-    }
-  const double scan_ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
-  t0 = std::chrono::steady_clock::now();
+    for (const auto& kf : kfs) redundant_scan += is_redundant(count_redundant_scan(*kf));
   for (int r = 0; r < repeats; ++r)
     for (const auto& kf : kfs) redundant_incremental += is_redundant(count_redundant_incremental(*kf));
-  const double inc_ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
-  std::cout << "[bench] culling decision on " << n_kf << " keyframes, " << n_mp << " points, " << obs
-            << " points per keyframe: scan " << scan_ns / decisions << " ns, incremental " << inc_ns / decisions
-            << " ns per decision; building (add_observation with tracking) " << build_ns / static_cast<double>(edits)
-            << " ns per observation\n";
-  // Timings are printed, not asserted; both schemes must take the same decisions.
+  // Both schemes must take the same decisions; what each costs is measured by
+  // `orbatlas run --compare-culling` (docs/benchmarks.md), not here.
   EXPECT_EQ(redundant_scan, redundant_incremental);
   EXPECT_GT(redundant_scan, 0) << "the benchmark map should contain redundant keyframes";
 }

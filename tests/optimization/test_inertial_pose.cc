@@ -139,11 +139,6 @@ TEST(InertialPoseOptimizer, RecoversThePoseAndTheVelocityFromAPerturbedStart) {
     const double velocity_error = (result.inertial->v_w - f.v1).norm();
     const double velocity_sigma =
         result.inertial->covariance ? std::sqrt(result.inertial->covariance->diagonal().tail<3>().maxCoeff()) : -1.0;
-    std::printf(
-        "at %.0f s: position off by %.2e m, rotation by %.2e rad, velocity by %.2e m/s (true %.2f m/s); inertial "
-        "chi2 %.2e, velocity sigma %.2e m/s\n",
-        at_s, position_error, rotation_angle(T_w_b.q.conjugate() * f.T_w_b1.q), velocity_error, f.v1.norm(),
-        result.inertial->chi2, velocity_sigma);
     EXPECT_EQ(result.inlier_count, 300);
     EXPECT_LT(position_error, 8e-6);                                    // measured at most 3.8e-6 m
     EXPECT_LT(rotation_angle(T_w_b.q.conjugate() * f.T_w_b1.q), 3e-6);  // 1.4e-6 rad
@@ -174,7 +169,6 @@ TEST(InertialPoseOptimizer, TakesTheVelocityThePositionsImplyOverAWrongPrior) {
   const PoseOptimizerResult result = optimize_pose(*camera, input);
   ASSERT_TRUE(result.inertial.has_value());
   const double error = (result.inertial->v_w - f.v1).norm();
-  std::printf("velocity off by %.2e m/s after a prior 0.1 m/s off\n", error);
   EXPECT_LT(error, 3.5e-3);  // measured 1.8e-3 m/s (the 0.1 m/s prior pulls a little)
 }
 

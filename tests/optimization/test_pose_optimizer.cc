@@ -2,9 +2,7 @@
 // real EuRoC cam0 (pinhole + radtan) and a Kannala-Brandt fisheye.
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <random>
 
 #include "core/camera/camera_factory.h"
@@ -126,10 +124,6 @@ void expect_robust(const Camera& camera, bool stereo) {
     EXPECT_GT(inliers_kept, 0.9 * inliers) << "trial " << trial;  // chi2 at 95%: ~5% of inliers go
     EXPECT_LT(translation_distance(r.T_c_w, s.T_c_w), 0.01) << "trial " << trial;
     EXPECT_LT(rotation_distance(r.T_c_w, s.T_c_w), 0.2 * kDegree) << "trial " << trial;
-    if (trial == 0)
-      std::printf("[pose %s %s] outliers flagged %d/%d, inliers kept %d/%d, error %.2f mm %.4f deg\n",
-                  camera_model_name(camera.model()), stereo ? "stereo" : "mono", flagged, outliers, inliers_kept,
-                  inliers, 1e3 * translation_distance(r.T_c_w, s.T_c_w), rotation_distance(r.T_c_w, s.T_c_w) / kDegree);
   }
 }
 
@@ -275,10 +269,6 @@ TEST(PoseOptimizer, TheWrittenOutLevenbergMarquardtReachesCeressMinimum) {
       ceres::Solver::Summary summary;
       ceres::Solve(so, &problem, &summary);
 
-      std::printf("[pose LM] %s %s: %d iterations (Ceres %zu), cost %.6f -> %.6f (Ceres %.6f), pose apart %.1e m\n",
-                  stereo ? "stereo" : "mono", robust ? "Huber" : "plain", solved.iterations,
-                  summary.iterations.size() - 1, solved.initial_cost, solved.final_cost, summary.final_cost,
-                  translation_distance(ours.pose(), theirs.pose()));
       EXPECT_TRUE(solved.usable);
       EXPECT_LT(solved.final_cost, solved.initial_cost);
       EXPECT_NEAR(solved.final_cost, summary.final_cost, 1e-9 * summary.final_cost);
@@ -287,7 +277,8 @@ TEST(PoseOptimizer, TheWrittenOutLevenbergMarquardtReachesCeressMinimum) {
     }
 }
 
-// Times are printed, not asserted (docs/benchmarks.md); every timed call must still converge.
+// Every call converges, run after run; what the calls take is tracking's time
+// (its p50 / p95 in docs/benchmarks.md), not measured here.
 TEST(PoseOptimizer, Timing) {
   for (const bool fisheye : {false, true}) {
     for (const bool stereo : {false, true}) {
@@ -296,17 +287,10 @@ TEST(PoseOptimizer, Timing) {
       std::mt19937 rng(5);
       const Scene s = make_scene(*camera, {.stereo = stereo, .noise_px = 1.0, .outlier_fraction = 0.2}, rng);
       constexpr int kRuns = 20;
-      int iterations = 0;
-      const auto t0 = std::chrono::steady_clock::now();
       for (int i = 0; i < kRuns; ++i) {
         const PoseOptimizerResult r = optimize_pose(*camera, s.input);
-        iterations += r.iterations;
         EXPECT_LT(translation_distance(r.T_c_w, s.T_c_w), 0.01);
       }
-      const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-      std::printf("[pose timing] %s %s, 1000 correspondences (20%% outliers): %.2f ms per call, %.1f iterations\n",
-                  camera_model_name(camera->model()), stereo ? "stereo" : "mono", ms / kRuns,
-                  static_cast<double>(iterations) / kRuns);
     }
   }
 }

@@ -16,7 +16,6 @@
 #include <unistd.h>
 
 #include <chrono>
-#include <cstdio>
 #include <random>
 #include <string>
 #include <thread>
@@ -125,15 +124,12 @@ ORBATLAS_PERSISTENCE_BACKENDS(CrashSafety);
 
 TEST_P(CrashSafety, KilledCheckpointWriterLeavesTheLastCommittedState) {
   std::mt19937_64 rng(20240607);
-  int mid_transaction = 0, exited = 0, exact_ack = 0;
-  std::vector<int> states;
-  const auto t_start = Clock::now();
+  int mid_transaction = 0;
   const int iterations = backend() == SqlDialect::kSqlite ? kIterations : kPostgresIterations;
   for (int iteration = 0; iteration < iterations; ++iteration) {
     SCOPED_TRACE("iteration " + std::to_string(iteration));
     const std::string db = another_location("crash_" + std::to_string(iteration));
     Events events;
-    bool natural_exit = false;
     {
       Writer writer(db, kSteps);
       if (iteration % 3 == 0) {
@@ -151,10 +147,9 @@ TEST_P(CrashSafety, KilledCheckpointWriterLeavesTheLastCommittedState) {
         }
         std::this_thread::sleep_for(std::chrono::microseconds(rng() % 40'000));
       }
-      natural_exit = writer.kill();
+      writer.kill();
       while (const auto line = writer.next_line(Clock::now() + std::chrono::seconds(5))) events.add(*line);
     }
-    if (natural_exit) ++exited;
     if (events.in_transaction) ++mid_transaction;
 
     // What the file says.
@@ -169,8 +164,6 @@ TEST_P(CrashSafety, KilledCheckpointWriterLeavesTheLastCommittedState) {
     k_db = store.checkpoint_sequence();
     EXPECT_GE(k_db, events.acknowledged);
     EXPECT_LE(k_db, events.acknowledged + 1);
-    if (k_db == events.acknowledged) ++exact_ack;
-    states.push_back(static_cast<int>(k_db));
     Atlas loaded;
     store.load_atlas(loaded, nullptr);
     Atlas expected;
@@ -178,16 +171,8 @@ TEST_P(CrashSafety, KilledCheckpointWriterLeavesTheLastCommittedState) {
     expect_atlas_eq(expected, loaded, false);
     if (HasFailure()) return;
   }
-  const double seconds = std::chrono::duration<double>(Clock::now() - t_start).count();
-  std::string list;
-  for (const int k : states) list.append(" ").append(std::to_string(k));
-  std::printf(
-      "crash safety (%s): %d kills in %.1f s; %d inside a checkpoint's transaction (after its BEGIN, before "
-      "its acknowledgement), %d writers had finished; state in the file = last acknowledged in %d, one "
-      "more (committed, not yet acknowledged) in %d; states:%s\n",
-      std::string(sql_dialect_name(backend())).c_str(), iterations - exited, seconds, mid_transaction, exited,
-      exact_ack, iterations - exact_ack, list.c_str());
-  EXPECT_GT(mid_transaction, 0);  // the test must exercise what it is about
+  // The test must exercise what it is about.
+  EXPECT_GT(mid_transaction, 0) << "in " << iterations << " runs of the writer";
 }
 
 }  // namespace

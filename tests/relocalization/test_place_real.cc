@@ -68,9 +68,6 @@ TEST(RealImages, LoopClosurePairsAreRecognisedAmongTheV101Frames) {
     ASSERT_FALSE(results.empty());
     const bool hit =
         std::any_of(results.begin(), results.end(), [&](const DatabaseMatch& m) { return m.keyframe == place; });
-    std::printf("real loop pair: image %d -> best %llu (score %.3f), place %u %s in the top 3 of %zu images\n", query,
-                static_cast<unsigned long long>(results.front().keyframe), results.front().score, place,
-                hit ? "found" : "NOT found", database.size());
     found += hit ? 1 : 0;
   }
   EXPECT_EQ(found, 2);
@@ -106,8 +103,6 @@ TEST(RealImages, EachPairOfAPlaceRelocalisesAgainstTheOtherConsistently) {
     ASSERT_TRUE(ba.success) << "pair " << a << " against a map of pair " << b;
     // Each map's origin is its pair's body: the two relative poses are inverses.
     const Pose3 loop = ab.T_w_b * ba.T_w_b;
-    std::printf("real pairs %d<->%d: %d / %d inliers, %.2f m apart, loop error %.4f m / %.3f deg\n", a, b, ab.inliers,
-                ba.inliers, ab.T_w_b.t.norm(), loop.t.norm(), rotation_distance(loop, Pose3()) * 180.0 / M_PI);
     EXPECT_GE(ab.inliers, 50);
     EXPECT_GE(ba.inliers, 50);
     EXPECT_LT(loop.t.norm(), 0.03);                                   // measured 0.0144 and 0.0036 m

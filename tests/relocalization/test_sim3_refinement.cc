@@ -4,9 +4,7 @@
 #include <ceres/autodiff_cost_function.h>
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <random>
 #include <vector>
 
@@ -142,19 +140,9 @@ TEST(Sim3Refinement, NoisyWithOutliersAndTiming) {
   so.depth_noise = 0.01;
   const Sim3Scene scene = make_scene(*cam, *cam, so, rng);
   const Sim3 start = perturb(scene.S_1_2, 1.0 * kDegree, 0.03, 1.02, rng);
-  const auto t0 = std::chrono::steady_clock::now();
   const Sim3RefinementResult r = refine_sim3(start, scene.matches, *cam, *cam);
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   ASSERT_TRUE(r.success);
   const auto [recall, kept] = classification(r.inliers, scene.is_outlier);
-  std::printf(
-      "[ timing ] Sim3 refinement, 200 matches, 20%% outliers, 1 px + 1%% depth noise: %.2f ms, "
-      "%d iterations, outliers flagged %.1f%%, inliers kept %.1f%%, error %.3f deg %.1f mm scale %.4f "
-      "(start %.3f deg %.1f mm %.4f)\n",
-      ms, r.iterations, recall, kept, sim3_rotation_distance(r.S_1_2, scene.S_1_2) / kDegree,
-      1e3 * (r.S_1_2.t - scene.S_1_2.t).norm(), r.S_1_2.s / scene.S_1_2.s,
-      sim3_rotation_distance(start, scene.S_1_2) / kDegree, 1e3 * (start.t - scene.S_1_2.t).norm(),
-      start.s / scene.S_1_2.s);
   // Over 40 seeds: recall 100%, kept >= 96%, worst 0.07 deg, 6 mm, 1.6% scale. The
   // scale is the weak part: with a 0.4 m baseline a 1% scale change moves a point
   // at 5 m by ~0.4 px in the other image.

@@ -12,7 +12,6 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <mutex>
@@ -30,7 +29,6 @@
 namespace orbatlas {
 namespace {
 
-using Clock = std::chrono::steady_clock;
 using json = nlohmann::json;
 using test::ServerProcess;
 
@@ -81,15 +79,12 @@ TEST(ServerKill, RandomKillsDuringStreamsAndUploadsLeaveAConsistentAtlas) {
   std::mt19937_64 rng(20261123);
   Handed handed;
   const int kills = iterations();
-  int stream_frames = 0;
-  const auto t_start = Clock::now();
   for (int iteration = 0; iteration < kills; ++iteration) {
     SCOPED_TRACE("iteration " + std::to_string(iteration));
     ServerProcess server(db.path, log);
     const std::string url = server.wait_until_listening();
     ASSERT_FALSE(url.empty()) << "the server did not start after kill " << iteration << " (log: " << log << ")";
     std::atomic<bool> stop{false};
-    std::atomic<int> streamed{0};
     // A live session streaming the clip from a random frame on.
     std::thread streamer([&, start = static_cast<std::size_t>(rng() % (images.size() / 2))] {
       try {
@@ -101,7 +96,6 @@ TEST(ServerKill, RandomKillsDuringStreamsAndUploadsLeaveAConsistentAtlas) {
         }
         for (std::size_t i = start; i < images.size() && !stop; ++i) {
           client.post_frame(id, frames[i].t_ns, images[i].first, images[i].second);
-          ++streamed;
         }
         client.finish_session(id);
       } catch (const std::exception&) {
@@ -134,7 +128,6 @@ TEST(ServerKill, RandomKillsDuringStreamsAndUploadsLeaveAConsistentAtlas) {
     stop = true;
     streamer.join();
     uploader.join();
-    stream_frames += streamed.load();
     check_file(db.path, iteration);
     if (HasFailure()) return;
   }
@@ -155,7 +148,6 @@ TEST(ServerKill, RandomKillsDuringStreamsAndUploadsLeaveAConsistentAtlas) {
   const json session_list = client.get_json("/v1/sessions");  // kept: a range over a temporary's member dangles
   for (const auto& s : session_list["sessions"]) listed.insert(s["id"].get<std::uint64_t>());
   for (const std::uint64_t id : sessions) EXPECT_TRUE(listed.count(id)) << "session " << id << " vanished";
-  int interrupted = 0;
   const json job_list = client.get_json("/v1/jobs");
   for (const auto& j : job_list["jobs"]) {
     const std::uint64_t id = j["id"].get<std::uint64_t>();
@@ -164,16 +156,9 @@ TEST(ServerKill, RandomKillsDuringStreamsAndUploadsLeaveAConsistentAtlas) {
     if (handed.bad_jobs.count(id)) {
       EXPECT_EQ(j["state"], "failed") << j.dump();
     }
-    if (j.value("error", "").rfind("interrupted", 0) == 0) ++interrupted;
   }
   server.kill();
   check_file(db.path, kills);
-  std::printf(
-      "server kills: %d in %.0f s; %zu sessions and %zu upload jobs handed out (all distinct, every session "
-      "stored), %d frames streamed, %d jobs reported as interrupted; integrity ok and no dangling trajectory "
-      "reference after every kill\n",
-      kills, std::chrono::duration<double>(Clock::now() - t_start).count(), sessions.size(), jobs.size(), stream_frames,
-      interrupted);
   std::filesystem::remove(log);
 }
 

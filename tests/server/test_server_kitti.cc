@@ -6,7 +6,6 @@
 // under ORBATLAS_REQUIRE=all (CI).
 #include <gtest/gtest.h>
 
-#include <cstdio>
 #include <nlohmann/json.hpp>
 
 #include "client/api/dataset_streamer.h"
@@ -46,10 +45,6 @@ TEST(ServerKitti, TheRealExcerptStreamsAndUploadsWithTheSettingsOfItsCalibration
   EXPECT_EQ(status["frames_total"], 51);
   EXPECT_EQ(status["tracked"], 51);
   ASSERT_TRUE(status.contains("ate_rmse_m"));
-  std::printf(
-      "KITTI excerpt_1 through the server: streamed %zu of 51 tracked, ATE %.4f m; uploaded %d of 51, ATE "
-      "%.4f m\n",
-      streamed.tracked, *streamed.ate_rmse_m, status["tracked"].get<int>(), status["ate_rmse_m"].get<double>());
   EXPECT_LT(*streamed.ate_rmse_m, 0.12);
   EXPECT_LT(status["ate_rmse_m"].get<double>(), 0.12);
 }

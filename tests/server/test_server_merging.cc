@@ -75,10 +75,9 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
     EXPECT_EQ(merges["refinements"][0]["map"], stream_maps[0]);
     EXPECT_GT(merges["refinements"][0]["keyframes"].get<int>(), 0);
     const auto& merge = merges["merges"][0];
-    std::printf("merge: %s\n", merge.dump().c_str());
     EXPECT_EQ(merge["source_map"], stream_maps[1]);
     EXPECT_EQ(merge["target_map"], stream_maps[0]);
-    EXPECT_GE(merge["matches"].get<int>(), 80);
+    EXPECT_GE(merge["matches"].get<int>(), 80) << merge.dump();
     EXPECT_FALSE(merge["global_ba"]["interrupted"].get<bool>());
     const auto maps = client.get_json("/v1/maps")["maps"];
     ASSERT_EQ(maps.size(), 1u);
@@ -99,7 +98,6 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
   const double ate_restarted = joint_ate(client, sessions, clips, &in_maps);
   EXPECT_EQ(in_maps, std::set<std::uint64_t>{stream_maps[0]});
   EXPECT_NEAR(ate_restarted, ate_live, 1e-4);
-  std::printf("joint ATE of both sessions in the merged map: %.4f m (after restart %.4f m)\n", ate_live, ate_restarted);
 
   // A new session over a known place starts in the stored map (its frame, no
   // map of its own): the second clip streamed again lands where it was.
@@ -119,10 +117,6 @@ TEST(ServerMerging, SessionsOverOnePlaceEndInOneMapThatSurvivesARestart) {
     worst = std::max(worst, (before[j].pose.t - again.trajectory[i].pose.t).norm());
     ++compared;
   }
-  std::printf(
-      "the clip again, started in the stored map: %zu poses compared, largest difference %.4f m, %zu keyframes "
-      "made\n",
-      compared, worst, again.keyframes);
   EXPECT_GE(compared, again.trajectory.size() * 9 / 10);
   EXPECT_LT(worst, 0.026);  // measured 0.0131 m
   // The merging worker searched only the keyframes this session made.
@@ -163,7 +157,6 @@ TEST(ServerMerging, TwoStereoInertialSessionsMergeKeepingBothImuChains) {
   ASSERT_EQ(merges["refinements"].size(), 1u) << merges.dump(2);
   ASSERT_EQ(merges["merges"].size(), 1u) << merges.dump(2);
   const auto& merge = merges["merges"][0];
-  std::printf("refinement: %s\nmerge: %s\n", merges["refinements"][0].dump().c_str(), merge.dump().c_str());
   EXPECT_EQ(merge["source_map"], stream_maps[1]);
   EXPECT_EQ(merge["target_map"], stream_maps[0]);
   EXPECT_TRUE(merge["four_dof"].get<bool>()) << merge.dump();
@@ -173,7 +166,6 @@ TEST(ServerMerging, TwoStereoInertialSessionsMergeKeepingBothImuChains) {
   EXPECT_GE(merge["global_ba"]["inertial_edges"].get<std::size_t>(), first_chain + 10) << merge.dump();
   std::set<std::uint64_t> in_maps;
   const double ate = joint_ate(client, sessions, clips, &in_maps);
-  std::printf("two stereo-inertial sessions, one map: ATE %.4f m\n", ate);
   EXPECT_EQ(in_maps, std::set<std::uint64_t>{stream_maps[0]});
   EXPECT_LT(ate, 0.004);  // measured 0.0019 m
 }
@@ -224,20 +216,14 @@ TEST(ServerMerging, ASessionsMapIsMergedWhileItStreams) {
               std::string::npos);
     ASSERT_TRUE(b.live_ate_rmse_m.has_value());
     ASSERT_TRUE(b.ate_rmse_m.has_value());
-    std::printf(
-        "second session: live ATE %.4f m (its poses before the merge in its own map's frame), final %.4f m; "
-        "%zu jumps, the merge's %.3f m\n",
-        *b.live_ate_rmse_m, *b.ate_rmse_m, b.live_jumps_m.size(), merge_jump);
 
     const auto merges = test::wait_for_merges(client);
     ASSERT_EQ(merges["live_merges"].size(), 1u) << merges.dump(2);
     const auto& live = merges["live_merges"][0];
-    std::printf("live merge: %s; %zu of %zu frames replied in the first map\n", live.dump().c_str(), frames_after,
-                b.reply_maps.size());
     EXPECT_EQ(live["session"], b.session);
     EXPECT_EQ(live["source_map"], b.reply_maps.front());
     EXPECT_EQ(live["target_map"], first_map);
-    EXPECT_GE(live["matches"].get<int>(), 80);
+    EXPECT_GE(live["matches"].get<int>(), 80) << live.dump();
     EXPECT_TRUE(merges["merges"].empty()) << "the worker merged again: " << merges.dump(2);
     EXPECT_EQ(client.get_json("/v1/maps")["maps"].size(), 1u);
     EXPECT_NE(client.get_text("/metrics").find("orbatlas_map_merges_total 1"), std::string::npos);
@@ -253,8 +239,6 @@ TEST(ServerMerging, ASessionsMapIsMergedWhileItStreams) {
   const double ate_restarted = joint_ate(client, sessions, clips, &in_maps);
   EXPECT_EQ(in_maps, std::set<std::uint64_t>{first_map});
   EXPECT_NEAR(ate_restarted, ate_live, 1e-4);
-  std::printf("joint ATE of both sessions after the live merge: %.4f m (after restart %.4f m)\n", ate_live,
-              ate_restarted);
 }
 
 // The left camera of the stereo rig streamed alone (sensor mono, mode map)
@@ -297,10 +281,6 @@ TEST(ServerMerging, ALeftCameraSessionIsMergedIntoTheStereoMapAndBecomesMetric) 
     const Trajectory trajectory = parse_tum_trajectory(client.trajectory_tum(session), "mono", nullptr);
     ate_live = camera_eval(trajectory, AlignMode::kSe3).ate.rmse;
     const double scale = camera_eval(trajectory, AlignMode::kSim3).alignment.scale;
-    std::printf(
-        "left camera merged into the stereo map: %zu of %zu replies after it, ATE %.4f m (SE3), Sim3 scale "
-        "%.4f\n",
-        static_cast<std::size_t>(b.reply_maps.end() - switched), b.reply_maps.size(), ate_live, scale);
     EXPECT_LT(ate_live, 0.02);
     EXPECT_NEAR(scale, 1.0, 0.02);
   }
@@ -345,7 +325,6 @@ TEST(ServerMerging, TheMergingWorkerMergesALeftCameraMapIntoTheStereoMapAfterIts
   const Trajectory trajectory = parse_tum_trajectory(client.trajectory_tum(b.session), "mono", nullptr);
   const double ate = camera_eval(trajectory, AlignMode::kSe3).ate.rmse;
   const double scale = camera_eval(trajectory, AlignMode::kSim3).alignment.scale;
-  std::printf("left camera merged by the worker into the stereo map: ATE %.4f m (SE3), Sim3 scale %.4f\n", ate, scale);
   // Measured over four runs: ATE 0.0042-0.0061 m, scale 0.9985-0.9993; alone at
   // background nice 10, scale 0.9972-0.9987; once 0.9954 under a loaded
   // `ctest -j2` (the merge then finds its place with the map less refined).

@@ -101,7 +101,6 @@ TEST(ServerEndToEnd, AnRgbdStreamMapsAndItsDepthIsChecked) {
   EXPECT_EQ(report.tracked, report.frames);
   EXPECT_EQ(report.frames, 81u);
   ASSERT_TRUE(report.ate_rmse_m.has_value());
-  std::printf("RGB-D over HTTP: %zu frames, ATE %.4f m\n", report.frames, *report.ate_rmse_m);
   EXPECT_LT(*report.ate_rmse_m, 0.002);  // measured 0.0009 m
   const auto merges = test::wait_for_merges(client);
   ASSERT_EQ(merges["refinements"].size(), 1u) << merges.dump();
@@ -164,7 +163,6 @@ TEST(ServerEndToEnd, AnRgbdStreamMapsAndItsDepthIsChecked) {
   EXPECT_EQ(done["tracked"], done["frames_total"]);
   EXPECT_EQ(done["frames_total"], 81);
   ASSERT_TRUE(done.contains("ate_rmse_m"));
-  std::printf("uploaded RGB-D recording: ATE %.4f m\n", done["ate_rmse_m"].get<double>());
   EXPECT_LT(done["ate_rmse_m"].get<double>(), 0.002);
   const auto uploaded = client.get_json("/v1/sessions/" + std::to_string(done["session"].get<std::uint64_t>()));
   EXPECT_EQ(uploaded["sensor"], "rgbd");
@@ -188,8 +186,6 @@ TEST(ServerEndToEnd, ASingleCameraSessionMapsAtItsOwnScale) {
     EXPECT_GT(report.keyframes, 5u);
     ASSERT_TRUE(report.ate_rmse_m.has_value());
     EXPECT_TRUE(report.ate_sim3);
-    std::printf("single camera mapping over HTTP: %zu of %zu frames tracked, %zu keyframes, ATE %.4f m (Sim3)\n",
-                report.tracked, report.frames, report.keyframes, *report.ate_rmse_m);
     EXPECT_LT(*report.ate_rmse_m, 0.013);  // measured 0.0061 m
     const nlohmann::json maps = client.get_json("/v1/maps");
     ASSERT_EQ(maps["maps"].size(), 1u) << maps.dump();
@@ -210,7 +206,6 @@ TEST(ServerEndToEnd, ASingleCameraSessionMapsAtItsOwnScale) {
   EXPECT_EQ(done["frames_total"], 161);
   EXPECT_GE(done["tracked"].get<std::size_t>() + 8, 161u);
   ASSERT_TRUE(done.contains("ate_rmse_m"));
-  std::printf("uploaded single-camera recording: ATE %.4f m (Sim3)\n", done["ate_rmse_m"].get<double>());
   EXPECT_LT(done["ate_rmse_m"].get<double>(), 0.018);  // measured 0.0089 m
   const auto uploaded = client.get_json("/v1/sessions/" + std::to_string(done["session"].get<std::uint64_t>()));
   EXPECT_EQ(uploaded["sensor"], "mono");
@@ -251,10 +246,6 @@ TEST(ServerEndToEnd, ASingleCameraWithItsImuMapsInMetres) {
     ASSERT_TRUE(report.ate_rmse_m.has_value());
     EXPECT_FALSE(report.ate_sim3);
     streamed_ate = *report.ate_rmse_m;
-    std::printf(
-        "single camera with IMU over HTTP: %zu of %zu frames tracked, IMU initialised at %.2f s, ATE %.4f m "
-        "(SE3)\n",
-        report.tracked, report.frames, slam["imu_initialized_at_s"].get<double>(), streamed_ate);
     EXPECT_GE(report.tracked + 8, report.frames);
     // Measured 0.007-0.21 m over seven unpaced runs (alone and under the full
     // suite's load): the server maps asynchronously, and when the inertial
@@ -272,7 +263,6 @@ TEST(ServerEndToEnd, ASingleCameraWithItsImuMapsInMetres) {
   sim3.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;
   const double scale =
       evaluate_trajectory(stored, from_ground_truth_states(dataset.ground_truth), sim3).alignment.scale;
-  std::printf("after a restart: %zu poses, ATE %.4f m (SE3), Sim3 scale %.4f\n", stored.size(), stored_ate, scale);
   EXPECT_NEAR(stored_ate, streamed_ate, 1e-4);
   EXPECT_NEAR(scale, 1.0, 0.1);  // metric (measured within 0.056), not the arbitrary scale (x6-8) of its start
 }
@@ -338,9 +328,6 @@ TEST(ServerEndToEnd, ASingleCameraSessionLocalisesInTheStoredMap) {
   for (const auto m : report.reply_maps) EXPECT_EQ(m, stored_map);
   ASSERT_TRUE(report.ate_rmse_m.has_value());
   EXPECT_LT(*report.ate_rmse_m, 0.009);  // measured 0.0041 m
-  std::printf("single camera over the API: %zu of %zu frames tracked in map %llu, ATE %.4f m, %.1f frames/s\n",
-              report.tracked, report.frames, static_cast<unsigned long long>(stored_map), *report.ate_rmse_m,
-              report.fps());
   const nlohmann::json status = client.get_json("/v1/sessions/" + std::to_string(report.session));
   EXPECT_EQ(status["sensor"], "mono");
   EXPECT_EQ(status["state"], "finished");

@@ -178,8 +178,6 @@ TEST(SharedMaps, EightLocalisationSessionsShareAStoredMapAndChangeNothing) {
   }
   ASSERT_GT(error.poses, 8u * 40u);
   const double rmse = error.rmse();
-  std::printf("8 localisation sessions in one map: %zu poses, error in the map's frame %.4f m RMSE\n", error.poses,
-              rmse);
   EXPECT_LT(rmse, 0.011);  // measured 0.0055 m
 
   server.service().shutdown();  // the final checkpoint: what would change, is written
@@ -243,14 +241,8 @@ TEST(SharedMaps, TwoMappingSessionsOverOnePlaceBuildOneMap) {
   const auto end = metrics.find(end_line);
   ASSERT_NE(end, std::string::npos) << metrics;
   EXPECT_EQ(std::stod(metrics.substr(end + end_line.size())), 1.0);
-  const nlohmann::json merges = client.get_json("/v1/merges");
-  std::printf("device b %s map %llu (live merges: %zu); keyframes a %zu, b %zu\n",
-              rb.reply_maps.front() == shared ? "joined" : "was merged into", static_cast<unsigned long long>(shared),
-              merges["live_merges"].size(), ra.keyframes, rb.keyframes);
 
   const double joint = joint_ate({&ra, &rb}, {test::stereo_dataset(first), test::stereo_dataset(second)});
-  std::printf("joint ATE %.4f m under one alignment; a alone %.4f m, b alone %.4f m\n", joint, *ra.ate_rmse_m,
-              *rb.ate_rmse_m);
   EXPECT_LT(joint, 2.0 * std::max(*ra.ate_rmse_m, *rb.ate_rmse_m));
   EXPECT_LT(joint, 0.0055);  // measured 0.0027 m (a alone 0.0009, b alone 0.0039)
 }
@@ -280,7 +272,7 @@ TEST(SharedMaps, ALocalisationKeepsTrackingWhileAMergeAndAGlobalAdjustmentRewrit
   auto mapping = std::async(std::launch::async, [&] { return stream_at_camera_rate(server, visit, "map", "map"); });
   auto localize =
       std::async(std::launch::async, [&] { return stream_at_camera_rate(server, visit, "localize", "localize", 0.5); });
-  const StreamReport rm = mapping.get();
+  mapping.get();
   const StreamReport rl = localize.get();
 
   const nlohmann::json merges = client.get_json("/v1/merges");
@@ -291,8 +283,6 @@ TEST(SharedMaps, ALocalisationKeepsTrackingWhileAMergeAndAGlobalAdjustmentRewrit
   ASSERT_NE(gba, std::string::npos) << metrics;
   const double adjustments = std::stod(metrics.substr(gba + gba_line.size()));
   EXPECT_GE(adjustments, 1.0) << "a global BA followed the merge";
-  std::printf("mapping session: %zu/%zu frames tracked, merged live into map %s; %g global BA\n", rm.tracked, rm.frames,
-              merges["live_merges"][0]["target_map"].dump().c_str(), adjustments);
 
   EXPECT_EQ(rl.rejected, 0u);
   EXPECT_EQ(rl.keyframes, 0u);
@@ -301,10 +291,8 @@ TEST(SharedMaps, ALocalisationKeepsTrackingWhileAMergeAndAGlobalAdjustmentRewrit
   // merged (a localisation may track in any map of its rig); afterwards every
   // frame is in the stored map.
   const std::uint64_t merged_map = merges["live_merges"][0]["source_map"];
-  std::size_t in_merged = 0;
   for (const auto m : rl.reply_maps) {
     EXPECT_TRUE(m == stored_map || m == merged_map) << m;
-    in_merged += m == merged_map ? 1 : 0;
   }
   for (const auto m : rl.trajectory_maps) EXPECT_EQ(m, stored_map);
   const EurocDataset visit_data = test::stereo_dataset(visit);
@@ -313,10 +301,6 @@ TEST(SharedMaps, ALocalisationKeepsTrackingWhileAMergeAndAGlobalAdjustmentRewrit
   error.add(rl.trajectory, visit_data, built_data);
   ASSERT_GT(error.poses, 80u);
   const double rmse = error.rmse();
-  std::printf(
-      "localisation through the rewrite: %zu poses (%zu replies in the merged map), error in the map's frame "
-      "%.4f m RMSE\n",
-      error.poses, in_merged, rmse);
   EXPECT_LT(rmse, 0.013);  // measured 0.0064 m
 }
 

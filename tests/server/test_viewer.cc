@@ -179,8 +179,7 @@ TEST(Viewer, AHeadlessBrowserShowsTheStoredMapAndALiveSessionMoving) {
 
   for (const Capture* c : std::initializer_list<const Capture*>{&a, &b}) {
     ASSERT_TRUE(c->status.is_object()) << "the page wrote no status";
-    std::printf("viewer status: %s\n", c->status.dump().c_str());
-    EXPECT_TRUE(c->status.at("webgl").get<bool>());
+    EXPECT_TRUE(c->status.at("webgl").get<bool>()) << c->status.dump();
     EXPECT_TRUE(c->status.at("no_3d").is_null());
     EXPECT_TRUE(c->status.at("errors").empty()) << c->status.at("errors").dump();
     EXPECT_FALSE(c->status.at("maps").empty()) << "no map listed";
@@ -201,12 +200,9 @@ TEST(Viewer, AHeadlessBrowserShowsTheStoredMapAndALiveSessionMoving) {
   ASSERT_EQ(pb.size(), 3u) << "the live session was not drawn at the second look";
   const double moved = std::hypot(pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]);
   const int changed = changed_pixels(a, b);
-  std::printf(
-      "viewer: the live camera moved %.2f m between the looks; %d pixels of the 3D view changed; "
-      "screenshots %s, %s\n",
-      moved, changed, fs::absolute("viewer_first.png").c_str(), fs::absolute("viewer_second.png").c_str());
   EXPECT_GT(moved, 0.05);
-  EXPECT_GT(changed, 50);
+  EXPECT_GT(changed, 50) << "screenshots " << fs::absolute("viewer_first.png") << ", "
+                         << fs::absolute("viewer_second.png");
 }
 
 TEST(Viewer, WithoutWebGLThePageListsTheMapsAndSaysWhyThereIsNo3DView) {
@@ -232,8 +228,7 @@ TEST(Viewer, WithoutWebGLThePageListsTheMapsAndSaysWhyThereIsNo3DView) {
   std::error_code ec;
   fs::remove_all(profile, ec);
   ASSERT_TRUE(c.status.is_object()) << "the page wrote no status";
-  std::printf("viewer status without WebGL: %s\n", c.status.dump().c_str());
-  EXPECT_FALSE(c.status.at("webgl").get<bool>());
+  EXPECT_FALSE(c.status.at("webgl").get<bool>()) << c.status.dump();
   ASSERT_TRUE(c.status.at("no_3d").is_string()) << "the page does not say why there is no 3D view";
   EXPECT_NE(c.status.at("no_3d").get<std::string>().find("WebGL"), std::string::npos);
   EXPECT_TRUE(c.status.at("errors").empty()) << c.status.at("errors").dump();

@@ -73,8 +73,6 @@ TEST(DepthSensor, EveryPixelReadsTheDepthOfItsRay) {
       }
       EXPECT_NEAR(value / o.depth_map_factor, z, 0.5 / o.depth_map_factor + 1e-6);
     }
-  std::printf("%d pixels with depth, worst relative error %.2e (top-left corner %.2e), %d holes\n", checked, worst,
-              worst_corner, holes);
   EXPECT_GT(checked, exact.rows * exact.cols * 9 / 10);
   EXPECT_LT(worst, 4e-3);
   EXPECT_LT(worst_corner, 1e-3);     // measured 4.6e-4 (1.6e-3 overall)
@@ -122,8 +120,6 @@ TEST(DepthSensor, NoiseEdgesAndRange) {
       ++wall_pixels;
     }
   const double mean = sum / wall_pixels, sigma = std::sqrt(sum2 / wall_pixels - mean * mean);
-  std::printf("wall at 4 m: %d pixels, error mean %.2e m, sigma %.4f m (model %.4f); %d edge pixels without depth\n",
-              wall_pixels, mean, sigma, 1.425e-3 * 16.0, edge_holes);
   EXPECT_NEAR(sigma, 1.425e-3 * 16.0, 0.02 * 1.425e-3 * 16.0);
   EXPECT_LT(std::abs(mean), 3.0 * sigma / std::sqrt(wall_pixels));
   EXPECT_GT(edge_holes, 4 * 200);  // the board's outline: about 4 x 230 pixels
@@ -164,8 +160,6 @@ TEST(DepthSensor, ASimulatedSequenceReadsBackAsTumRgbd) {
   EXPECT_GT(d.ground_truth.size(), 90u);  // 200 Hz body poses over 0.5 s
   const cv::Mat depth = read_depth_image(d.frames.front().depth, 752, 480);
   const int valid = cv::countNonZero(depth);
-  std::printf("%zu frames; first depth image: %d of %d pixels with depth\n", d.frames.size(), valid,
-              depth.rows * depth.cols);
   EXPECT_GT(valid, depth.rows * depth.cols / 4);
   std::filesystem::remove_all(out);
 }

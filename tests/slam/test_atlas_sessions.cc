@@ -120,8 +120,6 @@ TEST(AtlasSessions, RunsAppendSessionsAndLocalizationTracksInTheStoredMapFrame) 
   }
   ASSERT_GT(n, 0u);
   const double ate = std::sqrt(sum2 / static_cast<double>(n));
-  std::printf("localised %zu of %zu frames (%.1f%%), ATE in the map frame %.4f m\n", loc.trajectory.size(),
-              loc.stats.frames, 100.0 * fraction, ate);
   EXPECT_LT(ate, 0.008);  // measured 0.0037 m
 
   // A run with another rig (the same images, fx 1 px off): local mapping would
@@ -182,8 +180,6 @@ TEST(AtlasSessions, SeveralRecordingsAtOnceMapOnePlaceTogether) {
   std::sort(joint.begin(), joint.end(), by_time);
   std::sort(truth.begin(), truth.end(), by_time);
   const double joint_ate = evaluate_trajectory(joint, truth).ate.rmse;
-  std::printf("two recordings at once: joint ATE %.4f m; alone %.4f and %.4f m; live merges %zu\n", joint_ate,
-              *reports[0].ate_rmse_m, *reports[1].ate_rmse_m, reports[0].stats.loop.merges.size());
   EXPECT_LT(joint_ate, 2.0 * std::max(*reports[0].ate_rmse_m, *reports[1].ate_rmse_m));
   EXPECT_LT(joint_ate, 0.0036);  // measured 0.0018 m (alone 0.0008 and 0.0023)
 
@@ -249,11 +245,6 @@ TEST(AtlasSessions, AMapSeveralRecordingsMapAtOnceIsAdjustedWholeAsItGrows) {
       runs);
   if (HasFatalFailure()) return;
   const auto& [with, without, alone] = runs;
-  std::printf(
-      "shared-map global BAs %td (%zu global BAs in all); ATE with %.4f, %.4f m, without %.4f, %.4f m, "
-      "alone %.4f m\n",
-      shared_map_runs(with[0]), with[0].stats.loop.global_adjustments.size(), *with[0].ate_rmse_m, *with[1].ate_rmse_m,
-      *without[0].ate_rmse_m, *without[1].ate_rmse_m, *alone[0].ate_rmse_m);
   EXPECT_GE(shared_map_runs(with[0]), 1);
   EXPECT_EQ(shared_map_runs(without[0]), 0);
   EXPECT_EQ(shared_map_runs(alone[0]), 0);
@@ -291,9 +282,6 @@ TEST(AtlasSessions, ARecordingEndingInASharedMapHasTheMapAdjustedInItsFinish) {
   if (HasFatalFailure()) return;
   const auto& [with, without, alone] = runs;
   const auto ended = stream_end_runs(with[0]);
-  std::printf("global BAs at an end: %zu (%zu keyframes, %.2f s); ATE with %.4f, %.4f m, without %.4f, %.4f m\n",
-              ended.size(), ended.empty() ? 0 : ended[0].keyframes, ended.empty() ? 0.0 : ended[0].seconds,
-              *with[0].ate_rmse_m, *with[1].ate_rmse_m, *without[0].ate_rmse_m, *without[1].ate_rmse_m);
   std::set<MapId> maps(with[0].trajectory_maps.begin(), with[0].trajectory_maps.end());
   maps.insert(with[1].trajectory_maps.begin(), with[1].trajectory_maps.end());
   ASSERT_EQ(maps.size(), 1u);  // the two recordings' map: merged, shared
@@ -338,10 +326,6 @@ TEST(AtlasSessions, ASessionInAnothersMapMakesKeyframesForItsOwnClosePoints) {
       EXPECT_TRUE(r.failed.empty()) << r.failed;
       ASSERT_TRUE(r.ate_rmse_m.has_value());
     }
-  std::printf("keyframes made with the rule %zu, %zu (ATE %.4f, %.4f m); without %zu, %zu (ATE %.4f, %.4f m)\n",
-              with[0].stats.keyframes_made, with[1].stats.keyframes_made, *with[0].ate_rmse_m, *with[1].ate_rmse_m,
-              without[0].stats.keyframes_made, without[1].stats.keyframes_made, *without[0].ate_rmse_m,
-              *without[1].ate_rmse_m);
   // MH_02 tracks MH_01's points (measured 6-7 keyframes with the rule, 2-5
   // without, in 14 runs; MH_01 10-11 and 8-11).
   EXPECT_GT(with[1].stats.keyframes_made, without[1].stats.keyframes_made);
@@ -364,9 +348,6 @@ TEST(AtlasSessions, ASessionInAnothersMapMakesKeyframesForItsOwnClosePoints) {
     ASSERT_EQ(x[i].t_ns, y[i].t_ns);
     largest = std::max(largest, translation_distance(x[i].pose, y[i].pose));
   }
-  std::printf("alone: %zu and %zu keyframes, ATE %.4f and %.4f m, poses at most %.2g m apart\n",
-              alone_with[0].stats.keyframes_made, alone_without[0].stats.keyframes_made, *alone_with[0].ate_rmse_m,
-              *alone_without[0].ate_rmse_m, largest);
   EXPECT_NEAR(*alone_with[0].ate_rmse_m, *alone_without[0].ate_rmse_m, 0.0005);
   EXPECT_LT(largest, 0.005);
 
@@ -382,14 +363,9 @@ TEST(AtlasSessions, ASessionInAnothersMapMakesKeyframesForItsOwnClosePoints) {
       EXPECT_GT(local_points(r).p50, 100.0);
       EXPECT_EQ(r.stats.maps_wait_ms.count(), r.stats.frames);  // every frame's wait for the maps
     }
-  std::printf("local map of MH_02's frames, shared map: %.0f keyframes p50 (max %.0f), %.0f points; alone MH_01 %.0f\n",
-              local_keyframes(with[1]).p50, local_keyframes(with[1]).max, local_points(with[1]).p50,
-              local_keyframes(alone_with[0]).p50);
   EXPECT_GT(local_keyframes(with[1]).max, 8.0);
   const auto capped = run(true, {a, b}, "capped", 8);
   ASSERT_EQ(capped.size(), 2u);
-  std::printf("at most 8 local keyframes: ATE %.4f, %.4f m\n", capped[0].ate_rmse_m.value_or(-1.0),
-              capped[1].ate_rmse_m.value_or(-1.0));
   for (const auto& r : capped) {
     EXPECT_TRUE(r.failed.empty()) << r.failed;
     EXPECT_LE(local_keyframes(r).max, 8.0);

@@ -120,16 +120,9 @@ TEST(InertialSlam, AStereoInertialRunInitialisesItsMapsGravityAndBiases) {
                                         return std::llabs(a.t_ns - at) < std::llabs(b.t_ns - at);
                                       });
   const double gyro_error = (s.imu_bias.gyro - truth->gyro_bias).norm();
-  std::printf(
-      "initialised at %.2f s with %zu linked keyframes: gravity off by %.3f deg, gyro bias off by %.5f rad/s "
-      "(true %.4f), accelerometer bias %.3f (true %.3f) m/s^2\n",
-      *s.imu_initialized_at_s, s.imu_linked_keyframes, gravity_deg, gyro_error, truth->gyro_bias.norm(),
-      s.imu_bias.accel.norm(), truth->accel_bias.norm());
   EXPECT_LT(gravity_deg, 0.7);    // measured 0.32 deg
   EXPECT_LT(gyro_error, 0.0005);  // measured 0.0002 rad/s (true bias 0.016)
   ASSERT_TRUE(report.ate_rmse_m.has_value());
-  std::printf("ATE after the final visual-inertial BA %.4f m, %zu inertial edges\n", *report.ate_rmse_m,
-              s.final_ba_inertial_edges);
   EXPECT_LT(*report.ate_rmse_m, 0.002);  // measured 0.0009 m
   const nlohmann::json j = to_json(report);
   EXPECT_TRUE(j.contains("imu_initialized_at_s"));
@@ -169,10 +162,6 @@ TEST(InertialSlam, TheImuCarriesTrackingThroughOneSecondOfBlackFrames) {
   ASSERT_TRUE(gap->after_m.has_value());
   EXPECT_EQ(report.black_out->error_at_end_m, gap->at_end_m);  // what `orbatlas run --black-out` reports
   const double end_of_gap = gap->at_end_m, after_gap = *gap->after_m, gap_end_s = ns_to_s(gap->end_t_ns - start);
-  std::printf(
-      "%zu frames tracked by the IMU; position off by %.3f m at the end of the gap (%.2f s), %.3f m at the "
-      "first frame after it; ATE of the run %.4f m\n",
-      s.frames_tracked_by_imu, end_of_gap, gap_end_s, after_gap, report.ate_rmse_m.value_or(-1.0));
   EXPECT_GT(gap_end_s, 4.9);
   EXPECT_LT(end_of_gap, 0.006);  // measured 0.003 m (0.014 m before visual-inertial BA; the bar: 0.10 m)
   EXPECT_LT(after_gap, 0.006);   // measured 0.003 m
@@ -193,7 +182,6 @@ TEST(InertialSlam, ASessionFindsTheImusClockOffsetAndUsesIt) {
   EXPECT_EQ(s.maps_started, 1u);
   ASSERT_TRUE(s.imu_time_offset_ms.has_value()) << "no estimate of the IMU's clock after 16 s";
   ASSERT_TRUE(report.ate_rmse_m.has_value());
-  std::printf("IMU clock offset found: %+.2f ms (true +5 ms); ATE %.4f m\n", *s.imu_time_offset_ms, *report.ate_rmse_m);
   EXPECT_NEAR(*s.imu_time_offset_ms, 5.0, 1.0);  // measured 4.41 ms
   EXPECT_EQ(to_json(report)["imu_time_offset_ms"], *s.imu_time_offset_ms);
   EXPECT_LT(*report.ate_rmse_m, 0.007);  // measured 0.0035 m
@@ -215,17 +203,11 @@ TEST(InertialSlam, ABadImuStreamIsReportedAndVisionCarriesOn) {
   const DatasetRunReport report = run_stereo_inertial(clip);
   const SlamStats& s = report.stats;
   const ImuInputHealth& h = s.imu_input;
-  std::printf(
-      "dropped: %zu not finite, %zu stuck; %zu gaps (longest %.0f ms); %zu frames tracked of %zu, %zu "
-      "maps; ATE %.4f m\n",
-      h.non_finite, h.stuck, h.gaps, h.longest_gap_s * 1e3, s.tracked, s.frames, s.maps_started,
-      report.ate_rmse_m.value_or(-1.0));
-  for (const auto& w : h.warnings) std::printf("  %s\n", w.c_str());
   EXPECT_EQ(h.non_finite, 2u);
   EXPECT_EQ(h.stuck, 151u);  // 200 samples stuck, the first 49 not yet told
   EXPECT_EQ(h.gaps, 1u);
   EXPECT_NEAR(h.longest_gap_s, 0.305, 0.006);
-  ASSERT_EQ(h.warnings.size(), 3u);
+  ASSERT_EQ(h.warnings.size(), 3u) << to_json(report)["imu_input"].dump();
   const nlohmann::json j = to_json(report);
   EXPECT_EQ(j["imu_input"]["warnings"].size(), 3u);
   EXPECT_EQ(j["imu_input"]["dropped_stuck"], 151u);
@@ -256,11 +238,6 @@ TEST(InertialSlam, AMapWhoseImuDisagreesGoesVisualAndIsInitialisedAgain) {
   ASSERT_TRUE(report.ate_rmse_m.has_value());
   ASSERT_TRUE(baseline.ate_rmse_m.has_value());
   ASSERT_TRUE(unchecked.ate_rmse_m.has_value());
-  std::printf(
-      "bias jump: %zu resets, %zu given up, %zu frames tracked of %zu, ATE %.4f m (without the check %.4f m, "
-      "without the jump %.4f m)\n",
-      s.mapping.inertial_resets, s.mapping.inertial_given_up, s.tracked, s.frames, *report.ate_rmse_m,
-      *unchecked.ate_rmse_m, *baseline.ate_rmse_m);
   EXPECT_EQ(unchecked.stats.mapping.inertial_resets, 0u);
   EXPECT_LT(*report.ate_rmse_m, *unchecked.ate_rmse_m);
   EXPECT_EQ(baseline.stats.mapping.inertial_resets, 0u);

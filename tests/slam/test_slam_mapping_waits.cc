@@ -4,7 +4,6 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
-#include <cstdio>
 #include <memory>
 #include <opencv2/imgcodecs.hpp>
 #include <thread>
@@ -51,8 +50,6 @@ TEST(SlamSystem, TheFrameAfterAKeyframeWaitsForItsAdjustmentWhenAsked) {
     const SlamStats stats = slam.stats();
     EXPECT_EQ(tracked, frames.size());
     ASSERT_GT(stats.keyframes_made, 2u);
-    std::printf("wait bound %.0f ms: %zu keyframes, %zu waits (mean %.2f ms), %zu cut\n", wait_ms, stats.keyframes_made,
-                stats.mapping_wait_ms.count(), stats.mapping_wait_ms.mean(), stats.mapping_waits_cut);
     if (wait_ms > 0.0) {
       EXPECT_EQ(stats.mapping_wait_ms.count(), stats.keyframes_made - (last_made_keyframe ? 1 : 0));
       EXPECT_EQ(stats.mapping_waits_cut, 0u);

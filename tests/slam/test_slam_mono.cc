@@ -40,9 +40,6 @@ TEST(MonoSlam, ASimulatedClipMapsWithinAFractionOfItsPath) {
   const EurocDataset dataset = test::stereo_dataset(clip);
   const double path_m =
       path_length(dataset.ground_truth, report.trajectory.front().t_ns, report.trajectory.back().t_ns);
-  std::printf("mono: %zu of %zu frames tracked, %zu keyframes, %zu two-view attempts, ATE %.4f m (Sim3) over %.1f m\n",
-              report.stats.tracked, report.stats.frames, report.stats.keyframes, report.stats.monocular_attempts,
-              *report.ate_rmse_m, path_m);
   EXPECT_EQ(report.stats.frames, 401u);
   EXPECT_EQ(report.stats.monocular_starts, 1u);
   EXPECT_EQ(report.stats.maps, 1u);
@@ -76,11 +73,6 @@ TEST(MonoInertialSlam, TheImuGivesTheMapItsMetricScale) {
   sim3.estimate_T_b_x = dataset.cameras[0].calibration.T_b_c;
   const EvalResult with_scale =
       evaluate_trajectory(report.trajectory, from_ground_truth_states(dataset.ground_truth), sim3);
-  std::printf(
-      "mono-inertial: %zu of %zu frames tracked, %zu maps, IMU initialised at %.2f s, ATE %.4f m (SE3), "
-      "scale error %.4f\n",
-      report.stats.tracked, report.stats.frames, report.stats.maps, *report.stats.imu_initialized_at_s,
-      *report.ate_rmse_m, with_scale.alignment.scale - 1.0);
   EXPECT_EQ(report.stats.maps, 1u);
   EXPECT_GE(report.stats.tracked, 290u);                        // of 301; the map starts at the fifth frame
   EXPECT_LT(*report.stats.imu_initialized_at_s, 3.5);           // measured 2.75 s (ten keyframes)

@@ -27,8 +27,6 @@ TEST(RgbdSlam, ASimulatedRgbdClipMapsAsAccuratelyAsStereo) {
   const DatasetRunReport stereo = run_clip(clip, "stereo.yaml");
   ASSERT_TRUE(rgbd.ate_rmse_m.has_value());
   ASSERT_TRUE(stereo.ate_rmse_m.has_value());
-  std::printf("RGB-D: %zu of %zu frames tracked, %zu keyframes, ATE %.4f m; stereo: ATE %.4f m\n", rgbd.stats.tracked,
-              rgbd.stats.frames, rgbd.stats.keyframes, *rgbd.ate_rmse_m, *stereo.ate_rmse_m);
   EXPECT_EQ(rgbd.stats.frames, 201u);
   EXPECT_EQ(rgbd.stats.tracked, rgbd.stats.frames);
   EXPECT_EQ(rgbd.stats.maps, 1u);

@@ -56,8 +56,6 @@ TEST(RgbdFrontend, KeypointsGetTheRenderedDepthAndAVirtualRightCoordinate) {
   ASSERT_GT(errors.size(), 100u);
   std::sort(errors.begin(), errors.end());
   const double median = errors[errors.size() / 2], p95 = errors[errors.size() * 95 / 100];
-  std::printf("%zu keypoints, %zu with depth; relative depth error median %.2e, 95th percentile %.2e, max %.2e\n",
-              f.size(), with_depth, median, p95, errors.back());
   EXPECT_GE(f.size(), 900u);
   EXPECT_GT(with_depth, f.size() / 2);
   // Measured: median 1.9e-5, 95th percentile 5.6e-3 (keypoints next to a depth edge).

@@ -84,7 +84,6 @@ TEST(StereoFrontend, RenderedPairGivesKeypointsWithDepthConsistentWithTheScene) 
   }
   ASSERT_GT(rel.size(), 300u);
   std::nth_element(rel.begin(), rel.begin() + static_cast<std::ptrdiff_t>(rel.size() / 2), rel.end());
-  std::cout << rel.size() << " stereo keypoints checked, median relative depth error " << rel[rel.size() / 2] << "\n";
   EXPECT_LT(rel[rel.size() / 2], 0.01);
 }
 
@@ -105,7 +104,6 @@ TEST(StereoFrontend, ParallelAndSerialFrontEndsMakeTheSameFrames) {
   EXPECT_LE(parallel.right_images_on_worker(), static_cast<std::size_t>(kFrames));
   EXPECT_EQ(serial.stereo_frames(), static_cast<std::size_t>(kFrames));
   EXPECT_EQ(serial.right_images_on_worker(), 0u);
-  std::cout << parallel.right_images_on_worker() << " of " << kFrames << " right images on the worker\n";
 }
 
 // The warm-up before a session's first frame (a textured pair of the

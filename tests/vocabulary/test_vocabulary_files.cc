@@ -4,7 +4,6 @@
 
 #include <filesystem>
 #include <fstream>
-#include <iostream>
 #include <iterator>
 #include <random>
 #include <string>
@@ -69,7 +68,6 @@ void expect_data_error(const fs::path& path, const std::string& bytes, const std
     ADD_FAILURE() << what << ": no error";
   } catch (const DataError& e) {
     EXPECT_NE(std::string(e.what()).find(path.string()), std::string::npos) << e.what();
-    std::cout << "  " << what << ": " << e.what() << "\n";
   }
 }
 
