@@ -156,7 +156,7 @@ void LoopCloser::handle_stream_end(const std::shared_ptr<StreamEndWait>& wait) {
     }
     forget_merged_maps();
     const bool due = options_.global_bundle_adjustment && options_.stream_end_refinement_growth > 0.0 &&
-                     refinement_due(wait->map, options_.stream_end_refinement_growth);
+                     refinement_due(wait->map, options_.stream_end_refinement_growth, true);
     if (!due) return tell(true);
     {
       std::lock_guard lock(global_mutex_);
@@ -177,13 +177,18 @@ void LoopCloser::forget_merged_maps() {
   std::erase_if(since_global_, [&](const auto& entry) { return !atlas_.map(entry.first); });
 }
 
-bool LoopCloser::refinement_due(MapId map_id, double growth) {
+bool LoopCloser::refinement_due(MapId map_id, double growth, bool at_stream_end) {
   const auto map = atlas_.map(map_id);
   if (!map) return false;
   const auto it = since_global_.find(map_id);
   if (it == since_global_.end()) return false;
   const std::size_t keyframes = map->keyframe_count();
-  return it->second.streams.size() >= 2 && keyframes >= options_.shared_map_refinement_min_keyframes &&
+  // A single camera's initialised inertial map takes its scale from the IMU
+  // alone: at a session's end it is adjusted once more with every inertial
+  // term, however many sessions mapped it.
+  const bool imu_scale =
+      at_stream_end && options_.stream_end_imu_scale && options_.monocular && map->inertial_state().has_value();
+  return (it->second.streams.size() >= 2 || imu_scale) && keyframes >= options_.shared_map_refinement_min_keyframes &&
          static_cast<double>(keyframes) >= (1.0 + growth) * static_cast<double>(it->second.keyframes);
 }
 
@@ -274,7 +279,7 @@ void LoopCloser::refine_shared_map(const Item& item) {
   forget_merged_maps();
   since_global_[map->id()].streams.insert(item.stream);  // a stream's end asks too (handle_stream_end)
   if (!options_.global_bundle_adjustment || options_.shared_map_refinement_growth <= 0.0 ||
-      !refinement_due(map->id(), options_.shared_map_refinement_growth))
+      !refinement_due(map->id(), options_.shared_map_refinement_growth, false))
     return;
   const SinceGlobalAdjustment& since = since_global_[map->id()];
   const std::size_t keyframes = map->keyframe_count();

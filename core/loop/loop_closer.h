@@ -66,6 +66,10 @@ struct LoopCloserOptions {
   // trajectory (0: never). Between two refinements of the rule above a shared
   // map grows by up to half, unadjusted.
   double stream_end_refinement_growth = 0.1;
+  // A single camera's inertial map (monocular, initialised) gets that global BA
+  // at a session's end when one session mapped it too: its scale comes from
+  // the IMU alone (SlamSystemOptions::final_ba_for_imu_scale sets it).
+  bool stream_end_imu_scale = false;
   // The sessions' maps have no metric scale until an IMU gives them one
   // (monocular): loops and merges are then similarities (Sim(3)).
   bool monocular = false;
@@ -206,9 +210,10 @@ class LoopCloser {
   bool adjust_inertial_map(const Item& item);
   // Worker thread: the stream-end request of refine_at_stream_end().
   void handle_stream_end(const std::shared_ptr<StreamEndWait>& wait);
-  // Worker thread: a map is due a refinement when streams.size() >= 2 and it
-  // has at least min_keyframes and (1 + growth) times its keyframes then.
-  bool refinement_due(MapId map, double growth);
+  // Worker thread: a map is due a refinement when streams.size() >= 2 (at a
+  // stream's end also a single camera's inertial map, stream_end_imu_scale)
+  // and it has at least min_keyframes and (1 + growth) times its keyframes then.
+  bool refinement_due(MapId map, double growth, bool at_stream_end);
   // Worker thread: drops since_global_'s entries of maps merged away.
   void forget_merged_maps();
   // A global BA of the keyframe's map when several streams map it and it grew

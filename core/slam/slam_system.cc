@@ -91,7 +91,10 @@ SlamSystem::SlamSystem(Atlas& atlas, const SlamSettings& settings, const Vocabul
         .T_b_i = T_b_i, .max_chain_keyframes = options_.mapper.inertial.refinement_max_keyframes};
     options_.loop.global.inertial = global_inertial;
     options_.final_ba.inertial = global_inertial;
-    if (monocular_ && options_.final_ba_for_imu_scale) options_.final_global_ba = true;
+    if (monocular_ && options_.final_ba_for_imu_scale) {
+      options_.final_global_ba = true;            // offline, with mapping of its own
+      options_.loop.stream_end_imu_scale = true;  // the server's shared mapping, at the session's end
+    }
     // ORB-SLAM3's inertial keyframe rules: one at least every 0.5 s, and
     // culling keeps the joined increments short (0.5 s before the map's
     // initialisation, 3 s after).

@@ -77,7 +77,9 @@ struct SlamSystemOptions {
   // its last refinement (75 s after the initialisation) and the full BA after
   // it left MH_05 0.2-0.8 % off in scale; one more full visual-inertial BA at
   // the end, with every inertial term of the session, brought it to 0.16-0.25 %
-  // (docs/inertial.md). On: such a session runs the final global BA above.
+  // (docs/inertial.md). On: such a session runs the final global BA above, or
+  // in the server's shared mapping the global BA at its end
+  // (LoopCloserOptions::stream_end_imu_scale, within shared_map_finish_wait_s).
   bool final_ba_for_imu_scale = true;
   GlobalBundleAdjustmentOptions final_ba;
   // With a shared mapping (the server's): at the end, finish() waits at most

@@ -127,8 +127,8 @@ const std::vector<Binding>& bindings() {
                       "this many inertial refinements",
                       loop.settled_inertial_refinements),
       ORBATLAS_TUNING("LoopClosing.FinalBaForImuScale", 0, 1, true,
-                      "1: an offline single camera with an IMU ends with a full visual-inertial global BA (its map's "
-                      "scale from every inertial term)",
+                      "1: a single camera with an IMU ends with a full visual-inertial global BA (its map's scale from "
+                      "every inertial term; a server session at its finish)",
                       final_ba_for_imu_scale),
   };
   return all;

@@ -74,10 +74,15 @@ TEST(MonoInertialSlam, TheImuGivesTheMapItsMetricScale) {
   const EvalResult with_scale =
       evaluate_trajectory(report.trajectory, from_ground_truth_states(dataset.ground_truth), sim3);
   EXPECT_EQ(report.stats.maps, 1u);
-  EXPECT_GE(report.stats.tracked, 290u);                        // of 301; the map starts at the fifth frame
-  EXPECT_LT(*report.stats.imu_initialized_at_s, 3.5);           // measured 2.75 s (ten keyframes)
-  EXPECT_LT(std::abs(with_scale.alignment.scale - 1.0), 0.01);  // the bound; measured 0.0063
-  EXPECT_LT(*report.ate_rmse_m, 0.09);                          // measured 0.044 m
+  EXPECT_GE(report.stats.tracked, 290u);               // of 301; the map starts at the fifth frame
+  EXPECT_LT(*report.stats.imu_initialized_at_s, 3.5);  // measured 2.75 s (ten keyframes)
+  EXPECT_LT(std::abs(with_scale.alignment.scale - 1.0), 0.01) << with_scale.alignment.scale;  // the bound
+  EXPECT_LT(*report.ate_rmse_m, 0.05);
+  // Its scale comes from the IMU alone: the session ends with one more full
+  // visual-inertial BA (Orbatlas.LoopClosing.FinalBaForImuScale, on).
+  // Measured: 26 keyframes; scale 0.0052 off and ATE 0.024 m with it, 0.0063
+  // and 0.044 m without.
+  EXPECT_GT(report.stats.final_ba_keyframes, 10u);
 }
 
 }  // namespace
