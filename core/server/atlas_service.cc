@@ -368,13 +368,15 @@ FrameReply AtlasService::process_frame(SessionId id, TimestampNs t_ns, const cv:
     metrics_.frame_rejected();
     throw;
   }
-  if (reply.skipped || reply.result.maps_busy) {
-    if (reply.skipped) metrics_.frame_skipped();
-    if (reply.result.maps_busy) metrics_.frame_maps_busy();
+  if (reply.skipped) {
+    metrics_.frame_skipped();
     return reply;  // nothing tracked: the leases and the checkpoints stay as they are
   }
+  // A frame answered maps_busy was not tracked either, but its time in the
+  // server (the bound) counts in the latency figures.
+  if (reply.result.maps_busy) metrics_.frame_maps_busy();
   // A localisation holds no lease: it changes nothing, any number share a map.
-  if (live->mode() != SessionMode::kLocalize) {
+  if (live->mode() != SessionMode::kLocalize && !reply.result.maps_busy) {
     leases_.settle(id, reply.result.tracked ? std::optional<MapId>(reply.result.map) : std::nullopt);
     if (reply.result.tracked) {
       // Known to be of this rig from its first frame: other sessions may enter it.

@@ -74,9 +74,9 @@ struct SlamSystemOptions {
   // of several recordings adjusts their maps once all of them ended).
   bool final_global_ba = false;
   // A single camera with an IMU: its map's scale comes from the IMU alone, and
-  // its last refinement (75 s after the initialisation) and the full BA after
-  // it left MH_05 0.2-0.8 % off in scale; one more full visual-inertial BA at
-  // the end, with every inertial term of the session, brought it to 0.16-0.25 %
+  // the refinements stop 75 s after the initialisation, each setting the scale
+  // from a window of the chain; one more full visual-inertial BA at the end,
+  // with every inertial term of the session, sets it from all of them
   // (docs/inertial.md). On: such a session runs the final global BA above, or
   // in the server's shared mapping the global BA at its end
   // (LoopCloserOptions::stream_end_imu_scale, within shared_map_finish_wait_s).

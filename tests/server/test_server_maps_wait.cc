@@ -50,6 +50,7 @@ TEST(ServerMapsWait, ARealTimeFrameHeldPastTheBoundIsAnsweredMapsBusy) {
   const nlohmann::json status = client.get_json("/v1/sessions/" + std::to_string(live));
   EXPECT_EQ(status["maps_busy_frames"], 1u);
   EXPECT_EQ(status["frames"], 6u);
+  EXPECT_EQ(status["request_ms"]["count"], 6u) << "the answered maps_busy frame counts in the latency";
   EXPECT_NE(client.get_text("/metrics").find("orbatlas_frames_maps_busy_total 1"), std::string::npos);
   client.finish_session(live);
 
