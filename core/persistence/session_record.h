@@ -1,6 +1,6 @@
 #pragma once
 // What a session did, as its last checkpoint stored it (table session_records,
-// schema 16): its counts and how it ended, so that a session read back by a later
+// schemas 16, 17): its counts and how it ended, so that a session read back by a later
 // run reports what it had, not what its stored trajectory implies.
 #include <cstddef>
 #include <map>
@@ -13,8 +13,9 @@ namespace orbatlas {
 
 struct SessionRecord {
   std::size_t frames = 0, tracked = 0, keyframes = 0, rejected_frames = 0, skipped_frames = 0, imu_samples = 0;
-  std::string mode;    // "map", "localize" ("" when not known)
-  std::string config;  // the config it was started with ("" for inline settings)
+  std::size_t maps_busy_frames = 0;  // answered untracked: the maps were held past the session's bound
+  std::string mode;                  // "map", "localize" ("" when not known)
+  std::string config;                // the config it was started with ("" for inline settings)
   // "active" (the last checkpoint saw it running: the server stopped before its
   // end was stored), "finished" or "failed".
   std::string outcome = "active";

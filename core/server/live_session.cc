@@ -60,6 +60,7 @@ LiveSession::LiveSession(SessionInfo info, const std::optional<SessionRecord>& r
   keyframes_ = record->keyframes;
   rejected_frames_ = record->rejected_frames;
   skipped_frames_ = record->skipped_frames;
+  maps_busy_frames_ = record->maps_busy_frames;
   imu_samples_ = record->imu_samples;
   error_ = record->error;
   // A session the last checkpoint saw running: the server stopped before its end was stored.
@@ -275,6 +276,7 @@ SessionRecord LiveSession::record() const {
   r.keyframes = keyframes_;
   r.rejected_frames = rejected_frames_;
   r.skipped_frames = skipped_frames_;
+  r.maps_busy_frames = maps_busy_frames_;
   r.imu_samples = imu_samples_;
   r.mode = mode_ ? session_mode_name(*mode_) : "";
   r.config = config_;

@@ -134,6 +134,41 @@ TEST(Persistence, VersionFiveSessionsSurviveTheRebuildForRgbd) {
   EXPECT_THROW(store.save_trajectory(99, {FrameAnchor{1, 0, 1, Pose3()}}), Error);
 }
 
+// Schema 17 added maps_busy_frames to session_records: a record of schema 16
+// keeps its counts and reads 0 there, and takes the count once migrated.
+TEST(Persistence, ASessionRecordOfSchemaSixteenGetsItsMapsBusyCount) {
+  TempDb db("v16");
+  SessionInfo session;
+  session.id = 5;
+  session.name = "live";
+  session.sensor = SensorType::kStereo;
+  SessionRecord record;
+  record.frames = 120;
+  record.tracked = 117;
+  record.skipped_frames = 3;
+  record.maps_busy_frames = 2;
+  record.mode = "map";
+  record.outcome = "finished";
+  {
+    AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+    store.save_session(session);
+    store.save_session_record(5, record);
+  }
+  {
+    SqliteDb raw(db.path());
+    raw.exec(
+        "BEGIN; ALTER TABLE session_records DROP COLUMN maps_busy_frames; DELETE FROM schema_migrations WHERE "
+        "version >= 17; PRAGMA user_version = 16; COMMIT");
+  }
+  AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
+  EXPECT_EQ(store.schema_version(), latest_schema_version());
+  SessionRecord expected = record;
+  expected.maps_busy_frames = 0;
+  EXPECT_EQ(store.load_session_records().at(5), expected);
+  store.save_session_record(5, record);
+  EXPECT_EQ(store.load_session_records().at(5), record);
+}
+
 TEST(Persistence, SchemaConstraintsHold) {
   TempDb db("constraints");
   { AtlasStore::open(db.path(), test_vocabulary().hash()); }

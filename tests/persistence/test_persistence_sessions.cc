@@ -87,6 +87,7 @@ TEST_P(PersistenceBackends, SessionRecordsRoundTrip) {
   finished.keyframes = 311;
   finished.rejected_frames = 2;
   finished.skipped_frames = 5;
+  finished.maps_busy_frames = 4;
   finished.imu_samples = 36'820;
   finished.mode = "map";
   finished.config = "euroc/stereo_inertial";

@@ -175,7 +175,7 @@ TEST_F(PgSchemaTest, ADatabaseOfTheSeparateListIsRenumberedAndMigratedOn) {
   // Back to what the separate list left: its rows 1..8, no session_records.
   db_->exec(
       "BEGIN; DROP TABLE session_records; DELETE FROM schema_migrations WHERE version BETWEEN 2 AND 8 OR version "
-      "= 16; UPDATE schema_migrations SET name = '001_initial.sql' WHERE version = 1; UPDATE schema_migrations SET "
+      ">= 16; UPDATE schema_migrations SET name = '001_initial.sql' WHERE version = 1; UPDATE schema_migrations SET "
       "version = version - 7, name = CASE version WHEN 9 THEN '002_atlas_writer.sql' WHEN 10 THEN "
       "'003_replicas.sql' WHEN 11 THEN '004_map_owners.sql' WHEN 12 THEN '005_shared_jobs.sql' WHEN 13 THEN "
       "'006_shared_merges.sql' WHEN 14 THEN '007_merge_claims.sql' ELSE '008_session_merge_work.sql' END WHERE "
