@@ -39,6 +39,10 @@ const std::vector<Binding>& bindings() {
                       tracker.min_inliers_inertial_recently_lost),
       ORBATLAS_TUNING("Tracker.MaxFramesBetweenKeyframes", 1, 10000, true,
                       "a keyframe at least this often (default: the frame rate)", tracker.max_frames_between_keyframes),
+      ORBATLAS_TUNING("Tracker.MaxKeyframeIntervalSeconds", 0, 3600, false,
+                      "a keyframe at least this often while tracking holds (0: the sensor's, 0.5 s with an IMU, "
+                      "0.25 s for a single camera with one, none without)",
+                      tracker.max_keyframe_interval_s),
       ORBATLAS_TUNING("Tracker.RecentlyLostSeconds", 0, 3600, false,
                       "relocalisation is tried this long before a lost map is given up", tracker.recently_lost_s),
       ORBATLAS_TUNING("Tracker.MaxMappingWaitMs", 0, TrackerOptions::kLongestMappingWaitMs, false,

@@ -4,6 +4,7 @@
 // camera of a stereo config alone.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <iterator>
 #include <map>
@@ -140,6 +141,40 @@ TEST(SlamTuning, SettingsKeysSetTheOptionsAndBadOnesAreRefused) {
   wrong.orbatlas["Tracker.Typo"] = 1;
   Atlas other;
   EXPECT_THROW(SlamSystem(other, wrong, vocabulary), DataError);
+}
+
+// Orbatlas.Tracker.MaxKeyframeIntervalSeconds: while tracking holds, a keyframe
+// at least that often (what an IMU's sessions get by default); a stereo rig
+// hovering in MH_01 otherwise goes longer without one.
+TEST(SlamSystem, TheKeyframeIntervalKeyBoundsTheTimeBetweenKeyframes) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 3.0);
+  test::ClipCleanup cleanup{clip};
+  const auto frames = test::stereo_frames(clip);
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  SlamSystemOptions o;
+  o.synchronous_mapping = true;  // local mapping never has keyframes queued
+  auto longest_gap_s = [&](double interval_s) {
+    SlamSettings settings = read_settings(stereo_settings(), SensorType::kStereo);
+    if (interval_s > 0.0) settings.orbatlas["Tracker.MaxKeyframeIntervalSeconds"] = interval_s;
+    Atlas atlas;
+    SlamSystem slam(atlas, settings, vocabulary, o);
+    TimestampNs last_keyframe_ns = frames.front().t_ns;
+    double longest = 0.0;
+    for (const auto& f : frames) {
+      const TrackResult r = slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE),
+                                         cv::imread(f.right.string(), cv::IMREAD_GRAYSCALE));
+      EXPECT_TRUE(r.tracked);
+      if (!r.keyframe) continue;
+      longest = std::max(longest, ns_to_s(f.t_ns - last_keyframe_ns));
+      last_keyframe_ns = f.t_ns;
+    }
+    slam.finish();
+    return std::max(longest, ns_to_s(frames.back().t_ns - last_keyframe_ns));  // and to the clip's end
+  };
+  const double without = longest_gap_s(0.0);
+  const double with = longest_gap_s(0.25);
+  EXPECT_GT(without, 2.0);        // measured: none in the 3-s clip
+  EXPECT_LE(with, 0.25 + 0.051);  // the first frame at or past the interval (20 Hz)
 }
 
 TEST(DatasetRunner, UnreadableImageIsSkippedAndReported) {
