@@ -2,13 +2,22 @@
 // (cam0 of the rendering, config/euroc/mono.yaml) starts its map from two views
 // and maps at its own scale; the camera's trajectory, aligned with a
 // similarity, follows the ground truth within a small fraction of the path.
-// With its IMU (mono_inertial.yaml) the map becomes metric.
+// With its IMU (mono_inertial.yaml) the map becomes metric, and its final
+// visual-inertial BA runs with its own mapping and with a map server's.
 #include <gtest/gtest.h>
+
+#include <memory>
+#include <opencv2/imgcodecs.hpp>
+#include <vector>
 
 #include "core/common/data_paths.h"
 #include "core/eval/evaluate.h"
 #include "core/io/tum_trajectory.h"
 #include "core/pipeline/dataset_runner.h"
+#include "core/slam/mapping_workers.h"
+#include "core/slam/session_wiring.h"
+#include "core/slam/slam_system.h"
+#include "core/vocabulary/default_vocabulary.h"
 #include "tests/support/slam_test_clip.h"
 
 namespace orbatlas {
@@ -83,6 +92,54 @@ TEST(MonoInertialSlam, TheImuGivesTheMapItsMetricScale) {
   // Measured: 26 keyframes; scale 0.0052 off and ATE 0.024 m with it, 0.0063
   // and 0.044 m without.
   EXPECT_GT(report.stats.final_ba_keyframes, 10u);
+}
+
+// The same session with the mapping of a map server (shared, SessionWiring):
+// its map gets the final visual-inertial BA from the loop closer when the
+// session finishes (LoopCloserOptions::stream_end_imu_scale), with its IMU
+// terms, though no other session mapped there.
+TEST(MonoInertialSlam, ASharedMappingsSessionGetsTheFinalBaAtItsFinish) {
+  const auto clip = test::simulated_clip("MH_01", 50.0, 15.0);
+  test::ClipCleanup cleanup{clip};
+  const EurocDataset dataset = test::stereo_dataset(clip);
+  const SlamSettings settings =
+      read_settings(shipped_config_dir() / "euroc" / "mono_inertial.yaml", SensorType::kMonocularInertial);
+  const Vocabulary vocabulary = Vocabulary::load(default_vocabulary_path());
+  Atlas atlas;
+  std::shared_ptr<MappingWorkers> mapping;
+  SessionWiring wiring;
+  wiring.mapping = [&](const FrameCamera& cam, const MappingWorkersOptions& options) {
+    if (!mapping) mapping = std::make_shared<MappingWorkers>(atlas, cam, options);
+    return mapping;
+  };
+  SlamSystemOptions o;
+  o.synchronous_mapping = true;
+  o.shared_map_finish_wait_s = 60.0;  // as the server's --finish-refinement-wait
+  SlamSystem slam(atlas, settings, vocabulary, o, wiring);
+  std::size_t next_imu = 0;
+  for (const auto& f : test::stereo_frames(clip)) {
+    std::vector<ImuSample> batch;
+    while (next_imu < dataset.imu.size() && dataset.imu[next_imu].t_ns <= f.t_ns)
+      batch.push_back(dataset.imu[next_imu++]);
+    if (next_imu < dataset.imu.size()) batch.push_back(dataset.imu[next_imu++]);  // the first after the frame
+    slam.add_imu(batch);
+    slam.process(f.t_ns, cv::imread(f.left.string(), cv::IMREAD_GRAYSCALE), cv::Mat());
+  }
+  slam.finish();
+  const auto end_refinement = slam.take_end_refinement();
+  ASSERT_TRUE(end_refinement);
+  EXPECT_TRUE(end_refinement());
+  const SlamStats stats = slam.stats();
+  ASSERT_TRUE(stats.imu_initialized_at_s.has_value());
+  EXPECT_EQ(stats.final_ba_keyframes, 0u);  // not the offline one
+  std::vector<GlobalAdjustmentRun> at_end;
+  for (const auto& g : stats.loop.global_adjustments)
+    if (g.cause == GlobalAdjustmentCause::kStreamEnd) at_end.push_back(g);
+  ASSERT_EQ(at_end.size(), 1u);
+  EXPECT_FALSE(at_end[0].interrupted);
+  EXPECT_GT(at_end[0].keyframes, 20u);                           // measured 26
+  EXPECT_EQ(at_end[0].inertial_edges, at_end[0].keyframes - 1);  // the whole chain
+  // Measured: with FinalBaForImuScale 0 there is none (a map of one session).
 }
 
 }  // namespace
