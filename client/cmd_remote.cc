@@ -46,11 +46,11 @@ struct StreamArgs {
 void write_frame_log(const std::string& path, const StreamReport& r) {
   std::ofstream out(path);
   out << "t_ns,sent_unix_us,round_trip_ms,server_ms,tracking_ms,late,skipped,keyframe,local_keyframes,local_points,"
-         "maps_wait_ms\n";
+         "maps_wait_ms,maps_busy\n";
   for (const StreamReport::FrameTiming& f : r.frame_timings)
     out << f.t_ns << ',' << f.sent_unix_us << ',' << f.round_trip_ms << ',' << f.server_ms << ',' << f.tracking_ms
         << ',' << f.late << ',' << f.skipped << ',' << f.keyframe << ',' << f.local_keyframes << ',' << f.local_points
-        << ',' << f.maps_wait_ms << '\n';
+        << ',' << f.maps_wait_ms << ',' << f.maps_busy << '\n';
   if (!out) throw Error("cannot write the frame log " + path);
 }
 
@@ -67,6 +67,7 @@ nlohmann::json stream_json(const StreamReport& r) {
                       {"keyframes", r.keyframes},
                       {"late_frames", r.late_frames},
                       {"skipped_frames", r.skipped_frames},
+                      {"maps_busy_frames", r.maps_busy_frames},
                       {"imu_samples", r.imu_samples},
                       {"wall_s", r.wall_s},
                       {"finish_ms", r.finish_ms},
@@ -110,9 +111,11 @@ void print_stream_summary(const nlohmann::json& j) {
               j["fps"].get<double>());
   if (j["frames"].get<std::size_t>() > 0) {
     std::printf(
-        "  tracking p50 %.1f / p95 %.1f ms; round trip p50 %.1f / p95 %.1f ms; late frames %zu; skipped frames %zu\n",
+        "  tracking p50 %.1f / p95 %.1f ms; round trip p50 %.1f / p95 %.1f ms; late frames %zu; skipped frames %zu; "
+        "maps busy %zu\n",
         p("tracking_ms", "p50"), p("tracking_ms", "p95"), p("round_trip_ms", "p50"), p("round_trip_ms", "p95"),
-        j["late_frames"].get<std::size_t>(), j["skipped_frames"].get<std::size_t>());
+        j["late_frames"].get<std::size_t>(), j["skipped_frames"].get<std::size_t>(),
+        j["maps_busy_frames"].get<std::size_t>());
     std::printf(
         "  added by the server (request - tracking) p50 %.2f / p95 %.2f ms; by HTTP and the client p50 %.2f ms\n",
         p("server_overhead_ms", "p50"), p("server_overhead_ms", "p95"), p("client_overhead_ms", "p50"));

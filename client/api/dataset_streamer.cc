@@ -211,6 +211,8 @@ StreamReport stream_dataset(ServerClient& client, const StreamOptions& options) 
       timing.local_keyframes = reply.value("local_keyframes", 0);  // 0 from a server that does not say
       timing.local_points = reply.value("local_points", 0);
       timing.maps_wait_ms = reply.value("maps_wait_ms", 0.0);
+      timing.maps_busy = reply.value("maps_busy", false);
+      if (timing.maps_busy) ++report.maps_busy_frames;
       report.frame_timings.push_back(timing);
       report.round_trip_ms.push_back(timing.round_trip_ms);
       report.tracking_ms.push_back(timing.tracking_ms);

@@ -60,6 +60,7 @@ struct StreamReport {
   // With pacing (rate > 0): replies that arrived after the next frame was due.
   std::size_t late_frames = 0;
   std::size_t skipped_frames = 0;     // the server skipped them (max_lag_s): too late
+  std::size_t maps_busy_frames = 0;   // answered untracked: an edit held the maps past the session's bound
   std::size_t imu_samples = 0;        // sent (inertial sessions: the recording's imu0)
   std::vector<double> tracking_ms;    // the server's tracking time per frame
   std::vector<double> server_ms;      // the server's time per request (parsing, decoding, tracking)
@@ -72,6 +73,7 @@ struct StreamReport {
     double round_trip_ms = 0.0, server_ms = 0.0, tracking_ms = 0.0;
     bool late = false;  // its reply came after the next frame was due
     bool skipped = false, keyframe = false;
+    bool maps_busy = false;                     // answered untracked: an edit held the maps past the bound
     int local_keyframes = 0, local_points = 0;  // the local map the server tracked the frame in
     double maps_wait_ms = 0.0;                  // the server's wait for its maps (in tracking_ms)
   };

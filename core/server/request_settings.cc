@@ -59,6 +59,7 @@ void check_upload_request(const SessionRequest& request, const fs::path& config_
     if (!request.sensor.empty() && request.sensor != "stereo")
       throw ServiceError(ServiceErrorKind::kBadRequest, "bad_config",
                          "sensor '" + request.sensor + "' needs a config; without one an upload is stereo");
+    session_mode(request.mode, SensorType::kStereo, SlamSettings{});  // 400 for an unknown one
     return;
   }
   const LoadedSettings loaded = load_request_settings(request.settings, config_dir);

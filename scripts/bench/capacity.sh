@@ -5,7 +5,7 @@
 # own Machine Hall sequence (MH_01, MH_02, ... in turn) at the sensor rate
 # (`orbatlas stream --rate 1`) as a real-time session (`--max-lag`: frames that
 # arrive too late are skipped by the server and counted). Per N it prints the
-# late and skipped frames, tracking p50/p95, the server's CPU (cores, and per
+# late and skipped frames, those answered maps_busy, tracking p50/p95, the server's CPU (cores, and per
 # session; and by thread name, scripts/analysis/thread_cpu.py), what it wrote (its
 # checkpoints), its peak resident size, and each session's ATE against the same
 # clip streamed alone (N = 1 for every sequence used): as each client got it
@@ -240,7 +240,7 @@ for s in dict.fromkeys(seqs[:max(ns)]):
           f"{settled_ate(f'alone_{s}', 1, s):.4f}, {settled(f'alone_{s}', 1, s, 'matched') / max(r['frames'], 1):.3f}")
 if os.environ.get("ALONE_ONLY") == "1":
     sys.exit(0)
-print(f"{'N':>2} {'frames':>7} {'late':>6} {'late%':>6} {'skipped':>7} {'skip%':>6} {'track p50/p95 [ms]':>19} "
+print(f"{'N':>2} {'frames':>7} {'late':>6} {'late%':>6} {'skipped':>7} {'skip%':>6} {'busy':>5} {'track p50/p95 [ms]':>19} "
       f"{'cores':>6} {'cores/session':>13} {'peak RSS [MB]':>13} {'RSS/session':>11}  ATE per session [m] (alone)")
 for n in ns:
     d = f"alone_{seqs[0]}" if n == 1 else f"n{n}"
@@ -249,6 +249,7 @@ for n in ns:
     sent = sum(r["frames"] + r["skipped_frames"] for r in runs)
     late = sum(r["late_frames"] for r in runs)
     skipped = sum(r["skipped_frames"] for r in runs)
+    busy = sum(r.get("maps_busy_frames", 0) for r in runs)  # answered untracked: the maps held past the bound
     p50 = sum(r["tracking_ms"]["p50"] for r in runs) / n
     p95 = max(r["tracking_ms"]["p95"] for r in runs)
     cores = server["cpu_s"] / server["wall_s"]
@@ -260,7 +261,7 @@ for n in ns:
     trip = [r["round_trip_ms"] for r in runs]
     settled_ates = [settled_ate(d, i + 1, s) for i, s in enumerate(seqs[:n])]
     settled_alone = {s: settled_ate(f"alone_{s}", 1, s) for s in seqs[:n]}
-    print(f"{n:>2} {sent:>7} {late:>6} {100.0 * late / sent:>5.2f}% {skipped:>7} {100.0 * skipped / sent:>5.2f}% "
+    print(f"{n:>2} {sent:>7} {late:>6} {100.0 * late / sent:>5.2f}% {skipped:>7} {100.0 * skipped / sent:>5.2f}% {busy:>5} "
           f"{p50:>10.1f}/{p95:<8.1f} {cores:>6.2f} {cores / n:>13.2f} {rss:>13.0f} {rss / n:>11.0f}  {ates}")
     print("    live ATE / final ATE per session [m] (fraction of frames with a live pose): " + live)
     print(f"    reply round trip p50 {sum(t['p50'] for t in trip) / n:.1f} ms (mean of the sessions), "

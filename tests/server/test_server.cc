@@ -335,6 +335,11 @@ TEST(ServerUploads, RecordingBecomesAStoredSessionAndBadArchivesAreRefused) {
   ASSERT_TRUE(bad_mode);
   EXPECT_EQ(bad_mode->status, 400) << bad_mode->body;
   EXPECT_NE(bad_mode->body.find("map or localize"), std::string::npos) << bad_mode->body;
+  // The same without a config (the recording's own settings are known only once it is in).
+  const auto bad_mode_alone = client.http().Post("/v1/uploads?mode=fly", std::string(10, 'x'), "application/x-tar");
+  ASSERT_TRUE(bad_mode_alone);
+  EXPECT_EQ(bad_mode_alone->status, 400) << bad_mode_alone->body;
+  EXPECT_NE(bad_mode_alone->body.find("map or localize"), std::string::npos) << bad_mode_alone->body;
   const auto empty = client.http().Post("/v1/uploads", "", "application/x-tar");
   ASSERT_TRUE(empty);
   EXPECT_EQ(empty->status, 400);
