@@ -1,14 +1,17 @@
 // A real-time session's frame waits for the atlas's maps at most the server's
 // --max-maps-wait-ms while an edit holds them (AtlasServiceOptions::max_maps_wait_ms):
 // past it the reply is untracked and says maps_busy, counted in the session's
-// status and in /metrics; a session that is not real-time waits for the edit.
+// status and in /metrics and by the streaming client; a session that is not
+// real-time waits for the edit.
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <future>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 #include <string>
 
+#include "client/api/dataset_streamer.h"
 #include "client/api/server_client.h"
 #include "tests/support/server_test_fixture.h"
 #include "tests/support/slam_test_clip.h"
@@ -69,6 +72,35 @@ TEST(ServerMapsWait, ARealTimeFrameHeldPastTheBoundIsAnsweredMapsBusy) {
   EXPECT_TRUE(waited["tracked"].get<bool>()) << waited.dump();
   EXPECT_FALSE(waited["maps_busy"].get<bool>());
   client.finish_session(offline);
+}
+
+// `orbatlas stream` counts the replies that say maps_busy (StreamReport,
+// its --stats and --frame-log): here one frame is posted while an edit holds
+// the maps.
+TEST(ServerMapsWait, TheStreamingClientCountsTheMapsBusyReplies) {
+  const auto clip = test::simulated_clip("MH_01", 40.0, 1.0);
+  test::ClipCleanup cleanup{clip};
+  test::TempDbPath db("maps_wait_stream");
+  AtlasServiceOptions options = test::server_options(db.path);
+  options.merge_maps = false;
+  test::TestServer server(options);
+  ServerClient client(server.url());
+  StreamOptions o = test::stream_options(clip);
+  o.max_lag_s = 60.0;  // real-time, never skipped here
+  std::size_t next = 0;
+  std::optional<decltype(server.service().atlas().lock_maps_exclusive())> edit;
+  o.stop = [&] {
+    if (next == 4) edit.emplace(server.service().atlas().lock_maps_exclusive());  // held while frame 4 is answered
+    if (next == 5) edit.reset();
+    ++next;
+    return false;
+  };
+  const StreamReport report = stream_dataset(client, o);
+  EXPECT_EQ(report.maps_busy_frames, 1u);
+  EXPECT_EQ(report.tracked, report.frames - 1);
+  ASSERT_GT(report.frame_timings.size(), 5u);
+  EXPECT_TRUE(report.frame_timings[4].maps_busy);
+  EXPECT_FALSE(report.frame_timings[5].maps_busy);
 }
 
 }  // namespace
