@@ -55,11 +55,71 @@ bool peer_closed(socket_t sock) {
   return ::recv(sock, &c, 1, MSG_PEEK | MSG_DONTWAIT) == 0;
 }
 
+// Bytes from the client are waiting to be read (or its end has closed): its
+// thread is about to take them, so the connection is not idle, only not yet
+// scheduled. On a busy machine a browser's fresh connection sat so with its
+// request in, was closed for room, and the page lost a script.
+bool readable_now(socket_t sock) {
+  pollfd p{sock, POLLIN, 0};
+  return ::poll(&p, 1, 0) > 0;
+}
+
 }  // namespace
 
 GuardedHttpServer::GuardedHttpServer(ConnectionLimits limits, std::shared_ptr<const TlsContext> tls)
     : limits_(std::move(limits)), tls_(std::move(tls)) {
   set_keep_alive_max_count(std::max<std::size_t>(1, limits_.keep_alive_requests));
+  room_keeper_ = std::thread([this] { keep_room(); });
+}
+
+GuardedHttpServer::~GuardedHttpServer() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  room_changed_.notify_all();
+  room_keeper_.join();
+}
+
+void GuardedHttpServer::keep_room() {
+  std::unique_lock lock(mutex_);
+  while (!stopping_) {
+    const std::optional<Clock::time_point> next = make_room(std::nullopt);
+    if (next)
+      room_changed_.wait_until(lock, *next);
+    else
+      room_changed_.wait(lock);
+  }
+}
+
+std::optional<Clock::time_point> GuardedHttpServer::make_room(std::optional<std::uint64_t> keep) {
+  const std::size_t allowed = std::max<std::size_t>(1, limits_.max_waiting);
+  std::size_t count = 0;
+  for (const auto& [_, c] : connections_) count += c.waiting && !c.closed ? 1 : 0;
+  const Clock::time_point now = Clock::now();
+  const Clock::duration grace = seconds(limits_.fresh_grace_s);
+  while (count > allowed) {
+    // The one waiting longest that may be closed.
+    Connection* oldest = nullptr;
+    for (auto& [other, c] : connections_) {
+      if (other == keep || !c.waiting || c.closed || (c.fresh && now - c.waiting_since < grace)) continue;
+      if ((!oldest || c.waiting_since < oldest->waiting_since) && !readable_now(c.sock)) oldest = &c;
+    }
+    if (!oldest) break;
+    // Its thread is blocked in poll or recv on it: both return at once. The
+    // descriptor stays open (its own thread closes it, after unregistering).
+    ::shutdown(oldest->sock, SHUT_RDWR);
+    oldest->closed = true;
+    ++stats_.closed_for_room;
+    --count;
+  }
+  if (count <= allowed) return std::nullopt;
+  // Still too many: the next fresh one whose grace ends.
+  std::optional<Clock::time_point> next;
+  for (const auto& [_, c] : connections_)
+    if (c.waiting && !c.closed && c.fresh && now - c.waiting_since < grace)
+      next = std::min(next.value_or(Clock::time_point::max()), c.waiting_since + grace);
+  return next;
 }
 
 ConnectionStats GuardedHttpServer::connection_stats() const {
@@ -84,23 +144,13 @@ bool GuardedHttpServer::set_waiting(std::uint64_t id, bool waiting, std::optiona
   Connection& self = connections_.at(id);
   if (self.closed) return false;
   self.waiting = waiting;
-  if (!waiting) return true;
-  self.waiting_since = since.value_or(Clock::now());
-  std::size_t count = 0;
-  for (const auto& [_, c] : connections_) count += c.waiting && !c.closed ? 1 : 0;
-  while (count > std::max<std::size_t>(1, limits_.max_waiting)) {
-    // The one waiting longest (never this one).
-    Connection* oldest = nullptr;
-    for (auto& [other, c] : connections_)
-      if (other != id && c.waiting && !c.closed && (!oldest || c.waiting_since < oldest->waiting_since)) oldest = &c;
-    if (!oldest) break;
-    // Its thread is blocked in poll or recv on it: both return at once. The
-    // descriptor stays open (its own thread closes it, after unregistering).
-    ::shutdown(oldest->sock, SHUT_RDWR);
-    oldest->closed = true;
-    ++stats_.closed_for_room;
-    --count;
+  if (!waiting) {
+    self.fresh = false;
+    return true;
   }
+  self.waiting_since = since.value_or(Clock::now());
+  // Too many wait and none may be closed yet: the keeper closes one when it may.
+  if (make_room(id)) room_changed_.notify_one();
   return true;
 }
 

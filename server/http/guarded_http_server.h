@@ -15,7 +15,13 @@
 //     ones, or ones whose headers are still coming) or for their body's next
 //     bytes: beyond that the one waiting longest is closed, so the other
 //     threads stay free for requests that arrive whole (a health check always
-//     gets a thread). A request whose headers were already in when its
+//     gets a thread, within `fresh_grace_s`). Never chosen: one whose client
+//     has sent bytes its thread has not read yet (a request in, its thread not
+//     yet scheduled), and a fresh connection (no request yet) before it has
+//     waited `fresh_grace_s`: a browser opens six at once for a page's scripts
+//     and, unlike on a kept-alive connection, does not send a request again
+//     when a fresh one closes; on a busy machine the page lost a script. A
+//     room keeper thread closes such a one once its grace is over. A request whose headers were already in when its
 //     connection was closed this way gets no reply, and one with a body (a
 //     frame) is never handled: the client cannot read a reply on that
 //     connection and sends the request again on a new one
@@ -36,6 +42,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 
 #include "core/server/metrics_registry.h"
 
@@ -52,6 +59,8 @@ struct ConnectionLimits {
   double min_body_rate_bytes_s = 16 * 1024;  // 0: none
   std::size_t max_head_bytes = 32 * 1024;
   std::size_t max_waiting = 4;
+  // A fresh connection (no request yet) is not closed for room before this.
+  double fresh_grace_s = 0.25;
   std::string unbounded_body_prefix = "/v1/uploads";  // paths whose body has no total deadline
   // Requests one kept-alive connection may carry before the server closes it.
   // httplib's 5 made a live session (20 frames a second) open a new connection
@@ -73,6 +82,9 @@ class GuardedHttpServer : public httplib::Server {
  public:
   // `tls`: every connection speaks TLS with its certificate (null: plain HTTP).
   explicit GuardedHttpServer(ConnectionLimits limits = {}, std::shared_ptr<const TlsContext> tls = nullptr);
+  ~GuardedHttpServer() override;
+  GuardedHttpServer(const GuardedHttpServer&) = delete;
+  GuardedHttpServer& operator=(const GuardedHttpServer&) = delete;
   bool tls() const { return tls_ != nullptr; }
   ConnectionStats connection_stats() const;
   // The figures as Prometheus metrics (HttpApiOptions::extra_metrics).
@@ -85,6 +97,7 @@ class GuardedHttpServer : public httplib::Server {
     bool waiting = true;  // for a request (idle, or its headers coming)
     std::chrono::steady_clock::time_point waiting_since;
     bool closed = false;  // shut down by another thread
+    bool fresh = true;    // no request's headers came yet
   };
 
  private:
@@ -94,6 +107,13 @@ class GuardedHttpServer : public httplib::Server {
   // `since`: when it started waiting (default: now).
   bool set_waiting(std::uint64_t id, bool waiting,
                    std::optional<std::chrono::steady_clock::time_point> since = std::nullopt);
+  // While more than max_waiting wait, shuts down the one waiting longest that
+  // may be closed (not `keep`). Under mutex_. Returns when the next fresh one
+  // may be closed if still too many wait (nullopt: not needed, or none can).
+  std::optional<std::chrono::steady_clock::time_point> make_room(std::optional<std::uint64_t> keep);
+  // The room keeper's loop: make_room whenever a fresh connection's grace ends
+  // while too many wait.
+  void keep_room();
   // The body's length from the headers (nullopt: chunked, or a length that is
   // refused before it is read); a request with neither header gets
   // Content-Length 0.
@@ -103,7 +123,9 @@ class GuardedHttpServer : public httplib::Server {
 
   const ConnectionLimits limits_;
   const std::shared_ptr<const TlsContext> tls_;
-  mutable std::mutex mutex_;  // guards connections_, next_id_, stats_
+  mutable std::mutex mutex_;  // guards connections_, next_id_, stats_, stopping_ (the only lock here)
+  std::condition_variable room_changed_;
+  bool stopping_ = false;
   std::map<std::uint64_t, Connection> connections_;
   std::uint64_t next_id_ = 0;
   ConnectionStats stats_;
@@ -129,6 +151,7 @@ class GuardedHttpServer : public httplib::Server {
       "orbatlas_http_requests_dropped_total",
       "Requests whose headers had arrived when their connection was closed for room: no reply, and never handled "
       "when they have a body (the client sends them again on a new connection).");
+  std::thread room_keeper_;  // last: started once the members it uses exist
 };
 
 }  // namespace orbatlas
