@@ -10,6 +10,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <unordered_map>
 #include <vector>
 
 #include "core/common/error.h"
@@ -26,15 +27,32 @@ constexpr double kMinDiagonal = 1e-6, kMaxDiagonal = 1e32;  // Ceres' LM diagona
 constexpr double kMaxRadius = 1e16, kMinRadius = 1e-32;
 constexpr double kMinRelativeDecrease = 1e-3;
 
-// The unknowns: the free poses and the points of the active edges; the active
-// edges grouped by point (the elimination visits one point's edges together).
+// A parameter block of an extra term (an inertial edge, a bias walk, a prior)
+// placed among the unknowns of the reduced system.
+struct TermBlock {
+  int offset = -1;       // its first unknown in the reduced system; -1: constant
+  int size = 0;          // its unknowns (a quaternion's tangent: 3)
+  int global = 0;        // its values (a quaternion: 4)
+  int rotation_of = -1;  // the pose var whose rotation it is (through the quaternion's manifold), or -1
+};
+
+// The unknowns: the free poses (6 each: rotation, translation) of the active
+// edges and the extra terms, then the extra terms' free blocks, which with the
+// poses make the reduced system; the points of the active edges, eliminated.
+// The active edges are grouped by point (the elimination visits one point's
+// edges together).
 struct Layout {
-  std::vector<int> pose_var;                // per keyframe: index among the free poses, or kNone
-  std::vector<std::size_t> free_keyframes;  // pose var -> keyframe
-  std::vector<std::size_t> points;          // point var -> point
-  std::vector<std::size_t> point_begin;     // point var -> its first edge; one past the last at the end
-  std::vector<std::size_t> edges;           // active edges (indices into BundleProblem::edges)
-  std::vector<int> edge_pose;               // per entry of `edges`: its pose var, or kNone
+  std::vector<int> pose_var;                  // per keyframe: index among the free poses, or kNone
+  std::vector<std::size_t> free_keyframes;    // pose var -> keyframe
+  std::vector<std::size_t> points;            // point var -> point
+  std::vector<std::size_t> point_begin;       // point var -> its first edge; one past the last at the end
+  std::vector<std::size_t> edges;             // active edges (indices into BundleProblem::edges)
+  std::vector<int> edge_pose;                 // per entry of `edges`: its pose var, or kNone
+  std::vector<std::vector<TermBlock>> terms;  // per extra term, per block
+  std::vector<std::size_t> free_extras;       // extra blocks (into BundleProblem::extra_blocks) among the unknowns
+  std::vector<int> extra_offset;              // per entry of free_extras: its first unknown
+  Eigen::Index dim = 0;                       // unknowns of the reduced system
+  Eigen::Index pose_dim() const { return static_cast<Eigen::Index>(6 * free_keyframes.size()); }
 };
 
 Layout layout_of(const BundleProblem& lp) {
@@ -42,12 +60,17 @@ Layout layout_of(const BundleProblem& lp) {
   l.pose_var.assign(lp.keyframes.size(), kNone);
   std::vector<int> point_var(lp.points.size(), kNone);
   std::vector<std::size_t> count;
+  const auto free_pose = [&](std::size_t k) {
+    if (lp.fixed[k]) return kNone;
+    if (l.pose_var[k] == kNone) {
+      l.pose_var[k] = static_cast<int>(l.free_keyframes.size());
+      l.free_keyframes.push_back(k);
+    }
+    return l.pose_var[k];
+  };
   for (const BundleEdge& e : lp.edges) {
     if (!e.active) continue;
-    if (!lp.fixed[e.keyframe] && l.pose_var[e.keyframe] == kNone) {
-      l.pose_var[e.keyframe] = static_cast<int>(l.free_keyframes.size());
-      l.free_keyframes.push_back(e.keyframe);
-    }
+    free_pose(e.keyframe);
     if (point_var[e.point] == kNone) {
       point_var[e.point] = static_cast<int>(l.points.size());
       l.points.push_back(e.point);
@@ -67,6 +90,66 @@ Layout layout_of(const BundleProblem& lp) {
     l.edges[n] = i;
     l.edge_pose[n] = l.pose_var[e.keyframe];
   }
+
+  // The extra terms' blocks: poses (rotation, translation) or extra blocks.
+  if (lp.extra_terms.empty()) {
+    l.dim = l.pose_dim();
+    return l;
+  }
+  enum class Kind { kRotation, kTranslation, kExtra };
+  std::unordered_map<const double*, std::pair<Kind, std::size_t>> owner;
+  for (std::size_t k = 0; k < lp.keyframes.size(); ++k) {
+    owner[lp.poses[k].q.data()] = {Kind::kRotation, k};
+    owner[lp.poses[k].t.data()] = {Kind::kTranslation, k};
+  }
+  for (std::size_t i = 0; i < lp.extra_blocks.size(); ++i) owner[lp.extra_blocks[i].values.get()] = {Kind::kExtra, i};
+  std::vector<int> extra_var(lp.extra_blocks.size(), kNone);
+  l.terms.resize(lp.extra_terms.size());
+  for (std::size_t t = 0; t < lp.extra_terms.size(); ++t) {
+    const BundleExtraTerm& term = lp.extra_terms[t];
+    for (const double* block : term.blocks) {
+      const auto it = owner.find(block);
+      ORBATLAS_CHECK(it != owner.end(),
+                     "bundle Levenberg-Marquardt: an extra term's block is neither a pose nor an "
+                     "extra block of the problem");
+      TermBlock tb;
+      const auto [kind, index] = it->second;
+      if (kind == Kind::kExtra) {
+        const BundleExtraBlock& b = lp.extra_blocks[index];
+        tb.size = tb.global = b.size;
+        if (!b.fixed) {
+          if (extra_var[index] == kNone) {
+            extra_var[index] = static_cast<int>(l.free_extras.size());
+            l.free_extras.push_back(index);
+          }
+          tb.offset = extra_var[index];  // an index for now: the offset once the poses are counted
+        }
+      } else {
+        tb.size = 3;
+        tb.global = kind == Kind::kRotation ? 4 : 3;
+        if (const int f = free_pose(index); f != kNone) {
+          tb.offset = 6 * f + (kind == Kind::kRotation ? 0 : 3);
+          if (kind == Kind::kRotation) tb.rotation_of = f;
+        }
+      }
+      l.terms[t].push_back(tb);
+    }
+  }
+  // The extra blocks follow the poses.
+  Eigen::Index offset = l.pose_dim();
+  l.extra_offset.resize(l.free_extras.size());
+  for (std::size_t e = 0; e < l.free_extras.size(); ++e) {
+    l.extra_offset[e] = static_cast<int>(offset);
+    offset += lp.extra_blocks[l.free_extras[e]].size;
+  }
+  l.dim = offset;
+  for (std::size_t t = 0; t < lp.extra_terms.size(); ++t)
+    for (std::size_t b = 0; b < l.terms[t].size(); ++b) {
+      TermBlock& tb = l.terms[t][b];
+      const double* block = lp.extra_terms[t].blocks[b];
+      if (tb.offset != kNone && owner.at(block).first == Kind::kExtra)
+        tb.offset = l.extra_offset[static_cast<std::size_t>(tb.offset)];
+    }
   return l;
 }
 
@@ -94,16 +177,79 @@ struct EdgeJacobian {
   Matrix63 W = Matrix63::Zero();  // weight Jc^T Jx
 };
 
+using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+struct TermJacobian {
+  Eigen::VectorXd r;
+  std::vector<Eigen::MatrixXd> J;  // per block: d r / d (its unknowns); empty for a constant block
+  double weight = 1.0;
+};
+
 // The normal equations at the current estimates, per block.
 struct Linearisation {
   double cost = 0.0;
   double max_gradient = 0.0;
   std::vector<EdgeJacobian> edges;  // per entry of Layout::edges
-  std::vector<Matrix6> U;           // per free pose: sum weight Jc^T Jc
-  std::vector<Vector6> a;           // per free pose: sum weight Jc^T r
+  std::vector<Matrix6> U;           // per free pose: sum weight Jc^T Jc over the edges
+  std::vector<Vector6> a;           // per free pose: sum weight J^T r (edges and extra terms)
   std::vector<Eigen::Matrix3d> V;   // per point: sum weight Jx^T Jx
   std::vector<Eigen::Vector3d> b;   // per point: sum weight Jx^T r
+  std::vector<TermJacobian> terms;  // per extra term
+  Eigen::VectorXd c;                // per extra unknown (past the poses): sum weight J^T r
 };
+
+// An extra term's residual (and, when `jacobians` is given, its Jacobians per
+// block as Ceres lays them out) at the current estimates; false when it
+// cannot be evaluated.
+bool evaluate_term(const BundleExtraTerm& term, Eigen::VectorXd& r, double** jacobians) {
+  r.resize(term.cost->num_residuals());
+  return term.cost->Evaluate(term.blocks.data(), r.data(), jacobians);
+}
+
+// The extra terms' part of the normal equations.
+bool linearise_terms(const BundleProblem& lp, const Layout& l,
+                     const std::vector<Eigen::Matrix<double, 4, 3, Eigen::RowMajor>>& plus, Linearisation& out) {
+  out.terms.resize(lp.extra_terms.size());
+  out.c.setZero(l.dim - l.pose_dim());
+  std::vector<std::vector<double>> raw;
+  std::vector<double*> jacobians;
+  for (std::size_t t = 0; t < lp.extra_terms.size(); ++t) {
+    const BundleExtraTerm& term = lp.extra_terms[t];
+    const std::vector<TermBlock>& blocks = l.terms[t];
+    const int rows = term.cost->num_residuals();
+    raw.resize(blocks.size());
+    jacobians.assign(blocks.size(), nullptr);
+    for (std::size_t k = 0; k < blocks.size(); ++k) {
+      if (blocks[k].offset == kNone) continue;
+      raw[k].resize(static_cast<std::size_t>(rows * blocks[k].global));
+      jacobians[k] = raw[k].data();
+    }
+    TermJacobian& tj = out.terms[t];
+    if (!evaluate_term(term, tj.r, jacobians.data())) return false;
+    const Robust rb = robust_of(tj.r.squaredNorm(), term.huber);
+    out.cost += 0.5 * rb.rho;
+    tj.weight = rb.weight;
+    tj.J.resize(blocks.size());
+    for (std::size_t k = 0; k < blocks.size(); ++k) {
+      const TermBlock& tb = blocks[k];
+      if (tb.offset == kNone) {
+        tj.J[k].resize(0, 0);
+        continue;
+      }
+      const Eigen::Map<const RowMajorMatrix> global(raw[k].data(), rows, tb.global);
+      if (tb.rotation_of != kNone)
+        tj.J[k].noalias() = global * plus[static_cast<std::size_t>(tb.rotation_of)];
+      else
+        tj.J[k] = global;
+      const Eigen::VectorXd g = rb.weight * tj.J[k].transpose() * tj.r;
+      if (tb.offset < l.pose_dim())
+        out.a[static_cast<std::size_t>(tb.offset / 6)].segment(tb.offset % 6, tb.size) += g;
+      else
+        out.c.segment(tb.offset - l.pose_dim(), tb.size) += g;
+    }
+  }
+  return true;
+}
 
 bool linearise(const BundleProblem& lp, const Layout& l, bool robust, const BundleSettings& settings,
                Linearisation& out) {
@@ -151,7 +297,8 @@ bool linearise(const BundleProblem& lp, const Layout& l, bool robust, const Bund
       ej.W.noalias() = rb.weight * ej.Jc.transpose() * ej.Jx;
     }
   }
-  out.max_gradient = 0.0;
+  if (!linearise_terms(lp, l, plus, out)) return false;
+  out.max_gradient = out.c.size() > 0 ? out.c.cwiseAbs().maxCoeff() : 0.0;
   for (const Vector6& g : out.a) out.max_gradient = std::max(out.max_gradient, g.cwiseAbs().maxCoeff());
   for (const Eigen::Vector3d& g : out.b) out.max_gradient = std::max(out.max_gradient, g.cwiseAbs().maxCoeff());
   return true;
@@ -168,6 +315,11 @@ std::optional<double> cost_at(const BundleProblem& lp, const Layout& l, bool rob
     for (int k = 0; k < e.cost->num_residuals(); ++k) s += r[k] * r[k];
     cost += 0.5 * robust_of(s, width_of(e, robust, settings)).rho;
   }
+  Eigen::VectorXd term_r;
+  for (const BundleExtraTerm& term : lp.extra_terms) {
+    if (!evaluate_term(term, term_r, nullptr)) return std::nullopt;
+    cost += 0.5 * robust_of(term_r.squaredNorm(), term.huber).rho;
+  }
   return cost;
 }
 
@@ -178,8 +330,9 @@ Eigen::Matrix<double, N, N> damped(Eigen::Matrix<double, N, N> m, double radius)
 }
 
 struct Step {
-  std::vector<Vector6> poses;
+  Eigen::VectorXd reduced;  // the poses (6 each), then the extra blocks (Layout::dim)
   std::vector<Eigen::Vector3d> points;
+  Vector6 pose(std::size_t f) const { return reduced.segment<6>(static_cast<Eigen::Index>(6 * f)); }
 };
 
 // The buffers of the linear solves, kept over a stage's iterations (a reduced
@@ -195,14 +348,31 @@ struct Workspace {
 // the damped system is not positive definite.
 bool solve_step(const Linearisation& at, const Layout& l, double radius, Workspace& ws, Step& step) {
   const std::size_t poses = l.free_keyframes.size(), points = l.points.size();
-  const auto dim = static_cast<Eigen::Index>(6 * poses);
+  const Eigen::Index dim = l.dim;
   ws.S.setZero(dim, dim);
   ws.rhs.resize(dim);
   for (std::size_t f = 0; f < poses; ++f) {
     const auto o = static_cast<Eigen::Index>(6 * f);
-    ws.S.block<6, 6>(o, o) = damped<6>(at.U[f], radius);
+    ws.S.block<6, 6>(o, o) = at.U[f];
     ws.rhs.segment<6>(o) = -at.a[f];
   }
+  ws.rhs.tail(dim - l.pose_dim()) = -at.c;
+  // The extra terms' blocks (the upper triangle: a pair's block above the
+  // diagonal, a block with itself whole).
+  for (std::size_t t = 0; t < at.terms.size(); ++t) {
+    const TermJacobian& tj = at.terms[t];
+    const std::vector<TermBlock>& blocks = l.terms[t];
+    for (std::size_t i = 0; i < blocks.size(); ++i) {
+      if (blocks[i].offset == kNone) continue;
+      for (std::size_t j = 0; j < blocks.size(); ++j) {
+        if (blocks[j].offset == kNone || blocks[j].offset < blocks[i].offset) continue;
+        ws.S.block(blocks[i].offset, blocks[j].offset, blocks[i].size, blocks[j].size).noalias() +=
+            tj.weight * tj.J[i].transpose() * tj.J[j];
+      }
+    }
+  }
+  // Damping: the clamped diagonal of J^T W J (edges and extra terms) over the radius.
+  for (Eigen::Index i = 0; i < dim; ++i) ws.S(i, i) += std::clamp(ws.S(i, i), kMinDiagonal, kMaxDiagonal) / radius;
   ws.V_inv.resize(points);
   for (std::size_t v = 0; v < points; ++v) {
     ws.V_inv[v] = damped<3>(at.V[v], radius).inverse();
@@ -225,19 +395,19 @@ bool solve_step(const Linearisation& at, const Layout& l, double radius, Workspa
       }
     }
   }
-  step.poses.resize(poses);
-  if (poses > 0) {
+  if (dim > 0) {
     const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Upper> llt(ws.S);  // in place
     if (llt.info() != Eigen::Success) return false;
     llt.solveInPlace(ws.rhs);
     if (!ws.rhs.allFinite()) return false;
-    for (std::size_t f = 0; f < poses; ++f) step.poses[f] = ws.rhs.segment<6>(static_cast<Eigen::Index>(6 * f));
   }
+  step.reduced = ws.rhs;
   step.points.resize(points);
   for (std::size_t v = 0; v < points; ++v) {
     Eigen::Vector3d x = -at.b[v];
     for (std::size_t n = l.point_begin[v]; n < l.point_begin[v + 1]; ++n)
-      if (const int f = l.edge_pose[n]; f != kNone) x.noalias() -= at.edges[n].W.transpose() * step.poses[f];
+      if (const int f = l.edge_pose[n]; f != kNone)
+        x.noalias() -= at.edges[n].W.transpose() * step.pose(static_cast<std::size_t>(f));
     step.points[v] = ws.V_inv[v] * x;
     if (!step.points[v].allFinite()) return false;
   }
@@ -251,16 +421,24 @@ double model_decrease(const Linearisation& at, const Layout& l, const Step& step
     for (std::size_t n = l.point_begin[v]; n < l.point_begin[v + 1]; ++n) {
       const EdgeJacobian& ej = at.edges[n];
       Eigen::Vector3d change = ej.Jx * step.points[v];
-      if (const int f = l.edge_pose[n]; f != kNone) change.noalias() += ej.Jc * step.poses[f];
+      if (const int f = l.edge_pose[n]; f != kNone) change.noalias() += ej.Jc * step.pose(static_cast<std::size_t>(f));
       decrease -= ej.weight * (ej.r.dot(change) + 0.5 * change.squaredNorm());
     }
+  }
+  for (std::size_t t = 0; t < at.terms.size(); ++t) {
+    const TermJacobian& tj = at.terms[t];
+    Eigen::VectorXd change = Eigen::VectorXd::Zero(tj.r.size());
+    for (std::size_t k = 0; k < l.terms[t].size(); ++k) {
+      const TermBlock& tb = l.terms[t][k];
+      if (tb.offset != kNone) change.noalias() += tj.J[k] * step.reduced.segment(tb.offset, tb.size);
+    }
+    decrease -= tj.weight * (tj.r.dot(change) + 0.5 * change.squaredNorm());
   }
   return decrease;
 }
 
 double squared_norm(const Step& step) {
-  double s = 0.0;
-  for (const Vector6& d : step.poses) s += d.squaredNorm();
+  double s = step.reduced.squaredNorm();
   for (const Eigen::Vector3d& d : step.points) s += d.squaredNorm();
   return s;
 }
@@ -273,6 +451,10 @@ double state_norm(const BundleProblem& lp, const Layout& l) {
   }
   for (const std::size_t j : l.points)
     for (const double x : lp.positions[j]) s += x * x;
+  for (const std::size_t e : l.free_extras) {
+    const BundleExtraBlock& b = lp.extra_blocks[e];
+    for (int i = 0; i < b.size; ++i) s += b.values[static_cast<std::size_t>(i)] * b.values[static_cast<std::size_t>(i)];
+  }
   return std::sqrt(s);
 }
 
@@ -281,9 +463,14 @@ void apply(BundleProblem& lp, const Layout& l, const Step& step) {
   for (std::size_t f = 0; f < l.free_keyframes.size(); ++f) {
     PoseParameters& pose = lp.poses[l.free_keyframes[f]];
     std::array<double, 4> q{};
-    manifold.Plus(pose.q.data(), step.poses[f].data(), q.data());
+    const Vector6 d = step.pose(f);
+    manifold.Plus(pose.q.data(), d.data(), q.data());
     pose.q = q;
-    for (int i = 0; i < 3; ++i) pose.t[static_cast<std::size_t>(i)] += step.poses[f][3 + i];
+    for (int i = 0; i < 3; ++i) pose.t[static_cast<std::size_t>(i)] += d[3 + i];
+  }
+  for (std::size_t e = 0; e < l.free_extras.size(); ++e) {
+    BundleExtraBlock& b = lp.extra_blocks[l.free_extras[e]];
+    for (int i = 0; i < b.size; ++i) b.values[static_cast<std::size_t>(i)] += step.reduced[l.extra_offset[e] + i];
   }
   for (std::size_t v = 0; v < l.points.size(); ++v)
     for (int i = 0; i < 3; ++i) lp.positions[l.points[v]][static_cast<std::size_t>(i)] += step.points[v][i];
@@ -293,10 +480,9 @@ void apply(BundleProblem& lp, const Layout& l, const Step& step) {
 
 BundleLevenbergResult solve_bundle_levenberg(BundleProblem& lp, bool robust, const BundleSettings& settings,
                                              const BundleLevenbergOptions& options) {
-  ORBATLAS_CHECK(lp.extra_terms.empty(), "bundle Levenberg-Marquardt: only reprojection terms are supported");
   BundleLevenbergResult result;
   const Layout l = layout_of(lp);
-  if (l.edges.empty()) return result;
+  if (l.edges.empty() && lp.extra_terms.empty()) return result;
   Linearisation at;
   if (!linearise(lp, l, robust, settings, at)) {
     result.usable = false;
@@ -308,6 +494,17 @@ BundleLevenbergResult solve_bundle_levenberg(BundleProblem& lp, bool robust, con
   Workspace workspace;
   std::vector<PoseParameters> saved_poses;
   std::vector<std::array<double, 3>> saved_positions;
+  std::vector<std::vector<double>> saved_extras(l.free_extras.size());
+  const auto save_extras = [&] {
+    for (std::size_t e = 0; e < l.free_extras.size(); ++e) {
+      const BundleExtraBlock& b = lp.extra_blocks[l.free_extras[e]];
+      saved_extras[e].assign(b.values.get(), b.values.get() + b.size);
+    }
+  };
+  const auto restore_extras = [&] {
+    for (std::size_t e = 0; e < l.free_extras.size(); ++e)
+      std::copy(saved_extras[e].begin(), saved_extras[e].end(), lp.extra_blocks[l.free_extras[e]].values.get());
+  };
   for (int it = 0; it < options.max_iterations; ++it) {
     if (options.stop != nullptr && options.stop->load(std::memory_order_relaxed)) {
       result.stopped = true;
@@ -326,6 +523,7 @@ BundleLevenbergResult solve_bundle_levenberg(BundleProblem& lp, bool robust, con
     const double predicted = model_decrease(at, l, step);
     saved_poses = lp.poses;
     saved_positions = lp.positions;
+    save_extras();
     apply(lp, l, step);
     const std::optional<double> cost = cost_at(lp, l, robust, settings);
     const double gain =
@@ -345,6 +543,7 @@ BundleLevenbergResult solve_bundle_levenberg(BundleProblem& lp, bool robust, con
     } else {
       lp.poses = saved_poses;
       lp.positions = saved_positions;
+      restore_extras();
       radius /= decrease_factor;
       decrease_factor *= 2.0;
       if (radius < kMinRadius) break;

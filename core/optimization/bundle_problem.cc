@@ -126,9 +126,10 @@ bool drop_unevaluable_edges(BundleProblem& lp) {
 
 int solve_bundle_stage(BundleProblem& lp, bool robust, int iterations, const BundleSettings& options,
                        StopFlagCallback& callback) {
-  if (options.own_solver && lp.extra_terms.empty() && free_keyframes_of(lp) <= options.dense_schur_max_keyframes) {
+  if (options.own_solver && free_keyframes_of(lp) <= options.dense_schur_max_keyframes) {
     BundleLevenbergOptions lm;
     lm.max_iterations = iterations;
+    if (!lp.extra_terms.empty()) lm.initial_radius = options.inertial_trust_region_radius;
     lm.stop = callback.flag();
     const BundleLevenbergResult result = solve_bundle_levenberg(lp, robust, options, lm);
     if (!result.usable && drop_unevaluable_edges(lp))

@@ -26,8 +26,9 @@ struct BundleSettings {
   double huber_mono = 0.0, huber_stereo = 0.0;  // robust kernel widths
   std::vector<double> level_sigma2;             // per pyramid level
   std::size_t dense_schur_max_keyframes = 40;   // DENSE_SCHUR up to this many free keyframes
-  // Up to dense_schur_max_keyframes free keyframes, a problem of observations
-  // only is solved by solve_bundle_levenberg (bundle_levenberg.h) instead of Ceres.
+  // Up to dense_schur_max_keyframes free keyframes, a problem (observations and
+  // any extra terms) is solved by solve_bundle_levenberg (bundle_levenberg.h)
+  // instead of Ceres.
   bool own_solver = false;
   int num_threads = 1;
   // Levenberg-Marquardt's first trust region with inertial terms: Ceres'

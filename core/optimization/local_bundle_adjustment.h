@@ -38,13 +38,14 @@ struct LocalBundleAdjustmentOptions {
   std::optional<KeyframeId> origin;
   // Gauge: when no keyframe would be fixed, fix the oldest one of the window.
   bool fix_oldest_without_border = true;
-  // DENSE_SCHUR up to this many free keyframes, SPARSE_SCHUR above. The
-  // reduced system of a local window (6 unknowns a keyframe) is small enough
-  // for dense: at 100 instead of 40, MH_04's local BAs (windows up to 52) took
-  // 104-112 ms on average and 259-276 ms at p95 instead of 125 and 365 ms, with
-  // the same trajectory (docs/benchmarks.md).
-  std::size_t dense_schur_max_keyframes = 100;
-  // Up to dense_schur_max_keyframes free keyframes and without inertial terms,
+  // The own solver, or Ceres' DENSE_SCHUR, up to this many free keyframes;
+  // Ceres' SPARSE_SCHUR above. The reduced system of a local window (6
+  // unknowns a keyframe, 9 more for each of the inertial chain's) is small
+  // enough for dense: a visual-inertial window on real MH_01 holds up to 138,
+  // and at 200 instead of 100 its local mapping's p95 went from 3.3 s to 1.0 s
+  // a keyframe with the same trajectory (docs/benchmarks.md).
+  std::size_t dense_schur_max_keyframes = 200;
+  // Up to dense_schur_max_keyframes free keyframes (inertial terms included),
   // solve with orbatlas' own Levenberg-Marquardt (bundle_levenberg.h), the
   // same algorithm as Ceres' written for this problem; false: Ceres.
   bool own_solver = true;
