@@ -103,31 +103,40 @@ Layout layout_of(const BundleProblem& lp) {
     owner[lp.poses[k].t.data()] = {Kind::kTranslation, k};
   }
   for (std::size_t i = 0; i < lp.extra_blocks.size(); ++i) owner[lp.extra_blocks[i].values.get()] = {Kind::kExtra, i};
-  std::vector<int> extra_var(lp.extra_blocks.size(), kNone);
+  const auto owner_of = [&](const double* block) {
+    const auto it = owner.find(block);
+    ORBATLAS_CHECK(it != owner.end(),
+                   "bundle Levenberg-Marquardt: an extra term's block is neither a pose nor an "
+                   "extra block of the problem");
+    return it->second;
+  };
+  // The terms' free poses join the others first: the extra blocks follow the poses.
+  for (const BundleExtraTerm& term : lp.extra_terms)
+    for (const double* block : term.blocks)
+      if (const auto [kind, index] = owner_of(block); kind != Kind::kExtra) free_pose(index);
+  l.dim = l.pose_dim();
+  std::vector<int> extra_offset(lp.extra_blocks.size(), kNone);
   l.terms.resize(lp.extra_terms.size());
   for (std::size_t t = 0; t < lp.extra_terms.size(); ++t) {
-    const BundleExtraTerm& term = lp.extra_terms[t];
-    for (const double* block : term.blocks) {
-      const auto it = owner.find(block);
-      ORBATLAS_CHECK(it != owner.end(),
-                     "bundle Levenberg-Marquardt: an extra term's block is neither a pose nor an "
-                     "extra block of the problem");
+    for (const double* block : lp.extra_terms[t].blocks) {
       TermBlock tb;
-      const auto [kind, index] = it->second;
+      const auto [kind, index] = owner_of(block);
       if (kind == Kind::kExtra) {
         const BundleExtraBlock& b = lp.extra_blocks[index];
         tb.size = tb.global = b.size;
         if (!b.fixed) {
-          if (extra_var[index] == kNone) {
-            extra_var[index] = static_cast<int>(l.free_extras.size());
+          if (extra_offset[index] == kNone) {
+            extra_offset[index] = static_cast<int>(l.dim);
+            l.dim += b.size;
             l.free_extras.push_back(index);
+            l.extra_offset.push_back(extra_offset[index]);
           }
-          tb.offset = extra_var[index];  // an index for now: the offset once the poses are counted
+          tb.offset = extra_offset[index];
         }
       } else {
         tb.size = 3;
         tb.global = kind == Kind::kRotation ? 4 : 3;
-        if (const int f = free_pose(index); f != kNone) {
+        if (const int f = l.pose_var[index]; f != kNone) {
           tb.offset = 6 * f + (kind == Kind::kRotation ? 0 : 3);
           if (kind == Kind::kRotation) tb.rotation_of = f;
         }
@@ -135,21 +144,6 @@ Layout layout_of(const BundleProblem& lp) {
       l.terms[t].push_back(tb);
     }
   }
-  // The extra blocks follow the poses.
-  Eigen::Index offset = l.pose_dim();
-  l.extra_offset.resize(l.free_extras.size());
-  for (std::size_t e = 0; e < l.free_extras.size(); ++e) {
-    l.extra_offset[e] = static_cast<int>(offset);
-    offset += lp.extra_blocks[l.free_extras[e]].size;
-  }
-  l.dim = offset;
-  for (std::size_t t = 0; t < lp.extra_terms.size(); ++t)
-    for (std::size_t b = 0; b < l.terms[t].size(); ++b) {
-      TermBlock& tb = l.terms[t][b];
-      const double* block = lp.extra_terms[t].blocks[b];
-      if (tb.offset != kNone && owner.at(block).first == Kind::kExtra)
-        tb.offset = l.extra_offset[static_cast<std::size_t>(tb.offset)];
-    }
   return l;
 }
 

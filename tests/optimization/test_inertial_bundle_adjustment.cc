@@ -216,6 +216,7 @@ TEST(InertialBundleAdjustment, TheWindowReturnsToTheTrueStatesAndBiases) {
 // With covisible keyframes beside the chain (a window of 10 and 20).
 TEST(InertialBundleAdjustment, TheOwnSolverEndsWhereCeresEnds) {
   for (const std::size_t covisibles : {std::size_t{0}, std::size_t{10}}) {
+    SCOPED_TRACE("covisibles " + std::to_string(covisibles));
     std::map<bool, std::unique_ptr<InertialWorld>> worlds;
     std::map<bool, LocalBundleAdjustmentStats> stats;
     for (const bool own : {true, false}) {
