@@ -90,6 +90,7 @@ nlohmann::json to_json(const SlamStats& s) {
       j["imu_initialized_at_s"] = *s.imu_initialized_at_s;
       j["imu_gravity_w"] = v(s.imu_gravity_w);
       j["imu_bias"] = {{"gyro", v(s.imu_bias.gyro)}, {"acc", v(s.imu_bias.accel)}};
+      j["imu_scale_correction"] = {{"gyro", v(s.imu_scale.gyro)}, {"acc", v(s.imu_scale.accel)}};
     }
   }
   j["live_merges"] = s.loop.merges.size();

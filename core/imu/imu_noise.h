@@ -15,6 +15,17 @@ struct ImuBias {
   bool operator==(const ImuBias&) const = default;
 };
 
+// A correction of the IMU's scale factors, per axis: the angular rate and the
+// specific force are (1 + gyro) and (1 + accel) times the measurement less its
+// bias. A MEMS IMU's factors are off by a few tenths of a percent; the
+// accelerometer's then scale the motion the IMU reports against the stereo's.
+struct ImuScaleCorrection {
+  Eigen::Vector3d gyro = Eigen::Vector3d::Zero();
+  Eigen::Vector3d accel = Eigen::Vector3d::Zero();
+
+  bool operator==(const ImuScaleCorrection&) const = default;
+};
+
 // What vibration adds at each end of an interval to the error of the
 // integrated rotation and velocity, per axis of the IMU frame (variances, rad^2
 // and (m/s)^2; core/imu/vibration_estimate.h measures it).

@@ -85,6 +85,11 @@ void Preintegration::reset(const ImuBias& bias) {
   dv_dba_.setZero();
   dp_dbg_.setZero();
   dp_dba_.setZero();
+  dR_dsg_.setZero();
+  dv_dsg_.setZero();
+  dv_dsa_.setZero();
+  dp_dsg_.setZero();
+  dp_dsa_.setZero();
 }
 
 void Preintegration::integrate(const Eigen::Vector3d& gyro, const Eigen::Vector3d& accel, double dt) {
@@ -105,7 +110,11 @@ void Preintegration::propagate(const Measurement& m) {
   // |f| |w| dt / 2 per step: millimetres per second at 200 Hz).
   const Eigen::Matrix3d dR_half = exp_matrix(0.5 * w * dt);
   const Eigen::Matrix3d R_mid = delta_R_ * dR_half;
-  const Eigen::Matrix3d dRmid_dbg = dR_half.transpose() * dR_dbg_ - so3_right_jacobian(0.5 * w * dt) * (0.5 * dt);
+  const Eigen::Matrix3d Jr_half = so3_right_jacobian(0.5 * w * dt);
+  const Eigen::Matrix3d dRmid_dbg = dR_half.transpose() * dR_dbg_ - Jr_half * (0.5 * dt);
+  // A scale correction moves the rate by diag(w) where a bias moves it by -I.
+  const Eigen::Matrix3d W_diag = w.asDiagonal(), A_diag = a.asDiagonal();
+  const Eigen::Matrix3d dRmid_dsg = dR_half.transpose() * dR_dsg_ + Jr_half * W_diag * (0.5 * dt);
   const Eigen::Matrix3d Ra = R_mid * hat(a);
 
   // Covariance of the error state (rotation, velocity, position), before the
@@ -128,12 +137,17 @@ void Preintegration::propagate(const Measurement& m) {
   dp_dbg_ += dv_dbg_ * dt - 0.5 * Ra * dRmid_dbg * dt2;
   dv_dba_ -= R_mid * dt;
   dv_dbg_ -= Ra * dRmid_dbg * dt;
+  dp_dsa_ += dv_dsa_ * dt + 0.5 * R_mid * A_diag * dt2;
+  dp_dsg_ += dv_dsg_ * dt - 0.5 * Ra * dRmid_dsg * dt2;
+  dv_dsa_ += R_mid * A_diag * dt;
+  dv_dsg_ -= Ra * dRmid_dsg * dt;
 
   // Increments.
   delta_p_ += delta_v_ * dt + 0.5 * R_mid * a * dt2;
   delta_v_ += R_mid * a * dt;
   delta_R_ = normalized(delta_R_ * dR);
   dR_dbg_ = dR.transpose() * dR_dbg_ - Jr * dt;
+  dR_dsg_ = dR.transpose() * dR_dsg_ + Jr * W_diag * dt;
   dt_ += dt;
 }
 
@@ -149,16 +163,18 @@ void Preintegration::append(const Preintegration& next) {
   }
 }
 
-Eigen::Matrix3d Preintegration::delta_R(const ImuBias& bias) const {
-  return normalized(delta_R_ * exp_matrix(dR_dbg_ * (bias.gyro - bias_.gyro)));
+Eigen::Matrix3d Preintegration::delta_R(const ImuBias& bias, const ImuScaleCorrection& scale) const {
+  return normalized(delta_R_ * exp_matrix(dR_dbg_ * (bias.gyro - bias_.gyro) + dR_dsg_ * scale.gyro));
 }
 
-Eigen::Vector3d Preintegration::delta_v(const ImuBias& bias) const {
-  return delta_v_ + dv_dbg_ * (bias.gyro - bias_.gyro) + dv_dba_ * (bias.accel - bias_.accel);
+Eigen::Vector3d Preintegration::delta_v(const ImuBias& bias, const ImuScaleCorrection& scale) const {
+  return delta_v_ + dv_dbg_ * (bias.gyro - bias_.gyro) + dv_dba_ * (bias.accel - bias_.accel) + dv_dsg_ * scale.gyro +
+         dv_dsa_ * scale.accel;
 }
 
-Eigen::Vector3d Preintegration::delta_p(const ImuBias& bias) const {
-  return delta_p_ + dp_dbg_ * (bias.gyro - bias_.gyro) + dp_dba_ * (bias.accel - bias_.accel);
+Eigen::Vector3d Preintegration::delta_p(const ImuBias& bias, const ImuScaleCorrection& scale) const {
+  return delta_p_ + dp_dbg_ * (bias.gyro - bias_.gyro) + dp_dba_ * (bias.accel - bias_.accel) + dp_dsg_ * scale.gyro +
+         dp_dsa_ * scale.accel;
 }
 
 Preintegration::Matrix9 Preintegration::covariance() const {

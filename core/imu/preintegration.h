@@ -4,8 +4,9 @@
 // IMU::Preintegrated): the rotation, velocity and position increments between
 // two frames or keyframes, in the IMU frame of the first, integrated once for a
 // bias estimate; their covariance from the noise densities; and first-order
-// Jacobians with respect to the biases, so that a changed bias corrects the
-// increments without integrating again.
+// Jacobians with respect to the biases and to a correction of the scale factors
+// (ImuScaleCorrection, zero where integrated), so that a changed bias or scale
+// corrects the increments without integrating again.
 //
 // Conventions: measurements and increments are in the IMU frame; a state is the
 // IMU's pose and velocity in the world, whose gravity is `gravity_w` (-9.81 z
@@ -64,9 +65,9 @@ class Preintegration {
   const Eigen::Matrix3d& delta_R() const { return delta_R_; }
   const Eigen::Vector3d& delta_v() const { return delta_v_; }
   const Eigen::Vector3d& delta_p() const { return delta_p_; }
-  Eigen::Matrix3d delta_R(const ImuBias& bias) const;
-  Eigen::Vector3d delta_v(const ImuBias& bias) const;
-  Eigen::Vector3d delta_p(const ImuBias& bias) const;
+  Eigen::Matrix3d delta_R(const ImuBias& bias, const ImuScaleCorrection& scale = {}) const;
+  Eigen::Vector3d delta_v(const ImuBias& bias, const ImuScaleCorrection& scale = {}) const;
+  Eigen::Vector3d delta_p(const ImuBias& bias, const ImuScaleCorrection& scale = {}) const;
 
   // Covariance of the increments' error (rotation, velocity, position): the
   // white noise's, propagated over the measurements, and the vibration's at
@@ -83,6 +84,13 @@ class Preintegration {
   const Eigen::Matrix3d& dv_dba() const { return dv_dba_; }
   const Eigen::Matrix3d& dp_dbg() const { return dp_dbg_; }
   const Eigen::Matrix3d& dp_dba() const { return dp_dba_; }
+  // Scale-correction Jacobians of the increments (the rotation's is the
+  // gyroscope's alone, the velocity's and position's both sensors').
+  const Eigen::Matrix3d& dR_dsg() const { return dR_dsg_; }
+  const Eigen::Matrix3d& dv_dsg() const { return dv_dsg_; }
+  const Eigen::Matrix3d& dv_dsa() const { return dv_dsa_; }
+  const Eigen::Matrix3d& dp_dsg() const { return dp_dsg_; }
+  const Eigen::Matrix3d& dp_dsa() const { return dp_dsa_; }
 
   // The state at the end, from the state at the start, gravity and `bias`.
   ImuState predict(const ImuState& start, const ImuBias& bias, const Eigen::Vector3d& gravity_w) const;
@@ -105,6 +113,9 @@ class Preintegration {
   Eigen::Matrix3d dR_dbg_ = Eigen::Matrix3d::Zero(), dv_dbg_ = Eigen::Matrix3d::Zero(),
                   dv_dba_ = Eigen::Matrix3d::Zero(), dp_dbg_ = Eigen::Matrix3d::Zero(),
                   dp_dba_ = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d dR_dsg_ = Eigen::Matrix3d::Zero(), dv_dsg_ = Eigen::Matrix3d::Zero(),
+                  dv_dsa_ = Eigen::Matrix3d::Zero(), dp_dsg_ = Eigen::Matrix3d::Zero(),
+                  dp_dsa_ = Eigen::Matrix3d::Zero();
 };
 
 // Right Jacobian of SO(3) at the rotation vector w.

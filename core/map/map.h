@@ -100,6 +100,8 @@ class Map {
     TimestampNs initialized_at_ns = 0;  // the newest keyframe of the window
     Eigen::Vector3d gravity_w = Eigen::Vector3d::Zero();
     ImuBias bias;
+    // The IMU's scale factors as local BA estimates them (zero until then).
+    ImuScaleCorrection scale = {};
     std::size_t keyframes = 0;    // in the window of the latest estimate (initialisation or refinement)
     double span_s = 0.0;          // of that window
     std::size_t refinements = 0;  // done since (inertial_initializer.h)

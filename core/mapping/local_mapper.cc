@@ -40,6 +40,10 @@ void LocalMapperOptions::check() const {
   bundle_adjustment.check();
   inertial.check();
   inertial_consistency.check();
+  ORBATLAS_CHECK(std::isfinite(imu_scale_sigma) && imu_scale_sigma >= 0.0 && imu_scale_sigma < 0.05,
+                 "local mapping: imu_scale_sigma must be in [0, 0.05), not " << imu_scale_sigma);
+  ORBATLAS_CHECK(std::isfinite(imu_scale_gain) && imu_scale_gain >= 0.0 && imu_scale_gain <= 1.0,
+                 "local mapping: imu_scale_gain must be in [0, 1], not " << imu_scale_gain);
   ORBATLAS_CHECK(inertial_window_keyframes >= 2,
                  "local mapping: inertial_window_keyframes must be >= 2, not " << inertial_window_keyframes);
   ORBATLAS_CHECK(full_inertial_ba_iterations >= 0,
@@ -178,7 +182,9 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
         ba.inertial = InertialWindowOptions{.T_b_i = options_.inertial.T_b_i,
                                             .gravity_w = inertial_state->gravity_w,
                                             .map_bias = inertial_state->bias,
-                                            .temporal_keyframes = options_.inertial_window_keyframes};
+                                            .temporal_keyframes = options_.inertial_window_keyframes,
+                                            .scale = inertial_state->scale,
+                                            .scale_sigma = options_.imu_scale_sigma};
       if (ba.inertial) ba.max_covisibles = std::min(ba.max_covisibles, options_.inertial_covisible_keyframes);
       const auto stats = local_bundle_adjustment(*map, keyframe, *cam_.camera, cam_.bf, ba, &abort_ba_);
       ba_ms = stats.time_ms;
@@ -202,9 +208,13 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
               " in the latest): " +
               (for_good ? "the map stays visual-only" : "visual-only until its inertial initialisation agrees again"));
         } else if (const auto imu = keyframe->imu_state(); imu && inertial_state) {
-          // Tracking predicts with the newest keyframe's biases.
+          // Tracking predicts with the newest keyframe's biases; the scale
+          // estimate moves part of the way to the window's.
           Map::InertialState refined = *inertial_state;
           refined.bias = imu->bias;
+          const double gain = options_.imu_scale_gain;
+          refined.scale.gyro += gain * (stats.imu_scale.gyro - refined.scale.gyro);
+          refined.scale.accel += gain * (stats.imu_scale.accel - refined.scale.accel);
           map->set_inertial_state(refined);
         }
       }

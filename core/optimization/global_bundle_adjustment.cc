@@ -75,6 +75,7 @@ GlobalBundleAdjustmentResult global_bundle_adjustment(const Map& map, const Came
     window_options.T_b_i = options.inertial->T_b_i;
     window_options.gravity_w = inertial_state->gravity_w;
     window_options.map_bias = inertial_state->bias;
+    window_options.scale = inertial_state->scale;  // held: local BA estimates it
     // Every chain keyframe indexed before any term points into the poses.
     for (const auto& chain : chains)
       for (const auto& kf : chain.keyframes) bundle_keyframe_index(problem, kf);

@@ -30,17 +30,34 @@ struct InertialResidual {
   Eigen::Vector3d t_c_i, gravity_w;
   Eigen::Matrix<double, 9, 9> weight;  // square root of the information
 
+  // scale: the scale correction (gyro, accel), or null for none.
   template <typename T>
-  bool operator()(const T* q1, const T* t1, const T* v1, const T* q2, const T* t2, const T* v2, const T* bias,
-                  T* out) const {
+  void evaluate(const T* q1, const T* t1, const T* v1, const T* q2, const T* t2, const T* v2, const T* bias,
+                const T* scale, T* out) const {
     Mat3T<T> R1, R2;
     Vec3T<T> p1, p2;
     imu_pose(q1, t1, R_c_i, t_c_i, R1, p1);
     imu_pose(q2, t2, R_c_i, t_c_i, R2, p2);
-    const auto vec = [](const T* x) { return Vec3T<T>(x[0], x[1], x[2]); };
+    const auto vec = [](const T* x) { return x ? Vec3T<T>(x[0], x[1], x[2]) : Vec3T<T>(Vec3T<T>::Zero()); };
     Eigen::Map<Eigen::Matrix<T, 9, 1>> weighted(out);
-    weighted = weight.cast<T>() * inertial_residual<T>(*increments, R1, p1, vec(v1), R2, p2, vec(v2), vec(bias),
-                                                       vec(bias + 3), gravity_w.cast<T>());
+    weighted =
+        weight.cast<T>() * inertial_residual<T>(*increments, R1, p1, vec(v1), R2, p2, vec(v2), vec(bias), vec(bias + 3),
+                                                gravity_w.cast<T>(), vec(scale), vec(scale ? scale + 3 : nullptr));
+  }
+
+  template <typename T>
+  bool operator()(const T* q1, const T* t1, const T* v1, const T* q2, const T* t2, const T* v2, const T* bias,
+                  T* out) const {
+    evaluate<T>(q1, t1, v1, q2, t2, v2, bias, nullptr, out);
+    return true;
+  }
+};
+
+struct ScaledInertialResidual : InertialResidual {
+  template <typename T>
+  bool operator()(const T* q1, const T* t1, const T* v1, const T* q2, const T* t2, const T* v2, const T* bias,
+                  const T* scale, T* out) const {
+    evaluate<T>(q1, t1, v1, q2, t2, v2, bias, scale, out);
     return true;
   }
 };
@@ -85,6 +102,19 @@ class BiasWalkCost final : public ceres::SizedCostFunction<6, 6, 6> {
   Eigen::Matrix<double, 6, 1> weight_;
 };
 
+template <typename Residual>
+std::unique_ptr<Residual> inertial_residual_of(std::shared_ptr<const Preintegration> increments, const Pose3& T_c_i,
+                                               const Eigen::Vector3d& gravity_w) {
+  ORBATLAS_CHECK(increments && increments->dt() > 0.0, "an inertial cost needs increments over some time");
+  auto f = std::make_unique<Residual>();
+  f->weight = whitening<9>(increments->covariance());
+  f->increments = std::move(increments);
+  f->R_c_i = T_c_i.q.normalized().toRotationMatrix();
+  f->t_c_i = T_c_i.t;
+  f->gravity_w = gravity_w;
+  return f;
+}
+
 }  // namespace
 
 std::unique_ptr<ceres::CostFunction> make_bias_walk_cost(const ImuNoise& noise, double dt) {
@@ -98,15 +128,14 @@ std::unique_ptr<ceres::CostFunction> make_bias_walk_cost(const ImuNoise& noise, 
 
 std::unique_ptr<ceres::CostFunction> make_inertial_cost(std::shared_ptr<const Preintegration> increments,
                                                         const Pose3& T_c_i, const Eigen::Vector3d& gravity_w) {
-  ORBATLAS_CHECK(increments && increments->dt() > 0.0, "an inertial cost needs increments over some time");
-  auto f = std::make_unique<InertialResidual>();
-  f->weight = whitening<9>(increments->covariance());
-  f->increments = std::move(increments);
-  f->R_c_i = T_c_i.q.normalized().toRotationMatrix();
-  f->t_c_i = T_c_i.t;
-  f->gravity_w = gravity_w;
   return std::make_unique<ceres::AutoDiffCostFunction<InertialResidual, 9, 4, 3, 3, 4, 3, 3, 6>>(
-      f.release());  // owns it
+      inertial_residual_of<InertialResidual>(std::move(increments), T_c_i, gravity_w).release());  // owns it
+}
+
+std::unique_ptr<ceres::CostFunction> make_scaled_inertial_cost(std::shared_ptr<const Preintegration> increments,
+                                                               const Pose3& T_c_i, const Eigen::Vector3d& gravity_w) {
+  return std::make_unique<ceres::AutoDiffCostFunction<ScaledInertialResidual, 9, 4, 3, 3, 4, 3, 3, 6, 6>>(
+      inertial_residual_of<ScaledInertialResidual>(std::move(increments), T_c_i, gravity_w).release());  // owns it
 }
 
 std::unique_ptr<ceres::CostFunction> make_state_prior(const Pose3& T_c_w, const Eigen::Vector3d& v_w,

@@ -24,6 +24,12 @@ namespace orbatlas {
 std::unique_ptr<ceres::CostFunction> make_inertial_cost(std::shared_ptr<const Preintegration> increments,
                                                         const Pose3& T_c_i, const Eigen::Vector3d& gravity_w);
 
+// The same with an eighth parameter block: the correction of the IMU's scale
+// factors (ImuScaleCorrection: gyro, accel; 6) the increments are corrected to
+// (first order), shared by the terms of one IMU.
+std::unique_ptr<ceres::CostFunction> make_scaled_inertial_cost(std::shared_ptr<const Preintegration> increments,
+                                                               const Pose3& T_c_i, const Eigen::Vector3d& gravity_w);
+
 // A Gaussian prior on a frame's state: the camera pose and the IMU velocity,
 // with `covariance` in the tangent coordinates Ceres' quaternion manifold and
 // the translation and velocity blocks use (a left rotation increment of q_c_w,

@@ -44,6 +44,11 @@ void InertialWindowOptions::check() const {
                  "visual-inertial BA: temporal_keyframes must be >= 2, not " << temporal_keyframes);
   ORBATLAS_CHECK(gravity_w.allFinite() && gravity_w.norm() > 0.0, "visual-inertial BA: gravity must be finite, not 0");
   ORBATLAS_CHECK(std::isfinite(huber) && huber >= 0.0, "visual-inertial BA: huber must be >= 0, not " << huber);
+  ORBATLAS_CHECK(scale.gyro.allFinite() && scale.accel.allFinite() && scale.gyro.cwiseAbs().maxCoeff() < 0.1 &&
+                     scale.accel.cwiseAbs().maxCoeff() < 0.1,
+                 "visual-inertial BA: the IMU scale correction must be finite and under 10 % per axis");
+  ORBATLAS_CHECK(std::isfinite(scale_sigma) && scale_sigma >= 0.0 && scale_sigma < 0.1,
+                 "visual-inertial BA: scale_sigma must be in [0, 0.1), not " << scale_sigma);
 }
 
 InertialChainWindow inertial_chain_window(const std::shared_ptr<KeyFrame>& current,
@@ -96,6 +101,22 @@ InertialWindow add_inertial_window(BundleProblem& lp, const InertialChainWindow&
     w.bias.push_back(add_block(lp, b6, 6, fixed));
   }
 
+  // The scale correction: one block for the window's IMU, free under its
+  // prior when estimated, held when only applied; none when there is none.
+  w.has_scale = options.scale_sigma > 0.0 || options.scale != ImuScaleCorrection{};
+  double s6[6];
+  std::copy(options.scale.gyro.data(), options.scale.gyro.data() + 3, s6);
+  std::copy(options.scale.accel.data(), options.scale.accel.data() + 3, s6 + 3);
+  if (w.has_scale) w.scale = add_block(lp, s6, 6, options.scale_sigma <= 0.0);
+  if (options.scale_sigma > 0.0) {
+    BundleExtraTerm prior;
+    prior.cost = make_diagonal_prior(Eigen::Map<const Eigen::Matrix<double, 6, 1>>(s6),
+                                     Eigen::Matrix<double, 6, 1>::Constant(options.scale_sigma));
+    prior.blocks = {lp.extra_blocks[w.scale].values.get()};
+    lp.extra_terms.push_back(std::move(prior));
+  }
+  double* scale = w.has_scale ? lp.extra_blocks[w.scale].values.get() : nullptr;
+
   for (std::size_t i = 1; i < n; ++i) {
     const auto link = w.keyframes[i]->inertial_link();
     ORBATLAS_CHECK(link && link->from_previous && link->previous_id == w.keyframes[i - 1]->id(),
@@ -107,9 +128,14 @@ InertialWindow add_inertial_window(BundleProblem& lp, const InertialChainWindow&
     double* ba = lp.extra_blocks[w.bias[i - 1]].values.get();
     double* bb = lp.extra_blocks[w.bias[i]].values.get();
     BundleExtraTerm inertial;
-    inertial.cost = make_inertial_cost(link->from_previous, T_c_i, options.gravity_w);
     inertial.blocks = {
         lp.poses[a].q.data(), lp.poses[a].t.data(), va, lp.poses[b].q.data(), lp.poses[b].t.data(), vb, ba};
+    if (scale) {
+      inertial.cost = make_scaled_inertial_cost(link->from_previous, T_c_i, options.gravity_w);
+      inertial.blocks.push_back(scale);
+    } else {
+      inertial.cost = make_inertial_cost(link->from_previous, T_c_i, options.gravity_w);
+    }
     inertial.keyframes = {a, b};
     inertial.huber = options.huber;
     w.inertial_terms.push_back(lp.extra_terms.size());
@@ -149,6 +175,16 @@ std::vector<std::pair<std::shared_ptr<KeyFrame>, KeyFrame::ImuState>> inertial_w
       states.emplace_back(window.keyframes[i], state);
   }
   return states;
+}
+
+ImuScaleCorrection inertial_window_scale(const BundleProblem& lp, const InertialWindow& window,
+                                         const InertialWindowOptions& options) {
+  if (!window.has_scale) return options.scale;
+  const double* s = lp.extra_blocks[window.scale].values.get();
+  ImuScaleCorrection out;
+  out.gyro = Eigen::Vector3d(s[0], s[1], s[2]);
+  out.accel = Eigen::Vector3d(s[3], s[4], s[5]);
+  return out.gyro.allFinite() && out.accel.allFinite() ? out : options.scale;
 }
 
 void write_back_inertial_window(const BundleProblem& lp, const InertialWindow& window,

@@ -32,6 +32,12 @@ struct InertialWindowOptions {
   // (the global BA's; 0: none): a link that does not fit (a knock, a bad
   // stretch of IMU) weighs as a robust term, not as a square.
   double huber = std::sqrt(kChi2Inertial95);
+  // The IMU's scale-factor correction (ImuScaleCorrection), the map's estimate:
+  // the inertial terms are corrected to it. With scale_sigma > 0 it is an
+  // unknown of the window too, under a prior of that sigma per axis about the
+  // map's estimate; 0: held at it.
+  ImuScaleCorrection scale = {};
+  double scale_sigma = 0.0;
 
   // Throws Error naming the first value out of range.
   void check() const;
@@ -42,6 +48,8 @@ struct InertialWindow {
   std::vector<std::size_t> index;                    // into BundleProblem::keyframes
   std::vector<std::size_t> velocity, bias;           // into BundleProblem::extra_blocks
   std::vector<std::size_t> inertial_terms;           // into BundleProblem::extra_terms: the inertial edges
+  std::size_t scale = 0;                             // into BundleProblem::extra_blocks (when has_scale)
+  bool has_scale = false;
   bool anchored = false;
 };
 
@@ -70,6 +78,11 @@ std::vector<double> inertial_window_chi2(const BundleProblem& problem, const Ine
 // optimised pose); non-finite ones are left out.
 std::vector<std::pair<std::shared_ptr<KeyFrame>, KeyFrame::ImuState>> inertial_window_states(
     const BundleProblem& problem, const InertialWindow& window, const InertialWindowOptions& options);
+
+// The window's scale-factor correction as solved (the options' when the
+// window has none or it is not finite).
+ImuScaleCorrection inertial_window_scale(const BundleProblem& problem, const InertialWindow& window,
+                                         const InertialWindowOptions& options);
 
 // Writes the free keyframes' IMU states back (inertial_window_states).
 void write_back_inertial_window(const BundleProblem& problem, const InertialWindow& window,

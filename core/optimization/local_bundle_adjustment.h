@@ -73,8 +73,9 @@ struct LocalBundleAdjustmentStats {
   std::size_t inertial_edges = 0;
   double inertial_chi2_max = 0.0;  // of the inertial edges after the solve (infinite: not evaluable)
   double inertial_chi2_median = 0.0;
-  int iterations = 0;    // both stages
-  bool stopped = false;  // interrupted by the stop flag
+  ImuScaleCorrection imu_scale;  // the window's IMU scale correction as solved (InertialWindowOptions::scale_sigma)
+  int iterations = 0;            // both stages
+  bool stopped = false;          // interrupted by the stop flag
   double time_ms = 0.0;
 };
 

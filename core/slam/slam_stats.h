@@ -74,6 +74,7 @@ struct SlamStats {
   ImuInputHealth imu_input;
   Eigen::Vector3d imu_gravity_w = Eigen::Vector3d::Zero();
   ImuBias imu_bias;
+  ImuScaleCorrection imu_scale;  // the map's estimate of the IMU's scale factors' correction
 };
 
 // Every worker's contained errors together (tracking, local mapping, loop closing).

@@ -360,6 +360,7 @@ SlamStats SlamSystem::stats() const {
             s.imu_initialized_at_s = ns_to_s(state->initialized_at_ns - first_t_ns_.load());
             s.imu_gravity_w = state->gravity_w;
             s.imu_bias = state->bias;
+            s.imu_scale = state->scale;
           }
   }
   return s;
