@@ -212,9 +212,13 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
           // estimate moves part of the way to the window's.
           Map::InertialState refined = *inertial_state;
           refined.bias = imu->bias;
+          // Within 5 % per axis: past any IMU's tolerance, and the window's bound is 10 %.
           const double gain = options_.imu_scale_gain;
-          refined.scale.gyro += gain * (stats.imu_scale.gyro - refined.scale.gyro);
-          refined.scale.accel += gain * (stats.imu_scale.accel - refined.scale.accel);
+          const auto moved = [gain](const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+            return Eigen::Vector3d((from + gain * (to - from)).cwiseMax(-0.05).cwiseMin(0.05));
+          };
+          refined.scale.gyro = moved(refined.scale.gyro, stats.imu_scale.gyro);
+          refined.scale.accel = moved(refined.scale.accel, stats.imu_scale.accel);
           map->set_inertial_state(refined);
         }
       }
