@@ -42,8 +42,6 @@ void LocalMapperOptions::check() const {
   inertial_consistency.check();
   ORBATLAS_CHECK(std::isfinite(imu_scale_sigma) && imu_scale_sigma >= 0.0 && imu_scale_sigma < 0.05,
                  "local mapping: imu_scale_sigma must be in [0, 0.05), not " << imu_scale_sigma);
-  ORBATLAS_CHECK(std::isfinite(imu_scale_gain) && imu_scale_gain >= 0.0 && imu_scale_gain <= 1.0,
-                 "local mapping: imu_scale_gain must be in [0, 1], not " << imu_scale_gain);
   ORBATLAS_CHECK(inertial_window_keyframes >= 2,
                  "local mapping: inertial_window_keyframes must be >= 2, not " << inertial_window_keyframes);
   ORBATLAS_CHECK(full_inertial_ba_iterations >= 0,
@@ -197,6 +195,7 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
         const auto verdict = consistency_.add(map->id(), stats.inertial_chi2_median);
         if (verdict != InertialConsistency::Verdict::kKeep) {
           map->clear_inertial_state(keyframe->timestamp_ns());
+          scale_filter_.forget(map->id());
           // What the IMU bent, a visual global BA straightens (the loop closer's, in the background).
           if (options_.defer_full_inertial_ba) map->request_inertial_adjustment();
           const bool for_good = verdict == InertialConsistency::Verdict::kGiveUp;
@@ -208,17 +207,12 @@ void LocalMapper::process(const std::shared_ptr<KeyFrame>& keyframe, std::uint64
               " in the latest): " +
               (for_good ? "the map stays visual-only" : "visual-only until its inertial initialisation agrees again"));
         } else if (const auto imu = keyframe->imu_state(); imu && inertial_state) {
-          // Tracking predicts with the newest keyframe's biases; the scale
-          // estimate moves part of the way to the window's.
+          // Tracking predicts with the newest keyframe's biases; the window's
+          // scale correction joins the map's estimate.
           Map::InertialState refined = *inertial_state;
           refined.bias = imu->bias;
-          // Within 5 % per axis: past any IMU's tolerance, and the window's bound is 10 %.
-          const double gain = options_.imu_scale_gain;
-          const auto moved = [gain](const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
-            return Eigen::Vector3d((from + gain * (to - from)).cwiseMax(-0.05).cwiseMin(0.05));
-          };
-          refined.scale.gyro = moved(refined.scale.gyro, stats.imu_scale.gyro);
-          refined.scale.accel = moved(refined.scale.accel, stats.imu_scale.accel);
+          if (options_.imu_scale_sigma > 0.0)
+            refined.scale = scale_filter_.add(map->id(), refined.scale, stats.imu_scale, stats.imu_scale_information);
           map->set_inertial_state(refined);
         }
       }

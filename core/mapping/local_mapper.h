@@ -22,6 +22,7 @@
 #include "core/map/atlas.h"
 #include "core/map/keyframe_index.h"
 #include "core/mapping/inertial_consistency.h"
+#include "core/mapping/imu_scale_filter.h"
 #include "core/mapping/inertial_initializer.h"
 #include "core/mapping/keyframe_culling.h"
 #include "core/optimization/global_bundle_adjustment.h"
@@ -53,11 +54,10 @@ struct LocalMapperOptions {
   std::size_t inertial_covisible_keyframes = 1000;
   // With imu_scale_sigma > 0 the IMU's scale factors (ImuScaleCorrection) are
   // estimated with each visual-inertial local BA, under a prior of that sigma
-  // per axis about the map's estimate, which then moves imu_scale_gain of the
-  // way to the window's. Off by default: it helps the simulator's realistic
-  // IMU and harms the real MH_05 recording at 0.01 (docs/inertial.md).
+  // per axis about the map's estimate, and fused into the map's estimate by
+  // what each window told of them (imu_scale_filter.h, the same sigma its
+  // prior about none). 0: the factors are taken as they are.
   double imu_scale_sigma = 0.0;
-  double imu_scale_gain = 0.2;
   // After a map's inertial initialisation and each refinement: a full
   // visual-inertial BA (every keyframe and point, the chain's IMU states;
   // ORB-SLAM3's FullInertialBA); iterations 0: none.
@@ -217,6 +217,9 @@ class LocalMapper final {
   static KeyframeId spanning_tree_root(const Map& map, const KeyFrame& keyframe);
   std::map<MapId, KeyframeId> origins_;
   InertialConsistency consistency_{options_.inertial_consistency};
+  ImuScaleFilter scale_filter_{
+      ImuScaleFilterOptions{.prior_sigma = options_.imu_scale_sigma > 0.0 ? options_.imu_scale_sigma : 0.01,
+                            .overlap = static_cast<double>(options_.inertial_window_keyframes)}};
   std::vector<RecentPoint> recent_;
   std::size_t sequence_ = 0;
   bool counted_adjusted_ = false;  // the keyframe in processing has been counted adjusted

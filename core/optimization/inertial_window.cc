@@ -5,6 +5,9 @@
 #include <algorithm>
 #include <limits>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
 #include "core/common/error.h"
 #include "core/common/timestamp.h"
 #include "core/map/inertial_chain.h"
@@ -185,6 +188,34 @@ ImuScaleCorrection inertial_window_scale(const BundleProblem& lp, const Inertial
   out.gyro = Eigen::Vector3d(s[0], s[1], s[2]);
   out.accel = Eigen::Vector3d(s[3], s[4], s[5]);
   return out.gyro.allFinite() && out.accel.allFinite() ? out : options.scale;
+}
+
+ImuScaleInformation inertial_window_scale_information(const BundleProblem& lp, const InertialWindow& window) {
+  using Matrix96 = Eigen::Matrix<double, 9, 6, Eigen::RowMajor>;
+  ImuScaleInformation ss = ImuScaleInformation::Zero(), sb = ImuScaleInformation::Zero(),
+                      bb = ImuScaleInformation::Zero();
+  if (!window.has_scale) return ss;
+  for (const std::size_t t : window.inertial_terms) {
+    const BundleExtraTerm& term = lp.extra_terms[t];
+    if (term.blocks.size() != 8) continue;
+    Eigen::Matrix<double, 9, 1> r;
+    Matrix96 J_bias, J_scale;
+    double* jacobians[8] = {nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, J_bias.data(), J_scale.data()};
+    if (!term.cost->Evaluate(term.blocks.data(), r.data(), jacobians) || !J_bias.allFinite() || !J_scale.allFinite())
+      continue;
+    ss += J_scale.transpose() * J_scale;
+    sb += J_scale.transpose() * J_bias;
+    bb += J_bias.transpose() * J_bias;
+  }
+  // The biases eliminated (a tiny ridge for an axis no term moves).
+  const ImuScaleInformation bb_ridge = bb + 1e-9 * (1.0 + bb.diagonal().maxCoeff()) * ImuScaleInformation::Identity();
+  ImuScaleInformation info = ss - sb * bb_ridge.ldlt().solve(sb.transpose());
+  info = 0.5 * (info + info.transpose()).eval();
+  // Rounding can leave it a little indefinite: clamp its eigenvalues at 0.
+  const Eigen::SelfAdjointEigenSolver<ImuScaleInformation> eig(info);
+  if (eig.info() != Eigen::Success) return ImuScaleInformation::Zero();
+  const Eigen::Matrix<double, 6, 1> values = eig.eigenvalues().cwiseMax(0.0);
+  return eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose();
 }
 
 void write_back_inertial_window(const BundleProblem& lp, const InertialWindow& window,

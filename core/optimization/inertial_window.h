@@ -84,6 +84,13 @@ std::vector<std::pair<std::shared_ptr<KeyFrame>, KeyFrame::ImuState>> inertial_w
 ImuScaleCorrection inertial_window_scale(const BundleProblem& problem, const InertialWindow& window,
                                          const InertialWindowOptions& options);
 
+// What the window's inertial terms tell of its scale correction (6x6, gyro
+// then accel): the information of the correction at the solution with the
+// biases (taken as one for the window) eliminated, the poses and velocities
+// taken as known; zero when the window has no scale block.
+using ImuScaleInformation = Eigen::Matrix<double, 6, 6>;
+ImuScaleInformation inertial_window_scale_information(const BundleProblem& problem, const InertialWindow& window);
+
 // Writes the free keyframes' IMU states back (inertial_window_states).
 void write_back_inertial_window(const BundleProblem& problem, const InertialWindow& window,
                                 const InertialWindowOptions& options);

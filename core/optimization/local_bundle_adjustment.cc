@@ -120,6 +120,7 @@ LocalBundleAdjustmentStats local_bundle_adjustment(Map& map, const std::shared_p
   if (options.inertial) {
     write_back_inertial_window(lp, inertial, *options.inertial);
     stats.imu_scale = inertial_window_scale(lp, inertial, *options.inertial);
+    stats.imu_scale_information = inertial_window_scale_information(lp, inertial);
     std::vector<double> chi2 = inertial_window_chi2(lp, inertial);
     for (const double c : chi2) stats.inertial_chi2_max = std::max(stats.inertial_chi2_max, c);
     if (!chi2.empty()) {

@@ -74,8 +74,9 @@ struct LocalBundleAdjustmentStats {
   double inertial_chi2_max = 0.0;  // of the inertial edges after the solve (infinite: not evaluable)
   double inertial_chi2_median = 0.0;
   ImuScaleCorrection imu_scale;  // the window's IMU scale correction as solved (InertialWindowOptions::scale_sigma)
-  int iterations = 0;            // both stages
-  bool stopped = false;          // interrupted by the stop flag
+  ImuScaleInformation imu_scale_information = ImuScaleInformation::Zero();  // what the window told of it
+  int iterations = 0;                                                       // both stages
+  bool stopped = false;                                                     // interrupted by the stop flag
   double time_ms = 0.0;
 };
 

@@ -94,8 +94,6 @@ const std::vector<Binding>& bindings() {
                       "visual-inertial local BA: prior sigma of the IMU's scale factors per axis about the map's "
                       "estimate (0: the factors are not estimated; docs/inertial.md)",
                       mapper.imu_scale_sigma),
-      ORBATLAS_TUNING("LocalMapping.ImuScaleGain", 0, 1, false,
-                      "share of the way the map's IMU scale estimate moves to each local BA's", mapper.imu_scale_gain),
       ORBATLAS_TUNING("LocalMapping.InertialReintegrateGyroBiasChange", 0, 10, false,
                       "links linearised at a gyro bias this far [rad/s] from the one an initialisation or refinement "
                       "finds are integrated again (10: never)",

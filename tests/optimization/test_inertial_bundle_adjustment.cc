@@ -8,6 +8,7 @@
 // (global) visual-inertial BA and the map's inertial initialisation.
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
 #include <map>
 #include <random>
 
@@ -244,19 +245,28 @@ TEST(InertialBundleAdjustment, TheWindowFindsTheImusScaleFactors) {
       EXPECT_LT((stats.imu_scale.gyro - true_gyro).cwiseAbs().maxCoeff(), 2e-4);
       EXPECT_NEAR(stats.imu_scale.accel.z(), true_accel.z(), 4e-5);
       EXPECT_LT(stats.inertial_chi2_max, 0.021);  // measured 0.0104
+      // What the window told of the correction: measured 4e5-1.2e6 on the
+      // gyro's axes and the accelerometer's x, 4.6e4 on its z and 1.4e3 on
+      // its y (the axis it left half-way).
+      const ImuScaleInformation& info = stats.imu_scale_information;
+      EXPECT_GT(info.diagonal().head<4>().minCoeff(), 1.9e5);
+      EXPECT_GT(info(5, 5), 2.3e4);
+      EXPECT_LT(info(4, 4), 2.8e3);
+      EXPECT_GE(Eigen::SelfAdjointEigenSolver<ImuScaleInformation>(info).eigenvalues().minCoeff(), 0.0);
     } else {
       // Measured: position 1.7e-3 m, velocity 1.8e-3 m/s, chi2 up to 76.
       EXPECT_GT(errors[false].position, 1e-3);
       EXPECT_GT(stats.inertial_chi2_max, 38.0);
       EXPECT_TRUE(stats.imu_scale == ImuScaleCorrection{});  // held
+      EXPECT_TRUE(stats.imu_scale_information.isZero());
     }
   }
 }
 
 // Both solvers of the visual-inertial local BA (orbatlas' own
 // Levenberg-Marquardt with the inertial edges, bias walks and anchor, and
-// Ceres) from the same perturbed window: the same algorithm, so the same
-// iterations and end point (to rounding): poses, velocities, biases, points.
+// Ceres) from the same perturbed window: the same algorithm, so the same end
+// point (to rounding): poses, velocities, biases, points.
 // Rounding differs between machines (the same build ends 100 times further
 // apart on CI's), so the bounds are set by what rounding can move, not by
 // this machine's gaps.
@@ -278,7 +288,10 @@ TEST(InertialBundleAdjustment, TheOwnSolverEndsWhereCeresEnds) {
     }
     EXPECT_EQ(stats[true].window_keyframes, stats[false].window_keyframes);
     EXPECT_EQ(stats[true].observations_removed, stats[false].observations_removed);
-    EXPECT_NEAR(stats[true].iterations, stats[false].iterations, 1);
+    // Not the same count of iterations: near the end a step's decrease sits at
+    // the stopping tolerance, where rounding decides (13 or 15 here, as the
+    // binary's layout changes); the end points below are what must agree.
+    for (const bool own : {true, false}) EXPECT_LE(stats[own].iterations, 15);
     const InertialWorld& own = *worlds[true];
     const InertialWorld& ceres = *worlds[false];
     double pose_gap = 0.0, velocity_gap = 0.0, bias_gap = 0.0, point_gap = 0.0;
