@@ -10,10 +10,9 @@
 #include <cmath>
 #include <limits>
 #include <optional>
-#include <unordered_map>
 #include <vector>
 
-#include "core/common/error.h"
+#include "core/optimization/bundle_layout.h"
 
 namespace orbatlas {
 namespace {
@@ -22,130 +21,10 @@ using Matrix6 = Eigen::Matrix<double, 6, 6>;
 using Vector6 = Eigen::Matrix<double, 6, 1>;
 using Matrix36 = Eigen::Matrix<double, 3, 6>;
 using Matrix63 = Eigen::Matrix<double, 6, 3>;
-constexpr int kNone = -1;
+constexpr int kNone = kNoBundleVar;
 constexpr double kMinDiagonal = 1e-6, kMaxDiagonal = 1e32;  // Ceres' LM diagonal clamp
 constexpr double kMaxRadius = 1e16, kMinRadius = 1e-32;
 constexpr double kMinRelativeDecrease = 1e-3;
-
-// A parameter block of an extra term (an inertial edge, a bias walk, a prior)
-// placed among the unknowns of the reduced system.
-struct TermBlock {
-  int offset = -1;       // its first unknown in the reduced system; -1: constant
-  int size = 0;          // its unknowns (a quaternion's tangent: 3)
-  int global = 0;        // its values (a quaternion: 4)
-  int rotation_of = -1;  // the pose var whose rotation it is (through the quaternion's manifold), or -1
-};
-
-// The unknowns: the free poses (6 each: rotation, translation) of the active
-// edges and the extra terms, then the extra terms' free blocks, which with the
-// poses make the reduced system; the points of the active edges, eliminated.
-// The active edges are grouped by point (the elimination visits one point's
-// edges together).
-struct Layout {
-  std::vector<int> pose_var;                  // per keyframe: index among the free poses, or kNone
-  std::vector<std::size_t> free_keyframes;    // pose var -> keyframe
-  std::vector<std::size_t> points;            // point var -> point
-  std::vector<std::size_t> point_begin;       // point var -> its first edge; one past the last at the end
-  std::vector<std::size_t> edges;             // active edges (indices into BundleProblem::edges)
-  std::vector<int> edge_pose;                 // per entry of `edges`: its pose var, or kNone
-  std::vector<std::vector<TermBlock>> terms;  // per extra term, per block
-  std::vector<std::size_t> free_extras;       // extra blocks (into BundleProblem::extra_blocks) among the unknowns
-  std::vector<int> extra_offset;              // per entry of free_extras: its first unknown
-  Eigen::Index dim = 0;                       // unknowns of the reduced system
-  Eigen::Index pose_dim() const { return static_cast<Eigen::Index>(6 * free_keyframes.size()); }
-};
-
-Layout layout_of(const BundleProblem& lp) {
-  Layout l;
-  l.pose_var.assign(lp.keyframes.size(), kNone);
-  std::vector<int> point_var(lp.points.size(), kNone);
-  std::vector<std::size_t> count;
-  const auto free_pose = [&](std::size_t k) {
-    if (lp.fixed[k]) return kNone;
-    if (l.pose_var[k] == kNone) {
-      l.pose_var[k] = static_cast<int>(l.free_keyframes.size());
-      l.free_keyframes.push_back(k);
-    }
-    return l.pose_var[k];
-  };
-  for (const BundleEdge& e : lp.edges) {
-    if (!e.active) continue;
-    free_pose(e.keyframe);
-    if (point_var[e.point] == kNone) {
-      point_var[e.point] = static_cast<int>(l.points.size());
-      l.points.push_back(e.point);
-      count.push_back(0);
-    }
-    ++count[static_cast<std::size_t>(point_var[e.point])];
-  }
-  l.point_begin.assign(l.points.size() + 1, 0);
-  for (std::size_t v = 0; v < l.points.size(); ++v) l.point_begin[v + 1] = l.point_begin[v] + count[v];
-  std::vector<std::size_t> next(l.point_begin.begin(), l.point_begin.end() - 1);
-  l.edges.resize(l.point_begin.back());
-  l.edge_pose.resize(l.edges.size());
-  for (std::size_t i = 0; i < lp.edges.size(); ++i) {
-    const BundleEdge& e = lp.edges[i];
-    if (!e.active) continue;
-    const std::size_t n = next[static_cast<std::size_t>(point_var[e.point])]++;
-    l.edges[n] = i;
-    l.edge_pose[n] = l.pose_var[e.keyframe];
-  }
-
-  // The extra terms' blocks: poses (rotation, translation) or extra blocks.
-  if (lp.extra_terms.empty()) {
-    l.dim = l.pose_dim();
-    return l;
-  }
-  enum class Kind { kRotation, kTranslation, kExtra };
-  std::unordered_map<const double*, std::pair<Kind, std::size_t>> owner;
-  for (std::size_t k = 0; k < lp.keyframes.size(); ++k) {
-    owner[lp.poses[k].q.data()] = {Kind::kRotation, k};
-    owner[lp.poses[k].t.data()] = {Kind::kTranslation, k};
-  }
-  for (std::size_t i = 0; i < lp.extra_blocks.size(); ++i) owner[lp.extra_blocks[i].values.get()] = {Kind::kExtra, i};
-  const auto owner_of = [&](const double* block) {
-    const auto it = owner.find(block);
-    ORBATLAS_CHECK(it != owner.end(),
-                   "bundle Levenberg-Marquardt: an extra term's block is neither a pose nor an "
-                   "extra block of the problem");
-    return it->second;
-  };
-  // The terms' free poses join the others first: the extra blocks follow the poses.
-  for (const BundleExtraTerm& term : lp.extra_terms)
-    for (const double* block : term.blocks)
-      if (const auto [kind, index] = owner_of(block); kind != Kind::kExtra) free_pose(index);
-  l.dim = l.pose_dim();
-  std::vector<int> extra_offset(lp.extra_blocks.size(), kNone);
-  l.terms.resize(lp.extra_terms.size());
-  for (std::size_t t = 0; t < lp.extra_terms.size(); ++t) {
-    for (const double* block : lp.extra_terms[t].blocks) {
-      TermBlock tb;
-      const auto [kind, index] = owner_of(block);
-      if (kind == Kind::kExtra) {
-        const BundleExtraBlock& b = lp.extra_blocks[index];
-        tb.size = tb.global = b.size;
-        if (!b.fixed) {
-          if (extra_offset[index] == kNone) {
-            extra_offset[index] = static_cast<int>(l.dim);
-            l.dim += b.size;
-            l.free_extras.push_back(index);
-            l.extra_offset.push_back(extra_offset[index]);
-          }
-          tb.offset = extra_offset[index];
-        }
-      } else {
-        tb.size = 3;
-        tb.global = kind == Kind::kRotation ? 4 : 3;
-        if (const int f = l.pose_var[index]; f != kNone) {
-          tb.offset = 6 * f + (kind == Kind::kRotation ? 0 : 3);
-          if (kind == Kind::kRotation) tb.rotation_of = f;
-        }
-      }
-      l.terms[t].push_back(tb);
-    }
-  }
-  return l;
-}
 
 // Huber's rho(s) and the weight rho'(s) that Ceres' corrector applies (its
 // second derivative is negative beyond the width: no curvature correction).
@@ -183,7 +62,7 @@ struct TermJacobian {
 struct Linearisation {
   double cost = 0.0;
   double max_gradient = 0.0;
-  std::vector<EdgeJacobian> edges;  // per entry of Layout::edges
+  std::vector<EdgeJacobian> edges;  // per entry of BundleLayout::edges
   std::vector<Matrix6> U;           // per free pose: sum weight Jc^T Jc over the edges
   std::vector<Vector6> a;           // per free pose: sum weight J^T r (edges and extra terms)
   std::vector<Eigen::Matrix3d> V;   // per point: sum weight Jx^T Jx
@@ -201,7 +80,7 @@ bool evaluate_term(const BundleExtraTerm& term, Eigen::VectorXd& r, double** jac
 }
 
 // The extra terms' part of the normal equations.
-bool linearise_terms(const BundleProblem& lp, const Layout& l,
+bool linearise_terms(const BundleProblem& lp, const BundleLayout& l,
                      const std::vector<Eigen::Matrix<double, 4, 3, Eigen::RowMajor>>& plus, Linearisation& out) {
   out.terms.resize(lp.extra_terms.size());
   out.c.setZero(l.dim - l.pose_dim());
@@ -209,7 +88,7 @@ bool linearise_terms(const BundleProblem& lp, const Layout& l,
   std::vector<double*> jacobians;
   for (std::size_t t = 0; t < lp.extra_terms.size(); ++t) {
     const BundleExtraTerm& term = lp.extra_terms[t];
-    const std::vector<TermBlock>& blocks = l.terms[t];
+    const std::vector<BundleTermBlock>& blocks = l.terms[t];
     const int rows = term.cost->num_residuals();
     raw.resize(blocks.size());
     jacobians.assign(blocks.size(), nullptr);
@@ -225,7 +104,7 @@ bool linearise_terms(const BundleProblem& lp, const Layout& l,
     tj.weight = rb.weight;
     tj.J.resize(blocks.size());
     for (std::size_t k = 0; k < blocks.size(); ++k) {
-      const TermBlock& tb = blocks[k];
+      const BundleTermBlock& tb = blocks[k];
       if (tb.offset == kNone) {
         tj.J[k].resize(0, 0);
         continue;
@@ -245,7 +124,7 @@ bool linearise_terms(const BundleProblem& lp, const Layout& l,
   return true;
 }
 
-bool linearise(const BundleProblem& lp, const Layout& l, bool robust, const BundleSettings& settings,
+bool linearise(const BundleProblem& lp, const BundleLayout& l, bool robust, const BundleSettings& settings,
                Linearisation& out) {
   const std::size_t poses = l.free_keyframes.size(), points = l.points.size();
   out.cost = 0.0;
@@ -299,7 +178,8 @@ bool linearise(const BundleProblem& lp, const Layout& l, bool robust, const Bund
 }
 
 // The cost alone; nullopt when an observation cannot be evaluated.
-std::optional<double> cost_at(const BundleProblem& lp, const Layout& l, bool robust, const BundleSettings& settings) {
+std::optional<double> cost_at(const BundleProblem& lp, const BundleLayout& l, bool robust,
+                              const BundleSettings& settings) {
   double cost = 0.0, r[3];
   for (const std::size_t i : l.edges) {
     const BundleEdge& e = lp.edges[i];
@@ -324,7 +204,7 @@ Eigen::Matrix<double, N, N> damped(Eigen::Matrix<double, N, N> m, double radius)
 }
 
 struct Step {
-  Eigen::VectorXd reduced;  // the poses (6 each), then the extra blocks (Layout::dim)
+  Eigen::VectorXd reduced;  // the poses (6 each), then the extra blocks (BundleLayout::dim)
   std::vector<Eigen::Vector3d> points;
   Vector6 pose(std::size_t f) const { return reduced.segment<6>(static_cast<Eigen::Index>(6 * f)); }
 };
@@ -340,7 +220,7 @@ struct Workspace {
 
 // Solves (H + D / radius) step = -g with the points eliminated; false when
 // the damped system is not positive definite.
-bool solve_step(const Linearisation& at, const Layout& l, double radius, Workspace& ws, Step& step) {
+bool solve_step(const Linearisation& at, const BundleLayout& l, double radius, Workspace& ws, Step& step) {
   const std::size_t poses = l.free_keyframes.size(), points = l.points.size();
   const Eigen::Index dim = l.dim;
   ws.S.setZero(dim, dim);
@@ -355,7 +235,7 @@ bool solve_step(const Linearisation& at, const Layout& l, double radius, Workspa
   // diagonal, a block with itself whole).
   for (std::size_t t = 0; t < at.terms.size(); ++t) {
     const TermJacobian& tj = at.terms[t];
-    const std::vector<TermBlock>& blocks = l.terms[t];
+    const std::vector<BundleTermBlock>& blocks = l.terms[t];
     for (std::size_t i = 0; i < blocks.size(); ++i) {
       if (blocks[i].offset == kNone) continue;
       for (std::size_t j = 0; j < blocks.size(); ++j) {
@@ -409,7 +289,7 @@ bool solve_step(const Linearisation& at, const Layout& l, double radius, Workspa
 }
 
 // The decrease of the linearised (reweighted) cost along `step`.
-double model_decrease(const Linearisation& at, const Layout& l, const Step& step) {
+double model_decrease(const Linearisation& at, const BundleLayout& l, const Step& step) {
   double decrease = 0.0;
   for (std::size_t v = 0; v < l.points.size(); ++v) {
     for (std::size_t n = l.point_begin[v]; n < l.point_begin[v + 1]; ++n) {
@@ -423,7 +303,7 @@ double model_decrease(const Linearisation& at, const Layout& l, const Step& step
     const TermJacobian& tj = at.terms[t];
     Eigen::VectorXd change = Eigen::VectorXd::Zero(tj.r.size());
     for (std::size_t k = 0; k < l.terms[t].size(); ++k) {
-      const TermBlock& tb = l.terms[t][k];
+      const BundleTermBlock& tb = l.terms[t][k];
       if (tb.offset != kNone) change.noalias() += tj.J[k] * step.reduced.segment(tb.offset, tb.size);
     }
     decrease -= tj.weight * (tj.r.dot(change) + 0.5 * change.squaredNorm());
@@ -437,7 +317,7 @@ double squared_norm(const Step& step) {
   return s;
 }
 
-double state_norm(const BundleProblem& lp, const Layout& l) {
+double state_norm(const BundleProblem& lp, const BundleLayout& l) {
   double s = 0.0;
   for (const std::size_t k : l.free_keyframes) {
     for (const double x : lp.poses[k].q) s += x * x;
@@ -452,7 +332,7 @@ double state_norm(const BundleProblem& lp, const Layout& l) {
   return std::sqrt(s);
 }
 
-void apply(BundleProblem& lp, const Layout& l, const Step& step) {
+void apply(BundleProblem& lp, const BundleLayout& l, const Step& step) {
   const ceres::EigenQuaternionManifold manifold;
   for (std::size_t f = 0; f < l.free_keyframes.size(); ++f) {
     PoseParameters& pose = lp.poses[l.free_keyframes[f]];
@@ -475,7 +355,7 @@ void apply(BundleProblem& lp, const Layout& l, const Step& step) {
 BundleLevenbergResult solve_bundle_levenberg(BundleProblem& lp, bool robust, const BundleSettings& settings,
                                              const BundleLevenbergOptions& options) {
   BundleLevenbergResult result;
-  const Layout l = layout_of(lp);
+  const BundleLayout l = bundle_layout_of(lp);
   if (l.edges.empty() && lp.extra_terms.empty()) return result;
   Linearisation at;
   if (!linearise(lp, l, robust, settings, at)) {
