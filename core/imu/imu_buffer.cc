@@ -35,6 +35,17 @@ ImuVibration ImuBuffer::vibration(TimestampNs t, const ImuNoise& noise) const {
   return measure_vibration_ ? estimate_vibration(samples_, t + time_offset_ns_, noise) : ImuVibration{};
 }
 
+std::optional<Eigen::Vector3d> ImuBuffer::mean_accel(TimestampNs t, double window_s, std::size_t min_samples) const {
+  const TimestampNs end = t + time_offset_ns_, begin = end - s_to_ns(window_s);
+  const auto first = std::lower_bound(samples_.begin(), samples_.end(), begin,
+                                      [](const ImuSample& s, TimestampNs at) { return s.t_ns < at; });
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  std::size_t n = 0;
+  for (auto it = first; it != samples_.end() && it->t_ns <= end; ++it, ++n) sum += it->accel;
+  if (n == 0 || n < min_samples) return std::nullopt;
+  return sum / static_cast<double>(n);
+}
+
 std::optional<Preintegration> ImuBuffer::between(TimestampNs t0, TimestampNs t1, const ImuBias& bias,
                                                  const ImuNoise& noise, double max_gap_s) const {
   try {

@@ -34,6 +34,9 @@ class ImuBuffer {
                                         double max_gap_s = 0.05) const;
   // The vibration of the samples up to t (zero without measure_vibration).
   ImuVibration vibration(TimestampNs t, const ImuNoise& noise) const;
+  // The mean specific force (IMU frame) of the samples in the `window_s`
+  // seconds up to t; none with fewer than `min_samples` there.
+  std::optional<Eigen::Vector3d> mean_accel(TimestampNs t, double window_s, std::size_t min_samples) const;
 
   const std::vector<ImuSample>& samples() const { return samples_; }
   std::size_t size() const { return samples_.size(); }

@@ -71,6 +71,14 @@ class InertialTracking {
   // After each frame: its state is remembered for the next (`previous`: the
   // frame before it, for a first velocity from the two poses).
   void frame_done(const Frame& frame, const Frame* previous, Outcome outcome);
+  // The rotation of the body at `t_ns` (R_w_b) that points the gravity its
+  // IMU measured in the last half second (the mean specific force, up) along
+  // the world's -z, turning it the least: a new map starts level, so that its
+  // inertial initialisation turns it by what the start was off (a degree or
+  // two) instead of by the camera's tilt (tens of degrees, about the newest
+  // keyframe: the device's earlier poses move by it). None with under three
+  // samples there, or a mean further than 30 % from gravity's magnitude.
+  std::optional<Eigen::Quaterniond> level_rotation(TimestampNs t_ns) const;
   // A new map, or the session is lost: nothing carries over.
   void reset();
   // The map's units changed by `factor` (Map::rescale: a monocular map made

@@ -354,6 +354,8 @@ bool Tracker::initialize(Frame& frame) {
   if (monocular_) return initialize_monocular(frame);
   if (static_cast<int>(frame.stereo_count()) < options_.min_init_stereo_points) return false;
   frame.T_w_b = Pose3();
+  // With an IMU the map starts level (its gravity measured at this frame).
+  if (const auto level = inertial_ ? inertial_->level_rotation(frame.t_ns) : std::nullopt) frame.T_w_b.q = *level;
   frame.has_pose = true;
   std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
   create_keyframe(frame, true);
