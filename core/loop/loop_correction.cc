@@ -28,13 +28,13 @@ struct CorrectedGroup {
   std::unordered_map<MapPointId, KeyframeId> corrected_by;  // each moved point, by the keyframe that moved it
 };
 
-// An inertial map (gravity along the world's -z) knows its roll and pitch: the
-// loop's correction of the world keeps only its turn about z and moves the
-// current keyframe's camera where the full correction puts it (ORB-SLAM3
-// zeroes the correction's roll and pitch the same way).
-Sim3 yaw_only_correction(const Pose3& T_a_w_old, const Sim3& S_a_w_new) {
+// An inertial map knows its roll and pitch: the loop's correction of the world
+// keeps only its turn about the map's up (minus its gravity's direction) and
+// moves the current keyframe's camera where the full correction puts it
+// (ORB-SLAM3 zeroes the correction's roll and pitch the same way).
+Sim3 yaw_only_correction(const Pose3& T_a_w_old, const Sim3& S_a_w_new, const Eigen::Vector3d& up) {
   const Pose3 W = rigid_pose_c_w(S_a_w_new).inverse() * T_a_w_old;  // old world -> new world
-  return Sim3(T_a_w_old * yaw_only_transform(W, T_a_w_old.inverse().t).inverse());
+  return Sim3(T_a_w_old * yaw_only_transform(W, T_a_w_old.inverse().t, up, up).inverse());
 }
 
 // 1. The group and its corrected poses; its points move with the keyframe that
@@ -46,8 +46,9 @@ CorrectedGroup correct_group(Map& map, const PlaceMatch& loop, const FrameCamera
   for (const auto& edge : current->connections())
     if (auto kf = map.keyframe(edge.keyframe); kf && !kf->is_bad()) g.keyframes.push_back(std::move(kf));
   const Pose3 T_a_w_old = current->T_w_c().inverse();
+  const auto inertial = map.inertial_state();
   const Sim3 S_a_w_new =
-      map.inertial_state() ? yaw_only_correction(T_a_w_old, loop.S_c_w_corrected) : loop.S_c_w_corrected;
+      inertial ? yaw_only_correction(T_a_w_old, loop.S_c_w_corrected, inertial->up()) : loop.S_c_w_corrected;
   for (const auto& kf : g.keyframes) {
     g.old_T_c_w[kf->id()] = kf->T_w_c().inverse();
     g.corrected[kf->id()] = propagate_correction(g.old_T_c_w[kf->id()], T_a_w_old, S_a_w_new);
@@ -151,8 +152,10 @@ GraphSolution optimise_essential_graph(Map& map, const PlaceMatch& loop, Correct
     }
   }
   EssentialGraphOptions graph_options = options.graph;
-  graph_options.fix_scale = !loop.scale_free;                 // a metric map keeps its scale everywhere
-  graph_options.yaw_only = map.inertial_state().has_value();  // and an inertial one knows its roll and pitch
+  graph_options.fix_scale = !loop.scale_free;  // a metric map keeps its scale everywhere
+  const auto inertial = map.inertial_state();
+  graph_options.yaw_only = inertial.has_value();  // and an inertial one knows its roll and pitch
+  if (inertial) graph_options.yaw_axis = inertial->up();
   stats.four_dof = graph_options.yaw_only;
   const auto graph_start = std::chrono::steady_clock::now();
   const EssentialGraphResult result = optimize_essential_graph(nodes, edges, graph_options);

@@ -77,11 +77,12 @@ MapMergeStats merge_maps(Atlas& atlas, const PlaceMatch& match, const FrameCamer
     source->rescale(S_wt_ws.s);
   }
   Pose3 T_wt_ws(S_wt_ws.q, S_wt_ws.t);
-  if (source->inertial_state() && target->inertial_state()) {
-    // Both worlds have gravity along -z: they differ by a turn about z and a
+  if (const auto source_imu = source->inertial_state(), target_imu = target->inertial_state();
+      source_imu && target_imu) {
+    // Both worlds know their gravity: they differ by a turn about it and a
     // move (the current camera, where the rescale above put it, lands where
-    // the match puts it).
-    T_wt_ws = yaw_only_transform(T_wt_ws, stats.scale * T_ws_c.t);
+    // the match puts it); the source's gravity lands on the target's.
+    T_wt_ws = yaw_only_transform(T_wt_ws, stats.scale * T_ws_c.t, target_imu->up(), source_imu->up());
     stats.four_dof = true;
   }
   const Map::AbsorbCounts moved = target->absorb(*source, T_wt_ws);

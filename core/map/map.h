@@ -3,6 +3,7 @@
 // removes an object at once, detaches every relation, and leaves reclamation to
 // reference counting: the memory is freed when the last thread holding the
 // object lets go. See docs/map_model.md for ownership and lock order.
+#include <cmath>
 #include <atomic>
 #include <memory>
 #include <mutex>
@@ -105,6 +106,13 @@ class Map {
     std::size_t keyframes = 0;    // in the window of the latest estimate (initialisation or refinement)
     double span_s = 0.0;          // of that window
     std::size_t refinements = 0;  // done since (inertial_initializer.h)
+
+    // Minus gravity's direction: +z after the initialisation, tilted by the
+    // refinements (they keep the map's frame); +z when gravity is not set.
+    Eigen::Vector3d up() const {
+      const double g = gravity_w.norm();
+      return g > 0.0 && std::isfinite(g) ? Eigen::Vector3d(-gravity_w / g) : Eigen::Vector3d::UnitZ();
+    }
   };
   std::optional<InertialState> inertial_state() const;
   void set_inertial_state(const InertialState& state);

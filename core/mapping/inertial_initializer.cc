@@ -73,10 +73,16 @@ double median_of(std::vector<double> values) {
   return values[values.size() / 2];
 }
 
+// How far the gravity found is from the map's current one (-z before the
+// initialisation, which turns the map to it).
+double gravity_turn_deg(const InertialInitResult& r, const Eigen::Vector3d& current_gravity_w) {
+  return std::atan2(r.gravity_w.cross(current_gravity_w).norm(), r.gravity_w.dot(current_gravity_w)) * 180.0 / M_PI;
+}
+
 // Why an estimate is not to be kept (empty: it may be): biases out of range,
 // inertial residuals that do not fit, a refinement that would turn the map far.
 std::string implausible(const InertialInitResult& r, const InertialInitializationOptions& options,
-                        const InertialInitOptions& solver, bool refinement) {
+                        const InertialInitOptions& solver, bool refinement, const Eigen::Vector3d& current_gravity_w) {
   std::ostringstream why;
   if (r.bias.gyro.norm() > options.max_gyro_bias)
     why << "gyro bias " << r.bias.gyro.norm() << " rad/s (at most " << options.max_gyro_bias << ")";
@@ -90,7 +96,7 @@ std::string implausible(const InertialInitResult& r, const InertialInitializatio
       solver.accel_bias_prior <= 1.0 && !(median <= options.max_median_link_chi2))
     return "the IMU disagrees with the visual motion (median inertial chi2 " + std::to_string(median) +
            " per link, at most " + std::to_string(options.max_median_link_chi2) + ")";
-  const double turn_deg = Eigen::AngleAxisd(r.R_w_g).angle() * 180.0 / M_PI;
+  const double turn_deg = gravity_turn_deg(r, current_gravity_w);
   if (refinement && turn_deg > options.max_refinement_turn_deg)
     return "it would turn the map's gravity by " + std::to_string(turn_deg) + " deg (at most " +
            std::to_string(options.max_refinement_turn_deg) + ")";
@@ -113,6 +119,8 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
                                                      const InertialInitializationOptions& options,
                                                      const InertialInitOptions& solver, Atlas* atlas,
                                                      const std::string& what, bool refinement) {
+  // The map's gravity before this estimate (a refinement's turn is measured from it).
+  const Eigen::Vector3d previous_gravity_w = refinement ? state.gravity_w : Eigen::Vector3d(0.0, 0.0, -1.0);
   std::vector<Pose3> poses;
   std::vector<Preintegration> increments;
   for (std::size_t k = 0; k < chain.size(); ++k) {
@@ -133,7 +141,7 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
     log_warn(refused + ": no consistent solution" + after);
     return std::nullopt;
   }
-  if (const std::string why = implausible(result, options, solver, refinement); !why.empty()) {
+  if (const std::string why = implausible(result, options, solver, refinement, previous_gravity_w); !why.empty()) {
     log_warn(refused + ": " + why + after);
     return std::nullopt;
   }
@@ -145,7 +153,10 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
     return std::nullopt;
   }
   const std::size_t reintegrated = reintegrate_far_links(chain, result.bias, options.reintegrate_gyro_bias_change);
-  state.gravity_w = Eigen::Vector3d(0.0, 0.0, -solver.gravity);  // after the alignment below
+  // The initialisation turns the map so that gravity points along -z; a
+  // refinement leaves the map's frame as it is (a device tracked there would
+  // see its earlier poses turn about it) and keeps the gravity it found.
+  state.gravity_w = refinement ? result.gravity_w : Eigen::Vector3d(0.0, 0.0, -solver.gravity);
   state.bias = result.bias;
   {
     // Sessions tracking in the map see it before or after, never half-turned.
@@ -156,16 +167,19 @@ std::optional<Map::InertialState> estimate_and_apply(Map& map, const std::vector
       const Eigen::Matrix3d R_w_i = (poses[k] * options.T_b_i).q.normalized().toRotationMatrix();
       chain[k]->set_imu_state(KeyFrame::ImuState{R_w_i.transpose() * result.velocities[k], result.bias});
     }
-    map.change_frame(gravity_alignment(result.R_w_g, poses.back().t, rescale ? result.scale : 1.0));
+    const Eigen::Matrix3d turn = refinement ? Eigen::Matrix3d::Identity() : result.R_w_g;
+    if (!refinement || rescale) map.change_frame(gravity_alignment(turn, poses.back().t, rescale ? result.scale : 1.0));
     map.set_inertial_state(state);
   }
-  const double turn_deg = Eigen::AngleAxisd(result.R_w_g).angle() * 180.0 / M_PI;
+  const double turn_deg = gravity_turn_deg(result, previous_gravity_w);
   std::ostringstream line;
   line << what << " of map " << map.id() << ": " << chain.size() << " keyframes over "
        << ns_to_s(chain.back()->timestamp_ns() - chain.front()->timestamp_ns()) << " s; gravity was ("
-       << result.gravity_w.transpose() << ") m/s^2 in the map (turned by " << turn_deg
-       << " deg to point it along -z); gyro bias (" << result.bias.gyro.transpose() << ") rad/s, accelerometer bias ("
-       << result.bias.accel.transpose() << ") m/s^2; " << result.iterations << " iterations; " << reintegrated
+       << result.gravity_w.transpose() << ") m/s^2 in the map ("
+       << (refinement ? "kept, the map's frame unchanged: " : "turned by ") << turn_deg
+       << (refinement ? " deg from the map's estimate" : " deg to point it along -z") << "); gyro bias ("
+       << result.bias.gyro.transpose() << ") rad/s, accelerometer bias (" << result.bias.accel.transpose()
+       << ") m/s^2; " << result.iterations << " iterations; " << reintegrated
        << " links integrated again at the gyro bias found; chi2 per link median " << median_of(result.link_chi2)
        << " (rotation " << median_of(result.link_rotation_chi2) << ")"
        << ", max "

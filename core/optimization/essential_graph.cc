@@ -56,15 +56,19 @@ struct EdgeResidual {
   }
 };
 
-// A node's rotation that turns only about the world's z axis (gravity, in an
-// inertial map): S_n_w's quaternion (x y z w) times a rotation by delta about
-// z on the right (R_n_w Rz(delta): the node turned about the world's z).
+// A node's rotation that turns only about the world's up (`axis`, unit: z
+// when the map's gravity is along -z, the map's up when its refinements tilted
+// its gravity): S_n_w's quaternion (x y z w) times a rotation by delta about the
+// axis on the right (R_n_w R_axis(delta): the node turned about the world's up).
 struct WorldYawPlus {
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+
   template <typename T>
   bool Plus(const T* x, const T* delta, T* x_plus_delta) const {
     const Eigen::Map<const Eigen::Quaternion<T>> q(x);
     const T half = delta[0] / T(2);
-    const Eigen::Quaternion<T> yaw(cos(half), T(0), T(0), sin(half));
+    const T s = sin(half);
+    const Eigen::Quaternion<T> yaw(cos(half), s * T(axis.x()), s * T(axis.y()), s * T(axis.z()));
     Eigen::Map<Eigen::Quaternion<T>> out(x_plus_delta);
     out = q * yaw;
     return true;
@@ -72,8 +76,9 @@ struct WorldYawPlus {
   template <typename T>
   bool Minus(const T* y, const T* x, T* y_minus_x) const {
     const Eigen::Map<const Eigen::Quaternion<T>> qy(y), qx(x);
-    const Eigen::Quaternion<T> d = qx.conjugate() * qy;  // about z when y = Plus(x, delta)
-    y_minus_x[0] = T(2) * atan2(d.z(), d.w());
+    const Eigen::Quaternion<T> d = qx.conjugate() * qy;  // about the axis when y = Plus(x, delta)
+    const T along = d.x() * T(axis.x()) + d.y() * T(axis.y()) + d.z() * T(axis.z());
+    y_minus_x[0] = T(2) * atan2(along, d.w());
     return true;
   }
 };
@@ -96,6 +101,8 @@ void EssentialGraphOptions::check() const {
   ORBATLAS_CHECK(max_iterations >= 0, "essential graph: max_iterations must be >= 0, not " << max_iterations);
   ORBATLAS_CHECK(num_threads >= 1, "essential graph: num_threads must be >= 1, not " << num_threads);
   ORBATLAS_CHECK(!yaw_only || fix_scale, "essential graph: yaw_only needs fix_scale (a metric inertial map)");
+  ORBATLAS_CHECK(yaw_axis.allFinite() && yaw_axis.norm() > 0.5,
+                 "essential graph: yaw_axis must be a unit vector, not (" << yaw_axis.transpose() << ")");
 }
 
 EssentialGraphResult optimize_essential_graph(const std::vector<PoseGraphNode>& nodes,
@@ -161,7 +168,7 @@ EssentialGraphResult optimize_essential_graph(const std::vector<PoseGraphNode>& 
   problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::EigenQuaternionManifold quaternion_manifold;  // outlives the problem too
-  ceres::AutoDiffManifold<WorldYawPlus, 4, 1> yaw_manifold;
+  ceres::AutoDiffManifold<WorldYawPlus, 4, 1> yaw_manifold(new WorldYawPlus{options.yaw_axis.normalized()});
   ceres::Problem problem(problem_options);
   for (std::size_t k = 0; k < nodes.size(); ++k) {
     if (!used[k]) continue;

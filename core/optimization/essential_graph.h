@@ -53,11 +53,13 @@ struct PoseGraphEdge {
 struct EssentialGraphOptions {
   int max_iterations = 20;  // ORB-SLAM's OptimizeEssentialGraph
   bool fix_scale = false;   // stereo / RGB-D / mature inertial maps
-  // Inertial maps (gravity along the world's -z): each node turns only about
-  // the world's z axis and moves (4 degrees of freedom, ORB-SLAM3's
-  // OptimizeEssentialGraph4DoF); roll and pitch, which gravity makes
-  // observable, stay as the nodes came. Use with fix_scale.
+  // Inertial maps: each node turns only about the world's up (`yaw_axis`,
+  // minus the map's gravity direction; z when gravity is along -z) and moves
+  // (4 degrees of freedom, ORB-SLAM3's OptimizeEssentialGraph4DoF); roll and
+  // pitch, which gravity makes observable, stay as the nodes came. Use with
+  // fix_scale.
   bool yaw_only = false;
+  Eigen::Vector3d yaw_axis = Eigen::Vector3d::UnitZ();
   int num_threads = 1;
 
   // Throws Error naming the first value out of range.

@@ -166,9 +166,9 @@ void InertialTracking::rescale(double factor) {
 }
 
 std::optional<Eigen::Quaterniond> InertialTracking::level_rotation(TimestampNs t_ns) const {
-  constexpr double kWindowS = 0.5, kGravity = 9.81, kMaxOff = 0.3;
-  const auto f_i = imu_.mean_accel(t_ns, kWindowS, 3);
-  if (!f_i || !(std::abs(f_i->norm() - kGravity) <= kMaxOff * kGravity)) return std::nullopt;
+  constexpr double kWindowS = 0.5, kGravity = 9.81;
+  const auto f_i = imu_.mean_accel(t_ns, kWindowS, 1);
+  if (!f_i || !(f_i->norm() >= 0.5 * kGravity && f_i->norm() <= 2.0 * kGravity)) return std::nullopt;
   const Eigen::Vector3d up_b = T_b_i_.q * *f_i;  // at rest the specific force points up
   return Eigen::Quaterniond::FromTwoVectors(up_b, Eigen::Vector3d::UnitZ());
 }

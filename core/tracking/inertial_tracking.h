@@ -76,8 +76,10 @@ class InertialTracking {
   // the world's -z, turning it the least: a new map starts level, so that its
   // inertial initialisation turns it by what the start was off (a degree or
   // two) instead of by the camera's tilt (tens of degrees, about the newest
-  // keyframe: the device's earlier poses move by it). None with under three
-  // samples there, or a mean further than 30 % from gravity's magnitude.
+  // keyframe: the device's earlier poses move by it). A push along gravity
+  // (a rig lifted) does not tilt it, one across does (3 m/s^2: 17 deg). None
+  // without a sample there, or from a mean under half or over twice gravity's
+  // magnitude (falling, or thrown about).
   std::optional<Eigen::Quaterniond> level_rotation(TimestampNs t_ns) const;
   // A new map, or the session is lost: nothing carries over.
   void reset();

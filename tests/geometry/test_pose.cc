@@ -68,6 +68,36 @@ TEST(YawOnly, KeepsTheTurnAboutZAndTheAnchorPoint) {
   EXPECT_NEAR(std::atan2(x.y(), x.x()), 0.8, 1e-3);  // the yaw (to first order in the tilt)
 }
 
+// Two worlds whose ups are tilted (an inertial map's refinements tilt its
+// gravity instead of turning the map): a transform that takes one up to the
+// other and turns about it stays exactly itself; one with more tilt keeps its
+// turn about the new up, takes the old up to the new one exactly and the
+// anchor point where it took it; with both ups along z it is the plain one.
+TEST(YawOnly, BetweenTiltedWorldsKeepsTheTurnAboutTheirUps) {
+  const Eigen::Vector3d p(1.5, -2.0, 0.7);
+  const Eigen::Vector3d up_old = (so3_exp(Eigen::Vector3d(0.01, -0.004, 0.0)) * Eigen::Vector3d::UnitZ()).normalized();
+  const Eigen::Vector3d up_new = (so3_exp(Eigen::Vector3d(-0.006, 0.008, 0.0)) * Eigen::Vector3d::UnitZ()).normalized();
+  const Eigen::Quaterniond level = Eigen::Quaterniond::FromTwoVectors(up_old, up_new);
+  const Eigen::Quaterniond turn(Eigen::AngleAxisd(0.8, up_new));
+  const Pose3 exact(turn * level, Eigen::Vector3d(0.3, 0.1, -0.2));
+  const Pose3 same = yaw_only_transform(exact, p, up_new, up_old);
+  EXPECT_LT((same.matrix() - exact.matrix()).norm(), 1e-12);
+
+  const Pose3 tilted(exact.q * so3_exp(Eigen::Vector3d(0.02, -0.03, 0.0)), exact.t);
+  const Pose3 projected = yaw_only_transform(tilted, p, up_new, up_old);
+  EXPECT_LT((projected * p - tilted * p).norm(), 1e-12);
+  EXPECT_LT((projected.q * up_old - up_new).norm(), 1e-12);  // gravity to gravity
+  // Its turn about up_new, against the exact one: to first order in the tilt.
+  const Eigen::Quaterniond residual = projected.q * exact.q.conjugate();
+  EXPECT_LT(std::abs(Eigen::AngleAxisd(residual).angle()), 2e-3);
+
+  const Pose3 plain(so3_exp(Eigen::Vector3d(0.0, 0.0, 0.8)) * so3_exp(Eigen::Vector3d(0.02, -0.03, 0.0)),
+                    Eigen::Vector3d(0.3, 0.1, -0.2));
+  const Pose3 a = yaw_only_transform(plain, p);
+  const Pose3 b = yaw_only_transform(plain, p, Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitZ());
+  EXPECT_LT((a.matrix() - b.matrix()).norm(), 1e-12);
+}
+
 TEST(Trajectory, PoseAtUsesExactSamplesInterpolatesAndRespectsGaps) {
   Trajectory tr = {{1000, Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 0))},
                    {2000, Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 0, 0))},

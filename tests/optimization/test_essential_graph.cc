@@ -183,6 +183,39 @@ TEST(EssentialGraph, YawOnlyRecoversAYawDriftAndKeepsEveryNodesGravity) {
   EXPECT_THROW(optimize_essential_graph(make_nodes(initial, 0), exact_edges(truth, 2, 1), options), Error);
 }
 
+// The same in a world whose up is tilted (a map whose refinements tilted its
+// gravity instead of turning it): the drift turns about that up, the graph
+// turns the nodes about it and undoes the drift exactly, and every node keeps
+// where it sees the world's up.
+TEST(EssentialGraph, YawOnlyTurnsAboutATiltedUp) {
+  std::mt19937 rng(5);
+  const Eigen::Quaterniond tilt = so3_exp(Eigen::Vector3d(0.012, -0.007, 0.0));
+  const Eigen::Vector3d up = tilt * Eigen::Vector3d::UnitZ();
+  std::vector<Sim3> truth = circle_truth(50, 5.0, 0.0, rng);
+  for (Sim3& s : truth) s = s * Sim3(tilt.conjugate(), Eigen::Vector3d::Zero(), 1.0);  // the world tilted
+  const Sim3 step(so3_exp(up * 0.4 * kDegree), Eigen::Vector3d(0.02, -0.01, 0.005), 1.0);
+  const std::vector<Sim3> initial = drifted(truth, 10, step);
+  EssentialGraphOptions options;
+  options.fix_scale = true;
+  options.yaw_only = true;
+  options.yaw_axis = up;
+  const EssentialGraphResult r = optimize_essential_graph(make_nodes(initial, 0), exact_edges(truth, 2, 1), options);
+  const Errors before = errors(to_nodes(initial), truth);
+  const Errors after = errors(r.nodes, truth);
+  double up_change = 0.0;
+  for (std::size_t k = 0; k < r.nodes.size(); ++k)
+    up_change = std::max(up_change, ((r.nodes[k].S_n_w.q * up) - (initial[k].q * up)).norm());
+  EXPECT_GT(before.position, 0.3);
+  EXPECT_LE(after.rotation, 1e-6);
+  EXPECT_LE(after.position, 1e-6);
+  EXPECT_LE(up_change, 1e-12);
+  // About z instead, the graph cannot undo a turn about the tilted up.
+  options.yaw_axis = Eigen::Vector3d::UnitZ();
+  const EssentialGraphResult about_z =
+      optimize_essential_graph(make_nodes(initial, 0), exact_edges(truth, 2, 1), options);
+  EXPECT_GT(errors(about_z.nodes, truth).rotation, 1e-4);
+}
+
 TEST(EssentialGraph, NodesWithoutEdgesAreUntouched) {
   std::mt19937 rng(4);
   const std::vector<Sim3> truth = circle_truth(10, 2.0, 0.0, rng);

@@ -104,10 +104,14 @@ TEST(InertialSlam, AStereoInertialRunInitialisesItsMapsGravityAndBiases) {
   for (const auto& g : data.ground_truth) gt.push_back({g.t_ns, g.T_w_b});
   const auto first = pose_at(gt, frames.front().t_ns, 50'000'000);
   ASSERT_TRUE(first.has_value());
-  // The map was turned so that gravity is -z of its frame: the first frame's
-  // body sees gravity where it truly was (yaw is free: only the direction in
-  // the body is compared).
-  EXPECT_LT((s.imu_gravity_w - Eigen::Vector3d(0.0, 0.0, -9.81)).norm(), 1e-9);
+  // The map was turned so that gravity is -z of its frame; the refinement
+  // left the frame where it was and tilted the map's gravity by what it found
+  // (a fraction of a degree). The first frame's body sees gravity where it
+  // truly was (yaw is free: only the direction in the body is compared).
+  EXPECT_NEAR(s.imu_gravity_w.norm(), 9.81, 1e-9);
+  const double tilt_deg = std::acos(std::clamp(-s.imu_gravity_w.z() / 9.81, -1.0, 1.0)) * 180.0 / M_PI;
+  std::cout << "the refinement tilted the map's gravity by " << tilt_deg << " deg\n";
+  EXPECT_LT(tilt_deg, 0.08);  // measured 0.036 deg
   ASSERT_FALSE(report.trajectory.empty());
   ASSERT_EQ(report.trajectory.front().t_ns, frames.front().t_ns);
   const Eigen::Vector3d gravity_in_body = report.trajectory.front().pose.q.conjugate() * s.imu_gravity_w;
