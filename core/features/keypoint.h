@@ -18,6 +18,13 @@ struct Keypoint {
   Eigen::Vector2f uv_undistorted = Eigen::Vector2f::Zero();  // pinhole pixel with the camera's fx, fy, cx, cy
 };
 
+// A pixel of a pyramid level `ratio` times smaller than the full image (the full
+// image's size over the level's, per axis), in the full image's pixels and back.
+// Linear resizes map pixel centres onto each other, x_full = (x_level + 0.5) *
+// ratio - 0.5, also through a chain of them.
+inline float full_image_coordinate(float x_level, float ratio) { return (x_level + 0.5f) * ratio - 0.5f; }
+inline float level_coordinate(float x_full, float ratio) { return (x_full + 0.5f) / ratio - 0.5f; }
+
 // Keypoints and descriptors of one image, index-aligned.
 struct ImageFeatures {
   std::vector<Keypoint> keypoints;

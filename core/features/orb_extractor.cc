@@ -136,6 +136,10 @@ void OrbExtractor::build_pyramid(const cv::Mat& image) {
       shrink_[l] = LinearResize(pyramid_[l - 1].size(), pyramid_[l].size());
     cells_.resize(pyramid_.size());
     for (std::size_t l = 0; l < pyramid_.size(); ++l) cells_[l] = level_cells(pyramid_[l].size(), options_.cell_size);
+    level_ratios_.clear();
+    for (const cv::Mat& level : pyramid_)
+      level_ratios_.emplace_back(static_cast<float>(image.cols) / static_cast<float>(level.cols),
+                                 static_cast<float>(image.rows) / static_cast<float>(level.rows));
     blur_buffer_.create(image.size(), CV_8UC1);
     pyramid_size_ = image.size();
   }
@@ -386,7 +390,7 @@ ImageFeatures OrbExtractor::extract(const cv::Mat& image) {
                features_per_level_[level]);
     if (selected_.empty()) continue;
 
-    const auto scale = static_cast<float>(scale_factors_[level]);
+    const Eigen::Vector2f ratio = level_ratios_[level];
     // Rotated BRIEF on the blurred level (cv::ORB's bits with opencv_blur).
     // (One buffer for every level, a view of its corner: the levels are blurred
     // one after another, and what was blurred last is still in the cache.)
@@ -399,7 +403,8 @@ ImageFeatures OrbExtractor::extract(const cv::Mat& image) {
       const int x = static_cast<int>(cand.x) + min_x, y = static_cast<int>(cand.y) + min_y;
       const float angle = centroid_.angle(img, x, y, options_.use_avx2);
       Keypoint kp;
-      kp.uv = Eigen::Vector2f(static_cast<float>(x) * scale, static_cast<float>(y) * scale);
+      kp.uv = Eigen::Vector2f(full_image_coordinate(static_cast<float>(x), ratio.x()),
+                              full_image_coordinate(static_cast<float>(y), ratio.y()));
       kp.level = static_cast<int>(level);
       kp.angle_deg = angle;
       kp.response = static_cast<float>(cand.response());

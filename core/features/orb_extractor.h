@@ -63,6 +63,11 @@ class OrbExtractor {
   const std::vector<double>& scale_factors() const { return scale_factors_; }
   const std::vector<double>& level_sigma2() const { return level_sigma2_; }
   const std::vector<cv::Mat>& pyramid() const { return pyramid_; }  // of the last image
+  // The full image's size over each level's, per axis (x, y), of the last image:
+  // its scale factor up to the rounding of the level's size. A level's pixel
+  // (x, y) is at full_image_coordinate(x, ratio.x), (y, ratio.y) in the image
+  // (keypoint.h), where its keypoint is placed.
+  const std::vector<Eigen::Vector2f>& level_ratios() const { return level_ratios_; }
   // Keypoints asked of each level (geometric in the level area; they sum to n_features).
   const std::vector<int>& features_per_level() const { return features_per_level_; }
 
@@ -118,7 +123,8 @@ class OrbExtractor {
   std::vector<cv::Mat> bordered_;     // level buffers; pyramid_[l] views their interior
   std::vector<LinearResize> shrink_;  // level l - 1 to level l (cv::resize's result), [0] unused
   cv::Size pyramid_size_;
-  IntensityCentroid centroid_;  // orientation
+  std::vector<Eigen::Vector2f> level_ratios_;  // per level, for pyramid_size_
+  IntensityCentroid centroid_;                 // orientation
   RotatedBrief brief_{opencv_brief_pattern()};
   cv::Mat blur_buffer_;                   // a level blurred for the BRIEF tests (level 0's size)
   std::vector<std::uint8_t> scores_;      // FAST scores of a level

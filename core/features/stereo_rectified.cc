@@ -214,12 +214,15 @@ StereoDepths match_stereo_rectified(const ImageFeatures& left, const std::vector
     const double rise = std::max(s1, s3) - s2;
     if (rise <= 0.0) continue;  // flat cost: no texture along the row
     const double delta = 0.5 * (s1 - s3) / rise;
-    const double u_right = ur0 + best_inc + delta;
-    double disparity = ul - u_right;
+    // The patch is centred on the keypoint's whole pixel: its disparity is the
+    // keypoint's, and the right coordinate is the keypoint's own less it (a
+    // keypoint of a coarser level sits between pixels; its rounding is not
+    // carried into the right coordinate the bundle adjustments use).
+    double disparity = ul - (ur0 + best_inc + delta);
     if (disparity < min_disparity || disparity >= max_disparity) continue;
     if (disparity <= 0.0) disparity = 0.01;
     out.depth[il] = static_cast<float>(bf / disparity);
-    out.u_right[il] = static_cast<float>(u_right);
+    out.u_right[il] = static_cast<float>(kl.uv.x() - disparity);
     costs.emplace_back(best_sad, il);
   }
 

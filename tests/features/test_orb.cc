@@ -8,6 +8,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <iostream>
 #include <limits>
 #include <opencv2/core.hpp>
 #include <vector>
@@ -100,15 +102,59 @@ TEST(OrbExtractor, NoiseImageCountAndLevels) {
   expect_valid_features(f, extractor, image);
 }
 
+// A keypoint of a coarser level is placed where its pixel's centre lies in the
+// full image. A Gaussian blob at a known place: its centroid on each level,
+// taken to the full image by full_image_coordinate with the level's ratios, is
+// where the blob is. x * scale (ORB-SLAM's and cv::ORB's placement) falls
+// about (scale - 1) / 2 pixels short, and the nominal scale misses the rounding
+// of the level's size.
+TEST(OrbExtractor, APyramidPixelSitsAtItsCentreInTheFullImage) {
+  const Eigen::Vector2d blob(480.3, 310.6);
+  constexpr double kSigma = 9.0;
+  cv::Mat image(480, 752, CV_8UC1);
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x) {
+      const double r2 = (Eigen::Vector2d(x, y) - blob).squaredNorm();
+      image.at<std::uint8_t>(y, x) =
+          static_cast<std::uint8_t>(std::lround(20.0 + 220.0 * std::exp(-r2 / (2 * kSigma * kSigma))));
+    }
+  OrbExtractor extractor({});
+  extractor.extract(image);
+  double worst = 0.0, worst_nominal = 0.0;
+  for (std::size_t level = 1; level < extractor.pyramid().size(); ++level) {
+    const cv::Mat& pixels = extractor.pyramid()[level];
+    const Eigen::Vector2f ratio = extractor.level_ratios()[level];
+    EXPECT_NEAR(ratio.x(), extractor.scale_factors()[level], 0.01 * extractor.scale_factors()[level]);
+    Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+    double mass = 0.0;
+    for (int y = 0; y < pixels.rows; ++y)
+      for (int x = 0; x < pixels.cols; ++x) {
+        const double w = std::max(0.0, pixels.at<std::uint8_t>(y, x) - 20.0);
+        sum += w * Eigen::Vector2d(x, y);
+        mass += w;
+      }
+    const Eigen::Vector2d centroid = sum / mass;
+    const Eigen::Vector2d placed(full_image_coordinate(static_cast<float>(centroid.x()), ratio.x()),
+                                 full_image_coordinate(static_cast<float>(centroid.y()), ratio.y()));
+    const Eigen::Vector2d nominal = centroid * extractor.scale_factors()[level];
+    worst = std::max(worst, (placed - blob).norm());
+    worst_nominal = std::max(worst_nominal, (nominal - blob).norm());
+    EXPECT_NEAR(level_coordinate(full_image_coordinate(3.25f, ratio.x()), ratio.x()), 3.25f, 1e-5f);
+  }
+  std::cout << "the blob placed within " << worst << " px, by the nominal scale within " << worst_nominal << " px\n";
+  EXPECT_LT(worst, 0.04);         // measured 0.017 px
+  EXPECT_GT(worst_nominal, 1.0);  // measured 1.56 px
+}
+
 TEST(OrbExtractor, OrientationIsTheIntensityCentroid) {
   OrbExtractor extractor({});
   const ImageFeatures f = extractor.extract(rendered_frame());
   int checked = 0;
   for (const Keypoint& kp : f.keypoints) {
-    const auto scale = static_cast<float>(extractor.scale_factors()[static_cast<std::size_t>(kp.level)]);
+    const Eigen::Vector2f ratio = extractor.level_ratios()[static_cast<std::size_t>(kp.level)];
     const cv::Mat& level = extractor.pyramid()[static_cast<std::size_t>(kp.level)];
-    const int x = static_cast<int>(std::lround(kp.uv.x() / scale)),
-              y = static_cast<int>(std::lround(kp.uv.y() / scale));
+    const int x = static_cast<int>(std::lround(level_coordinate(kp.uv.x(), ratio.x()))),
+              y = static_cast<int>(std::lround(level_coordinate(kp.uv.y(), ratio.y())));
     // The patch of ORB's umax table is exactly the disc u^2 + v^2 <= 234 (radius 15.3).
     double m10 = 0, m01 = 0;
     for (int v = -15; v <= 15; ++v)

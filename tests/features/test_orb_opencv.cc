@@ -77,15 +77,16 @@ void expect_descriptors_equal_opencv(const ImageFeatures& f, const OrbExtractor&
   std::size_t compared = 0;
   for (int level = 0; level < extractor.options().n_levels; ++level) {
     const cv::Mat image = extractor.pyramid()[static_cast<std::size_t>(level)].clone();
-    const auto scale = static_cast<float>(extractor.scale_factors()[static_cast<std::size_t>(level)]);
+    const Eigen::Vector2f ratio = extractor.level_ratios()[static_cast<std::size_t>(level)];
     std::vector<cv::KeyPoint> keys;
     std::vector<std::size_t> index;
     for (std::size_t i = 0; i < f.keypoints.size(); ++i) {
       const Keypoint& kp = f.keypoints[i];
       if (kp.level != level) continue;
-      const cv::Point2f pt(std::round(kp.uv.x() / scale), std::round(kp.uv.y() / scale));
-      ASSERT_NEAR(pt.x * scale, kp.uv.x(), 1e-3f);
-      ASSERT_NEAR(pt.y * scale, kp.uv.y(), 1e-3f);
+      const cv::Point2f pt(std::round(level_coordinate(kp.uv.x(), ratio.x())),
+                           std::round(level_coordinate(kp.uv.y(), ratio.y())));
+      ASSERT_NEAR(full_image_coordinate(pt.x, ratio.x()), kp.uv.x(), 1e-3f);
+      ASSERT_NEAR(full_image_coordinate(pt.y, ratio.y()), kp.uv.y(), 1e-3f);
       keys.emplace_back(pt, 31.0f, kp.angle_deg, kp.response, 0);
       index.push_back(i);
     }

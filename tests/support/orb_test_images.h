@@ -54,9 +54,9 @@ inline void expect_valid_features(const ImageFeatures& f, const OrbExtractor& ex
     EXPECT_LT(kp.angle_deg, 360.0f);
     EXPECT_GE(kp.response, static_cast<float>(extractor.options().min_th_fast));
     // Keypoints keep the descriptor patch inside the level image.
-    const auto scale = static_cast<float>(extractor.scale_factors()[static_cast<std::size_t>(kp.level)]);
+    const Eigen::Vector2f ratio = extractor.level_ratios()[static_cast<std::size_t>(kp.level)];
     const cv::Mat& level = extractor.pyramid()[static_cast<std::size_t>(kp.level)];
-    const float x = kp.uv.x() / scale, y = kp.uv.y() / scale;
+    const float x = level_coordinate(kp.uv.x(), ratio.x()), y = level_coordinate(kp.uv.y(), ratio.y());
     EXPECT_GE(x, OrbExtractor::kPyramidBorder - 1e-3f);
     EXPECT_GE(y, OrbExtractor::kPyramidBorder - 1e-3f);
     EXPECT_LT(x, static_cast<float>(level.cols - OrbExtractor::kPyramidBorder));
