@@ -6,8 +6,8 @@
 # (every image black for one second in the middle of the sequence). Renders each
 # sequence once (kept in $ORBATLAS_BENCH_DATA, default build/bench_data, as
 # scripts/bench/slam.sh does; IMU variants reuse the rendering's images,
-# `sim --images-from`), runs `orbatlas run`, scores with `orbatlas eval`, prints
-# one table.
+# `sim --images-from`), runs `orbatlas run`, scores its final and its live
+# trajectory (the poses tracking returned) with `orbatlas eval`, prints one table.
 #   scripts/bench/inertial.sh                  # MH_01..MH_05, both looks
 #   scripts/bench/inertial.sh MH_01 MH_03      # some of them
 #   LOOKS=real scripts/bench/inertial.sh       # one look
@@ -61,11 +61,14 @@ for look in "${LOOK_LIST[@]}"; do
         fi
         echo "== orbatlas run $config on $s ($look look${extra[*]:+, ${extra[*]}}), run $run"
         "$OA" run --config "$ROOT/config/euroc/$config.yaml" --dataset "$src" --no-progress \
-            --out-trajectory "$OUT/$name.txt" --stats "$OUT/$name.json" "${extra[@]}" > "$OUT/$name.log" 2>&1
+            --out-trajectory "$OUT/$name.txt" --out-live-trajectory "$OUT/$name.live.txt" \
+            --stats "$OUT/$name.json" "${extra[@]}" > "$OUT/$name.log" 2>&1
         # A monocular session's trajectory is the camera's (cam0), a stereo one's the body's.
         frame=body
         [ "$mode" = mono_inertial ] && frame=cam0
         "$OA" eval --gt "$src" --est "$OUT/$name.txt" --align se3 --est-frame "$frame" --json > "$OUT/$name.eval.json"
+        "$OA" eval --gt "$src" --est "$OUT/$name.live.txt" --align se3 --est-frame "$frame" --json \
+            > "$OUT/$name.live.eval.json"
         NAMES+=("$name")
       done
     done
@@ -75,18 +78,19 @@ done
 /usr/bin/python3 - "$OUT" "${NAMES[@]}" <<'PY'
 import json, sys
 out, names = sys.argv[1], sys.argv[2:]
-print(f"{'run':40} {'frames':>6} {'visual':>6} {'imu':>4} {'cover':>6} {'maps':>4} {'ATE[m]':>7} {'init[s]':>7} "
+print(f"{'run':40} {'frames':>6} {'visual':>6} {'imu':>4} {'cover':>6} {'maps':>4} {'ATE[m]':>7} {'live[m]':>7} {'init[s]':>7} "
       f"{'offset[ms]':>10} {'track p50/p95[ms]':>17} {'BA p50[ms]':>10} {'VI BAs':>6} {'chi2 p50':>8} "
       f"{'gap end[m]':>10} {'to visual':>9}")
 for n in names:
     j = json.load(open(f"{out}/{n}.json")); e = json.load(open(f"{out}/{n}.eval.json"))
+    live = json.load(open(f"{out}/{n}.live.eval.json"))
     init = j.get("imu_initialized_at_s")
     b = j.get("black_out") or {}
     gap = b.get("error_at_end_m")
     off = j.get("imu_time_offset_ms")
     chi2 = j.get("imu", {}).get("local_ba_chi2_median", {}).get("p50")
     print(f"{n:40} {j['frames']:>6} {j['tracked']:>6} {j.get('frames_tracked_by_imu', 0):>4} {e['coverage']:>6.3f} "
-          f"{j['maps']:>4} {e['ate_rmse_m']:>7.4f} {'-' if init is None else f'{init:.1f}':>7} "
+          f"{j['maps']:>4} {e['ate_rmse_m']:>7.4f} {live['ate_rmse_m']:>7.4f} {'-' if init is None else f'{init:.1f}':>7} "
           f"{'-' if off is None else f'{off:.2f}':>10} "
           f"{j['tracking_ms']['p50']:>8.1f}/{j['tracking_ms']['p95']:<8.1f} {j['local_ba_ms']['p50']:>10.1f} "
           f"{j.get('imu', {}).get('local_bas', 0):>6} {'-' if chi2 is None else f'{chi2:.1f}':>8} "
