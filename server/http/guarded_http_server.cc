@@ -94,8 +94,10 @@ void GuardedHttpServer::keep_room() {
 
 std::optional<Clock::time_point> GuardedHttpServer::make_room(std::optional<std::uint64_t> keep) {
   const std::size_t allowed = std::max<std::size_t>(1, limits_.max_waiting);
+  // A waiting connection with something to read (a request, or the peer's close)
+  // is about to be served or to end: it does not take room.
   std::size_t count = 0;
-  for (const auto& [_, c] : connections_) count += c.waiting && !c.closed ? 1 : 0;
+  for (const auto& [_, c] : connections_) count += c.waiting && !c.closed && !readable_now(c.sock) ? 1 : 0;
   const Clock::time_point now = Clock::now();
   const Clock::duration grace = seconds(limits_.fresh_grace_s);
   while (count > allowed) {
