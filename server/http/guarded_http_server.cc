@@ -9,6 +9,8 @@
 #include <cstring>
 #include <memory>
 #include <optional>
+#include <utility>
+#include <vector>
 
 #include "server/http/connection_stream.h"
 #include "server/http/tls_context.h"
@@ -94,18 +96,21 @@ void GuardedHttpServer::keep_room() {
 
 std::optional<Clock::time_point> GuardedHttpServer::make_room(std::optional<std::uint64_t> keep) {
   const std::size_t allowed = std::max<std::size_t>(1, limits_.max_waiting);
-  // A waiting connection with something to read (a request, or the peer's close)
-  // is about to be served or to end: it does not take room.
-  std::size_t count = 0;
-  for (const auto& [_, c] : connections_) count += c.waiting && !c.closed && !readable_now(c.sock) ? 1 : 0;
+  // The connections taking room: waiting with nothing to read. One with something
+  // to read (a request, or the peer's close) is about to be served or to end.
+  std::vector<std::pair<std::uint64_t, Connection*>> idle;
+  for (auto& [id, c] : connections_)
+    if (c.waiting && !c.closed && !readable_now(c.sock)) idle.emplace_back(id, &c);
   const Clock::time_point now = Clock::now();
   const Clock::duration grace = seconds(limits_.fresh_grace_s);
+  const auto in_grace = [&](const Connection& c) { return c.fresh && now - c.waiting_since < grace; };
+  std::size_t count = idle.size();
   while (count > allowed) {
     // The one waiting longest that may be closed.
     Connection* oldest = nullptr;
-    for (auto& [other, c] : connections_) {
-      if (other == keep || !c.waiting || c.closed || (c.fresh && now - c.waiting_since < grace)) continue;
-      if ((!oldest || c.waiting_since < oldest->waiting_since) && !readable_now(c.sock)) oldest = &c;
+    for (const auto& [id, c] : idle) {
+      if (id == keep || c->closed || in_grace(*c)) continue;
+      if (!oldest || c->waiting_since < oldest->waiting_since) oldest = c;
     }
     if (!oldest) break;
     // Its thread is blocked in poll or recv on it: both return at once. The
@@ -118,9 +123,8 @@ std::optional<Clock::time_point> GuardedHttpServer::make_room(std::optional<std:
   if (count <= allowed) return std::nullopt;
   // Still too many: the next fresh one whose grace ends.
   std::optional<Clock::time_point> next;
-  for (const auto& [_, c] : connections_)
-    if (c.waiting && !c.closed && c.fresh && now - c.waiting_since < grace)
-      next = std::min(next.value_or(Clock::time_point::max()), c.waiting_since + grace);
+  for (const auto& [_, c] : idle)
+    if (!c->closed && in_grace(*c)) next = std::min(next.value_or(Clock::time_point::max()), c->waiting_since + grace);
   return next;
 }
 
