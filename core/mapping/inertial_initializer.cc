@@ -7,6 +7,7 @@
 
 #include "core/common/error.h"
 #include "core/common/log.h"
+#include "core/imu/turn_about_gravity.h"
 
 namespace orbatlas {
 
@@ -29,6 +30,11 @@ void InertialInitializationOptions::check() const {
   ORBATLAS_CHECK(
       std::isfinite(refinement_min_span_fraction) && refinement_min_span_fraction >= 0.0,
       "inertial initialisation: refinement_min_span_fraction must be >= 0, not " << refinement_min_span_fraction);
+  ORBATLAS_CHECK(
+      std::isfinite(min_turn_to_free_accel_bias_deg) && min_turn_to_free_accel_bias_deg >= 0.0,
+      "inertial initialisation: min_turn_to_free_accel_bias_deg must be >= 0, not " << min_turn_to_free_accel_bias_deg);
+  ORBATLAS_CHECK(std::isfinite(held_accel_bias_prior) && held_accel_bias_prior > 0.0,
+                 "inertial initialisation: held_accel_bias_prior must be > 0, not " << held_accel_bias_prior);
   ORBATLAS_CHECK(
       std::isfinite(reintegrate_gyro_bias_change) && reintegrate_gyro_bias_change >= 0.0,
       "inertial initialisation: reintegrate_gyro_bias_change must be >= 0, not " << reintegrate_gyro_bias_change);
@@ -243,8 +249,20 @@ std::optional<Map::InertialState> refine_map_inertial(Map& map, const std::share
   InertialInitOptions solver = solver_for(map, options.solver);
   solver.gyro_bias_prior = step.gyro_bias_prior;
   solver.accel_bias_prior = step.accel_bias_prior;
-  auto applied = estimate_and_apply(map, chain, state->bias, estimate, options, solver, atlas,
-                                    "inertial refinement " + std::to_string(refined.refinements), true);
+  std::string what = "inertial refinement " + std::to_string(refined.refinements);
+  if (solver.accel_bias_prior < options.held_accel_bias_prior) {
+    std::vector<Eigen::Matrix3d> R_w_i;
+    for (const auto& kf : chain) R_w_i.push_back((kf->T_w_b() * options.T_b_i).q.normalized().toRotationMatrix());
+    const double turn_deg = turn_about_gravity_deg(R_w_i, state->gravity_w);
+    if (turn_deg < options.min_turn_to_free_accel_bias_deg) {
+      solver.accel_bias_prior = options.held_accel_bias_prior;
+      std::ostringstream held;
+      held << what << " (accelerometer bias held: the chain turned " << turn_deg << " deg about gravity, under "
+           << options.min_turn_to_free_accel_bias_deg << ")";
+      what = held.str();
+    }
+  }
+  auto applied = estimate_and_apply(map, chain, state->bias, estimate, options, solver, atlas, what, true);
   if (!applied) map.set_inertial_state(refined);
   return applied;
 }

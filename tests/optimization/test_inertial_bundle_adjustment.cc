@@ -14,6 +14,7 @@
 
 #include "core/camera/camera_factory.h"
 #include "core/geometry/so3.h"
+#include "core/imu/turn_about_gravity.h"
 #include "core/mapping/inertial_initializer.h"
 #include "core/map/atlas.h"
 #include "core/optimization/apply_global_adjustment.h"
@@ -554,6 +555,50 @@ TEST(InertialBundleAdjustment, ARefinementOverAChainShorterThanTheMapsEstimateLe
   const auto forced = refine_map_inertial(*short_chain->map, short_chain->keyframes.back(), options);
   ASSERT_TRUE(forced.has_value());
   EXPECT_EQ(forced->keyframes, 5u);
+}
+
+// Until the rig has turned about gravity, a horizontal accelerometer bias and a
+// tilt of gravity are one measurement: a refinement that would free the bias
+// keeps it held under the 5-s refinement's prior (its tilt goes to gravity, as
+// at the initialisation), and frees it once the chain has turned far enough.
+TEST(InertialBundleAdjustment, ARefinementFreesTheAccelerometerBiasOnlyOnceTheRigHasTurned) {
+  std::vector<Eigen::Matrix3d> R_w_i;
+  {
+    auto w = make_world(45.0, {});
+    for (std::size_t i = 0; i < w->true_T_w_b.size(); ++i)
+      R_w_i.push_back((w->true_T_w_b[i] * w->T_b_i[i]).q.toRotationMatrix());
+  }
+  const double turned_deg = turn_about_gravity_deg(R_w_i, kGravity);
+  ASSERT_GT(turned_deg, 1.0);  // MH_01 45-47.75 s
+  const auto refine = [&](double min_turn_deg, double accel_bias_prior = 0.0) {
+    auto w = make_world(45.0, {});
+    Map::InertialState state;
+    state.initialized_at_ns = w->keyframes.front()->timestamp_ns();
+    state.gravity_w = kGravity;
+    state.keyframes = w->keyframes.size();
+    state.span_s = ns_to_s(w->keyframes.back()->timestamp_ns() - w->keyframes.front()->timestamp_ns());
+    w->map->set_inertial_state(state);
+    InertialInitializationOptions options;
+    options.enabled = true;
+    options.refinements = {{0.5, 0.0, accel_bias_prior}};  // both biases free unless told
+    options.min_turn_to_free_accel_bias_deg = min_turn_deg;
+    return refine_map_inertial(*w->map, w->keyframes.back(), options);
+  };
+  const auto tilt_deg = [](const Map::InertialState& s) {
+    return std::acos(std::clamp(s.gravity_w.normalized().dot(kGravity.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+  };
+  // Held: the estimate the 5-s refinement's prior gives, its bias partly in the tilt.
+  const auto held = refine(turned_deg + 1.0);
+  const auto with_prior = refine(turned_deg + 1.0, InertialInitializationOptions{}.held_accel_bias_prior);
+  ASSERT_TRUE(held.has_value() && with_prior.has_value());
+  EXPECT_LT((held->bias.accel - with_prior->bias.accel).norm(), 1e-12);
+  EXPECT_GT((held->bias.accel - true_bias().accel).norm(), 0.02);  // measured 0.045 m/s^2
+  EXPECT_GT(tilt_deg(*held), 0.13);                                // measured 0.26 degrees
+  // Freed: on exact data the bias and gravity come back.
+  const auto freed = refine(turned_deg - 1.0);
+  ASSERT_TRUE(freed.has_value());
+  EXPECT_LT((freed->bias.accel - true_bias().accel).norm(), 1e-3);  // measured 3.6e-4 m/s^2
+  EXPECT_LT(tilt_deg(*freed), 0.005);                               // measured 0.0021 degrees
 }
 
 TEST(InertialBundleAdjustment, BiasWalkCostIsTheDifferenceOverTheWalkSigma) {
