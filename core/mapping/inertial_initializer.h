@@ -48,12 +48,12 @@ struct InertialInitializationOptions {
   // or a late join the session's chain is a few seconds long, and its gravity
   // and scale would be applied to the whole map. Tried once all the same.
   double refinement_min_span_fraction = 0.8;
-  // A refinement that would free the accelerometer bias (its prior below
-  // `held_accel_bias_prior`) keeps it held under that prior while the chain has
-  // turned about gravity by less than this: until the rig turns, a horizontal
-  // bias and a tilt of gravity are one measurement, and the free estimate splits
-  // them by the noise (real-look MH_03, 11 degrees in its first 18 s: the 15-s
-  // refinement found a bias 0.17 m/s^2 off and tilted the map 1.6 degrees).
+  // A refinement of a metric map (stereo, RGB-D) that would free the
+  // accelerometer bias (its prior below `held_accel_bias_prior`) keeps it held
+  // under that prior while the chain has turned about gravity by less than
+  // this: until the rig turns, a horizontal bias and a tilt of gravity are one
+  // measurement, and the free estimate splits them by the noise (real-look MH_03, 11 degrees in its first 18 s: the
+  // 15-s refinement found a bias 0.17 m/s^2 off and tilted the map 1.6 degrees).
   double min_turn_to_free_accel_bias_deg = 45.0;
   double held_accel_bias_prior = 1e5;  // the 5-s refinement's
   // A link whose linearisation gyro bias is this far from the bias found is

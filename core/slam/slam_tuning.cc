@@ -115,8 +115,9 @@ const std::vector<Binding>& bindings() {
                       "map's estimate came from (0: always)",
                       mapper.inertial.refinement_min_span_fraction),
       ORBATLAS_TUNING("LocalMapping.InertialRefinementMinTurnDeg", 0, 360, false,
-                      "a refinement frees the accelerometer bias only once its chain has turned about gravity by "
-                      "at least this many degrees (until then the bias is held under the 5-s refinement's prior)",
+                      "a refinement of a stereo or RGB-D map frees the accelerometer bias only once its chain has "
+                      "turned about gravity by at least this many degrees (until then the bias is held under the "
+                      "5-s refinement's prior)",
                       mapper.inertial.min_turn_to_free_accel_bias_deg),
       ORBATLAS_TUNING("LoopClosing.Enabled", 0, 1, true, "1: place recognition, loop correction, global BA",
                       loop_closing),
