@@ -62,6 +62,8 @@ struct WorldOptions {
   std::size_t second_session_from = 0;
   bool second_body_is_camera = false;
   bool links_place_imu = true;
+  // A single camera's keyframes: no depths (the map's scale is free).
+  bool no_depths = false;
   // The IMU's scale factors (each measurement less its bias is these times the true one).
   Eigen::Vector3d gyro_factor = Eigen::Vector3d::Ones(), accel_factor = Eigen::Vector3d::Ones();
 };
@@ -115,8 +117,8 @@ std::unique_ptr<InertialWorld> make_world(double at_s, const WorldOptions& wo) {
       kp.uv = uv.cast<float>();
       seen.emplace_back(data.features.keypoints.size(), mp);
       data.features.keypoints.push_back(kp);
-      data.depth.push_back(static_cast<float>(p_c.z()));
-      data.u_right.push_back(static_cast<float>(uv.x() - w->bf / p_c.z()));
+      data.depth.push_back(wo.no_depths ? -1.0f : static_cast<float>(p_c.z()));
+      data.u_right.push_back(wo.no_depths ? -1.0f : static_cast<float>(uv.x() - w->bf / p_c.z()));
     }
     auto kf = w->map->new_keyframe(std::move(data));
     for (const auto& [slot, mp] : seen) kf->add_observation(slot, mp);
@@ -570,8 +572,8 @@ TEST(InertialBundleAdjustment, ARefinementFreesTheAccelerometerBiasOnlyOnceTheRi
   }
   const double turned_deg = turn_about_gravity_deg(R_w_i, kGravity);
   ASSERT_GT(turned_deg, 1.0);  // MH_01 45-47.75 s
-  const auto refine = [&](double min_turn_deg, double accel_bias_prior = 0.0) {
-    auto w = make_world(45.0, {});
+  const auto refine = [&](double min_turn_deg, double accel_bias_prior = 0.0, bool single_camera = false) {
+    auto w = make_world(45.0, {.no_depths = single_camera});
     Map::InertialState state;
     state.initialized_at_ns = w->keyframes.front()->timestamp_ns();
     state.gravity_w = kGravity;
@@ -582,6 +584,7 @@ TEST(InertialBundleAdjustment, ARefinementFreesTheAccelerometerBiasOnlyOnceTheRi
     options.enabled = true;
     options.refinements = {{0.5, 0.0, accel_bias_prior}};  // both biases free unless told
     options.min_turn_to_free_accel_bias_deg = min_turn_deg;
+    options.solver.estimate_scale = single_camera;
     return refine_map_inertial(*w->map, w->keyframes.back(), options);
   };
   const auto tilt_deg = [](const Map::InertialState& s) {
@@ -599,6 +602,13 @@ TEST(InertialBundleAdjustment, ARefinementFreesTheAccelerometerBiasOnlyOnceTheRi
   ASSERT_TRUE(freed.has_value());
   EXPECT_LT((freed->bias.accel - true_bias().accel).norm(), 1e-3);  // measured 3.6e-4 m/s^2
   EXPECT_LT(tilt_deg(*freed), 0.005);                               // measured 0.0021 degrees
+  // A single camera's map (its scale estimated too) is not held: the same
+  // estimate whatever the turn asked for.
+  const auto single = refine(turned_deg + 1.0, 0.0, true);
+  const auto single_freed = refine(turned_deg - 1.0, 0.0, true);
+  ASSERT_TRUE(single.has_value() && single_freed.has_value());
+  EXPECT_LT((single->bias.accel - single_freed->bias.accel).norm(), 1e-12);
+  EXPECT_LT((single->bias.accel - true_bias().accel).norm(), 1e-3);
 }
 
 TEST(InertialBundleAdjustment, BiasWalkCostIsTheDifferenceOverTheWalkSigma) {
