@@ -76,6 +76,7 @@ nlohmann::json to_json(const SlamStats& s) {
                 {"full_ba_ms", summary(s.mapping.full_inertial_ba_ms)}};
     j["frames_tracked_by_imu"] = s.frames_tracked_by_imu;
     if (s.imu_time_offset_ms) j["imu_time_offset_ms"] = *s.imu_time_offset_ms;
+    if (const auto& w = s.imu_white_noise) j["imu_white_noise"] = {{"gyro", w->gyro}, {"acc", w->accel}};
     const ImuInputHealth& h = s.imu_input;
     j["imu_input"] = {{"dropped_non_finite", h.non_finite},
                       {"dropped_stuck", h.stuck},

@@ -29,7 +29,8 @@ nlohmann::json to_json_summary(const SampleSummary& summary);
 // camera that maps); with an IMU: imu{samples, linked_keyframes,
 // uncovered_keyframes, frames_optimized}, imu_input{dropped_non_finite, dropped_stuck,
 // dropped_saturated, gaps, longest_gap_ms, frames_outside, rate_hz, warnings},
-// imu_time_offset_ms (once estimated), frames_tracked_by_imu, imu_initialized_at_s, imu_gravity_w, imu_bias{gyro,
+// imu_time_offset_ms (once estimated), imu_white_noise{gyro, acc} (the densities of the last
+// keyframe link), frames_tracked_by_imu, imu_initialized_at_s, imu_gravity_w, imu_bias{gyro,
 // acc}, imu_scale_correction{gyro, acc} (once initialised).
 nlohmann::json to_json(const SlamStats& stats);
 // One live merge (the stats' loop_closing.live_merges[], the server's GET /v1/merges

@@ -5,10 +5,12 @@
 
 #include "core/common/error.h"
 #include "core/imu/vibration_estimate.h"
+#include "core/imu/white_noise_estimate.h"
 
 namespace orbatlas {
 
-ImuBuffer::ImuBuffer(double keep_s, bool measure_vibration) : keep_s_(keep_s), measure_vibration_(measure_vibration) {
+ImuBuffer::ImuBuffer(double keep_s, bool measure_vibration, bool measure_white_noise)
+    : keep_s_(keep_s), measure_vibration_(measure_vibration), measure_white_noise_(measure_white_noise) {
   ORBATLAS_CHECK(keep_s > 0.0, "imu buffer: keep_s must be > 0, not " << keep_s);
 }
 
@@ -31,8 +33,12 @@ void ImuBuffer::add(const std::vector<ImuSample>& samples) {
     samples_.erase(samples_.begin(), keep);  // amortised: at most every other call moves the rest
 }
 
-ImuVibration ImuBuffer::vibration(TimestampNs t, const ImuNoise& noise) const {
-  return measure_vibration_ ? estimate_vibration(samples_, t + time_offset_ns_, noise) : ImuVibration{};
+ImuNoise ImuBuffer::measured(TimestampNs t, const ImuNoise& noise) const {
+  const TimestampNs at = t + time_offset_ns_;
+  ImuNoise out = measure_white_noise_ ? with_measured_white_noise(samples_, at, noise) : noise;
+  // The vibration beyond the white noise just measured.
+  if (measure_vibration_) out.vibration = estimate_vibration(samples_, at, out);
+  return out;
 }
 
 std::optional<Eigen::Vector3d> ImuBuffer::mean_accel(TimestampNs t, double window_s, std::size_t min_samples) const {
@@ -49,9 +55,8 @@ std::optional<Eigen::Vector3d> ImuBuffer::mean_accel(TimestampNs t, double windo
 std::optional<Preintegration> ImuBuffer::between(TimestampNs t0, TimestampNs t1, const ImuBias& bias,
                                                  const ImuNoise& noise, double max_gap_s) const {
   try {
-    ImuNoise measured = noise;
-    measured.vibration = vibration(t1, noise);
-    return Preintegration::between(samples_, t0 + time_offset_ns_, t1 + time_offset_ns_, bias, measured, max_gap_s);
+    return Preintegration::between(samples_, t0 + time_offset_ns_, t1 + time_offset_ns_, bias, measured(t1, noise),
+                                   max_gap_s);
   } catch (const DataError&) {
     return std::nullopt;
   }

@@ -15,13 +15,13 @@
 #include "core/common/error.h"
 #include "core/common/log.h"
 #include "core/common/progress.h"
-#include "core/common/text_file.h"
 #include "core/io/euroc_writer.h"
 #include "core/io/tum_rgbd.h"
 #include "core/io/settings.h"
 #include "core/sim/euroc_sequences.h"
 #include "core/sim/imu_synthesizer.h"
 #include "core/sim/machine_hall.h"
+#include "core/sim/recorded_imu.h"
 #include "core/sim/real_camera.h"
 #include "core/sim/renderer.h"
 #include "core/sim/trajectory_spline.h"
@@ -30,36 +30,6 @@ namespace orbatlas::sim {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-// The real IMU of a sequence (shipped for MH_05, and MH_01's lossy copy), its
-// stamps shifted by `offset`.
-std::filesystem::path real_imu_path(const std::string& sequence) {
-  const auto dir = shipped_data_dir() / "euroc" / "imu";
-  if (sequence == "MH_05") return dir / "MH_05_imu0.txt.gz";
-  if (sequence == "MH_01") return dir / "MH_01_imu0_lossy.txt.gz";
-  return {};
-}
-
-std::vector<ImuSample> load_real_imu(const std::string& sequence, TimestampNs first, TimestampNs last,
-                                     TimestampNs offset) {
-  const auto path = real_imu_path(sequence);
-  std::vector<ImuSample> out;
-  for_each_line(path, [&](const TextLine& line) {
-    const auto text = trim(line.text);
-    if (text.empty() || text[0] == '#') return;
-    const auto f = split_fields(text, " ,\t", true);
-    if (f.size() != 7) throw DataError(path.string() + ":" + std::to_string(line.number) + ": expected 7 columns");
-    ImuSample s;
-    s.t_ns = parse_int64(f[0], path, line.number) + offset;
-    if (s.t_ns < first || s.t_ns > last) return;
-    s.gyro = {parse_double(f[1], path, line.number), parse_double(f[2], path, line.number),
-              parse_double(f[3], path, line.number)};
-    s.accel = {parse_double(f[4], path, line.number), parse_double(f[5], path, line.number),
-               parse_double(f[6], path, line.number)};
-    out.push_back(s);
-  });
-  return out;
-}
 
 // The calibration the real look renders with: the written one, slightly off
 // as a good real calibration is (focal lengths by up to 0.05%, principal points
@@ -122,7 +92,7 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   options.check();
   SimulationReport report;
   const SequenceInfo sequence = find_sequence(options.sequence);
-  ORBATLAS_CHECK(options.imu == ImuSource::kSynthetic || !real_imu_path(sequence.name).empty(),
+  ORBATLAS_CHECK(options.imu == ImuSource::kSynthetic || !recorded_imu_path(sequence.name).empty(),
                  "sim: --imu real is only available for MH_01 and MH_05 (the real IMUs shipped); use --imu synthetic");
   const auto settings_path =
       options.settings.empty() ? shipped_config_dir() / "euroc" / "stereo_inertial.yaml" : options.settings;
@@ -192,7 +162,7 @@ SimulationReport simulate_sequence(const SimulationOptions& options) {
   const TimestampNs grid_first = stamps.front() - ((stamps.front() - imu_first) / period) * period;
   SyntheticImu imu = synthesize_imu(spline, grid_first, imu_last, imu_options);
   if (options.imu == ImuSource::kReal) {
-    imu.samples = load_real_imu(sequence.name, imu_first, imu_last, s_to_ns(imu_options.errors.time_offset_s));
+    imu.samples = load_recorded_imu(sequence.name, imu_first, imu_last, s_to_ns(imu_options.errors.time_offset_s));
     imu.states.clear();  // ground truth at the real IMU times; biases unknown (zero)
     for (const ImuSample& s : imu.samples) {
       if (!spline.covers(s.t_ns)) continue;

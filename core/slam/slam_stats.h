@@ -69,6 +69,14 @@ struct SlamStats {
   // The camera-IMU clock offset estimated (an image's IMU time is its stamp
   // plus this), once the session has one.
   std::optional<double> imu_time_offset_ms;
+  // The white-noise densities of the last keyframe link's increments: the
+  // settings', or those measured in the samples where above them
+  // (core/imu/white_noise_estimate.h). Once a keyframe was linked.
+  struct WhiteNoise {
+    double gyro = 0.0;   // rad/s/sqrt(Hz)
+    double accel = 0.0;  // m/s^2/sqrt(Hz)
+  };
+  std::optional<WhiteNoise> imu_white_noise;
   // What the IMU stream carried that could not be used (dropped samples,
   // gaps, its rate; core/imu/imu_input_check.h), and the warnings given.
   ImuInputHealth imu_input;

@@ -186,10 +186,28 @@ SlamSystem::SlamSystem(Atlas& atlas, const SlamSettings& settings, const Vocabul
             ++imu_uncovered_;
             return;
           }
+          note_white_noise(increments->noise());
           made->set_inertial_link(previous, std::make_shared<const Preintegration>(std::move(*increments)), T_c_i);
           ++imu_linked_;
         });
   }
+}
+
+void SlamSystem::note_white_noise(const ImuNoise& used) {
+  link_gyro_density_.store(used.gyro_density);
+  link_accel_density_.store(used.accel_density);
+  // Logged once, for an excess beyond what a window's measurement spreads by
+  // (within 10 % of the density).
+  if (noisier_imu_logged_ ||
+      (used.gyro_density < 1.25 * imu_noise_->gyro_density && used.accel_density < 1.25 * imu_noise_->accel_density))
+    return;
+  noisier_imu_logged_ = true;
+  std::ostringstream message;
+  message << "imu: the samples' white noise is above the settings' (gyroscope " << used.gyro_density
+          << " rad/s/sqrt(Hz) for IMU.NoiseGyro " << imu_noise_->gyro_density << ", accelerometer "
+          << used.accel_density << " m/s^2/sqrt(Hz) for IMU.NoiseAcc " << imu_noise_->accel_density
+          << "); the increments use what is measured";
+  log_info(message.str());
 }
 
 void SlamSystem::add_imu(const std::vector<ImuSample>& samples) {
@@ -352,6 +370,8 @@ SlamStats SlamSystem::stats() const {
     s.frames_optimized_with_imu = inertial_tracking_ ? inertial_tracking_->optimized_frames() : 0;
     if (time_offset_known_.load()) s.imu_time_offset_ms = ns_to_s(time_offset_ns_.load()) * 1e3;
     s.imu_input = imu_input_->health();
+    if (link_gyro_density_.load() > 0.0)
+      s.imu_white_noise = SlamStats::WhiteNoise{link_gyro_density_.load(), link_accel_density_.load()};
     // The map the session tracked in last (after merges: the one it is in now).
     if (const auto last = frames_.last_anchor())
       if (const auto located = atlas_.locate_frame(*last))

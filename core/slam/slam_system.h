@@ -177,6 +177,9 @@ class SlamSystem final : public SessionSlam {
   std::atomic<bool> time_offset_known_{false};
   std::atomic<TimestampNs> time_offset_ns_{0};
   std::atomic<std::size_t> imu_linked_{0}, imu_uncovered_{0};
+  // The white-noise densities of the last keyframe link (< 0 before one).
+  std::atomic<double> link_gyro_density_{-1.0}, link_accel_density_{-1.0};
+  bool noisier_imu_logged_ = false;          // the session's thread
   std::atomic<TimestampNs> first_t_ns_{-1};  // the session's first frame
   bool finished_ = false;
   std::function<bool()> end_refinement_;  // set by finish()
@@ -189,6 +192,9 @@ class SlamSystem final : public SessionSlam {
   // After each frame: a visually tracked one feeds the clock offset's
   // estimate, which the IMU buffer follows once known.
   void follow_imu_clock(const TrackResult& result);
+  // Keeps the densities a keyframe link used for the stats; logs the first
+  // time they are a quarter or more above the settings'.
+  void note_white_noise(const ImuNoise& used);
 };
 
 }  // namespace orbatlas

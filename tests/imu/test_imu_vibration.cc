@@ -37,7 +37,7 @@ sim::SyntheticImu flight_imu(double vibration) {
 // The mean chi2 of the rotation and velocity residuals (6 degrees of freedom)
 // of the true states, at the true biases, over intervals of `span_s` every 0.5 s.
 double mean_chi2(const sim::SyntheticImu& imu, double span_s, bool measure_vibration) {
-  ImuBuffer buffer(60.0, measure_vibration);
+  ImuBuffer buffer(60.0, measure_vibration, /*measure_white_noise=*/false);
   buffer.add(imu.samples);
   const auto& spline = mh01_spline();
   double sum = 0.0;
@@ -66,9 +66,9 @@ TEST(VibrationEstimate, TheIncrementsCovarianceFitsTheFlightsVibration) {
     EXPECT_GT(white, 60.0) << "the white-noise model alone should not fit a vibrating IMU";
   }
   // What it measured in flight: about a milliradian and 5 mm/s per axis.
-  ImuBuffer buffer;
+  ImuBuffer buffer(30.0, true, /*measure_white_noise=*/false);
   buffer.add(shaking.samples);
-  const ImuVibration v = buffer.vibration(shaking.samples[6000].t_ns, ImuNoise{});
+  const ImuVibration v = buffer.measured(shaking.samples[6000].t_ns, ImuNoise{}).vibration;
   EXPECT_GT(std::sqrt(v.rotation_var.maxCoeff()), 3e-4);
   EXPECT_LT(std::sqrt(v.rotation_var.maxCoeff()), 3e-3);
   EXPECT_GT(std::sqrt(v.velocity_var.maxCoeff()), 2e-3);
@@ -77,11 +77,11 @@ TEST(VibrationEstimate, TheIncrementsCovarianceFitsTheFlightsVibration) {
 
 TEST(VibrationEstimate, AnIdealImuMeasuresNone) {
   const sim::SyntheticImu calm = flight_imu(0.0);
-  ImuBuffer buffer;
+  ImuBuffer buffer(30.0, true, /*measure_white_noise=*/false);
   buffer.add(calm.samples);
   double worst_rotation = 0.0, worst_velocity = 0.0;
   for (std::size_t k = 600; k < calm.samples.size(); k += 200) {
-    const ImuVibration v = buffer.vibration(calm.samples[k].t_ns, ImuNoise{});
+    const ImuVibration v = buffer.measured(calm.samples[k].t_ns, ImuNoise{}).vibration;
     worst_rotation = std::max(worst_rotation, std::sqrt(v.rotation_var.maxCoeff()));
     worst_velocity = std::max(worst_velocity, std::sqrt(v.velocity_var.maxCoeff()));
   }

@@ -146,6 +146,17 @@ TEST(InertialSlam, AStereoInertialRunInitialisesItsMapsGravityAndBiases) {
   const nlohmann::json j = to_json(report);
   EXPECT_TRUE(j.contains("imu_initialized_at_s"));
   EXPECT_EQ(j["imu_bias"]["gyro"].size(), 3u);
+  // The clean look's IMU has the settings' white noise: the links use the
+  // settings' densities, or what was measured a little above them.
+  ASSERT_TRUE(s.imu_white_noise.has_value());
+  const ImuNoise settings;
+  std::cout << "white noise used: " << s.imu_white_noise->gyro / settings.gyro_density << ", "
+            << s.imu_white_noise->accel / settings.accel_density << " times the settings'\n";
+  EXPECT_GE(s.imu_white_noise->gyro, settings.gyro_density);
+  EXPECT_LT(s.imu_white_noise->gyro, 1.18 * settings.gyro_density);
+  EXPECT_GE(s.imu_white_noise->accel, settings.accel_density);
+  EXPECT_LT(s.imu_white_noise->accel, 1.13 * settings.accel_density);
+  EXPECT_EQ(j["imu_white_noise"]["acc"], s.imu_white_noise->accel);
 }
 
 TEST(InertialSlam, TheImuCarriesTrackingThroughOneSecondOfBlackFrames) {
@@ -203,6 +214,11 @@ TEST(InertialSlam, ASessionFindsTheImusClockOffsetAndUsesIt) {
   EXPECT_NEAR(*s.imu_time_offset_ms, 5.0, 1.0);  // measured 4.41 ms
   EXPECT_EQ(to_json(report)["imu_time_offset_ms"], *s.imu_time_offset_ms);
   EXPECT_LT(*report.ate_rmse_m, 0.007);  // measured 0.0035 m
+  // In flight the vibration makes the samples' differences far above any
+  // white noise: the links use the cap, 3 times the settings' densities.
+  ASSERT_TRUE(s.imu_white_noise.has_value());
+  EXPECT_DOUBLE_EQ(s.imu_white_noise->gyro, 3.0 * ImuNoise{}.gyro_density);
+  EXPECT_DOUBLE_EQ(s.imu_white_noise->accel, 3.0 * ImuNoise{}.accel_density);
 }
 
 TEST(InertialSlam, ABadImuStreamIsReportedAndVisionCarriesOn) {
