@@ -43,6 +43,7 @@ nlohmann::json to_json(const SessionStatus& s) {
       j["slam"]["imu_bias"] = {{"gyro", v(s.slam->imu_bias.gyro)}, {"acc", v(s.slam->imu_bias.accel)}};
     }
     if (s.slam->imu_time_offset_ms) j["slam"]["imu_time_offset_ms"] = *s.slam->imu_time_offset_ms;
+    if (const auto& w = s.slam->imu_white_noise) j["slam"]["imu_white_noise"] = {{"gyro", w->gyro}, {"acc", w->accel}};
   }
   return j;
 }

@@ -228,7 +228,7 @@ bool LiveSession::finish_locked(const std::string& ended_by, std::function<bool(
     const SlamStats stats = slam_->stats();
     final_counts_ = SessionStatus::SlamCounts{
         stats.relocalizations,    stats.loop.loops.size(), stats.imu_initialized_at_s, stats.imu_bias,
-        stats.imu_time_offset_ms, stats.mapping_wait_ms,   stats.mapping_waits_cut};
+        stats.imu_time_offset_ms, stats.imu_white_noise,   stats.mapping_wait_ms,      stats.mapping_waits_cut};
     final_anchors_ = slam_->anchors();
     final_imu_warnings_ = slam_->imu_warnings();
     slam_.reset();

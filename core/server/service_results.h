@@ -13,6 +13,7 @@
 #include "core/common/timestamp.h"
 #include "core/geometry/trajectory.h"
 #include "core/imu/imu_noise.h"
+#include "core/imu/white_noise_estimate.h"
 #include "core/io/settings.h"
 #include "core/loop/loop_closer.h"
 #include "core/server/map_merge_worker.h"
@@ -67,6 +68,8 @@ struct SessionStatus {
     std::optional<double> imu_initialized_at_s;
     ImuBias imu_bias;
     std::optional<double> imu_time_offset_ms;  // the camera-IMU clock offset estimated
+    // The white-noise densities of the last keyframe link (SlamStats::imu_white_noise).
+    std::optional<WhiteNoiseDensities> imu_white_noise;
     // The frames after its keyframes waiting for local mapping to adjust them
     // (TrackerOptions::max_mapping_wait_ms), and the waits cut at that bound.
     SampleSummary mapping_wait_ms;

@@ -10,6 +10,7 @@
 #include "core/map/object_counters.h"
 #include "core/imu/imu_input_check.h"
 #include "core/imu/imu_noise.h"
+#include "core/imu/white_noise_estimate.h"
 #include "core/loop/loop_closer.h"
 #include "core/mapping/local_mapper.h"
 
@@ -72,11 +73,7 @@ struct SlamStats {
   // The white-noise densities of the last keyframe link's increments: the
   // settings', or those measured in the samples where above them
   // (core/imu/white_noise_estimate.h). Once a keyframe was linked.
-  struct WhiteNoise {
-    double gyro = 0.0;   // rad/s/sqrt(Hz)
-    double accel = 0.0;  // m/s^2/sqrt(Hz)
-  };
-  std::optional<WhiteNoise> imu_white_noise;
+  std::optional<WhiteNoiseDensities> imu_white_noise;
   // What the IMU stream carried that could not be used (dropped samples,
   // gaps, its rate; core/imu/imu_input_check.h), and the warnings given.
   ImuInputHealth imu_input;

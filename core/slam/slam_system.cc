@@ -371,7 +371,7 @@ SlamStats SlamSystem::stats() const {
     if (time_offset_known_.load()) s.imu_time_offset_ms = ns_to_s(time_offset_ns_.load()) * 1e3;
     s.imu_input = imu_input_->health();
     if (link_gyro_density_.load() > 0.0)
-      s.imu_white_noise = SlamStats::WhiteNoise{link_gyro_density_.load(), link_accel_density_.load()};
+      s.imu_white_noise = WhiteNoiseDensities{link_gyro_density_.load(), link_accel_density_.load()};
     // The map the session tracked in last (after merges: the one it is in now).
     if (const auto last = frames_.last_anchor())
       if (const auto located = atlas_.locate_frame(*last))

@@ -56,6 +56,13 @@ TEST(ServerEndToEnd, AStereoInertialStreamInitialisesItsMap) {
   EXPECT_GE(slam["imu_initialized_at_s"].get<double>(), 2.0);
   EXPECT_LT(slam["imu_initialized_at_s"].get<double>(), 4.0);
   EXPECT_EQ(slam["imu_bias"]["gyro"].size(), 3u);
+  // The clip's ideal IMU: its links use the settings' white noise, or a little
+  // above what the samples show.
+  ASSERT_TRUE(slam.contains("imu_white_noise")) << report.finish_status.dump();
+  EXPECT_GE(slam["imu_white_noise"]["gyro"].get<double>(), ImuNoise{}.gyro_density);
+  EXPECT_LT(slam["imu_white_noise"]["gyro"].get<double>(), 1.18 * ImuNoise{}.gyro_density);
+  EXPECT_GE(slam["imu_white_noise"]["acc"].get<double>(), ImuNoise{}.accel_density);
+  EXPECT_LT(slam["imu_white_noise"]["acc"].get<double>(), 1.13 * ImuNoise{}.accel_density);
   // A plain stereo session given the same IMU only counts it.
   ServerClient other(server.url());
   const std::uint64_t id = other.create_session("euroc/stereo");
