@@ -7,6 +7,7 @@
 
 #include "core/common/error.h"
 #include "core/common/log.h"
+#include "core/imu/white_noise_estimate.h"
 #include "core/optimization/apply_global_adjustment.h"
 #include "core/relocalization/index_relocalizer.h"
 #include "core/slam/slam_tuning.h"
@@ -203,10 +204,10 @@ void SlamSystem::note_white_noise(const ImuNoise& used) {
     return;
   noisier_imu_logged_ = true;
   std::ostringstream message;
-  message << "imu: the samples' white noise is above the settings' (gyroscope " << used.gyro_density
-          << " rad/s/sqrt(Hz) for IMU.NoiseGyro " << imu_noise_->gyro_density << ", accelerometer "
-          << used.accel_density << " m/s^2/sqrt(Hz) for IMU.NoiseAcc " << imu_noise_->accel_density
-          << "); the increments use what is measured";
+  message << "imu: the samples are noisier than the settings say; the increments use a white noise of "
+          << used.gyro_density << " rad/s/sqrt(Hz) (IMU.NoiseGyro " << imu_noise_->gyro_density << ") and "
+          << used.accel_density << " m/s^2/sqrt(Hz) (IMU.NoiseAcc " << imu_noise_->accel_density
+          << "), what the samples show up to " << WhiteNoiseEstimateOptions{}.max_factor << " times the settings'";
   log_info(message.str());
 }
 
