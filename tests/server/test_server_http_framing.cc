@@ -5,6 +5,8 @@
 // request; encodings the server does not take are refused; stalls get 408.
 #include <gtest/gtest.h>
 
+#include <iostream>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -205,13 +207,25 @@ TEST(ServerHttpFraming, SlowBodiesCannotStarveHealthChecks) {
   for (auto& t : slow) t.join();
   std::sort(seconds.begin(), seconds.end());
   const double median_s = seconds[seconds.size() / 2], worst_s = seconds.back();
+  // The server's own count of what it closed: a slow client notices only at
+  // its second byte after the close, up to 2 s later (on a loaded machine 49
+  // had noticed when the test ended).
+  const ConnectionStats stats = server.http().connection_stats();
+  const std::uint64_t closed = stats.closed_for_room + stats.closed_slow;
+  std::cout << "health checks: median " << median_s * 1e3 << " ms, worst " << worst_s * 1e3
+            << " ms; slow bodies closed by the server: " << closed << " of 80 (" << cut_off.load()
+            << " noticed by their clients)\n";
   EXPECT_EQ(answered, static_cast<int>(seconds.size()));
   EXPECT_GE(answered, 20);
   // Measured: 1 ms (before: 5 s timeouts). The bar is docs/server.md's 100 ms;
   // the worst of 40 gets room for a loaded machine.
   EXPECT_LT(median_s, 0.1);
   EXPECT_LT(worst_s, 0.25);
-  EXPECT_GT(cut_off.load(), 60);
+  // At least every one that neither the 20 threads nor the 10 places to wait
+  // hold: 50. Measured 70 (all but the 10 waiting) on an idle machine, 61-71
+  // with four busy loops beside the test (its 80 clients connect later there).
+  EXPECT_GE(closed, 50u);
+  EXPECT_GT(cut_off.load(), 0);
 }
 
 }  // namespace
