@@ -10,51 +10,28 @@
 #include "core/sim/euroc_sequences.h"
 #include "core/sim/imu_synthesizer.h"
 #include "core/sim/trajectory_spline.h"
+#include "tests/support/imu_truth_fit.h"
 
 namespace orbatlas {
 namespace {
 
-const sim::TrajectorySpline& mh01_spline() {
-  static const sim::TrajectorySpline spline(sim::load_ground_truth(sim::find_sequence("MH_01")));
-  return spline;
-}
-
-ImuState state_at(const sim::TrajectorySpline& spline, TimestampNs t) {
-  const sim::SplineState s = spline.evaluate(t);  // body = IMU (T_b_i identity)
-  return {s.T_w_b.q.toRotationMatrix(), s.T_w_b.t, s.v_w};
-}
-
 // MH_01 in flight (60-120 s), the settings' white noise and, with
 // `vibration`, the real flights' vibration.
 sim::SyntheticImu flight_imu(double vibration) {
-  const auto& spline = mh01_spline();
+  const auto& spline = test::mh01_spline();
   sim::ImuSynthesisOptions o;
   o.seed = 5;
   o.errors.vibration = vibration;
   return sim::synthesize_imu(spline, spline.start_ns() + s_to_ns(60.0), spline.start_ns() + s_to_ns(120.0), o);
 }
 
-// The mean chi2 of the rotation and velocity residuals (6 degrees of freedom)
-// of the true states, at the true biases, over intervals of `span_s` every 0.5 s.
+// The mean chi2 of the true states over intervals of `span_s` (imu_truth_fit.h),
+// with the settings' white noise and, with `measure_vibration`, the vibration
+// measured.
 double mean_chi2(const sim::SyntheticImu& imu, double span_s, bool measure_vibration) {
   ImuBuffer buffer(60.0, measure_vibration, /*measure_white_noise=*/false);
   buffer.add(imu.samples);
-  const auto& spline = mh01_spline();
-  double sum = 0.0;
-  int n = 0;
-  for (std::size_t k = 600; k + 400 < imu.samples.size(); k += 100) {
-    const TimestampNs t0 = imu.samples[k].t_ns + 1'234'567, t1 = t0 + s_to_ns(span_s);
-    const ImuBias bias{imu.states[k].gyro_bias, imu.states[k].accel_bias};
-    const auto pre = buffer.between(t0, t1, bias, ImuNoise{});
-    EXPECT_TRUE(pre.has_value());
-    if (!pre) continue;
-    const Preintegration::Vector9 r =
-        pre->residual(state_at(spline, t0), state_at(spline, t1), bias, Eigen::Vector3d(0.0, 0.0, -sim::kGravity));
-    const Eigen::Matrix<double, 6, 6> c = pre->covariance().topLeftCorner<6, 6>();
-    sum += r.head<6>().dot(c.ldlt().solve(r.head<6>()));
-    ++n;
-  }
-  return sum / n;
+  return test::mean_truth_chi2(imu, buffer, span_s);
 }
 
 TEST(VibrationEstimate, TheIncrementsCovarianceFitsTheFlightsVibration) {

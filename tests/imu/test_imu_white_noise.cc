@@ -12,19 +12,15 @@
 #include "core/sim/imu_synthesizer.h"
 #include "core/sim/recorded_imu.h"
 #include "core/sim/trajectory_spline.h"
+#include "tests/support/imu_truth_fit.h"
 
 namespace orbatlas {
 namespace {
 
-const sim::TrajectorySpline& mh01_spline() {
-  static const sim::TrajectorySpline spline(sim::load_ground_truth(sim::find_sequence("MH_01")));
-  return spline;
-}
-
 // MH_01 in flight (60-100 s) with white noise of the given densities and,
 // with `vibration`, the real flights' vibration.
 sim::SyntheticImu flight_imu(double gyro_density, double accel_density, double vibration) {
-  const auto& spline = mh01_spline();
+  const auto& spline = test::mh01_spline();
   sim::ImuSynthesisOptions o;
   o.seed = 11;
   o.errors.gyro_noise_density = gyro_density;
@@ -33,31 +29,12 @@ sim::SyntheticImu flight_imu(double gyro_density, double accel_density, double v
   return sim::synthesize_imu(spline, spline.start_ns() + s_to_ns(60.0), spline.start_ns() + s_to_ns(100.0), o);
 }
 
-ImuState state_at(TimestampNs t) {
-  const sim::SplineState s = mh01_spline().evaluate(t);  // body = IMU (T_b_i identity)
-  return {s.T_w_b.q.toRotationMatrix(), s.T_w_b.t, s.v_w};
-}
-
-// The mean chi2 of the rotation and velocity residuals (6 degrees of freedom)
-// of the true states at the true biases, over intervals of `span_s`.
+// The mean chi2 of the true states over intervals of `span_s` (imu_truth_fit.h),
+// with the vibration measured and, with `measure_white_noise`, the white noise.
 double mean_chi2(const sim::SyntheticImu& imu, double span_s, bool measure_white_noise) {
   ImuBuffer buffer(60.0, true, measure_white_noise);
   buffer.add(imu.samples);
-  double sum = 0.0;
-  int n = 0;
-  for (std::size_t k = 600; k + 200 * span_s + 10 < imu.samples.size(); k += 100) {
-    const TimestampNs t0 = imu.samples[k].t_ns + 1'234'567, t1 = t0 + s_to_ns(span_s);
-    const ImuBias bias{imu.states[k].gyro_bias, imu.states[k].accel_bias};
-    const auto pre = buffer.between(t0, t1, bias, ImuNoise{});
-    EXPECT_TRUE(pre.has_value());
-    if (!pre) continue;
-    const Preintegration::Vector9 r =
-        pre->residual(state_at(t0), state_at(t1), bias, Eigen::Vector3d(0.0, 0.0, -sim::kGravity));
-    const Eigen::Matrix<double, 6, 6> c = pre->covariance().topLeftCorner<6, 6>();
-    sum += r.head<6>().dot(c.ldlt().solve(r.head<6>()));
-    ++n;
-  }
-  return sum / n;
+  return test::mean_truth_chi2(imu, buffer, span_s);
 }
 
 const ImuNoise kSettings{};  // EuRoC's: 1.6968e-4 rad/s/sqrt(Hz), 2.0e-3 m/s^2/sqrt(Hz)
