@@ -58,7 +58,8 @@ class AtlasReader {
                                  "WHERE k.map_id = ?1 ORDER BY s.keyframe_id")),
         inertial_state_(
             db.prepare_statement("SELECT initialized_at_ns, gx, gy, gz, bgx, bgy, bgz, bax, bay, baz, keyframes, "
-                                 "span_s, refinements FROM map_inertial_states WHERE map_id = ?1")) {}
+                                 "span_s, refinements, sgx, sgy, sgz, sax, say, saz FROM map_inertial_states "
+                                 "WHERE map_id = ?1")) {}
 
   // The largest keyframe and map point ids read so far.
   std::optional<KeyframeId> max_keyframe_id;
@@ -296,7 +297,10 @@ class AtlasReader {
       state.keyframes = static_cast<std::size_t>(inertial_state_->int64(10));
       state.span_s = inertial_state_->real(11);
       state.refinements = static_cast<std::size_t>(inertial_state_->int64(12));
-      if (!state.gravity_w.allFinite() || !state.bias.gyro.allFinite() || !state.bias.accel.allFinite())
+      state.scale.gyro = {inertial_state_->real(13), inertial_state_->real(14), inertial_state_->real(15)};
+      state.scale.accel = {inertial_state_->real(16), inertial_state_->real(17), inertial_state_->real(18)};
+      if (!state.gravity_w.allFinite() || !state.bias.gyro.allFinite() || !state.bias.accel.allFinite() ||
+          !state.scale.gyro.allFinite() || !state.scale.accel.allFinite())
         fail("map " + std::to_string(map.id()) + ": its inertial state is not finite");
       map.set_inertial_state(state);
     }

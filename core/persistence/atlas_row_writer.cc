@@ -87,11 +87,13 @@ AtlasRowWriter::AtlasRowWriter(SqlConnection& db)
       delete_imu_state_(db.prepare_statement("DELETE FROM keyframe_imu_states WHERE keyframe_id = ?1")),
       upsert_map_inertial_(db.prepare_statement(
           "INSERT INTO map_inertial_states(map_id, initialized_at_ns, gx, gy, gz, bgx, bgy, bgz, bax, bay, baz, "
-          "keyframes, span_s, refinements) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14) "
+          "keyframes, span_s, refinements, sgx, sgy, sgz, sax, say, saz) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, "
+          "?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20) "
           "ON CONFLICT(map_id) DO UPDATE SET initialized_at_ns = excluded.initialized_at_ns, gx = excluded.gx, "
           "gy = excluded.gy, gz = excluded.gz, bgx = excluded.bgx, bgy = excluded.bgy, bgz = excluded.bgz, "
           "bax = excluded.bax, bay = excluded.bay, baz = excluded.baz, keyframes = excluded.keyframes, "
-          "span_s = excluded.span_s, refinements = excluded.refinements")),
+          "span_s = excluded.span_s, refinements = excluded.refinements, sgx = excluded.sgx, sgy = excluded.sgy, "
+          "sgz = excluded.sgz, sax = excluded.sax, say = excluded.say, saz = excluded.saz")),
       delete_map_inertial_(db.prepare_statement("DELETE FROM map_inertial_states WHERE map_id = ?1")),
       delete_culled_(db.prepare_statement("DELETE FROM culled_keyframes WHERE id = ?1")),
       insert_observation_(
@@ -218,6 +220,9 @@ void AtlasRowWriter::upsert_map_inertial(const MapInertialRow& row) {
   s.bind_int64(12, static_cast<std::int64_t>(st.keyframes));
   s.bind_real(13, st.span_s);
   s.bind_int64(14, static_cast<std::int64_t>(st.refinements));
+  i = 15;
+  for (const Eigen::Vector3d* v : {&st.scale.gyro, &st.scale.accel})
+    for (int k = 0; k < 3; ++k) s.bind_real(i++, (*v)[k]);
   run_once(s);
 }
 

@@ -41,6 +41,8 @@ class MapRowCollector {
                      .add(state->keyframes)
                      .add(state->span_s)
                      .add(state->refinements)
+                     .add(state->scale.gyro)
+                     .add(state->scale.accel)
                      .value();
       rows_.inertial.push_back(row);
     }

@@ -127,6 +127,7 @@ void expect_inertial_eq(const Map& a, const Map& b) {
     EXPECT_EQ(sa->keyframes, sb->keyframes);
     EXPECT_EQ(sa->span_s, sb->span_s);
     EXPECT_EQ(sa->refinements, sb->refinements);
+    EXPECT_EQ(sa->scale, sb->scale);
   }
   const auto ka = a.keyframes(), kb = b.keyframes();
   ASSERT_EQ(ka.size(), kb.size());

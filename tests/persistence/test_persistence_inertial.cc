@@ -2,10 +2,12 @@
 // inertial links (the IMU increments between them), their IMU states
 // (velocity, biases) and the map's inertial state are stored and loaded equal;
 // a save after culling stores the joined increments, a checkpoint a refined
-// IMU state; a corrupt increments blob is a DataError. On SQLite and on
+// IMU state; a corrupt increments blob is a DataError. An atlas of schema 17
+// (before the IMU's scale factors were stored) loads with no correction. On SQLite and on
 // PostgreSQL (tests/support/persistence_backends.h).
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <random>
 
 #include "core/common/error.h"
@@ -13,9 +15,12 @@
 #include "core/persistence/atlas_store.h"
 #include "core/persistence/blob_codec.h"
 #include "core/persistence/inertial_blob.h"
+#include "core/persistence/schema_migrations.h"
+#include "core/persistence/sqlite_db.h"
 #include "tests/support/persistence_backends.h"
 #include "tests/persistence/test_persistence_expect.h"
 #include "tests/persistence/test_persistence_random_atlas.h"
+#include "tests/persistence/schema_rollback.h"
 
 namespace orbatlas {
 namespace {
@@ -63,6 +68,8 @@ std::shared_ptr<Map> inertial_map(Atlas& atlas, std::mt19937_64& rng, const Voca
   state.bias.accel = Eigen::Vector3d(0.021, 0.011, -0.029);
   state.keyframes = 5;
   state.span_s = 1.2;
+  state.scale.gyro = Eigen::Vector3d(0.0011, -0.0007, 0.0023);
+  state.scale.accel = Eigen::Vector3d(0.0019, -0.0004, 0.0031);
   map->set_inertial_state(state);
   return map;
 }
@@ -129,10 +136,20 @@ TEST_P(PersistenceInertial, LinksAndStatesRoundTripAndFollowCulling) {
     ASSERT_TRUE(result.committed);
     EXPECT_EQ(result.rows.updated, 1u);
     EXPECT_EQ(result.rows.total(), 1u);
+    // Local BA moved the IMU's scale-factor correction alone: the map's state
+    // row is written, and only that.
+    Map::InertialState rescaled = *map->inertial_state();
+    rescaled.scale.accel.y() = 0.0042;
+    map->set_inertial_state(rescaled);
+    const CheckpointResult scaled = writer.checkpoint();
+    ASSERT_TRUE(scaled.committed);
+    EXPECT_EQ(scaled.rows.updated, 1u);
+    EXPECT_EQ(scaled.rows.total(), 1u);
     AtlasStore store = open_store(vocabulary.hash());
     Atlas loaded;
     store.load_atlas(loaded, &vocabulary);
     expect_atlas_eq(original, loaded, true);
+    EXPECT_EQ(loaded.map(map->id())->inertial_state()->scale.accel.y(), 0.0042);
   }
 
   // The IMU in the camera stored in part: the load fails with a DataError naming the link.
@@ -149,6 +166,22 @@ TEST_P(PersistenceInertial, LinksAndStatesRoundTripAndFollowCulling) {
     }
     raw->exec("UPDATE keyframe_inertial_links SET c_i_tx = 0.02 WHERE keyframe_id = " + std::to_string(kfs[4]->id()));
   }
+  // A scale-factor correction that is not finite: the load fails with a DataError naming the map.
+  {
+    raw->prepare_statement("UPDATE map_inertial_states SET say = ?1 WHERE map_id = ?2")
+        ->bind_real(1, std::numeric_limits<double>::infinity())
+        .bind_int64(2, static_cast<std::int64_t>(map->id()))
+        .run();
+    AtlasStore store = open_store(vocabulary.hash());
+    Atlas broken;
+    try {
+      store.load_atlas(broken, &vocabulary);
+      FAIL() << "an infinite scale-factor correction was loaded";
+    } catch (const DataError& e) {
+      EXPECT_NE(std::string(e.what()).find("inertial state is not finite"), std::string::npos) << e.what();
+    }
+    raw->exec("UPDATE map_inertial_states SET say = 0.0042 WHERE map_id = " + std::to_string(map->id()));
+  }
   // A corrupt increments blob: the load fails with a DataError naming the link.
   raw->prepare_statement("UPDATE keyframe_inertial_links SET increments = ?1 WHERE keyframe_id = ?2")
       ->bind_blob(1, std::string("\x00\x00\x80\x3f", 4))
@@ -162,6 +195,37 @@ TEST_P(PersistenceInertial, LinksAndStatesRoundTripAndFollowCulling) {
   } catch (const DataError& e) {
     EXPECT_NE(std::string(e.what()).find("inertial link"), std::string::npos) << e.what();
   }
+}
+
+// Schema 18 added the IMU's scale-factor correction to map_inertial_states: a
+// map stored before it loads with none, and keeps one written after the migration.
+TEST(PersistenceInertialSchema, AMapOfSchemaSeventeenLoadsWithoutAScaleCorrection) {
+  const Vocabulary& vocabulary = test_vocabulary();
+  std::mt19937_64 rng(29);
+  Atlas original;
+  std::vector<std::shared_ptr<KeyFrame>> kfs;
+  auto map = inertial_map(original, rng, vocabulary, kfs);
+  TempDb db("v17_inertial");
+  { AtlasStore::open(db.path(), vocabulary.hash()).save_atlas(original); }
+  {
+    SqliteDb raw(db.path());
+    raw.exec(std::string("BEGIN; ") + kUndoSchema18Sqlite +
+             "DELETE FROM schema_migrations WHERE version >= 18; PRAGMA user_version = 17; COMMIT");
+  }
+  AtlasStore store = AtlasStore::open(db.path(), vocabulary.hash());
+  EXPECT_EQ(store.schema_version(), latest_schema_version());
+  {
+    Atlas loaded;
+    store.load_atlas(loaded, &vocabulary);
+    const auto state = loaded.map(map->id())->inertial_state();
+    ASSERT_TRUE(state.has_value());
+    EXPECT_EQ(state->scale, ImuScaleCorrection{});
+    EXPECT_EQ(state->gravity_w, map->inertial_state()->gravity_w);
+  }
+  store.save_atlas(original);
+  Atlas loaded;
+  store.load_atlas(loaded, &vocabulary);
+  expect_atlas_eq(original, loaded, true);
 }
 
 // A version-1 blob (written before the vibration was stored) reads with no

@@ -10,6 +10,7 @@
 #include "core/persistence/schema_migrations.h"
 #include "core/persistence/sqlite_db.h"
 #include "tests/persistence/test_persistence_expect.h"
+#include "tests/persistence/schema_rollback.h"
 #include "tests/persistence/test_persistence_random_atlas.h"
 #include "tests/support/persistence_sessions.h"
 
@@ -113,8 +114,8 @@ TEST(Persistence, VersionFiveSessionsSurviveTheRebuildForRgbd) {
         "DROP COLUMN c_i_qx; ALTER TABLE keyframe_inertial_links DROP COLUMN c_i_qy; ALTER TABLE "
         "keyframe_inertial_links DROP COLUMN c_i_qz; ALTER TABLE keyframe_inertial_links DROP COLUMN c_i_tx; ALTER "
         "TABLE keyframe_inertial_links DROP COLUMN c_i_ty; ALTER TABLE keyframe_inertial_links DROP COLUMN c_i_tz; "
-        "DELETE FROM schema_migrations WHERE version >= 6; PRAGMA user_version = 5; "
-        "COMMIT");
+        "DELETE FROM schema_migrations WHERE version >= 6; PRAGMA user_version = 5; " +
+        std::string(kUndoSchema18Sqlite) + "COMMIT");
     EXPECT_THROW(raw.exec("INSERT INTO sessions VALUES (4, 'x', 'rgbd', 0)"), Error);
   }
   AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
@@ -135,7 +136,8 @@ TEST(Persistence, VersionFiveSessionsSurviveTheRebuildForRgbd) {
 }
 
 // Schema 17 added maps_busy_frames to session_records: a record of schema 16
-// keeps its counts and reads 0 there, and takes the count once migrated.
+// keeps its counts and reads 0 there, and takes the count once migrated (and
+// migrated on through 18, whose columns the rollback drops too).
 TEST(Persistence, ASessionRecordOfSchemaSixteenGetsItsMapsBusyCount) {
   TempDb db("v16");
   SessionInfo session;
@@ -156,9 +158,8 @@ TEST(Persistence, ASessionRecordOfSchemaSixteenGetsItsMapsBusyCount) {
   }
   {
     SqliteDb raw(db.path());
-    raw.exec(
-        "BEGIN; ALTER TABLE session_records DROP COLUMN maps_busy_frames; DELETE FROM schema_migrations WHERE "
-        "version >= 17; PRAGMA user_version = 16; COMMIT");
+    raw.exec(std::string("BEGIN; ALTER TABLE session_records DROP COLUMN maps_busy_frames; ") + kUndoSchema18Sqlite +
+             "DELETE FROM schema_migrations WHERE version >= 17; PRAGMA user_version = 16; COMMIT");
   }
   AtlasStore store = AtlasStore::open(db.path(), test_vocabulary().hash());
   EXPECT_EQ(store.schema_version(), latest_schema_version());
