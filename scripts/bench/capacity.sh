@@ -197,19 +197,26 @@ for n in "${N_LIST[@]}"; do [ "$n" -gt "$MAX_N" ] && MAX_N=$n; done
 # two jobs at once; on two whole cores both give the same figures. A virtual
 # machine whose second core is shared with another tenant shows the two jobs
 # slower, and then live sessions are late more often with the same code
-# (docs/benchmarks.md, top). MACHINE_CHECK=0 skips it.
+# (docs/benchmarks.md, top). It names the host's CPU and the rectification's
+# time per stereo pair too: the VM has run on more than one kind of host, and
+# the memory-bound rectification took 0.8 ms a pair on one (AMD EPYC) and 1.6
+# ms on another (Intel Xeon) at the same ORB times (docs/performance.md).
+# MACHINE_CHECK=0 skips it.
 machine_check() {
   [ "${MACHINE_CHECK:-1}" = 0 ] && return 0
   local data
   data="$(dataset MH_01)"
-  orb() { "$OA" bench features --dataset "$data" --frames 300 2>&1 | sed -n 's/.*ORB extraction *p50 \([0-9.]*\) ms *p95 \([0-9.]*\) ms.*/\1\/\2/p'; }
-  local one two_a two_b
+  orb() { "$OA" bench features --dataset "$data" --frames 300 2>&1 | tee "$OUT/.machine_check_full${1:-}" | sed -n 's/.*ORB extraction *p50 \([0-9.]*\) ms *p95 \([0-9.]*\) ms.*/\1\/\2/p'; }
+  local one two_a two_b cpu rectification
+  cpu=$(sed -n 's/^model name[[:space:]]*: //p' /proc/cpuinfo | head -1)
   one=$(orb)
-  orb > "$OUT/.machine_check_a" &
-  two_b=$(orb)
+  rectification=$(sed -n 's/.*rectification *p50 \([0-9.]*\) ms.*/\1/p' "$OUT/.machine_check_full")
+  echo "machine check ($1): ${cpu:-unknown CPU}, $(nproc) cores; rectification p50 $rectification ms per pair (one job)" | tee -a "$OUT/machine_check.txt"
+  orb _a > "$OUT/.machine_check_a" &
+  two_b=$(orb _b)
   wait
   two_a=$(cat "$OUT/.machine_check_a")
-  rm -f "$OUT/.machine_check_a"
+  rm -f "$OUT/.machine_check_a" "$OUT"/.machine_check_full*
   echo "machine check ($1): ORB extraction p50/p95 [ms] one job $one; two jobs at once $two_a and $two_b" | tee -a "$OUT/machine_check.txt"
 }
 rm -f "$OUT/machine_check.txt"
