@@ -152,49 +152,35 @@ TEST_P(PersistenceInertial, LinksAndStatesRoundTripAndFollowCulling) {
     EXPECT_EQ(loaded.map(map->id())->inertial_state()->scale.accel.y(), 0.0042);
   }
 
-  // The IMU in the camera stored in part: the load fails with a DataError naming the link.
+  // Each of these stored values makes the load fail with a DataError saying what is wrong.
+  const auto expect_load_refused = [&](const std::string& what, const std::string& message) {
+    AtlasStore store = open_store(vocabulary.hash());
+    Atlas broken;
+    try {
+      store.load_atlas(broken, &vocabulary);
+      ADD_FAILURE() << what << " was loaded";
+    } catch (const DataError& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << what << ": " << e.what();
+    }
+  };
   const std::unique_ptr<SqlConnection> raw = raw_connection();
-  {
-    raw->exec("UPDATE keyframe_inertial_links SET c_i_tx = NULL WHERE keyframe_id = " + std::to_string(kfs[4]->id()));
-    AtlasStore store = open_store(vocabulary.hash());
-    Atlas broken;
-    try {
-      store.load_atlas(broken, &vocabulary);
-      FAIL() << "a link whose IMU-in-camera is stored in part was loaded";
-    } catch (const DataError& e) {
-      EXPECT_NE(std::string(e.what()).find("IMU in the camera is stored in part"), std::string::npos) << e.what();
-    }
-    raw->exec("UPDATE keyframe_inertial_links SET c_i_tx = 0.02 WHERE keyframe_id = " + std::to_string(kfs[4]->id()));
-  }
-  // A scale-factor correction that is not finite: the load fails with a DataError naming the map.
-  {
-    raw->prepare_statement("UPDATE map_inertial_states SET say = ?1 WHERE map_id = ?2")
-        ->bind_real(1, std::numeric_limits<double>::infinity())
-        .bind_int64(2, static_cast<std::int64_t>(map->id()))
-        .run();
-    AtlasStore store = open_store(vocabulary.hash());
-    Atlas broken;
-    try {
-      store.load_atlas(broken, &vocabulary);
-      FAIL() << "an infinite scale-factor correction was loaded";
-    } catch (const DataError& e) {
-      EXPECT_NE(std::string(e.what()).find("inertial state is not finite"), std::string::npos) << e.what();
-    }
-    raw->exec("UPDATE map_inertial_states SET say = 0.0042 WHERE map_id = " + std::to_string(map->id()));
-  }
-  // A corrupt increments blob: the load fails with a DataError naming the link.
+  // The IMU in the camera stored in part: the error names the link.
+  raw->exec("UPDATE keyframe_inertial_links SET c_i_tx = NULL WHERE keyframe_id = " + std::to_string(kfs[4]->id()));
+  expect_load_refused("a link whose IMU-in-camera is stored in part", "IMU in the camera is stored in part");
+  raw->exec("UPDATE keyframe_inertial_links SET c_i_tx = 0.02 WHERE keyframe_id = " + std::to_string(kfs[4]->id()));
+  // A scale-factor correction that is not finite: the error names the map's state.
+  raw->prepare_statement("UPDATE map_inertial_states SET say = ?1 WHERE map_id = ?2")
+      ->bind_real(1, std::numeric_limits<double>::infinity())
+      .bind_int64(2, static_cast<std::int64_t>(map->id()))
+      .run();
+  expect_load_refused("an infinite scale-factor correction", "inertial state is not finite");
+  raw->exec("UPDATE map_inertial_states SET say = 0.0042 WHERE map_id = " + std::to_string(map->id()));
+  // A corrupt increments blob: the error names the link.
   raw->prepare_statement("UPDATE keyframe_inertial_links SET increments = ?1 WHERE keyframe_id = ?2")
       ->bind_blob(1, std::string("\x00\x00\x80\x3f", 4))
       .bind_int64(2, static_cast<std::int64_t>(kfs[4]->id()))
       .run();
-  AtlasStore store = open_store(vocabulary.hash());
-  Atlas broken;
-  try {
-    store.load_atlas(broken, &vocabulary);
-    FAIL() << "a corrupt increments blob was loaded";
-  } catch (const DataError& e) {
-    EXPECT_NE(std::string(e.what()).find("inertial link"), std::string::npos) << e.what();
-  }
+  expect_load_refused("a corrupt increments blob", "inertial link");
 }
 
 // Schema 18 added the IMU's scale-factor correction to map_inertial_states: a
